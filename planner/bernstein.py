@@ -1,0 +1,76 @@
+"""Bernstein-basis polynomials, vectorized over the parameter and over coefficient arrays.
+
+A polynomial of degree n is stored as its n + 1 Bernstein coefficients along axis 0 (any trailing
+shape: scalars, 3-vectors, quaternions). Evaluation uses the de Casteljau-free Horner-like form
+through the basis matrix, which is exact to round-off on [0, 1].
+"""
+
+from __future__ import annotations
+
+from math import comb
+
+import numpy as np
+
+
+def basis(n: int, t: np.ndarray) -> np.ndarray:
+    """Bernstein basis B_{n,k}(t), shape (len(t), n + 1)."""
+    t = np.asarray(t, dtype=float)[..., None]
+    k = np.arange(n + 1)
+    binom = np.array([comb(n, j) for j in k], dtype=float)
+    return binom * t**k * (1.0 - t) ** (n - k)
+
+
+def evaluate(coeffs: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """Value of the polynomial with Bernstein coefficients ``coeffs`` (n+1, ...) at t (m,) -> (m, ...)."""
+    coeffs = np.asarray(coeffs, dtype=float)
+    b = basis(coeffs.shape[0] - 1, t)
+    return np.tensordot(b, coeffs, axes=(-1, 0))
+
+
+def derivative(coeffs: np.ndarray) -> np.ndarray:
+    """Bernstein coefficients (n, ...) of the derivative of a degree-n polynomial."""
+    coeffs = np.asarray(coeffs, dtype=float)
+    n = coeffs.shape[0] - 1
+    return n * np.diff(coeffs, axis=0)
+
+
+def antiderivative(coeffs: np.ndarray, c0: np.ndarray | float = 0.0) -> np.ndarray:
+    """Bernstein coefficients (n+2, ...) of the integral from 0, plus c0, of a degree-n polynomial."""
+    coeffs = np.asarray(coeffs, dtype=float)
+    n = coeffs.shape[0] - 1
+    zero = np.zeros((1,) + coeffs.shape[1:])
+    return np.asarray(c0, dtype=float) + np.concatenate((zero, np.cumsum(coeffs, axis=0) / (n + 1)))
+
+
+def product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Bernstein coefficients of the product of scalar polynomials a (m+1,) and b (n+1,), (m+n+1,)."""
+    a = np.asarray(a, dtype=float)
+    b = np.asarray(b, dtype=float)
+    m, n = a.shape[0] - 1, b.shape[0] - 1
+    out = np.zeros(m + n + 1)
+    for i in range(m + 1):
+        for j in range(n + 1):
+            out[i + j] += comb(m, i) * comb(n, j) / comb(m + n, i + j) * a[i] * b[j]
+    return out
+
+
+def elevate(coeffs: np.ndarray, r: int = 1) -> np.ndarray:
+    """Degree elevation by r of Bernstein coefficients (n+1, ...) -> (n+r+1, ...)."""
+    c = np.asarray(coeffs, dtype=float)
+    for _ in range(r):
+        n = c.shape[0] - 1
+        k = np.arange(1, n + 1).reshape((-1,) + (1,) * (c.ndim - 1)) / (n + 1)
+        mid = k * c[:-1] + (1 - k) * c[1:]
+        c = np.concatenate((c[:1], mid, c[-1:]))
+    return c
+
+
+def to_power(coeffs: np.ndarray) -> np.ndarray:
+    """Power-basis coefficients (lowest degree first) of a scalar Bernstein polynomial."""
+    c = np.asarray(coeffs, dtype=float)
+    n = c.shape[0] - 1
+    out = np.zeros(n + 1)
+    for k in range(n + 1):
+        for j in range(k + 1):
+            out[k] += comb(n, k) * comb(k, j) * (-1) ** (k - j) * c[j]
+    return out

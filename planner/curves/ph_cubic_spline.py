@@ -1,0 +1,96 @@
+"""The G1 PH cubic spline through waypoints (juttler seed, section 7.1).
+
+Each span between consecutive waypoints is the shortest PH cubic matching the points and the tangent
+directions there. Spans whose G1 data admit no PH cubic are split at the midpoint of the C2 cubic
+spline through the waypoints (point and tangent taken from it), repeatedly, until every piece has one:
+the user's waypoints are all interpolated and the extra knots are recorded in ``waypoint_index``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.interpolate import CubicHermiteSpline
+
+from planner.curves.ph_core import batch_sigma
+from planner.curves.ph_cubic import batch_g1
+from planner.curves.spline import PHSpline
+from planner.curves.tangents import chord_knots, cubic_spline_slopes
+from planner.errors import NoSolutionError
+from planner.validation import check_tangents, check_waypoints
+
+#: Maximum number of times one span between waypoints is halved looking for PH cubic data.
+MAX_SPLITS = 12
+
+
+def fit_ph_cubic_spline(waypoints, tangents=None, *, max_splits: int = MAX_SPLITS) -> PHSpline:
+    """G1 PH cubic spline through N >= 2 waypoints.
+
+    Parameters
+    ----------
+    waypoints : array_like (N, 3)
+        Points to pass through, metres.
+    tangents : array_like (N, 3), optional
+        Tangent directions at the waypoints (lengths ignored). Default: those of the not-a-knot C2
+        cubic spline through the waypoints with chord-length knots.
+    max_splits : int
+        How often one span may be halved where its data admit no PH cubic.
+
+    Returns
+    -------
+    PHSpline
+        Degree-3 segments; ``continuity`` "G1"; ``waypoint_index`` marks the user's waypoints among the
+        knots when spans were split.
+
+    Raises
+    ------
+    WaypointError
+        Bad waypoints or tangents (the message names the index).
+    NoSolutionError
+        A span still admits no PH cubic after ``max_splits`` halvings (names the span).
+    """
+    p = check_waypoints(waypoints)
+    u = chord_knots(p)
+    if tangents is None:
+        m = cubic_spline_slopes(u, p)
+    else:
+        d = check_tangents(tangents, p.shape[0])
+        m = d / np.linalg.norm(d, axis=1, keepdims=True)
+    guide = CubicHermiteSpline(u, p, m)  # where spans are split
+
+    knots, pts, tans = u, p, m
+    origin = np.arange(p.shape[0] - 1)  # waypoint span of each piece
+    A = np.zeros((p.shape[0] - 1, 2, 4))
+    todo = np.arange(p.shape[0] - 1)  # pieces still to solve
+    for level in range(max_splits + 1):
+        t_unit = tans / np.linalg.norm(tans, axis=1, keepdims=True)
+        dp = pts[todo + 1] - pts[todo]
+        cand, ok = batch_g1(dp, t_unit[todo], t_unit[todo + 1])
+        retry = ~ok.any(axis=1)
+        if retry.any():  # before splitting, look for solutions with many more starts
+            c2, ok2 = batch_g1(dp[retry], t_unit[todo[retry]], t_unit[todo[retry] + 1], dense=True)
+            cand = np.concatenate((cand, np.zeros((cand.shape[0], c2.shape[1] - cand.shape[1], 2, 4))), 1)
+            ok = np.concatenate((ok, np.zeros((ok.shape[0], ok2.shape[1] - ok.shape[1]), bool)), 1)
+            cand[retry], ok[retry] = c2, ok2
+        # per piece, the shortest solution: length = (sigma_0 + sigma_1 + sigma_2) / 3
+        length = np.where(ok, batch_sigma(cand).sum(axis=-1), np.inf)
+        A[todo] = cand[np.arange(todo.size), np.argmin(length, axis=1)]
+        bad = todo[~ok.any(axis=1)]
+        if bad.size == 0:
+            break
+        if level == max_splits:
+            k = int(origin[bad[0]])
+            raise NoSolutionError(
+                f"no PH cubic spline piece found between waypoints {k} and {k + 1} after {max_splits} "
+                "subdivisions (the tangent there turns too fast); use fit_ph_spline (PH quintics) instead"
+            )
+        mid = 0.5 * (knots[bad] + knots[bad + 1])
+        knots = np.insert(knots, bad + 1, mid)
+        pts = np.insert(pts, bad + 1, guide(mid), axis=0)
+        tans = np.insert(tans, bad + 1, guide(mid, 1), axis=0)
+        origin = np.insert(origin, bad + 1, origin[bad])
+        A = np.insert(A, bad + 1, 0.0, axis=0)
+        # the split pieces (old index b becomes b + j, its new half b + j + 1) are solved next
+        shifted = bad + np.arange(bad.size)
+        todo = np.sort(np.concatenate((shifted, shifted + 1)))
+    index = np.searchsorted(knots, u)
+    return PHSpline(A, pts[:-1], knots, "G1", 0, None if knots.size == u.size else index)

@@ -1,0 +1,294 @@
+"""Spatial Pythagorean-hodograph quintics from quadratic quaternion polynomials.
+
+A(t) = (1-t)^2 A0 + 2(1-t)t A1 + t^2 A2 (quaternions), hodograph r'(t) = A(t) i A*(t), speed
+sigma(t) = |A(t)|^2 (grm seed, sections 2.1-2.2). Everything here is exact polynomial algebra: the arc
+length is a quintic polynomial in t, so lengths and their inversion need no quadrature.
+
+The functions prefixed ``batch_`` work on stacks of quintics (A of shape (..., 3, 4)); the spline
+fitters use them to build thousands of segments at numpy speed. :class:`PHQuintic` is the
+one-segment view with the documented public API.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from planner import bernstein
+from planner import quaternion as qt
+from planner.curves.ph_core import (
+    arc_length_coeffs,
+    batch_control_points,
+    batch_hodograph,
+    batch_sigma,
+    curvature_torsion,
+    invert_arc_length,
+)
+from planner.errors import PlannerError
+from planner.validation import check_vector
+
+# ---------------------------------------------------------------------------------------------
+# C1 Hermite interpolation (Farouki's family with two free angles)
+# ---------------------------------------------------------------------------------------------
+
+_CC_GRID = 32
+
+
+def _cc_alpha_q(a0, a2, base, delta):
+    """alpha = Q i Q* and Q (phase 0) for phase offset delta = phi2 - phi0; shapes (N, 3), (N, 4)."""
+    a2d = qt.mul(a2, qt.exp_i(delta))  # a2 e^{i delta}
+    alpha = base + 10.0 * qt.i_product(a0, a2d)  # Farouki: (3A0+4A1+3A2) i (..)* = alpha
+    anorm = np.linalg.norm(alpha, axis=-1)
+    safe = np.where(anorm[..., None] > 0, alpha, np.array([1.0, 0.0, 0.0]))
+    return a2d, np.sqrt(anorm)[..., None] * qt.rotate_i_to(safe)
+
+
+class _CCMeasure:
+    """The CC measure of the Hermite family as a cheap trigonometric function of delta = phi2 - phi0.
+
+    min over phi0 of |5 (A0 + A2) - Q|^2 = 25 |X|^2 + |alpha| - 10 sqrt((|alpha| |X|^2 + <X i X*, alpha>) / 2)
+    with X = a0 + a2 e^{i delta}, because max_phi <X e^{i phi}, Q> = |(w0, w1)| for w = Q* X, and
+    w0^2 + w1^2 = (|w|^2 + (w i w*)_i) / 2 = (|alpha| |X|^2 + <X i X*, alpha>) / 2. Everything is a
+    trigonometric polynomial in delta with per-segment coefficients precomputed here.
+    """
+
+    def __init__(self, a0, a2, base, d0, d1):
+        Sc = qt.i_product(a0, a2)
+        a2i = qt.mul(a2, qt.I)
+        Ss = qt.i_product(a0, a2i)
+        e = d0 + d1
+        dot = qt.dot
+        bc, bs = dot(base, Sc), dot(base, Ss)
+        cc, cs, ss = dot(Sc, Sc), dot(Sc, Ss), dot(Ss, Ss)
+        z = np.zeros_like(cc)
+        # coefficients on the basis (1, c, s, c^2, c s, s^2) of |X|^2, |alpha|^2 and <X i X*, alpha>
+        self.X2 = np.stack((qt.norm2(a0) + qt.norm2(a2), 2 * dot(a0, a2), 2 * dot(a0, a2i), z, z, z), 1)
+        self.al2 = np.stack((dot(base, base), 20 * bc, 20 * bs, 100 * cc, 200 * cs, 100 * ss), 1)
+        ec, es = 10 * dot(e, Sc) + 2 * bc, 10 * dot(e, Ss) + 2 * bs
+        self.xa = np.stack((dot(e, base), ec, es, 20 * cc, 40 * cs, 20 * ss), 1)
+
+    @staticmethod
+    def _basis(delta):
+        c, s = np.cos(delta), np.sin(delta)
+        return np.stack((np.ones_like(c), c, s, c * c, c * s, s * s), axis=-2)
+
+    def on_grid(self, delta):
+        """Measure (N, K) at the same K values of delta (K,) for every segment (three matrix products)."""
+        b = self._basis(delta)
+        alpha = np.sqrt(np.maximum(self.al2 @ b, 0.0))
+        X2 = self.X2 @ b
+        return 25 * X2 + alpha - 10 * np.sqrt(np.maximum(0.5 * (alpha * X2 + self.xa @ b), 0.0))
+
+    def __call__(self, delta):
+        """Measure (N, K) at per-segment values delta (N, K)."""
+        b = self._basis(delta)  # (N, 6, K)
+        ev = lambda C: np.einsum("nj,njk->nk", C, b)  # noqa: E731
+        alpha = np.sqrt(np.maximum(ev(self.al2), 0.0))
+        X2 = ev(self.X2)
+        return 25 * X2 + alpha - 10 * np.sqrt(np.maximum(0.5 * (alpha * X2 + ev(self.xa)), 0.0))
+
+    def newton(self, delta, steps: int):
+        """Newton iterations on dF/d delta = 0, exact first and second derivatives; delta (N, m)."""
+        X, G_, H_ = (np.ascontiguousarray(C.T)[..., None] for C in (self.X2, self.al2, self.xa))
+        for _ in range(steps):
+            c, s = np.cos(delta), np.sin(delta)
+            cc, cs, ss = c * c, c * s, s * s
+            d1 = cc - ss  # basis (1, c, s, c^2, cs, s^2); first derivative (0, -s, c, -2cs, c^2-s^2, 2cs)
+            # second derivative (0, -c, -s, -2(c^2-s^2), -4cs, 2(c^2-s^2))
+            P = X[0] + X[1] * c + X[2] * s
+            P1 = X[2] * c - X[1] * s
+            P2 = -X[1] * c - X[2] * s
+            G = G_[0] + G_[1] * c + G_[2] * s + G_[3] * cc + G_[4] * cs + G_[5] * ss
+            G1 = G_[2] * c - G_[1] * s + 2 * cs * (G_[5] - G_[3]) + G_[4] * d1
+            G2 = -G_[1] * c - G_[2] * s + 2 * d1 * (G_[5] - G_[3]) - 4 * G_[4] * cs
+            H = H_[0] + H_[1] * c + H_[2] * s + H_[3] * cc + H_[4] * cs + H_[5] * ss
+            H1 = H_[2] * c - H_[1] * s + 2 * cs * (H_[5] - H_[3]) + H_[4] * d1
+            H2 = -H_[1] * c - H_[2] * s + 2 * d1 * (H_[5] - H_[3]) - 4 * H_[4] * cs
+            with np.errstate(all="ignore"):  # cusps of the measure (alpha or r = 0) give inf/nan
+                a = np.sqrt(np.maximum(G, 1e-300))  # alpha = sqrt(G) and its derivatives
+                a1 = G1 / (2 * a)
+                a2 = (G2 - 2 * a1 * a1) / (2 * a)
+                r = np.sqrt(np.maximum(0.5 * (a * P + H), 1e-300))  # r = sqrt(Y)
+                r1 = 0.25 * (a1 * P + a * P1 + H1) / r
+                r2 = (0.5 * (a2 * P + 2 * a1 * P1 + a * P2 + H2) - 2 * r1 * r1) / (2 * r)
+                F1 = 25 * P1 + a1 - 10 * r1
+                F2 = 25 * P2 + a2 - 10 * r2
+                convex = F2 > 0
+                step = np.where(convex, F1 / np.where(convex, F2, 1.0), 0.0)
+            step = np.where(np.isfinite(step), step, 0.0)
+            delta = delta - np.clip(step, -0.2, 0.2)
+        return delta
+
+
+def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
+    """Quaternion coefficients A (N, 3, 4) of PH quintics with r(0)=p0, r(1)=p1, r'(0)=d0, r'(1)=d1.
+
+    Inputs have shape (N, 3). With ``angles`` = (phi0, phi2) (scalars or (N,) arrays) the member
+    A0 = sqrt|d0| n(d0) e^{i phi0}, A2 = sqrt|d1| n(d1) e^{i phi2}, A1 = -(3/4)(A0 + A2) + Q/4 with
+    Q i Q* = 120 (p1 - p0) - 15 (d0 + d1) + 5 (A0 i A2* + A2 i A0*) and Q's phase fixed to 0 (the common
+    phase of A0, A1, A2 does not change the curve) is returned. With ``angles=None`` the member closest
+    to a PH cubic is chosen: the angles minimizing |A0 - 2 A1 + A2|^2 (the "CC" criterion of Farouki,
+    Giannelli, Manni, Sestini 2008; zero exactly when the ordinary cubic Hermite interpolant is PH, which
+    is then reproduced). Global over phi2 - phi0 (grid of 32, Newton from the two best), closed form in phi0.
+    """
+    p0, p1, d0, d1 = (np.asarray(x, dtype=float) for x in (p0, p1, d0, d1))
+    a0 = np.sqrt(np.linalg.norm(d0, axis=-1))[:, None] * qt.rotate_i_to(d0)
+    a2 = np.sqrt(np.linalg.norm(d1, axis=-1))[:, None] * qt.rotate_i_to(d1)
+    base = 120.0 * (p1 - p0) - 15.0 * (d0 + d1)
+    n = p0.shape[0]
+    if angles is None:
+        cc = _CCMeasure(a0, a2, base, d0, d1)
+        grid = np.arange(_CC_GRID) * (2 * np.pi / _CC_GRID)
+        Fg = cc.on_grid(grid)
+        two = np.argpartition(Fg, 1, axis=1)[:, :2]  # Newton from the two best grid points
+        cand = np.concatenate((grid[two], cc.newton(grid[two], 4)), axis=1)
+        delta = cand[np.arange(n), np.argmin(cc(cand), axis=1)]
+        a2d, Q = _cc_alpha_q(a0, a2, base, delta)
+        B = a0 + a2d  # A0 + A2 = B e^{i phi0}; phi0 maximizes <B e^{i phi0}, Q>
+        phi0 = np.arctan2(qt.dot(qt.mul(B, qt.I), Q), qt.dot(B, Q))
+        phi2 = phi0 + delta
+    else:
+        phi0 = np.broadcast_to(np.asarray(angles[0], dtype=float), (n,))
+        phi2 = np.broadcast_to(np.asarray(angles[1], dtype=float), (n,))
+        _, Q = _cc_alpha_q(qt.mul(a0, qt.exp_i(phi0)), a2, base, phi2)
+    A0 = qt.mul(a0, qt.exp_i(phi0))
+    A2 = qt.mul(a2, qt.exp_i(phi2))
+    A1 = -0.75 * (A0 + A2) + 0.25 * Q  # Farouki's solution of the end-point condition
+    return np.stack((A0, A1, A2), axis=-2)
+
+
+# ---------------------------------------------------------------------------------------------
+# Public one-segment class
+# ---------------------------------------------------------------------------------------------
+
+
+@dataclass(frozen=True, eq=False)
+class PHQuintic:
+    """A spatial PH quintic r(t), t in [0, 1], with hodograph r'(t) = A(t) i A*(t).
+
+    Parameters
+    ----------
+    A : ndarray (3, 4)
+        Bernstein coefficients A0, A1, A2 of the quadratic quaternion polynomial (scalar, i, j, k).
+    p0 : ndarray (3,)
+        Start point r(0) (metres).
+
+    All evaluation methods take a parameter array t of shape (n,) (or a scalar) and are vectorized.
+    """
+
+    A: np.ndarray
+    p0: np.ndarray
+
+    def __post_init__(self):
+        A = np.array(self.A, dtype=float)
+        if A.shape != (3, 4):
+            raise PlannerError(f"A must have shape (3, 4) (three quaternions), got {A.shape}")
+        if not np.isfinite(A).all():
+            raise PlannerError("A must be finite")
+        p0 = check_vector(self.p0, "p0")
+        A.setflags(write=False)
+        p0 = p0.copy()
+        p0.setflags(write=False)
+        object.__setattr__(self, "A", A)
+        object.__setattr__(self, "p0", p0)
+
+    # -- constructors ------------------------------------------------------------------------
+    @classmethod
+    def from_quaternions(cls, A0, A1, A2, p0=(0.0, 0.0, 0.0)) -> PHQuintic:
+        """The PH quintic with A(t) = (1-t)^2 A0 + 2(1-t)t A1 + t^2 A2 and r(0) = p0."""
+        return cls(np.array([A0, A1, A2], dtype=float), np.asarray(p0, dtype=float))
+
+    @classmethod
+    def hermite(cls, p0, p1, d0, d1, angles: tuple[float, float] | None = None) -> PHQuintic:
+        """C1 Hermite interpolant: r(0) = p0, r(1) = p1, r'(0) = d0, r'(1) = d1 (metres, metres/unit t).
+
+        The PH quintic interpolants form a two-parameter family (Farouki's free angles phi0, phi2).
+        ``angles=(phi0, phi2)`` (radians) selects a member explicitly; the default (None) picks the
+        member closest to a PH cubic (see :func:`batch_hermite`), which reproduces the ordinary cubic
+        Hermite interpolant whenever that is itself a PH curve.
+        """
+        p0 = check_vector(p0, "p0")
+        p1 = check_vector(p1, "p1")
+        d0 = check_vector(d0, "d0", nonzero=True)
+        d1 = check_vector(d1, "d1", nonzero=True)
+        if angles is not None:
+            angles = tuple(float(a) for a in angles)
+            if len(angles) != 2 or not np.isfinite(angles).all():
+                raise PlannerError(f"angles must be two finite numbers (phi0, phi2), got {angles}")
+        A = batch_hermite(p0[None], p1[None], d0[None], d1[None], angles)[0]
+        return cls(A, p0)
+
+    # -- polynomial data ---------------------------------------------------------------------
+    @cached_property
+    def hodograph_coeffs(self) -> np.ndarray:
+        """Bernstein coefficients (5, 3) of r'(t)."""
+        return batch_hodograph(self.A)
+
+    @cached_property
+    def control_points(self) -> np.ndarray:
+        """Bezier control points (6, 3) of r(t)."""
+        return batch_control_points(self.A, self.p0)
+
+    @cached_property
+    def sigma_coeffs(self) -> np.ndarray:
+        """Bernstein coefficients (5,) of the parametric speed sigma(t) = |r'(t)|."""
+        return batch_sigma(self.A)
+
+    @property
+    def length(self) -> float:
+        """Total arc length (metres), exact: (sigma_0 + ... + sigma_4) / 5."""
+        return float(self.sigma_coeffs.sum() / 5.0)
+
+    # -- evaluation --------------------------------------------------------------------------
+    def points(self, t) -> np.ndarray:
+        """Points r(t), shape (n, 3)."""
+        return bernstein.evaluate(self.control_points, np.atleast_1d(t))
+
+    def derivative(self, t, order: int = 1) -> np.ndarray:
+        """Derivative of the given order (1..5) with respect to t, shape (n, 3)."""
+        if not 1 <= order <= 5:
+            raise PlannerError(f"order must be 1..5, got {order}")
+        c = self.control_points
+        for _ in range(order):
+            c = bernstein.derivative(c)
+        return bernstein.evaluate(c, np.atleast_1d(t))
+
+    def speed(self, t) -> np.ndarray:
+        """Parametric speed sigma(t) = |r'(t)| (metres per unit t), shape (n,); a polynomial."""
+        return bernstein.evaluate(self.sigma_coeffs, np.atleast_1d(t))
+
+    def arc_length(self, t0=0.0, t1=1.0):
+        """Exact arc length from t0 to t1 (vectorized over either), metres."""
+        S = arc_length_coeffs(self.sigma_coeffs)
+        t0a, t1a = np.broadcast_arrays(np.asarray(t0, float), np.asarray(t1, float))
+        val = bernstein.evaluate(S, np.ravel(t1a)) - bernstein.evaluate(S, np.ravel(t0a))
+        return val.reshape(t0a.shape) if t0a.ndim else float(val[0])
+
+    def parameter_at_length(self, s) -> np.ndarray:
+        """Parameters t (n,) at arc lengths s (n,) measured from t = 0; s must lie in [0, length]."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        L = self.length
+        if not np.isfinite(s).all() or (s < -1e-12 * L).any() or (s > L * (1 + 1e-12)).any():
+            i = int(np.argmax(~np.isfinite(s) | (s < -1e-12 * L) | (s > L * (1 + 1e-12))))
+            raise PlannerError(f"arc length s[{i}] = {s[i]} is outside [0, {L}]")
+        sig = np.broadcast_to(self.sigma_coeffs, (s.shape[0], 5))
+        return invert_arc_length(sig, np.clip(s, 0.0, L))
+
+    def tangent(self, t) -> np.ndarray:
+        """Unit tangent r'/|r'|, shape (n, 3)."""
+        d = self.derivative(t)
+        return d / self.speed(t)[:, None]
+
+    def curvature(self, t) -> np.ndarray:
+        """Curvature (1/metres), shape (n,)."""
+        return curvature_torsion(self.derivative(t), self.derivative(t, 2), self.derivative(t, 3))[0]
+
+    def torsion(self, t) -> np.ndarray:
+        """Torsion (1/metres), shape (n,); 0 where the curvature vanishes."""
+        return curvature_torsion(self.derivative(t), self.derivative(t, 2), self.derivative(t, 3))[1]
+
+    def quaternion(self, t) -> np.ndarray:
+        """The quaternion polynomial A(t), shape (n, 4)."""
+        return bernstein.evaluate(self.A, np.atleast_1d(t))

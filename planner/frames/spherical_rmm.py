@@ -1,0 +1,286 @@
+"""Rotation-minimizing motion of a smooth curve z(t) on the unit sphere (Jüttler 1998, sec. 2 and 7.2).
+
+Use: the tool axis z(t) is prescribed (e.g. by CAD surface normals) and only the spin about it is
+free. Frames are (n, 3, 3) with column 2 = z(t); the RMM is the motion whose angular velocity is
+z x z' (seed Prop. 1, eq. 5), i.e. with no component along z.
+
+Exact construction: a reference motion that is the shortest-arc rotation from a base direction b
+to z(t), q(t) = (1 + b.z, b x z) / sqrt(2 (1 + b.z)), applied to a frame F_b on b, followed by a spin
+theta(t) about the moving axis. By eq. (3) the spin must cancel the reference's component along z,
+which is omega_ref . z = -b.(z x z') / (1 + b.z); so theta(t) = int b.(z x z') / (1 + b.z) dt. The
+integral is computed by adaptive composite Gauss-Legendre quadrature (panels refined until a panel's
+rule agrees with its two halves to 1e-14 rad), so the spin is exact to round-off level. The base b is
+renewed (b = z at the piece start, F_b = the frame there) before z gets farther than 120 degrees from
+it, which keeps 1 + b.z >= 1/2 away from the singularity z = -b.
+
+The rational approximation (seed secs. 5, 6) replaces z by a spherical biarc spline and takes the
+chain of Jüttler's rational arc motions.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner import quaternion as quat
+from planner.errors import ConvergenceError
+from planner.frames import validation as val
+from planner.frames.piecewise_motion import PiecewiseArcMotion
+from planner.frames.spherical_biarc import _call, fit_spherical_biarcs
+from planner.frames.validation import FrameDataError
+
+#: Gauss-Legendre order of each quadrature panel.
+GL_ORDER = 16
+#: Absolute accuracy (rad) asked of each panel.
+PANEL_TOL = 1e-14
+#: Largest angle (rad) between z and the base direction of its piece: 1 + b.z >= 1/2.
+MAX_BASE_ANGLE = 2.0 * np.pi / 3.0
+
+_GL_X, _GL_W = np.polynomial.legendre.leggauss(GL_ORDER)
+
+
+def _spin_rate(b: np.ndarray, z: np.ndarray, dz: np.ndarray) -> np.ndarray:
+    """theta' = b.(z x z') / (1 + b.z), (n,): minus the reference motion's spin about z (seed eq. 3)."""
+    return np.einsum("ij,ij->i", b, np.cross(z, dz)) / (1.0 + np.einsum("ij,ij->i", b, z))
+
+
+def _reference(b: np.ndarray, z: np.ndarray) -> np.ndarray:
+    """Unit quaternions (n, 4) of the shortest-arc rotations taking b to z."""
+    s = 1.0 + np.einsum("ij,ij->i", b, z)
+    q = np.concatenate((s[:, None], np.cross(b, z)), axis=1)
+    return q / np.sqrt(2.0 * s)[:, None]
+
+
+@dataclass(frozen=True, eq=False)
+class ExactSphericalRMM:
+    """The exact RMM of z(t) on [t0, t1], frames with column 2 = z(t).
+
+    Attributes
+    ----------
+    z, dz : callable
+        The curve (m,) -> (m, 3) (unit vectors) and its derivative.
+    pieces : ndarray (p + 1,)
+        Parameters where the base direction is renewed.
+    bases : ndarray (p, 3)
+        Base direction b of each piece (= z at the piece start).
+    base_quaternions : ndarray (p, 4)
+        Unit quaternions of the frames at the piece starts (signs continuous).
+    panels : ndarray (k + 1,)
+        Quadrature panel breakpoints (the pieces' breakpoints among them).
+    panel_piece : ndarray (k,)
+        Piece of each panel.
+    spin_start : ndarray (k,)
+        Spin theta (rad) at the start of each panel, relative to its piece's base frame.
+    """
+
+    z: Callable
+    dz: Callable
+    pieces: np.ndarray
+    bases: np.ndarray
+    base_quaternions: np.ndarray
+    panels: np.ndarray
+    panel_piece: np.ndarray
+    spin_start: np.ndarray
+
+    def _locate(self, t):
+        t = np.atleast_1d(np.asarray(t, dtype=float))
+        lo, hi = self.panels[0], self.panels[-1]
+        slack = 1e-12 * max(1.0, abs(lo), abs(hi))
+        bad = ~np.isfinite(t) | (t < lo - slack) | (t > hi + slack)
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise FrameDataError(f"= {t[i]!r} is outside the parameter range [{lo}, {hi}]", "t", i)
+        t = np.clip(t, lo, hi)
+        k = np.clip(np.searchsorted(self.panels, t, side="right") - 1, 0, self.panel_piece.shape[0] - 1)
+        return t, k
+
+    def spin(self, t) -> np.ndarray:
+        """Spin theta(t) (n,) (rad) about the axis, relative to the base frame of t's piece."""
+        t, k = self._locate(t)
+        return self._spin(t, k)
+
+    def _spin(self, t, k):
+        a = self.panels[k]
+        half = 0.5 * (t - a)
+        s = (a + half)[:, None] + half[:, None] * _GL_X  # Gauss-Legendre nodes on [a, t]
+        n, m = s.shape
+        flat = s.ravel()
+        zs = _call(self.z, flat, "z", True)
+        ds = _call(self.dz, flat, "dz", False)
+        b = np.repeat(self.bases[self.panel_piece[k]], m, axis=0)
+        f = _spin_rate(b, zs, ds).reshape(n, m)
+        return self.spin_start[k] + half * (f @ _GL_W)
+
+    def _eval(self, t):
+        t, k = self._locate(t)
+        piece = self.panel_piece[k]
+        b = self.bases[piece]
+        z = _call(self.z, t, "z", True)
+        theta = self._spin(t, k)
+        zero = np.zeros_like(theta)
+        spin = np.stack((np.cos(theta / 2), zero, zero, np.sin(theta / 2)), axis=1)
+        q = quat.mul(quat.mul(_reference(b, z), self.base_quaternions[piece]), spin)
+        return q, t, b, z
+
+    def quaternion(self, t) -> np.ndarray:
+        """Unit quaternions (n, 4) of the frames at t (n,), signs continuous."""
+        return self._eval(t)[0]
+
+    def frames(self, t) -> np.ndarray:
+        """Frames (n, 3, 3) at t (n,): column 2 = z(t), columns 0, 1 rotation-minimizing."""
+        return quat.to_matrix(self._eval(t)[0])
+
+    def angular_velocity(self, t) -> np.ndarray:
+        """Angular velocity (n, 3) (rad per unit t): omega_ref + theta' z (seed eq. 3); equals z x z'."""
+        _, t, b, z = self._eval(t)
+        dz = _call(self.dz, t, "dz", False)
+        s, v = 1.0 + np.einsum("ij,ij->i", b, z), np.cross(b, z)
+        ds, dv = np.einsum("ij,ij->i", b, dz), np.cross(b, dz)
+        # omega = 2 vec(p' p*) / |p|^2 for p = (s, v) (seed eq. 7), |p|^2 = 2 s
+        omega_ref = (s[:, None] * dv - ds[:, None] * v + np.cross(v, dv)) / s[:, None]
+        return omega_ref + _spin_rate(b, z, dz)[:, None] * z
+
+
+def _panel_rule(f: Callable, a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    half = 0.5 * (b - a)
+    s = (a + half)[:, None] + half[:, None] * _GL_X
+    return half * (f(s.ravel()).reshape(s.shape) @ _GL_W)
+
+
+def _check_derivative(z: Callable, dz: Callable, lo: float, hi: float) -> None:
+    """Compare dz with central differences of z at a few interior points; raise if they disagree."""
+    ts = lo + (hi - lo) * np.array([0.1123, 0.3571, 0.5, 0.6667, 0.8919])
+    h = 1e-6 * (hi - lo)
+    fd = (_call(z, ts + h, "z", True) - _call(z, ts - h, "z", True)) / (2 * h)
+    d = _call(dz, ts, "dz", False)
+    err = np.linalg.norm(fd - d, axis=1)
+    limit = 1e-5 * (np.linalg.norm(d, axis=1).max() + 1.0 / (hi - lo))
+    if (err > limit).any():
+        i = int(np.argmax(err > limit))
+        raise FrameDataError(f"does not match the derivative of z at t = {ts[i]!r} "
+                             f"(dz = {d[i]}, finite differences {fd[i]})", "dz")
+
+
+def exact_spherical_rmm(z: Callable, dz: Callable, start=None, *, interval: tuple[float, float] = (0.0, 1.0),
+                        max_panels: int = 1 << 16) -> ExactSphericalRMM:
+    """The exact rotation-minimizing motion of a smooth curve z(t) on the unit sphere.
+
+    Parameters
+    ----------
+    z : callable
+        t (m,) -> unit vectors (m, 3), the prescribed axis (e.g. the tool axis), C1 at least.
+    dz : callable
+        t (m,) -> (m, 3), the derivative of z (checked against finite differences at a few points).
+    start : array (3, 3), optional
+        Frame at t0: right-handed orthonormal with column 2 = z(t0). Default: the shortest-arc
+        rotation taking e1 to z(t0), columns shifted so that z is column 2.
+    interval : (float, float)
+        Parameter interval [t0, t1].
+    max_panels : int
+        Upper bound on the quadrature panels.
+
+    Returns
+    -------
+    ExactSphericalRMM
+        ``frames(t)``, ``quaternion(t)``, ``angular_velocity(t)`` (rad per unit t), ``spin(t)``.
+
+    Raises
+    ------
+    FrameDataError
+        Non-unit or non-finite z, dz inconsistent with z, bad start frame or interval.
+    ConvergenceError
+        If the spin integrand cannot be resolved (z not smooth).
+    """
+    lo, hi = (val.finite_scalar(v, "interval") for v in interval)
+    if not hi > lo:
+        raise FrameDataError(f"must satisfy t0 < t1, got {interval}", "interval")
+    _check_derivative(z, dz, lo, hi)
+    z0 = _call(z, np.array([lo]), "z", True)[0]
+    f0 = val.default_frame(z0, 2) if start is None else val.frame(start, "start", z0, 2)
+    q0 = val.matrix_to_quaternion(f0)
+
+    # pieces: renew the base before z is MAX_BASE_ANGLE away from it (checked on a fine grid)
+    grid = np.linspace(lo, hi, 4097)
+    zg = _call(z, grid, "z", True)
+    starts, j = [0], 0
+    while True:
+        far = np.flatnonzero(zg[j:] @ zg[j] < np.cos(MAX_BASE_ANGLE))
+        if far.size == 0:
+            break
+        j = j + max(int(far[0]) - 1, 1)
+        starts.append(j)
+    pieces = np.append(grid[starts], hi)
+    bases = zg[starts]
+
+    # adaptive Gauss-Legendre panels inside each piece, all pieces at once per level
+    a = np.concatenate([np.linspace(pieces[p], pieces[p + 1], 9)[:-1] for p in range(len(starts))])
+    b = np.concatenate([np.linspace(pieces[p], pieces[p + 1], 9)[1:] for p in range(len(starts))])
+    owner = np.repeat(np.arange(len(starts)), 8)
+    done_a, done_b, done_v, done_p = [], [], [], []
+    while a.size:
+        def rate(s, own=owner):
+            m = s.size // own.size
+            b_s = np.repeat(bases[own], m, axis=0)
+            return _spin_rate(b_s, _call(z, s, "z", True), _call(dz, s, "dz", False))
+
+        mid = 0.5 * (a + b)
+        whole = _panel_rule(rate, a, b)
+        halves = _panel_rule(rate, a, mid) + _panel_rule(rate, mid, b)
+        good = np.abs(whole - halves) <= PANEL_TOL * np.maximum(1.0, np.abs(halves))
+        done_a.append(a[good])
+        done_b.append(b[good])
+        done_v.append(halves[good])
+        done_p.append(owner[good])
+        bad = ~good
+        if bad.any() and ((b - a)[bad].min() < 1e-10 * (hi - lo) or sum(x.size for x in done_a) > max_panels):
+            i = int(np.flatnonzero(bad)[0])
+            raise ConvergenceError("exact spherical RMM: the spin integral does not converge near "
+                                   f"t = {a[i]:.9g}; is z smooth there?")
+        a, b, owner = (np.concatenate((a[bad], mid[bad])), np.concatenate((mid[bad], b[bad])),
+                       np.concatenate((owner[bad], owner[bad])))
+    a, b, v, own = (np.concatenate(x) for x in (done_a, done_b, done_v, done_p))
+    order = np.argsort(a)
+    a, b, v, own = a[order], b[order], v[order], own[order]
+    # spin at panel starts, restarted at 0 at each piece start
+    cum = np.concatenate(([0.0], np.cumsum(v)))
+    first_panel = np.searchsorted(a, pieces[:-1])
+    spin_start = cum[:-1] - cum[first_panel][own]
+
+    # frames at the piece starts: each piece starts from the end frame of the previous one
+    base_q = np.empty((len(starts), 4))
+    base_q[0] = q0
+    for p in range(1, len(starts)):
+        last = first_panel[p] - 1
+        theta = float(spin_start[last] + v[last])
+        spin = np.array([np.cos(theta / 2), 0.0, 0.0, np.sin(theta / 2)])
+        ref = _reference(bases[p - 1][None], bases[p][None])[0]
+        base_q[p] = quat.mul(quat.mul(ref, base_q[p - 1]), spin)
+    panels = np.append(a, b[-1])
+    return ExactSphericalRMM(z, dz, pieces, bases, base_q, panels, own, spin_start)
+
+
+def rational_spherical_rmm(z: Callable, dz: Callable | None = None, tol: float = 1e-4, start=None, *,
+                           interval: tuple[float, float] = (0.0, 1.0)) -> PiecewiseArcMotion:
+    """Jüttler's rational approximation of the RMM of z(t): biarc spline + rational arc motions.
+
+    Parameters
+    ----------
+    z, dz : callable
+        The curve on the unit sphere and (optionally) its derivative, as in :func:`exact_spherical_rmm`.
+    tol : float
+        Tolerance (rad) of the spherical biarc spline approximating z (seed sec. 5).
+    start : array (3, 3), optional
+        Frame at t0 with column 2 = z(t0).
+    interval : (float, float)
+        Parameter interval.
+
+    Returns
+    -------
+    PiecewiseArcMotion
+        Rational motion (degree 6 per arc) with column 2 on the biarc spline (within ``tol`` of z and
+        equal to z at the biarcs' Hermite knots); ``.exact()`` is the exact RMM of the biarc spline.
+    """
+    spline = fit_spherical_biarcs(z, tol, dz=dz, interval=interval)
+    return spline.rmm(start=start, axis_column=2)

@@ -1,0 +1,594 @@
+"""Reader of APT / CL data as CAM post-processors write it (NX CLSF, SOLIDWORKS CAM, Pro/CLfile, ...).
+
+Records and how they are read
+-----------------------------
+``GOTO/x,y,z[,i,j,k]``
+    A point; with six values also the tool axis (unit vector from the tip towards the spindle).
+    The axis is modal: a three-value GOTO inherits the last one (``Toolpath.axis_given`` tells which
+    points gave it). ``GOTO / x, y, z`` with spaces and compact numbers (``6.``, ``.9625``) are read.
+``RAPID`` or ``RAPID/``
+    The next motion only is a rapid (APT semantics: the last FEDRAT resumes afterwards).
+``FEDRAT/f``, ``FEDRAT/f,MMPM|IPM|MMPR|IPR``, ``FEDRAT/MMPM,f``
+    Feed, value first or unit first; without a unit word it is file units per minute. Per-revolution
+    feeds use the last SPINDL speed. Feeds are modal and hold per span (``Toolpath.feeds``).
+``UNITS/MM|INCH`` or ``UNIT/MM``
+    Length unit of what follows (before any: the ``units`` option, default mm).
+``MSYS/x0,y0,z0,xi,xj,xk,yi,yj,yk``
+    NX: the following CL data are in the MCS whose origin and X, Y axes are given in the absolute
+    frame. The reader maps points and axes to the absolute (part) frame: ``p = O + [X Y Z] p_mcs``.
+``CSYS/r11,r12,r13,t1,r21,...,t3``
+    A 3x4 matrix ``[R | t]`` (row by row) placing a local work-plane frame in the part frame. After
+    ``TRNTYP/WORLD`` (SOLIDWORKS CAM) the CL data are already in the part frame: the matrix is kept as
+    an event, is not applied, and only resets the modal tool axis to its local z axis ``R[:, 2]``
+    (the data bear this out: the file's six-value GOTOs and CIRCLE axes are in world axes and equal
+    that column). Without TRNTYP/WORLD the matrix is applied: ``p = R p_local + t``.
+    At every MSYS/CSYS the modal tool axis resets to the local +Z (APT's default tool axis).
+``CIRCLE/xc,yc,zc,i,j,k[,r,...]``
+    The following motion is an arc about the axis (right-hand rule) ending at the next GOTO; kept
+    as an :class:`~planner.io.toolpath.Arc` (or linearised when ``arc_tolerance`` is given).
+``FROM/x,y,z`` (start point, read as a rapid point), ``GODLTA/dx,dy,dz`` or ``GODLTA/d`` (along
+the tool axis)
+    Points relative to the current one.
+Events (kept, see :data:`~planner.io.toolpath.EVENT_KINDS`)
+    ``TOOL PATH/`` (operation), ``END-OF-PATH``, ``LOAD/TOOL``, ``LOADTL``, ``SELECT/TOOL``,
+    ``TLDATA``, ``CUTTER``, ``SPINDL``, ``COOLNT``, ``CUTCOM``, ``INSERT``, ``PPRINT``, ``PARTNO``,
+    ``MACHIN``, ``MULTAX``, ``TRNTYP``, ``CYCLE``, ``GOHOME``, ``CSI_SET_*`` and other ``CSI_*``
+    vendor records, ``STOP``, ``OPSTOP``, ``DELAY``, ``FINI`` (reading stops there).
+Ignored by design
+    ``PAINT/`` (display only), ``$$`` comments (to the end of the line; a comment ending in ``$``
+    swallows the numeric continuation lines after it, as Pro/CLfile writes commented-out records),
+    blank lines, a UTF-8 BOM, an NX "Information listing" header and the "Tool Path Listing has N
+    lines." trailer.
+Continuation
+    A record whose code ends with a single ``$`` continues on the next line.
+Anything else
+    Skipped with an :class:`~planner.io.errors.InputFileWarning` naming the line (the first few of
+    each kind, then a count). ``NURBS/`` motion is refused with an error: it cannot be skipped
+    without losing the path.
+
+Every malformed value raises :class:`~planner.io.errors.InputFileError` naming file, line and field.
+The reader streams the file line by line; memory grows with the number of points only.
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from planner.io._collect import (
+    AXIS_TOLERANCE,
+    PathCollector,
+    check_arcs,
+    open_lines,
+    parse_number,
+    source_name,
+    unit_scale,
+)
+from planner.io.errors import InputFileError, WarningLimiter
+from planner.io.toolpath import Event, Toolpath, linearize_arcs
+
+_FEED_UNITS = {  # feed word -> (length unit, per: "min", "s" or "rev")
+    "MMPM": ("mm", "min"),
+    "IPM": ("inch", "min"),
+    "MMPS": ("mm", "s"),
+    "IPS": ("inch", "s"),
+    "MMPR": ("mm", "rev"),
+    "IPR": ("inch", "rev"),
+}
+_LENGTH = {"mm": 1e-3, "inch": 0.0254}
+_UNIT_WORDS = {"MM": "mm", "INCH": "inch", "INCHES": "inch", "IN": "inch", "CM": "cm", "M": "m"}
+_MACHINE_WORDS = frozenset(
+    {"STOP", "OPSTOP", "OPSKIP", "DELAY", "CLRSRF", "AUTOPS", "CLAMP", "SEQNO", "END", "ORIGIN", "ROTABL",
+     "RETRCT", "PREFUN", "AUXFUN", "PITCH", "HEAD", "MODE", "SELCTL", "TOOLNO", "OPERATION"}
+)  # fmt: skip
+_NUMERIC_START = frozenset("0123456789+-.")
+
+
+class _Reader:
+    """State of one APT read; :meth:`run` is the streaming loop."""
+
+    def __init__(self, source: str, units: str, frames: str, axis_tolerance: float):
+        if frames not in ("auto", "none"):
+            raise ValueError(f"frames must be 'auto' or 'none', got {frames!r}")
+        self.source = source
+        self.units, self.scale = unit_scale(units)
+        self.default_units = self.units
+        self.frames = frames
+        self.axis_tolerance = axis_tolerance
+        self.out = PathCollector(source)
+        self.warn = WarningLimiter(source)
+        self.rapid_next = False
+        self.circle = None  # pending CIRCLE: (line, centre, axis, radius) in metres, CL frame
+        self.world = False  # TRNTYP/WORLD in effect
+        self.axis = (0.0, 0.0, 1.0)  # modal tool axis, CL frame (for GODLTA/d)
+        self.spindle_rps = math.nan  # rev/s, for per-revolution feeds
+        self.pieces = None  # physical lines of a continued record: [(line, text)]
+        self.finished = False
+        self.handlers = {
+            "GOTO": self.goto,
+            "RAPID": self.rapid,
+            "FEDRAT": self.fedrat,
+            "UNITS": self.units_record,
+            "UNIT": self.units_record,
+            "MULTAX": self.simple("multax"),
+            "MSYS": self.msys,
+            "CSYS": self.csys,
+            "TRNTYP": self.trntyp,
+            "CIRCLE": self.circle_record,
+            "PAINT": None,
+            "TLDATA": self.simple("tool_data"),
+            "CUTTER": self.simple("tool_data"),
+            "LOAD": self.tool("tool_change"),
+            "LOADTL": self.tool("tool_change"),
+            "SELECT": self.tool("tool_select"),
+            "SPINDL": self.spindl,
+            "COOLNT": self.simple("coolant"),
+            "CUTCOM": self.simple("cutcom"),
+            "INSERT": self.simple("insert", keep_body=True),
+            "PPRINT": self.simple("insert", keep_body=True),
+            "PARTNO": self.simple("partno", keep_body=True),
+            "MACHIN": self.simple("machine"),
+            "TOOL PATH": self.simple("operation"),
+            "END-OF-PATH": self.simple("operation_end"),
+            "CYCLE": self.cycle,
+            "GOHOME": self.simple("home"),
+            "FROM": self.from_record,
+            "GODLTA": self.godlta,
+            "FINI": self.fini,
+            "NURBS": self.nurbs,
+        }
+
+    # ------------------------------------------------------------------ helpers
+    def fail(self, line: int, field: str, problem: str, field_no: int | None = None):
+        """Raise InputFileError; for a continued record, name the physical line holding the field."""
+        if self.pieces and field_no is not None:
+            line = self._line_of_field(field_no, line)
+        raise InputFileError(self.source, line, field, problem)
+
+    def _line_of_field(self, field_no: int, default: int) -> int:
+        text = "".join(p for _, p in self.pieces)
+        pos = text.find("/")
+        if pos < 0:
+            return default
+        for _ in range(field_no - 1):
+            pos = text.find(",", pos + 1)
+            if pos < 0:
+                return default
+        acc = 0
+        for ln, piece in self.pieces:
+            acc += len(piece)
+            if pos + 1 < acc or (pos + 1 == acc and ln == self.pieces[-1][0]):
+                return ln
+        return self.pieces[-1][0]
+
+    def numbers(self, line: int, major: str, body: str, counts=None, first: int = 1) -> list[float]:
+        """All comma-separated fields of ``body`` as numbers (fields numbered from ``first``)."""
+        parts = body.split(",")
+        if counts is not None and len(parts) not in counts:
+            want = " or ".join(str(c) for c in sorted(counts))
+            self.fail(line, f"{major} record", f"has {len(parts)} values, expected {want}")
+        vals = []
+        for k, p in enumerate(parts, first):
+            field = f"field {k} of {major}"
+            try:
+                vals.append(parse_number(p, self.source, line, field))
+            except InputFileError as exc:
+                self.fail(line, field, exc.problem, k)
+        return vals
+
+    def add_point(self, line: int, x: float, y: float, z: float, rapid: bool = False) -> int:
+        out = self.out
+        k = out.count
+        out.xyz.extend((x, y, z))
+        out.lines.append(line)
+        if self.rapid_next or rapid:
+            out.rapid_idx.append(k)
+            self.rapid_next = False
+        if self.circle is not None:
+            self.end_circle(k)
+        return k
+
+    def end_circle(self, k: int) -> None:
+        line, centre, axis, radius = self.circle
+        self.circle = None
+        if k == 0:
+            self.fail(line, "CIRCLE record", "has no start point (no motion before it)")
+        self.out.add_arc(line, k, centre, axis, radius)
+
+    def last_point(self, line: int, major: str) -> tuple[float, float, float]:
+        n = self.out.count
+        if n == 0:
+            self.fail(line, f"{major} record", "is relative to the current position, but no point precedes it")
+        x = self.out.xyz
+        return x[3 * n - 3], x[3 * n - 2], x[3 * n - 1]
+
+    # ------------------------------------------------------------------ records
+    def goto(self, line: int, major: str, body: str) -> None:
+        vals = self.numbers(line, "GOTO", body)
+        if len(vals) not in (3, 6):
+            self.fail(line, "GOTO record", f"has {len(vals)} values, expected 3 (x,y,z) or 6 (x,y,z,i,j,k)")
+        s = self.scale
+        k = self.add_point(line, vals[0] * s, vals[1] * s, vals[2] * s)
+        if len(vals) == 6:
+            self.set_given_axis(k, vals[3], vals[4], vals[5], line)
+
+    def set_given_axis(self, k: int, i: float, j: float, kk: float, line: int) -> None:
+        self.out.set_axis(k, i, j, kk, True)
+        self.axis = (i, j, kk)
+
+    def rapid(self, line: int, major: str, body: str) -> None:
+        if body.strip():
+            self.warn.warn("RAPID arguments", line, f"RAPID/{body.strip()}: arguments ignored, next move is rapid")
+        self.rapid_next = True
+
+    def fedrat(self, line: int, major: str, body: str) -> None:
+        parts = [p.strip() for p in body.split(",")]
+        value, unit, per = None, None, None
+        for k, p in enumerate(parts, 1):
+            word = p.upper()
+            if word in _FEED_UNITS:
+                unit, per = _FEED_UNITS[word]
+            elif word in ("INVERS", "INVERSE"):
+                per = "inverse"
+            elif p and (p[0] in _NUMERIC_START):
+                if value is not None:
+                    self.fail(line, f"field {k} of FEDRAT", f"second feed value {p!r}", k)
+                value = self.numbers(line, "FEDRAT", p, first=k)[0]
+            else:
+                self.fail(line, f"field {k} of FEDRAT", f"{p!r} is neither a number nor a feed unit "
+                          f"({', '.join(_FEED_UNITS)})", k)  # fmt: skip
+        if value is None:
+            self.fail(line, "FEDRAT record", "has no feed value")
+        if not value > 0.0:
+            self.fail(line, "FEDRAT record", f"feed rate must be positive, got {value:g}")
+        length = _LENGTH[unit] if unit else self.scale
+        if per == "min" or per is None:
+            feed = value * length / 60.0
+        elif per == "s":
+            feed = value * length
+        elif per == "rev":
+            feed = value * length * self.spindle_rps
+            if not math.isfinite(feed):
+                self.warn.warn("FEDRAT per revolution", line, "feed per revolution before any spindle speed: "
+                               "feed unknown")  # fmt: skip
+        else:
+            feed = math.nan
+            self.warn.warn("FEDRAT/INVERS", line, "inverse-time feed is not converted: feed unknown")
+        self.out.set_feed(self.out.count, feed)
+
+    def units_record(self, line: int, major: str, body: str) -> None:
+        word = body.split(",")[0].strip().upper()
+        if word not in _UNIT_WORDS:
+            self.fail(line, f"field 1 of {major}", f"unknown unit {word!r} (expected MM or INCH)", 1)
+        self.units, self.scale = unit_scale(_UNIT_WORDS[word])
+        self.out.units_seen.append(self.units)
+        self.out.event("units", line, self.units, math.nan, f"{major}/{body.strip()}")
+
+    def msys(self, line: int, major: str, body: str) -> None:
+        v = self.numbers(line, "MSYS", body, counts=(9,))
+        x, y = np.array(v[3:6]), np.array(v[6:9])
+        self.check_axes(line, "MSYS", x, y, 4, 7)
+        x = x / np.linalg.norm(x)
+        y = y - (y @ x) * x
+        y /= np.linalg.norm(y)
+        rot = np.column_stack([x, y, np.cross(x, y)])
+        self.out.event("frame", line, "MSYS", math.nan, f"MSYS/{body.strip()}")
+        self.new_frame(rot, np.array(v[:3]) * self.scale, apply=True)
+
+    def check_axes(self, line: int, major: str, x, y, fx: int, fy: int) -> None:
+        tol = self.axis_tolerance
+        for vec, f in ((x, fx), (y, fy)):
+            if abs(np.linalg.norm(vec) - 1.0) > tol:
+                self.fail(line, f"fields {f}-{f + 2} of {major}", f"axis {tuple(vec)} is not a unit vector", f)
+        if abs(x @ y) > tol:
+            self.fail(line, f"fields {fx}-{fy + 2} of {major}", "X and Y axes are not perpendicular", fx)
+
+    def csys(self, line: int, major: str, body: str) -> None:
+        v = self.numbers(line, "CSYS", body, counts=(12,))
+        m = np.array(v).reshape(3, 4)
+        rot, org = m[:, :3], m[:, 3]
+        err = np.abs(rot.T @ rot - np.eye(3)).max()
+        if err > self.axis_tolerance or np.linalg.det(rot) <= 0.0:
+            self.fail(line, "CSYS matrix", "the 3x3 part is not a rotation (orthonormal, determinant +1)")
+        u, _, vt = np.linalg.svd(rot)
+        rot = u @ vt
+        self.out.event("frame", line, "CSYS", math.nan, f"CSYS/{body.strip()}")
+        self.new_frame(rot, org * self.scale, apply=not self.world)
+
+    def new_frame(self, rot: np.ndarray, org: np.ndarray, apply: bool) -> None:
+        """Start a frame at the next point; the modal tool axis resets to the frame's local +Z."""
+        k = self.out.count
+        if not apply:
+            # TRNTYP/WORLD: the data are in part axes already; the local z axis, in part axes, is the
+            # modal tool axis.
+            if self.frames == "auto":
+                self.out.set_frame(k, np.eye(3), np.zeros(3))
+            self.axis = tuple(float(c) for c in rot[:, 2])
+        else:
+            if self.frames == "auto":
+                self.out.set_frame(k, rot, org)
+            self.axis = (0.0, 0.0, 1.0)  # local +Z; the frame maps it at the end
+        self.out.set_axis(k, *self.axis, False)
+
+    def trntyp(self, line: int, major: str, body: str) -> None:
+        word = body.split(",")[0].strip().upper()
+        self.world = word == "WORLD"
+        self.out.event("frame", line, "TRNTYP/" + word, math.nan, f"TRNTYP/{body.strip()}")
+
+    def circle_record(self, line: int, major: str, body: str) -> None:
+        v = self.numbers(line, "CIRCLE", body)
+        if len(v) < 6:
+            self.fail(line, "CIRCLE record", f"has {len(v)} values, expected at least 6 (xc,yc,zc,i,j,k)")
+        if self.circle is not None:
+            self.fail(self.circle[0], "CIRCLE record", f"has no end point (the next motion record is the "
+                      f"CIRCLE at line {line})")  # fmt: skip
+        axis = np.array(v[3:6])
+        norm = float(np.linalg.norm(axis))
+        if abs(norm - 1.0) > self.axis_tolerance:
+            self.fail(line, "fields 4-6 of CIRCLE", f"axis {tuple(v[3:6])} is not a unit vector "
+                      f"(length {norm:.9g})", 4)  # fmt: skip
+        radius = v[6] * self.scale if len(v) > 6 else math.nan
+        if len(v) > 6 and not v[6] > 0.0:
+            self.fail(line, "field 7 of CIRCLE", f"radius must be positive, got {v[6]:g}", 7)
+        s = self.scale
+        self.circle = (line, (v[0] * s, v[1] * s, v[2] * s), tuple(axis / norm), radius)
+
+    def simple(self, kind: str, keep_body: bool = False):
+        def handler(line: int, major: str, body: str) -> None:
+            b = body.strip()
+            if keep_body:
+                name = b
+            else:
+                name = b.split(",")[0].strip() if b else major
+            text = f"{major}/{b}" if b else major
+            self.out.event(kind, line, name, math.nan, text)
+
+        return handler
+
+    def tool(self, kind: str):
+        def handler(line: int, major: str, body: str) -> None:
+            number = math.nan
+            for k, p in enumerate(body.split(","), 1):
+                p = p.strip()
+                if p and p[0] in _NUMERIC_START:
+                    number = self.numbers(line, major, p, first=k)[0]
+                    break
+            self.out.event(kind, line, body.strip(), number, f"{major}/{body.strip()}")
+
+        return handler
+
+    def spindl(self, line: int, major: str, body: str) -> None:
+        parts = [p.strip() for p in body.split(",")]
+        words = [p.upper() for p in parts if p and p[0] not in _NUMERIC_START]
+        nums = [(k, p) for k, p in enumerate(parts, 1) if p and p[0] in _NUMERIC_START]
+        speed = math.nan
+        if "OFF" in words:
+            speed = 0.0
+        elif nums and "SFM" not in words and "SMM" not in words:
+            k, p = nums[0]
+            rpm = self.numbers(line, major, p, first=k)[0]
+            speed = rpm * 2.0 * math.pi / 60.0
+            self.spindle_rps = rpm / 60.0
+        self.out.event("spindle", line, ",".join(words), speed, f"{major}/{body.strip()}")
+
+    def cycle(self, line: int, major: str, body: str) -> None:
+        word = body.split(",")[0].strip().upper()
+        self.out.event("cycle", line, word, math.nan, f"CYCLE/{body.strip()}")
+        if word != "OFF":
+            self.warn.warn("CYCLE", line, "canned cycle kept as an event: the GOTOs that follow are hole "
+                           "positions, not a path")  # fmt: skip
+
+    def from_record(self, line: int, major: str, body: str) -> None:
+        v = self.numbers(line, major, body)
+        if len(v) not in (3, 6):
+            self.fail(line, "FROM record", f"has {len(v)} values, expected 3 or 6")
+        s = self.scale
+        k = self.add_point(line, v[0] * s, v[1] * s, v[2] * s, rapid=True)
+        if len(v) == 6:
+            self.set_given_axis(k, v[3], v[4], v[5], line)
+
+    def godlta(self, line: int, major: str, body: str) -> None:
+        v = self.numbers(line, major, body, counts=(1, 3))
+        x, y, z = self.last_point(line, major)
+        s = self.scale
+        if len(v) == 1:
+            a = np.array(self.axis, dtype=float)
+            d = a / np.linalg.norm(a) * v[0] * s
+        else:
+            d = np.array(v) * s
+        self.add_point(line, x + d[0], y + d[1], z + d[2])
+
+    def fini(self, line: int, major: str, body: str) -> None:
+        self.out.event("end", line, "FINI", math.nan, "FINI")
+        self.finished = True
+
+    def nurbs(self, line: int, major: str, body: str) -> None:
+        self.fail(line, "NURBS record", "NURBS motion is not supported: post the operation with linear "
+                  "output (GOTO points) instead")  # fmt: skip
+
+    def other(self, line: int, major: str, body: str) -> None:
+        b = body.strip()
+        text = f"{major}/{b}" if b else major
+        if major.startswith("CSI_") or major in _MACHINE_WORDS:
+            self.out.event("machine", line, major, math.nan, text)
+            return
+        shown = text if len(text) <= 60 else text[:57] + "..."
+        self.warn.warn(f"'{major}' records", line, f"unknown record {shown!r} skipped")
+
+    # ------------------------------------------------------------------ dispatch
+    def record(self, line: int, text: str) -> None:
+        head, sep, body = text.partition("/")
+        major = " ".join(head.split()).upper() if sep else " ".join(text.split()).upper()
+        if not major:
+            if text.strip():
+                self.fail(line, "record", f"{text.strip()!r} has no major word before '/'")
+            return
+        if not sep:
+            body = ""
+        handler = self.handlers.get(major, self.other)
+        if handler is not None:
+            handler(line, major, body)
+
+    def run(self, lines) -> None:
+        out = self.out
+        xyz_extend = out.xyz.extend
+        lines_append = out.lines.append
+        comment_cont = False
+        pending: list[tuple[int, str]] | None = None
+        lineno = 0
+        it = enumerate(lines, 1)
+        for lineno, raw in it:
+            # Hot path: the common single-line "GOTO/x,y,z" with no comment, continuation or rapid.
+            if (
+                raw.startswith("GOTO/")
+                and pending is None
+                and "$" not in raw
+                and "_" not in raw
+                and not self.rapid_next
+                and self.circle is None
+            ):
+                comment_cont = False
+                parts = raw[5:].split(",")
+                if len(parts) == 3:
+                    try:
+                        x, y, z = float(parts[0]), float(parts[1]), float(parts[2])
+                    except ValueError:
+                        pass
+                    else:
+                        s = self.scale
+                        xyz_extend((x * s, y * s, z * s))
+                        lines_append(lineno)
+                        continue
+                elif len(parts) == 6:
+                    try:
+                        v = [float(p) for p in parts]
+                    except ValueError:
+                        pass
+                    else:
+                        s = self.scale
+                        k = len(out.lines)
+                        xyz_extend((v[0] * s, v[1] * s, v[2] * s))
+                        lines_append(lineno)
+                        self.set_given_axis(k, v[3], v[4], v[5], lineno)
+                        continue
+                self.pieces = None
+                self.record(lineno, raw.strip())
+                continue
+            text = raw.rstrip("\r\n")
+            if lineno == 1 and text.startswith("Information listing created by"):
+                self.skip_listing_header(it, text)
+                continue
+            if comment_cont:
+                s = text.lstrip()
+                if s and s[0] in _NUMERIC_START:
+                    comment_cont = text.rstrip().endswith("$")
+                    continue
+                comment_cont = False
+            if "$" in text:
+                cut = text.find("$$")
+                code = text if cut < 0 else text[:cut]
+                c = code.rstrip()
+                if c.endswith("$"):
+                    if pending is None:
+                        pending = []
+                    pending.append((lineno, c[:-1]))
+                    continue
+                if cut >= 0 and not code.strip() and pending is None:
+                    comment_cont = text.rstrip().endswith("$")
+                    continue
+                text = code
+            if pending is not None:
+                pending.append((lineno, text))
+                self.pieces = pending
+                start = pending[0][0]
+                joined = "".join(p for _, p in pending)
+                pending = None
+                self.record(start, joined.strip())
+                self.pieces = None
+            else:
+                stripped = text.strip()
+                if not stripped:
+                    continue
+                if stripped.startswith("Tool Path Listing has "):
+                    self.out.event("listing", lineno, "trailer", math.nan, stripped)
+                    continue
+                self.record(lineno, stripped)
+            if self.finished:
+                self.after_fini(it)
+                break
+        if pending is not None:
+            self.fail(pending[0][0], "record", "continuation ('$') at the end of the file: record incomplete")
+        if self.circle is not None:
+            self.fail(self.circle[0], "CIRCLE record", "has no end point (no GOTO follows it)")
+
+    def skip_listing_header(self, it, first: str) -> None:
+        """Skip an NX 'Information listing' header: its lines up to the first blank line."""
+        header = [first]
+        for _, raw in it:
+            if not raw.strip():
+                break
+            header.append(raw.strip())
+        self.out.events.append(Event("listing", 1, 0, "header", math.nan, " | ".join(header)))
+
+    def after_fini(self, it) -> None:
+        extra = [n for n, raw in it if raw.strip()]
+        if extra:
+            self.warn.warn("records after FINI", extra[0], f"{len(extra)} non-blank line(s) after FINI ignored")
+
+
+def read_apt(
+    src,
+    *,
+    units: str = "mm",
+    frames: str = "auto",
+    arc_tolerance: float | None = None,
+    axis_tolerance: float = AXIS_TOLERANCE,
+    source: str | None = None,
+) -> Toolpath:
+    """Read APT / CL data (``.apt``, ``.cls``, ``.cl``, ``.ncl``) into a :class:`Toolpath`.
+
+    Parameters
+    ----------
+    src : str, os.PathLike or text stream
+        The file, or an open text stream.
+    units : {"mm", "inch", "m"}, default "mm"
+        Length unit before the file's first UNITS record.
+    frames : {"auto", "none"}, default "auto"
+        "auto" applies MSYS, and CSYS unless TRNTYP/WORLD (see the module notes), so points and axes
+        are in the part frame; "none" keeps the coordinates exactly as written (frames stay events).
+    arc_tolerance : float or None, default None
+        None keeps each CIRCLE as an :class:`~planner.io.toolpath.Arc` event between its start point
+        and its end GOTO; a length in metres inserts chord points within that tolerance instead
+        (see :func:`~planner.io.toolpath.linearize_arcs`, whose documented default is 1e-5 m).
+    axis_tolerance : float, default 1e-3
+        Largest accepted ``| |(i,j,k)| - 1 |`` of a tool axis before it is renormalised.
+    source : str, optional
+        Name used in messages (default: the file's base name).
+
+    Returns
+    -------
+    Toolpath
+        Points in metres in the part frame, modal tool axes, per-span feeds (m/s), rapid flags, source
+        lines and events.
+
+    Raises
+    ------
+    InputFileError
+        A malformed record: the message names the file, the line and the field.
+
+    Warns
+    -----
+    InputFileWarning
+        An unknown record skipped (naming its line) or a value read under an assumption.
+    """
+    name = source_name(src, source)
+    reader = _Reader(name, units, frames, axis_tolerance)
+    with open_lines(src) as lines:
+        reader.run(lines)
+    tp = reader.out.finish(reader.default_units, axis_tolerance=axis_tolerance)
+    check_arcs(tp, reader.warn)
+    reader.warn.flush()
+    if arc_tolerance is not None:
+        tp = linearize_arcs(tp, arc_tolerance)
+    return tp

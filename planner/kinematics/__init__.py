@@ -1,0 +1,45 @@
+"""UR robot kinematics: models, forward and closed-form inverse kinematics, reachability checks.
+
+Poses are ``p[x, y, z, rx, ry, rz]`` (m, rotation vector) of the tool in the robot base frame;
+joint vectors are ``q[base, shoulder, elbow, wrist 1, wrist 2, wrist 3]`` in rad.
+"""
+
+from planner.kinematics.errors import UnreachableError
+from planner.kinematics.forward import forward, forward_matrix, link_frames, matrix_to_pose, pose_to_matrix
+from planner.kinematics.inverse import IKSolutions, inverse, inverse_batch, inverse_path, wrap_angle
+from planner.kinematics.reachability import (
+    ReachabilityReport,
+    Violation,
+    check_poses,
+    check_reachability,
+    feed_scale,
+    feed_scale_profile,
+    joint_speeds,
+)
+from planner.kinematics.ur_models import MODELS, UnknownModelError, URModel, get_model, model_names
+
+__all__ = [
+    "MODELS",
+    "IKSolutions",
+    "ReachabilityReport",
+    "URModel",
+    "UnknownModelError",
+    "UnreachableError",
+    "Violation",
+    "check_poses",
+    "check_reachability",
+    "feed_scale",
+    "feed_scale_profile",
+    "forward",
+    "forward_matrix",
+    "get_model",
+    "inverse",
+    "inverse_batch",
+    "inverse_path",
+    "joint_speeds",
+    "link_frames",
+    "matrix_to_pose",
+    "model_names",
+    "pose_to_matrix",
+    "wrap_angle",
+]

@@ -1,0 +1,32 @@
+"""Input validation shared by the kinematics modules: shapes and finite values, with the place named."""
+
+from __future__ import annotations
+
+import numpy as np
+
+from planner.errors import PlannerError
+
+
+def rows_of_six(value, name: str, *, allow_nan_rows: bool = False) -> tuple[np.ndarray, bool]:
+    """Return ``value`` as a float array (n, 6) and whether it was a single row (6,).
+
+    Raises a :class:`PlannerError` naming ``name``, the row and the column of the first bad entry.
+    With ``allow_nan_rows``, rows that are entirely NaN pass (they mark "no value" samples).
+    """
+    try:
+        arr = np.asarray(value, dtype=float)
+    except (TypeError, ValueError) as exc:
+        raise PlannerError(f"{name}: expected numbers of shape (6,) or (n, 6): {exc}") from None
+    single = arr.ndim == 1
+    if single:
+        arr = arr[None, :]
+    if arr.ndim != 2 or arr.shape[1] != 6:
+        raise PlannerError(f"{name}: expected shape (6,) or (n, 6), got {np.shape(value)}")
+    bad = ~np.isfinite(arr)
+    if allow_nan_rows:
+        bad &= ~np.isnan(arr).all(axis=1, keepdims=True)
+    if bad.any():
+        row, col = np.argwhere(bad)[0]
+        where = f"{name}[{col}]" if single else f"{name}[{row}, {col}] (row {row})"
+        raise PlannerError(f"{where} is {arr[row, col]}; every value must be finite")
+    return arr, single

@@ -1,0 +1,191 @@
+"""Forward kinematics of UR arms from their standard DH table, vectorized over many joint vectors.
+
+Poses follow the UR convention ``p[x, y, z, rx, ry, rz]``: position in metres and rotation vector
+(axis times angle, rad) of the tool frame in the robot base frame.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from planner.errors import PlannerError
+from planner.kinematics._checks import rows_of_six
+from planner.kinematics.ur_models import DH_COS_ALPHA, DH_SIN_ALPHA, URModel, get_model
+
+__all__ = ["forward", "forward_matrix", "link_frames", "pose_to_matrix", "matrix_to_pose"]
+
+
+def dh_link(theta: np.ndarray, d: float, a: float, sin_alpha: float, cos_alpha: float) -> np.ndarray:
+    """Standard DH link transform Rz(theta) Tz(d) Tx(a) Rx(alpha), shape theta.shape + (4, 4)."""
+    theta = np.asarray(theta, dtype=float)
+    c, s = np.cos(theta), np.sin(theta)
+    zero, one = np.zeros_like(c), np.ones_like(c)
+    # Standard DH matrix (Denavit & Hartenberg 1955; UR article cited in ur_models).
+    rows = (
+        c, -s * cos_alpha, s * sin_alpha, a * c,
+        s, c * cos_alpha, -c * sin_alpha, a * s,
+        zero, zero + sin_alpha, zero + cos_alpha, zero + d,
+        zero, zero, zero, one,
+    )
+    return np.stack(rows, axis=-1).reshape(theta.shape + (4, 4))
+
+
+def pose_to_matrix(pose) -> np.ndarray:
+    """Homogeneous transform(s) of UR pose(s).
+
+    Parameters
+    ----------
+    pose : array_like, shape (6,) or (n, 6)
+        ``[x, y, z, rx, ry, rz]`` in m and rad (rotation vector).
+
+    Returns
+    -------
+    ndarray, shape (4, 4) or (n, 4, 4)
+    """
+    arr, single = rows_of_six(pose, "pose")
+    T = np.zeros((len(arr), 4, 4))
+    T[:, :3, :3] = Rotation.from_rotvec(arr[:, 3:]).as_matrix()
+    T[:, :3, 3] = arr[:, :3]
+    T[:, 3, 3] = 1.0
+    return T[0] if single else T
+
+
+def matrix_to_pose(T) -> np.ndarray:
+    """UR pose(s) ``[x, y, z, rx, ry, rz]`` of homogeneous transform(s) (4, 4) or (n, 4, 4).
+
+    The rotation vector has angle in [0, pi] (scipy's convention).
+    """
+    T = np.asarray(T, dtype=float)
+    if T.shape[-2:] != (4, 4) or T.ndim not in (2, 3):
+        raise PlannerError(f"transform: expected shape (4, 4) or (n, 4, 4), got {T.shape}")
+    single = T.ndim == 2
+    T = T[None] if single else T
+    pose = np.empty((len(T), 6))
+    pose[:, :3] = T[:, :3, 3]
+    pose[:, 3:] = Rotation.from_matrix(T[:, :3, :3]).as_rotvec()
+    return pose[0] if single else pose
+
+
+def link_frames(model: str | URModel, q) -> np.ndarray:
+    """Frames of DH links 0..6 in the base frame.
+
+    Parameters
+    ----------
+    model : str or URModel
+    q : array_like, shape (6,) or (n, 6)
+        Joint positions in rad.
+
+    Returns
+    -------
+    ndarray, shape (7, 4, 4) or (n, 7, 4, 4)
+        Frame 0 is the base (identity), frame 6 the tool flange.
+    """
+    m = get_model(model)
+    q, single = rows_of_six(q, "q")
+    frames = np.empty((len(q), 7, 4, 4))
+    frames[:, 0] = np.eye(4)
+    d, a = m.d, m.a
+    for i in range(6):  # six links, each vectorized over the n joint vectors
+        frames[:, i + 1] = frames[:, i] @ dh_link(q[:, i], d[i], a[i], DH_SIN_ALPHA[i], DH_COS_ALPHA[i])
+    return frames[0] if single else frames
+
+
+def flange_rp(m: URModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Flange rotation (n, 3, 3) and position (n, 3) of validated joints q (n, 6), in closed form.
+
+    The DH product T01 T14 T46 written out: in frame 1 (x1 = (c1, s1, 0), y1 = (0, 0, 1),
+    z1 = (s1, -c1, 0)) the flange axes are x6 = (c5 c6 c234 - s6 s234, c5 c6 s234 + s6 c234, s5 c6),
+    y6 = (-c5 s6 c234 - c6 s234, -c5 s6 s234 + c6 c234, -s5 s6), z6 = (-s5 c234, -s5 s234, c5) and the
+    origin is (a2 c2 + a3 c23 - d6 s5 c234 + d5 s234, a2 s2 + a3 s23 - d6 s5 s234 - d5 c234, d4 + d6 c5).
+    """
+    c1, s1 = np.cos(q[:, 0]), np.sin(q[:, 0])
+    q23 = q[:, 1] + q[:, 2]
+    q234 = q23 + q[:, 3]
+    c5, s5 = np.cos(q[:, 4]), np.sin(q[:, 4])
+    c6, s6 = np.cos(q[:, 5]), np.sin(q[:, 5])
+    c234, s234 = np.cos(q234), np.sin(q234)
+    # Axes and origin in frame 1 (closed form of the standard DH chain, see docstring).
+    x = np.stack([c5 * c6 * c234 - s6 * s234, c5 * c6 * s234 + s6 * c234, s5 * c6], axis=-1)
+    y = np.stack([-c5 * s6 * c234 - c6 * s234, -c5 * s6 * s234 + c6 * c234, -s5 * s6], axis=-1)
+    z = np.stack([-s5 * c234, -s5 * s234, c5], axis=-1)
+    o = np.stack(
+        [
+            m.a2 * np.cos(q[:, 1]) + m.a3 * np.cos(q23) - m.d6 * s5 * c234 + m.d5 * s234,
+            m.a2 * np.sin(q[:, 1]) + m.a3 * np.sin(q23) - m.d6 * s5 * s234 - m.d5 * c234,
+            m.d4 + m.d6 * c5,
+        ],
+        axis=-1,
+    )
+    # Frame 1 to base: v0 = v1x x1 + v1y y1 + v1z z1 (origin of frame 1 at (0, 0, d1)).
+    c1, s1 = c1[:, None], s1[:, None]
+
+    def to_base(v: np.ndarray) -> np.ndarray:
+        vx, vy, vz = v[:, :1], v[:, 1:2], v[:, 2:]
+        return np.concatenate([c1 * vx + s1 * vz, s1 * vx - c1 * vz, vy], axis=1)
+
+    R = np.stack([to_base(x), to_base(y), to_base(z)], axis=-1)
+    p = to_base(o)
+    p[:, 2] += m.d1
+    return R, p
+
+
+def _chain(m: URModel, q: np.ndarray) -> np.ndarray:
+    """Flange transforms (n, 4, 4) of validated joints q (n, 6)."""
+    R, p = flange_rp(m, q)
+    T = np.zeros((len(q), 4, 4))
+    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, p, 1.0
+    return T
+
+
+def _tcp_matrix(tcp) -> np.ndarray | None:
+    if tcp is None:
+        return None
+    arr, single = rows_of_six(tcp, "tcp")
+    if not single:
+        raise PlannerError(f"tcp: expected one pose of shape (6,), got shape {np.shape(tcp)}")
+    return pose_to_matrix(arr[0])
+
+
+def forward_matrix(model: str | URModel, q, tcp=None) -> np.ndarray:
+    """Tool transform(s) in the base frame.
+
+    Parameters
+    ----------
+    model : str or URModel
+        ``"ur3e"``, ``"ur5e"``, ``"ur10e"``, ``"ur16e"``, ``"ur20"`` or a :class:`URModel`.
+    q : array_like, shape (6,) or (n, 6)
+        Joint positions in rad.
+    tcp : array_like, shape (6,), optional
+        Tool-centre-point offset as a pose in the flange frame (m, rotation vector); default: the
+        flange itself.
+
+    Returns
+    -------
+    ndarray, shape (4, 4) or (n, 4, 4)
+    """
+    m = get_model(model)
+    q, single = rows_of_six(q, "q")
+    T = _chain(m, q)
+    tcp_T = _tcp_matrix(tcp)
+    if tcp_T is not None:
+        T = T @ tcp_T
+    return T[0] if single else T
+
+
+def forward(model: str | URModel, q, tcp=None) -> np.ndarray:
+    """Tool pose(s) ``p[x, y, z, rx, ry, rz]`` (m, rotation vector) in the base frame.
+
+    Parameters
+    ----------
+    model : str or URModel
+    q : array_like, shape (6,) or (n, 6)
+        Joint positions in rad.
+    tcp : array_like, shape (6,), optional
+        Tool-centre-point offset in the flange frame.
+
+    Returns
+    -------
+    ndarray, shape (6,) or (n, 6)
+    """
+    return matrix_to_pose(forward_matrix(model, q, tcp))

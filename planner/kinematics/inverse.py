@@ -1,0 +1,493 @@
+"""Closed-form inverse kinematics of UR arms (all 8 branches), vectorized, and branch tracking on paths.
+
+Derivation (standard DH, T_i = Rz(q_i) Tz(d_i) Tx(a_i) Rx(alpha_i), alpha = (pi/2, 0, 0, pi/2, -pi/2, 0);
+the steps follow K. P. Hawkins, "Analytic inverse kinematics for the Universal Robots UR-5/UR-10
+arms" (2013) and R. S. Andersen, "Kinematics of a UR5" (Aalborg University, 2018), re-derived here so
+that every quantity is computed from well-conditioned inputs):
+
+- The wrist centre p5 = p6 - d6 z6 satisfies p5 . z1 = d4 with z1 = (sin q1, -cos q1, 0), so
+  q1 = psi + asin(d4 / r) or psi + pi - asin(d4 / r), (r, psi) the polar coordinates of p5 in xy.
+- The base-frame vector z1 expressed in the flange frame is (cos q6 sin q5, -sin q6 sin q5, cos q5),
+  so with u = x6 . z1, v = y6 . z1, w = z6 . z1: q5 = atan2(+-hypot(u, v), w) and
+  q6 = atan2(-v, u) (signs flipped on the q5 < 0 branch). At the wrist singularity (sin q5 = 0)
+  only q234 + cos(q5) q6 is determined: q6 is set to a reference value (default 0) and q4 takes the
+  rest, unless that leaves the wrist out of the elbow's reach; then (and also for |sin q5| < 1e-6,
+  where atan2 for q6 is ill-conditioned) q234 and q6 are turned together to the nearest reachable
+  angle (see ``_reachable_self_motion``).
+- T14 = T01^-1 T06 T56^-1 T45^-1 = Rz(q2 + q3 + q4) Rx(pi/2) with origin
+  (a2 cos q2 + a3 cos(q2 + q3), a2 sin q2 + a3 sin(q2 + q3), d4): q234 = q2 + q3 + q4 follows from the
+  flange x and y axes (well defined also at the wrist singularity), and a planar 2R arm gives
+  q3 = +-acos((x^2 + y^2 - a2^2 - a3^2) / (2 a2 a3)), q2 = atan2(y, x) - atan2(a3 sin q3, a2 + a3 cos q3),
+  q4 = q234 - q2 - q3.
+
+Candidates computed from clipped round-off (workspace boundary) or turned next to the wrist
+singularity are checked by forward kinematics and discarded unless they reproduce the pose to 1e-9
+(m and rad); elsewhere the formulas are exact and FK(IK(p)) = p holds to round-off (~1e-15).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.errors import PlannerError
+from planner.kinematics._checks import rows_of_six
+from planner.kinematics.errors import UnreachableError
+from planner.kinematics.forward import _tcp_matrix, flange_rp, pose_to_matrix
+from planner.kinematics.ur_models import URModel, get_model
+
+__all__ = ["IKSolutions", "inverse", "inverse_batch", "inverse_path", "wrap_angle"]
+
+# Acceptance of round-off at the workspace boundary: |d4 / r| and |cos q3| may exceed 1 by this much.
+_BOUNDARY_TOL = 1e-9
+# |sin q5| below _WRIST_SINGULAR is the wrist singularity (q6 then set to its reference value);
+# below _WRIST_NEAR, q234 and q6 are turned together where the elbow cannot reach otherwise.
+_WRIST_SINGULAR = 1e-12
+_WRIST_NEAR = 1e-6
+# A checked candidate is kept only if it reproduces the pose to these tolerances (m, rad).
+_POS_TOL = 1e-9
+_ROT_TOL = 1e-9
+# Joint-space distance below which two solutions of one pose count as the same one.
+_SAME_SOLUTION = 1e-9
+# Samples per block when comparing all 8 x 8 branch pairs of consecutive path samples.
+_BLOCK = 4096
+
+
+def wrap_angle(x) -> np.ndarray:
+    """Angles wrapped into (-pi, pi]."""
+    x = np.asarray(x, dtype=float)
+    w = np.pi - np.mod(np.pi - x, 2.0 * np.pi)
+    return np.where(w <= -np.pi, w + 2.0 * np.pi, w)  # mod may round up to 2 pi for tiny negatives
+
+
+@dataclass(frozen=True)
+class IKSolutions:
+    """All eight closed-form branches for n poses.
+
+    Branch ``b = 4 * i1 + 2 * i5 + i3`` takes the ``i1``-th shoulder solution (0: psi + asin(d4/r),
+    1: psi + pi - asin(d4/r)), the ``i5``-th wrist solution (0: q5 >= 0, 1: q5 <= 0) and the
+    ``i3``-th elbow solution (0: q3 >= 0, 1: q3 <= 0).
+
+    Attributes
+    ----------
+    q : ndarray, shape (n, 8, 6)
+        Joint positions in rad, wrapped to (-pi, pi]; NaN where ``valid`` is False.
+    valid : ndarray of bool, shape (n, 8)
+        The branch exists and reproduces the pose.
+    within_limits : ndarray of bool, shape (n, 8)
+        Valid and inside the model's joint position limits (as wrapped values).
+    singular : ndarray of bool, shape (n, 8)
+        Wrist singularity (|sin q5| < 1e-12): q6 was set to its reference value, or as near to it
+        as the elbow's reach allows.
+    """
+
+    q: np.ndarray
+    valid: np.ndarray
+    within_limits: np.ndarray
+    singular: np.ndarray
+
+
+def _rigid_inverse(T: np.ndarray) -> np.ndarray:
+    R = np.swapaxes(T[..., :3, :3], -1, -2)
+    out = np.zeros_like(T)
+    out[..., :3, :3] = R
+    out[..., :3, 3] = -(R @ T[..., :3, 3, None])[..., 0]
+    out[..., 3, 3] = 1.0
+    return out
+
+
+def _flange_targets(m: URModel, poses: np.ndarray, tcp) -> np.ndarray:
+    T = pose_to_matrix(poses)
+    tcp_T = _tcp_matrix(tcp)
+    if tcp_T is not None:
+        T = T @ _rigid_inverse(tcp_T)
+    return T
+
+
+def _solve(m: URModel, T: np.ndarray, q6_ref: np.ndarray) -> IKSolutions:
+    """All branches for flange transforms T (n, 4, 4); q6_ref (n,) used at wrist singularities."""
+    n = len(T)
+    R, p = T[:, :3, :3], T[:, :3, 3]
+    x6, y6, z6 = R[:, :, 0], R[:, :, 1], R[:, :, 2]
+
+    # Shoulder: wrist centre p5 . z1 = d4 (Hawkins 2013, eq. for theta1).
+    p5 = p - m.d6 * z6
+    r = np.hypot(p5[:, 0], p5[:, 1])
+    psi = np.arctan2(p5[:, 1], p5[:, 0])
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = m.d4 / r
+    ok1 = ratio <= 1.0 + _BOUNDARY_TOL  # False also for r = 0 (ratio inf)
+    beta = np.arcsin(np.clip(ratio, -1.0, 1.0))
+    q1 = np.stack([psi + beta, psi + np.pi - beta], axis=1)  # (n, 2)
+    s1, c1 = np.sin(q1), np.cos(q1)
+
+    # Wrist: z1 in the flange frame is (cos q6 sin q5, -sin q6 sin q5, cos q5).
+    u = x6[:, None, 0] * s1 - x6[:, None, 1] * c1
+    v = y6[:, None, 0] * s1 - y6[:, None, 1] * c1
+    w = z6[:, None, 0] * s1 - z6[:, None, 1] * c1
+    h = np.hypot(u, v)  # |sin q5|, exact from the rotation (no sqrt(1 - cos^2) cancellation)
+    sgn = np.array([1.0, -1.0])
+    q5 = np.arctan2(sgn * h[:, :, None], w[:, :, None])  # (n, 2, 2)
+    singular = np.broadcast_to((h < _WRIST_SINGULAR)[:, :, None], q5.shape)
+    q6 = np.where(
+        singular,
+        q6_ref[:, None, None],
+        np.arctan2(-sgn * v[:, :, None], sgn * u[:, :, None]),
+    )
+
+    # Planar 2R arm in frame 1 (T14 = T01^-1 T06 T56^-1 T45^-1, written out): with x1 = (c1, s1, 0),
+    # y1 = (0, 0, 1), the flange x/y axes give (-s234, c234) = s6 x6_1 + c6 y6_1 (first two entries),
+    # and the frame-4 origin is p6_1 - (-d6 s5 c234 + d5 s234, -d6 s5 s234 - d5 c234).
+    s5, c6, s6 = np.sin(q5), np.cos(q6), np.sin(q6)
+    c1b, s1b = c1[:, :, None], s1[:, :, None]
+
+    def in_frame1(vec):  # (n, 3) base-frame vectors -> their x1, y1 components, shape (n, 2, 1)
+        return vec[:, None, None, 0] * c1b + vec[:, None, None, 1] * s1b, vec[:, None, None, 2]
+
+    x6x, x6y = in_frame1(x6)
+    y6x, y6y = in_frame1(y6)
+    q234 = np.arctan2(-(s6 * x6x + c6 * y6x), s6 * x6y + c6 * y6y)  # (n, 2, 2)
+    px, pz = in_frame1(p)
+    near = np.broadcast_to((h < _WRIST_NEAR)[:, :, None], q5.shape)
+    adjusted = np.zeros(q5.shape, dtype=bool)
+    if near.any():
+        c5 = np.sign(w)[:, :, None]
+        q234, q6, adjusted = _reachable_self_motion(m, q234, q6, s5, c5, near, px, pz - m.d1)
+        s5, c6, s6 = np.sin(q5), np.cos(q6), np.sin(q6)
+    c234, s234 = np.cos(q234), np.sin(q234)
+    x = px + m.d6 * s5 * c234 - m.d5 * s234
+    y = (pz - m.d1) + m.d6 * s5 * s234 + m.d5 * c234
+    cos3 = (x * x + y * y - m.a2**2 - m.a3**2) / (2.0 * m.a2 * m.a3)
+    ok3 = np.abs(cos3) <= 1.0 + _BOUNDARY_TOL
+    q3 = np.arccos(np.clip(cos3, -1.0, 1.0))[..., None] * sgn  # (n, 2, 2, 2)
+    q2 = np.arctan2(y, x)[..., None] - np.arctan2(m.a3 * np.sin(q3), m.a2 + m.a3 * np.cos(q3))
+    q4 = q234[..., None] - q2 - q3
+
+    shape = (n, 2, 2, 2)
+    q = np.stack(
+        [
+            np.broadcast_to(q1[:, :, None, None], shape),
+            q2,
+            q3,
+            q4,
+            np.broadcast_to(q5[..., None], shape),
+            np.broadcast_to(q6[..., None], shape),
+        ],
+        axis=-1,
+    )
+    q = wrap_angle(q).reshape(n, 8, 6)
+    valid = np.broadcast_to(ok1[:, None, None, None] & ok3[..., None], shape).reshape(n, 8)
+    valid = valid & np.isfinite(q).all(axis=-1)  # a fresh, writable array
+    singular = np.broadcast_to(singular[..., None], shape).reshape(n, 8)
+
+    # Where round-off was clipped at the workspace boundary, or q4, q6 were turned next to the wrist
+    # singularity, keep only candidates that reproduce the pose (elsewhere the formulas are exact
+    # identities; tests check FK(IK(p)) = p).
+    clipped = np.broadcast_to(
+        (np.abs(ratio) > 1.0)[:, None, None, None] | ((np.abs(cos3) > 1.0) | adjusted)[..., None], shape
+    ).reshape(n, 8)
+    check = np.flatnonzero(valid & clipped)
+    if len(check):
+        R_chk, p_chk = flange_rp(m, q.reshape(-1, 6)[check])
+        rows = check // 8
+        pos_err = np.linalg.norm(p_chk - p[rows], axis=-1)
+        rot_err = np.linalg.norm(R_chk - R[rows], axis=(-1, -2)) / np.sqrt(2.0)  # ~ angle (rad)
+        valid.reshape(-1)[check] = (pos_err <= _POS_TOL) & (rot_err <= _ROT_TOL)
+
+    q = np.where(valid[..., None], q, np.nan)
+    within = valid & ((q >= m.lower) & (q <= m.upper)).all(axis=-1)
+    return IKSolutions(q=q, valid=valid, within_limits=within, singular=singular & valid)
+
+
+def _reachable_self_motion(m: URModel, q234, q6, s5, c5, near, cx, cy):
+    """At (or next to) the wrist singularity, turn q234 and q6 together so the elbow reaches.
+
+    With sin q5 = 0 only q234 + cos(q5) q6 is fixed (next to it, nearly so), and the frame-4
+    origin c + Rz(q234) (d6 sin q5, d5) circles the wrist centre c = (cx, cy) (frame 1, relative to
+    the shoulder) at radius rho = hypot(d5, d6 sin q5). Its distance from the shoulder must lie in
+    [| |a2| - |a3| |, |a2| + |a3|]; if q6 (the reference value, or an ill-conditioned atan2 when
+    sin q5 is tiny) puts it outside, q234 moves to the nearest angle inside and q6 by -cos(q5)
+    times as much. Returns (q234, q6, adjusted mask); callers verify adjusted candidates by FK.
+    """
+    cx, cy = np.broadcast_to(cx, q234.shape), np.broadcast_to(cy, q234.shape)
+    rc = np.hypot(cx, cy)
+    rho = np.hypot(m.d5, m.d6 * s5)
+    alpha = np.arctan2(cy, cx) - np.arctan2(m.d5, m.d6 * s5)  # q234 pointing the offset outwards
+    reach_in, reach_out = abs(abs(m.a2) - abs(m.a3)), abs(m.a2) + abs(m.a3)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        lo = (reach_in**2 - rc**2 - rho**2) / (2.0 * rho * rc)  # bounds on cos(q234 - alpha)
+        hi = (reach_out**2 - rc**2 - rho**2) / (2.0 * rho * rc)
+        tol = _BOUNDARY_TOL
+        feasible = (lo <= hi + tol) & (hi >= -1.0 - tol) & (lo <= 1.0 + tol)  # False on NaN (rc = 0)
+    lo = np.clip(lo, -1.0, 1.0)
+    hi = np.maximum(np.clip(hi, -1.0, 1.0), lo)
+    delta = wrap_angle(q234 - alpha)
+    k = np.cos(delta)
+    adjust = near & feasible & ((k < lo) | (k > hi))
+    if not adjust.any():
+        return q234, q6, adjust
+    k = np.where(adjust, np.clip(k, lo, hi), k)
+    new = alpha + np.where(delta >= 0, 1.0, -1.0) * np.arccos(k)
+    return np.where(adjust, new, q234), np.where(adjust, q6 + c5 * (q234 - new), q6), adjust
+
+
+def _q6_reference(q6_ref, n: int) -> np.ndarray:
+    ref = np.broadcast_to(np.asarray(q6_ref, dtype=float), (n,)) if np.ndim(q6_ref) == 0 else None
+    if ref is None:
+        ref = np.asarray(q6_ref, dtype=float)
+        if ref.shape != (n,):
+            raise PlannerError(f"q6_ref: expected a number or shape ({n},), got shape {ref.shape}")
+    if not np.isfinite(ref).all():
+        raise PlannerError(f"q6_ref[{int(np.argmin(np.isfinite(ref)))}] is not finite")
+    return ref
+
+
+def inverse_batch(model: str | URModel, poses, tcp=None, q6_ref=0.0) -> IKSolutions:
+    """All eight inverse kinematics branches for many poses at once.
+
+    Parameters
+    ----------
+    model : str or URModel
+    poses : array_like, shape (6,) or (n, 6)
+        Tool poses ``[x, y, z, rx, ry, rz]`` (m, rotation vector) in the base frame.
+    tcp : array_like, shape (6,), optional
+        Tool-centre-point offset in the flange frame (the poses are TCP poses).
+    q6_ref : float or array_like (n,), optional
+        Value of q6 (rad) used where the wrist is singular (sin q5 = 0), where only q4 + q6 is
+        determined.
+
+    Returns
+    -------
+    IKSolutions
+        Arrays of shape (n, 8, 6) and (n, 8) (n = 1 for a single pose). Invalid branches are
+        flagged in ``valid`` and filled with NaN; joint limits are flagged in ``within_limits``.
+    """
+    m = get_model(model)
+    P, _ = rows_of_six(poses, "pose")
+    return _solve(m, _flange_targets(m, P, tcp), _q6_reference(q6_ref, len(P)))
+
+
+def _unique_rows(q: np.ndarray) -> np.ndarray:
+    keep: list[np.ndarray] = []
+    for row in q:  # at most 8 rows
+        if all(np.abs(wrap_angle(row - k)).max() > _SAME_SOLUTION for k in keep):
+            keep.append(row)
+    return np.array(keep).reshape(-1, 6)
+
+
+def inverse(model: str | URModel, pose, tcp=None, q6_ref: float = 0.0) -> np.ndarray:
+    """All closed-form inverse kinematics solutions of one pose.
+
+    Parameters
+    ----------
+    model : str or URModel
+        ``"ur3e"``, ``"ur5e"``, ``"ur10e"``, ``"ur16e"``, ``"ur20"`` or a :class:`URModel`.
+    pose : array_like, shape (6,)
+        Tool pose ``[x, y, z, rx, ry, rz]`` (m, rotation vector) in the base frame.
+    tcp : array_like, shape (6,), optional
+        Tool-centre-point offset in the flange frame.
+    q6_ref : float, optional
+        q6 (rad) used at a wrist singularity (sin q5 = 0), where only q4 + q6 is determined.
+
+    Returns
+    -------
+    ndarray, shape (k, 6), 0 <= k <= 8
+        Joint positions in rad wrapped to (-pi, pi], in branch order (see :class:`IKSolutions`).
+        Solutions outside the model's joint limits are filtered out (never the case for the UR
+        models, whose joints all cover +-2 pi); coinciding solutions (at singularities) are
+        returned once. An unreachable pose gives k = 0; no row ever contains NaN.
+    """
+    m = get_model(model)
+    P, single = rows_of_six(pose, "pose")
+    if not single:
+        raise PlannerError(
+            f"pose: inverse() takes one pose of shape (6,), got {np.shape(pose)}; "
+            "use inverse_batch() or inverse_path() for many poses"
+        )
+    sol = _solve(m, _flange_targets(m, P, tcp), _q6_reference(q6_ref, 1))
+    return _unique_rows(sol.q[0][sol.within_limits[0]])
+
+
+def _why_unreachable(m: URModel, T: np.ndarray) -> str:
+    """A short diagnosis for one flange transform that has no solution."""
+    p5 = T[:3, 3] - m.d6 * T[:3, 2]
+    r = float(np.hypot(p5[0], p5[1]))
+    if r < m.d4:
+        return (
+            f"wrist centre {r:.4f} m from the base axis, closer than d4 = {m.d4} m "
+            "(inside the shoulder cylinder)"
+        )
+    return f"out of reach of {m.name} (arm lengths |a2| + |a3| = {abs(m.a2) + abs(m.a3):.4f} m)"
+
+
+def _joint_delta(a: np.ndarray, b: np.ndarray, multiturn: np.ndarray) -> np.ndarray:
+    """b - a, wrapped to (-pi, pi] on the multiturn joints (which are unwrapped along paths)."""
+    d = b - a
+    return np.where(multiturn, wrap_angle(d), d)
+
+
+def _next_branch(Q: np.ndarray, V: np.ndarray, multiturn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """For each sample i and branch b, the valid branch at i + 1 nearest in joint space.
+
+    Returns ``nxt`` (n-1, 8) int (-1 if sample i + 1 has no valid branch) and its distance.
+    """
+    n = len(Q)
+    nxt = np.full((max(n - 1, 0), 8), -1)
+    dist = np.full((max(n - 1, 0), 8), np.inf)
+    for i in range(0, n - 1, _BLOCK):  # blocks bound the memory of the (block, 8, 8, 6) differences
+        j = min(i + _BLOCK, n - 1)
+        d = Q[i + 1 : j + 1, None] - Q[i:j, :, None]  # both wrapped, so |d| < 2 pi: one turn at most
+        d -= (2.0 * np.pi) * (multiturn & (d > np.pi))
+        d += (2.0 * np.pi) * (multiturn & (d <= -np.pi))
+        D = np.sqrt(np.einsum("...j,...j->...", d, d))
+        D = np.where(V[i + 1 : j + 1, None, :] & ~np.isnan(D), D, np.inf)
+        nxt[i:j] = np.argmin(D, axis=-1)
+        dist[i:j] = np.take_along_axis(D, nxt[i:j, :, None], axis=-1)[..., 0]
+    nxt[~np.isfinite(dist)] = -1
+    return nxt, dist
+
+
+def _nearest(Q_row: np.ndarray, V_row: np.ndarray, q: np.ndarray, multiturn: np.ndarray) -> int:
+    D = np.linalg.norm(_joint_delta(q, Q_row, multiturn), axis=-1)
+    D = np.where(V_row & ~np.isnan(D), D, np.inf)
+    return int(np.argmin(D))
+
+
+def _follow(nxt: np.ndarray, start: np.ndarray) -> np.ndarray:
+    """Branch sequences (L, k) from ``start`` (k,) along transition maps ``nxt`` (L - 1, 8).
+
+    The prefix compositions f_i o ... o f_0 are built by a parallel (Hillis-Steele) scan in
+    log2(L) vectorized steps instead of a per-sample loop; -1 (no valid successor) is absorbing.
+    """
+    P = nxt.copy()
+    shift = 1
+    while shift < len(P):
+        inner = P[:-shift]
+        outer = np.take_along_axis(P[shift:], np.maximum(inner, 0), axis=1)
+        P[shift:] = np.where(inner < 0, -1, outer)
+        shift *= 2
+    return np.concatenate([start[None, :], P[:, start]], axis=0)
+
+
+def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
+    """Half-open index ranges [s, e) of the runs of True in a boolean array."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
+
+
+def _track(m: URModel, sol: IKSolutions, q_start: np.ndarray | None) -> np.ndarray:
+    """Chosen branch per sample (n,), -1 where unreachable."""
+    Q, V = sol.q, sol.valid
+    multiturn = m.multiturn
+    nxt, dist = _next_branch(Q, V, multiturn)
+    runs = _runs(V.any(axis=1))
+    first = runs[0][0]
+    if q_start is not None:
+        starts = np.array([_nearest(Q[first], V[first], q_start, multiturn)])
+    else:
+        starts = np.flatnonzero(V[first])
+    chains = np.full((len(Q), len(starts)), -1)
+    cost = np.zeros(len(starts))
+    cur = starts
+    for k, (s, e) in enumerate(runs):  # one pass per run of reachable samples (gaps are rare)
+        if k:  # leaving a gap: nearest solution to the last one reached before it
+            last = runs[k - 1][1] - 1
+            cur = np.array([_nearest(Q[s], V[s], Q[last, b], multiturn) for b in chains[last]])
+        chains[s:e] = _follow(nxt[s : e - 1], cur)
+        cost += np.take_along_axis(dist[s : e - 1], chains[s : e - 1], axis=1).sum(axis=0)
+    return chains[:, int(np.argmin(cost))]  # least total joint travel
+
+
+def inverse_path(
+    model: str | URModel,
+    poses,
+    q_start=None,
+    *,
+    tcp=None,
+    allow_unreachable: bool = False,
+) -> np.ndarray:
+    """Joint trajectory for a sequence of poses, staying on one continuous IK branch.
+
+    Each sample takes the valid solution nearest (in joint space) to the previous sample's; on
+    joints whose range exceeds 2 pi (all six on the UR e-Series) the result is unwrapped, so it is
+    continuous and may leave (-pi, pi]. At a wrist singularity (sin q5 = 0, where only q4 + q6 is
+    determined) q6 is interpolated from the neighbouring samples.
+
+    Parameters
+    ----------
+    model : str or URModel
+    poses : array_like, shape (n, 6)
+        Tool poses ``[x, y, z, rx, ry, rz]`` (m, rotation vector) in the base frame, in path order.
+    q_start : array_like, shape (6,), optional
+        Current joint positions (rad): the first sample takes the solution nearest to it, unwrapped
+        next to it. Without it, every branch of the first pose is followed and the one with least
+        total joint travel is kept, shifted by whole turns to sit mid-range of the joint limits.
+    tcp : array_like, shape (6,), optional
+        Tool-centre-point offset in the flange frame.
+    allow_unreachable : bool
+        If False (default), raise on the first pose without a solution. If True, such samples are
+        rows of NaN and tracking resumes after them (``check_reachability`` reports them).
+
+    Returns
+    -------
+    ndarray, shape (n, 6)
+        Joint positions in rad. Joint position limits are not enforced here (see
+        :func:`planner.kinematics.check_reachability`).
+
+    Raises
+    ------
+    UnreachableError
+        With ``index`` the first sample that has no solution (unless ``allow_unreachable``).
+    """
+    m = get_model(model)
+    P, single = rows_of_six(poses, "poses")
+    n = len(P)
+    if q_start is not None:
+        qs, qs_single = rows_of_six(q_start, "q_start")
+        if not qs_single:
+            raise PlannerError(f"q_start: expected shape (6,), got {np.shape(q_start)}")
+        q_start = qs[0]
+    T = _flange_targets(m, P, tcp)
+    sol = _solve(m, T, np.zeros(n))
+    reach = sol.valid.any(axis=1)
+    if not reach.all() and not allow_unreachable:
+        i = int(np.argmin(reach))
+        raise UnreachableError(f"no inverse kinematics solution: {_why_unreachable(m, T[i])}", i)
+    if not reach.any():
+        return np.full((n, 6), np.nan)
+
+    chain = _track(m, sol, q_start)
+    rows = np.flatnonzero(chain >= 0)
+    sing = rows[sol.singular[rows, chain[rows]]]
+    if len(sing):
+        # Wrist-singular samples fix only q4 + q6: re-solve them with q6 interpolated (in sample
+        # index) between the nearest regular samples, held constant beyond the last one.
+        q6 = sol.q[rows, chain[rows], 5]
+        is_sing = np.isin(rows, sing)
+        if is_sing.all():
+            ref = np.full(len(sing), 0.0 if q_start is None else float(wrap_angle(q_start[5])))
+        else:
+            ref = np.interp(sing, rows[~is_sing], np.unwrap(q6[~is_sing]))
+        fixed = _solve(m, T[sing], ref)
+        q_all, valid = sol.q.copy(), sol.valid.copy()
+        q_all[sing], valid[sing] = fixed.q, fixed.valid
+        sol = IKSolutions(q_all, valid, sol.within_limits, sol.singular)
+        chain = _track(m, sol, q_start)
+        rows = np.flatnonzero(chain >= 0)
+
+    qw = sol.q[rows, chain[rows]]  # (r, 6) wrapped solutions on the reached samples
+    mt = m.multiturn
+    steps = _joint_delta(qw[:-1], qw[1:], mt)
+    q0 = qw[0].copy()
+    if q_start is not None:
+        q0[mt] = q_start[mt] + wrap_angle(qw[0, mt] - q_start[mt])
+    qu = q0 + np.concatenate([np.zeros((1, 6)), np.cumsum(steps, axis=0)])
+    qu[:, ~mt] = qw[:, ~mt]
+    if q_start is None:
+        mid = 0.5 * (qu.min(axis=0) + qu.max(axis=0))
+        turns = np.round((0.5 * (m.lower + m.upper) - mid) / (2.0 * np.pi))
+        qu[:, mt] += 2.0 * np.pi * turns[mt]
+    out = np.full((n, 6), np.nan)
+    out[rows] = qu
+    return out

@@ -1,0 +1,94 @@
+"""Validation of user-supplied waypoints and tangents: clear errors that name the waypoint index."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+
+import numpy as np
+
+from planner.errors import WaypointError
+
+#: Two consecutive waypoints closer than this fraction of the path's extent are duplicates.
+DUPLICATE_RTOL = 1e-12
+
+
+def _as_rows(data, what: str, dim: int) -> np.ndarray:
+    """Convert ``data`` to a float array (n, dim), naming the first malformed row on failure."""
+    try:
+        arr = np.asarray(data, dtype=float)
+    except (ValueError, TypeError):
+        arr = None
+    if arr is not None and arr.size == 0:
+        arr = arr.reshape(0, dim)
+    if arr is None or arr.ndim != 2:
+        if isinstance(data, np.ndarray) and data.ndim != 2:
+            raise WaypointError(f"{what} must be an array of shape (n, {dim}), got shape {data.shape}")
+        if not isinstance(data, Sequence) and not isinstance(data, np.ndarray):
+            raise WaypointError(f"{what} must be a sequence of {dim}-vectors, got {type(data).__name__}")
+        for i, row in enumerate(data):
+            try:
+                r = np.asarray(row, dtype=float)
+            except (ValueError, TypeError) as exc:
+                raise WaypointError(f"{what} row is not numeric ({exc})", i) from None
+            if r.shape != (dim,):
+                raise WaypointError(f"{what} row must have {dim} coordinates, got {np.shape(row)}", i)
+        raise WaypointError(f"{what} must be an array of shape (n, {dim})")
+    if arr.shape[1] != dim:
+        raise WaypointError(f"{what} must have {dim} coordinates per row, got {arr.shape[1]}")
+    return arr
+
+
+def check_waypoints(waypoints, *, min_count: int = 2, dim: int = 3) -> np.ndarray:
+    """Validated waypoints as a float array (n, dim).
+
+    Raises
+    ------
+    WaypointError
+        Fewer than ``min_count`` points, wrong dimension, NaN/inf coordinates, or two consecutive
+        points that coincide (the message names the index of the second one).
+    """
+    p = _as_rows(waypoints, "waypoints", dim)
+    if p.shape[0] < min_count:
+        raise WaypointError(f"need at least {min_count} waypoints, got {p.shape[0]}")
+    bad = ~np.isfinite(p).all(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise WaypointError(f"coordinates must be finite, got {p[i].tolist()}", i)
+    step = np.linalg.norm(np.diff(p, axis=0), axis=1)
+    extent = float(np.ptp(p, axis=0).max()) if p.shape[0] > 1 else 0.0
+    dup = step <= DUPLICATE_RTOL * max(extent, np.finfo(float).tiny)
+    if dup.any():
+        i = int(np.argmax(dup)) + 1
+        raise WaypointError(f"duplicates waypoint {i - 1} (consecutive points must differ)", i)
+    return p
+
+
+def check_tangents(tangents, n: int, *, dim: int = 3) -> np.ndarray:
+    """Validated tangent directions (n, dim): finite, nonzero, one per waypoint."""
+    d = _as_rows(tangents, "tangents", dim)
+    if d.shape[0] != n:
+        raise WaypointError(f"got {d.shape[0]} tangents for {n} waypoints (need one per waypoint)")
+    bad = ~np.isfinite(d).all(axis=1)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise WaypointError(f"tangent must be finite, got {d[i].tolist()}", i)
+    zero = np.linalg.norm(d, axis=1) == 0.0
+    if zero.any():
+        i = int(np.argmax(zero))
+        raise WaypointError("tangent is the zero vector", i)
+    return d
+
+
+def check_vector(v, name: str, dim: int = 3, nonzero: bool = False) -> np.ndarray:
+    """A single finite vector of length ``dim`` named ``name`` in error messages."""
+    try:
+        a = np.asarray(v, dtype=float)
+    except (ValueError, TypeError):
+        raise WaypointError(f"{name} must be a numeric {dim}-vector, got {v!r}") from None
+    if a.shape != (dim,):
+        raise WaypointError(f"{name} must have shape ({dim},), got {a.shape}")
+    if not np.isfinite(a).all():
+        raise WaypointError(f"{name} must be finite, got {a.tolist()}")
+    if nonzero and not np.any(a):
+        raise WaypointError(f"{name} must not be the zero vector")
+    return a

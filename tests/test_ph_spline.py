@@ -1,0 +1,194 @@
+"""PH quintic splines (C1 and C2) and the G1 PH cubic spline through waypoints."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from scipy.integrate import quad
+from scipy.interpolate import CubicSpline
+
+from planner.curves.ph_cubic_spline import fit_ph_cubic_spline
+from planner.curves.spline import fit_ph_spline
+from planner.errors import PlannerError
+from tests.conftest import waypoint_sets
+
+
+def extent(p):
+    return max(1.0, float(np.ptp(p, axis=0).max()))
+
+
+@given(waypoint_sets())
+@settings(max_examples=40, deadline=None)
+def test_c1_spline_interpolates_and_is_c1(p):
+    s = fit_ph_spline(p, continuity="C1")
+    assert s.continuity == "C1" and s.n_segments == len(p) - 1
+    assert s.interpolation_errors(p).max() <= 1e-13 * extent(p)
+    assert s.tangent_jumps().max(initial=0) <= 1e-12
+    assert np.allclose(s.knots, np.concatenate(([0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1)))))
+
+
+@given(waypoint_sets(min_size=3, max_size=25))
+@settings(max_examples=25, deadline=None)
+def test_c2_spline_interpolates_and_is_curvature_continuous(p):
+    s = fit_ph_spline(p, continuity="C2")
+    c1 = fit_ph_spline(p, continuity="C1")
+    assert s.continuity == "C2"
+    assert s.interpolation_errors(p).max() <= 1e-12 * extent(p)
+    assert s.tangent_jumps().max() <= 1e-11
+    kmax = np.abs(s.curvature(np.linspace(s.knots[0], s.knots[-1], 400))).max()
+    assert s.curvature_jumps().max() <= 1e-9 * max(1.0, kmax)
+    # second derivative continuous in u, not only the curvature
+    u = s.knots[1:-1]
+    left = s._derivative_t(np.arange(s.n_segments - 1), np.ones(u.size), 2) / np.diff(s.knots)[:-1, None] ** 2
+    right = s.derivative(u, 2)
+    assert np.abs(left - right).max() <= 1e-9 * max(1.0, np.abs(right).max())
+    # the C1 spline generally has curvature jumps: the C2 solve did something
+    if len(p) >= 4:
+        assert c1.curvature_jumps().max() > 1e3 * s.curvature_jumps().max()
+
+
+@given(waypoint_sets(max_size=12))
+@settings(max_examples=20, deadline=None)
+def test_exact_length_and_inverse(p):
+    s = fit_ph_spline(p, continuity="C1")
+    ref = sum(
+        quad(lambda u: np.linalg.norm(s.derivative(u)[0]), a, b, epsabs=1e-13, epsrel=1e-13, limit=200)[0]
+        for a, b in zip(s.knots[:-1], s.knots[1:], strict=True)
+    )
+    assert s.length == pytest.approx(ref, rel=1e-11)
+    sv = np.linspace(0, s.length, 257)
+    u = s.parameter_at_length(sv)
+    assert np.all(np.diff(u) >= 0)
+    assert np.abs(s.arc_length(u) - sv).max() <= 1e-12 * s.length
+
+
+def test_given_tangents_are_honoured():
+    p = np.array([[0, 0, 0], [1, 0, 0], [1, 1, 0], [0, 1, 1.0]])
+    t = np.array([[1, 0, 0], [0, 1, 0], [-1, 0, 1], [0, -1, 0.0]])
+    s = fit_ph_spline(p, t, continuity="C1")
+    tan = s.tangent(s.knots)
+    unit = t / np.linalg.norm(t, axis=1, keepdims=True)
+    assert np.abs(tan - unit).max() < 1e-13
+    # the spline leaves each waypoint with |dr/du| = 1 (u ~ arc length)
+    assert np.allclose(np.linalg.norm(s.derivative(s.knots[:-1]), axis=1), 1.0)
+
+
+def test_straight_line_is_reproduced_exactly():
+    p = np.linspace([0, 0, 0], [1, 2, 3], 7) ** 1  # collinear, uneven spacing below
+    p[3] += 0.1 * (p[4] - p[3])
+    for c in ("C1", "C2"):
+        s = fit_ph_spline(p, continuity=c)
+        q = s.points(np.linspace(0, s.knots[-1], 101))
+        assert np.abs(np.cross(q - p[0], p[-1] - p[0])).max() < 1e-12
+        assert s.length == pytest.approx(np.linalg.norm(p[-1] - p[0]), rel=1e-13)
+
+
+def test_circle_approximation_is_fourth_order_like_the_cubic_spline():
+    def errors(n):
+        th = np.linspace(0, 1.5 * np.pi, n)
+        p = np.c_[np.cos(th), np.sin(th), np.zeros_like(th)]
+        u = np.concatenate(([0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))))
+        radial = lambda q: np.abs(np.linalg.norm(q[:, :2], axis=1) - 1).max()  # noqa: E731
+        out = {"cubic": radial(CubicSpline(u, p)(np.linspace(0, u[-1], 4001)))}
+        for c in ("C1", "C2"):
+            s = fit_ph_spline(p, continuity=c)
+            out[c] = radial(s.points(np.linspace(0, s.knots[-1], 4001)))
+            assert s.length == pytest.approx(1.5 * np.pi, rel=1e-4)
+        return out
+
+    coarse, fine = errors(25), errors(49)
+    for c in ("C1", "C2"):
+        assert coarse[c] <= 1.2 * coarse["cubic"] and fine[c] <= 1.2 * fine["cubic"]
+        assert coarse[c] / fine[c] > 12  # halving the step divides the error by ~16
+
+
+def test_c2_with_end_tangents():
+    p = np.array([[0, 0, 0], [1, 0.2, 0], [2, 0, 0.3], [3, 0.5, 0.2]])
+    s = fit_ph_spline(p, end_tangents=([0, 1, 0], [1, 0, 0]))
+    assert np.allclose(s.tangent([s.knots[0], s.knots[-1] - 1e-15]), [[0, 1, 0], [1, 0, 0]], atol=1e-9)
+
+
+@given(waypoint_sets(max_size=15))
+@settings(max_examples=20, deadline=None)
+def test_ph_cubic_spline_interpolates_and_is_g1(p):
+    s = fit_ph_cubic_spline(p)
+    assert s.degree == 3 and s.continuity == "G1"
+    assert s.interpolation_errors(p).max() <= 1e-12 * extent(p)
+    assert s.tangent_angles().max(initial=0) <= 1e-10
+    assert np.all(np.diff(s.waypoint_knots) > 0)
+
+
+def test_ph_cubic_spline_of_a_helix():
+    a, c = 1.0, 0.3
+    th = np.linspace(0, 2 * np.pi, 40)
+    p = np.c_[a * np.cos(th), a * np.sin(th), c * th]
+    s = fit_ph_cubic_spline(p)
+    assert s.length == pytest.approx(2 * np.pi * np.hypot(a, c), rel=1e-5)
+    u = np.linspace(0, s.knots[-1], 1001)
+    q = s.points(u)
+    assert np.abs(np.hypot(q[:, 0], q[:, 1]) - a).max() < 1e-4
+
+
+def test_ph_cubic_spline_splits_spans_without_ph_cubic():
+    # a turn of ~180 degrees between two waypoints admits no PH cubic: the span must be split
+    p = np.array([[0, 0, 0], [1, 0, 0], [1, 0.05, 0.0], [0, 0.1, 0.02]])
+    t = np.array([[1, 0, 0], [1, 0, 0], [-1, 0, 0], [-1, 0, 0]])
+    s = fit_ph_cubic_spline(p, t)
+    assert s.n_segments > 3 and s.waypoint_index is not None
+    assert s.interpolation_errors(p).max() < 1e-12
+    assert np.allclose(s.tangent(s.waypoint_knots[:-1]), t[:-1], atol=1e-10)
+
+
+# -- bad input ------------------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("fit", [fit_ph_spline, fit_ph_cubic_spline])
+@pytest.mark.parametrize(
+    "points, match",
+    [
+        ([[0, 0, 0]], "need at least 2 waypoints, got 1"),
+        ([], "need at least 2 waypoints, got 0"),
+        ([[0, 0], [1, 1]], "must have 3 coordinates per row, got 2"),
+        ([[0, 0, 0], [1, 1]], "waypoint 1: waypoints row must have 3 coordinates"),
+        ([[0, 0, 0], [1, 1, np.nan], [2, 0, 0]], "waypoint 1: coordinates must be finite"),
+        ([[0, 0, 0], [1, 1, 1], [2, np.inf, 0]], "waypoint 2: coordinates must be finite"),
+        ([[0, 0, 0], [1, 1, 1], [1, 1, 1], [2, 0, 0]], "waypoint 2: duplicates waypoint 1"),
+        ([[0, 0, 0], ["a", 1, 1]], "waypoint 1: waypoints row is not numeric"),
+    ],
+)
+def test_bad_waypoints(fit, points, match):
+    with pytest.raises(PlannerError, match=match):
+        fit(points)
+
+
+@pytest.mark.parametrize("fit", [fit_ph_spline, fit_ph_cubic_spline])
+@pytest.mark.parametrize(
+    "tangents, match",
+    [
+        ([[1, 0, 0], [1, 0, 0]], "got 2 tangents for 3 waypoints"),
+        ([[1, 0, 0], [0, 0, 0], [1, 0, 0]], "waypoint 1: tangent is the zero vector"),
+        ([[1, 0, 0], [1, 0, 0], [np.nan, 0, 0]], "waypoint 2: tangent must be finite"),
+        ([[1, 0], [1, 0], [1, 0]], "must have 3 coordinates per row"),
+    ],
+)
+def test_bad_tangents(fit, tangents, match):
+    p = [[0, 0, 0], [1, 0, 0], [2, 1, 0]]
+    kwargs = {"continuity": "C1"} if fit is fit_ph_spline else {}
+    with pytest.raises(PlannerError, match=match):
+        fit(p, tangents, **kwargs)
+
+
+def test_c2_refuses_interior_tangents_instead_of_dropping_them():
+    with pytest.raises(PlannerError, match="C2 spline determines its interior tangents"):
+        fit_ph_spline([[0, 0, 0], [1, 0, 0], [2, 1, 0]], [[1, 0, 0]] * 3, continuity="C2")
+
+
+def test_unknown_continuity():
+    with pytest.raises(PlannerError, match="continuity must be"):
+        fit_ph_spline([[0, 0, 0], [1, 0, 0]], continuity="C3")
+
+
+def test_errors_are_value_errors():
+    with pytest.raises(ValueError):
+        fit_ph_spline([[0, 0, 0]])
