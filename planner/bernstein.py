@@ -7,17 +7,29 @@ through the basis matrix, which is exact to round-off on [0, 1].
 
 from __future__ import annotations
 
+from functools import lru_cache
 from math import comb
 
 import numpy as np
 
 
+@lru_cache(maxsize=64)
+def _binomials(n: int) -> np.ndarray:
+    return np.array([comb(n, j) for j in range(n + 1)], dtype=float)
+
+
 def basis(n: int, t: np.ndarray) -> np.ndarray:
-    """Bernstein basis B_{n,k}(t), shape (len(t), n + 1)."""
+    """Bernstein basis B_{n,k}(t), shape t.shape + (n + 1,)."""
     t = np.asarray(t, dtype=float)[..., None]
-    k = np.arange(n + 1)
-    binom = np.array([comb(n, j) for j in k], dtype=float)
-    return binom * t**k * (1.0 - t) ** (n - k)
+    reps = t.shape[:-1] + (n + 1,)
+    tp = np.ones(reps)
+    sp = np.ones(reps)
+    if n > 0:
+        tp[..., 1:] = t
+        sp[..., 1:] = 1.0 - t
+        tp = np.cumprod(tp, axis=-1)  # t^k
+        sp = np.cumprod(sp, axis=-1)[..., ::-1]  # (1 - t)^(n - k)
+    return _binomials(n) * tp * sp
 
 
 def evaluate(coeffs: np.ndarray, t: np.ndarray) -> np.ndarray:

@@ -13,7 +13,7 @@ from hypothesis import strategies as st
 from scipy.spatial.transform import Rotation
 
 from planner.errors import PlannerError
-from planner.io import Arc, InputFileError, InputFileWarning, read_apt
+from planner.io import InputFileError, InputFileWarning, read_apt
 
 MM = 1e-3
 MMPM = 1e-3 / 60.0
@@ -406,7 +406,7 @@ def test_from_and_godlta():
         ("CSYS/1,0,0,0,0,2,0,0,0,0,1,0\n", 1, "CSYS matrix", "is not a rotation"),
         ("MSYS/0,0,0,1,0,0,0.5,0.8,0\n", 1, "fields 7-9 of MSYS", "is not a unit vector"),
         ("MSYS/0,0,0,1,0,0,0.6,0.8,0\n", 1, "fields 4-9 of MSYS", "not perpendicular"),
-        ("GOTO/1,2,$\n3,4,5,6\n", 1, "GOTO record", "has 7 values"),
+        ("GOTO/1,2,$\n3,4,5,6,7\n", 1, "GOTO record", "has 7 values"),
         ("GOTO/1,2,$\n3,0,0,$\nq\n", 3, "field 6 of GOTO", "'q' is not a number"),
         ("GOTO/1,2,$\n", 1, "record", "continuation ('$') at the end of the file"),
         ("NURBS/1,2,3\n", 1, "NURBS record", "not supported"),
@@ -422,6 +422,11 @@ def test_broken_records_name_file_line_and_field(text, line, field, problem):
     assert (err.source, err.line, err.field) == ("t.apt", line, field)
     assert str(err).startswith(f"t.apt line {line}, {field}: ")
     assert problem in str(err)
+
+
+def test_file_without_motion_is_an_error():
+    with pytest.raises(InputFileError, match=r"^t\.apt: holds no motion"):
+        read("$$ nothing\nPARTNO/X\n")
 
 
 def test_error_message_format_of_the_brief():

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from hypothesis import strategies as st
 from scipy.integrate import quad
 
@@ -107,6 +107,9 @@ def test_hermite_family_has_two_free_angles():
 def test_default_member_reproduces_a_ph_cubic(A0, A2, p0):
     """The ordinary cubic Hermite interpolant of PH cubic data is PH: the default must reproduce it."""
     cubic = PHQuintic.from_quaternions(A0, 0.5 * (A0 + A2), A2, p0)  # A linear: a PH cubic, elevated
+    # straight lines are degenerate (the measure's minimum is a cusp, found to ~sqrt(eps) only)
+    h = cubic.hodograph_coeffs
+    assume(np.linalg.norm(np.cross(h[0], h[4])) + np.linalg.norm(np.cross(h[0], h[2])) > 1e-3 * np.abs(h).max() ** 2)
     d0, d1 = cubic.derivative([0.0, 1.0])
     p1 = cubic.points(1.0)[0]
     c = PHQuintic.hermite(p0, p1, d0, d1)

@@ -36,7 +36,6 @@ from planner.frames import validation as val
 from planner.frames.validation import FrameDataError
 
 _ONE = np.array([1.0, 0.0, 0.0, 0.0])
-_E3 = np.array([0.0, 0.0, 1.0])
 
 
 # --------------------------------------------------------------------------------------------------

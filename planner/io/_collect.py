@@ -195,7 +195,7 @@ class PathCollector:
         if bad.any():
             r, c = np.argwhere(bad)[0]
             field = point_field.format(col=c + 1)
-            raise InputFileError(self.source, int(lines[r]), field, f"{pts[r, c]!r} is not a finite number")
+            raise InputFileError(self.source, int(lines[r]), field, f"{float(pts[r, c])!r} is not a finite number")
         del bad
         rapid = np.zeros(n, dtype=bool)
         if len(self.rapid_idx):
@@ -205,7 +205,7 @@ class PathCollector:
         feeds[rapid] = np.nan
 
         axes = given = None
-        if self.axis_info:
+        if self.axis_info or len(self.axis_idx):
             aidx = np.frombuffer(self.axis_idx, dtype=np.int64)
             aval = np.frombuffer(self.axis_val, dtype=float).reshape(-1, 3).copy()
             agiven = np.frombuffer(bytes(self.axis_given), dtype=np.uint8).astype(bool)

@@ -101,7 +101,6 @@ class _Reader:
         self.rapid_next = False
         self.circle = None  # pending CIRCLE: (line, centre, axis, radius) in metres, CL frame
         self.world = False  # TRNTYP/WORLD in effect
-        self.axis = (0.0, 0.0, 1.0)  # modal tool axis, CL frame (for GODLTA/d)
         self.spindle_rps = math.nan  # rev/s, for per-revolution feeds
         self.pieces = None  # physical lines of a continued record: [(line, text)]
         self.finished = False
@@ -211,11 +210,13 @@ class _Reader:
         s = self.scale
         k = self.add_point(line, vals[0] * s, vals[1] * s, vals[2] * s)
         if len(vals) == 6:
-            self.set_given_axis(k, vals[3], vals[4], vals[5], line)
+            self.out.set_axis(k, vals[3], vals[4], vals[5], True)
 
-    def set_given_axis(self, k: int, i: float, j: float, kk: float, line: int) -> None:
-        self.out.set_axis(k, i, j, kk, True)
-        self.axis = (i, j, kk)
+    @property
+    def axis(self) -> tuple[float, float, float]:
+        """The modal tool axis in the CL frame (the last one set)."""
+        v = self.out.axis_val
+        return (v[-3], v[-2], v[-1]) if len(v) else (0.0, 0.0, 1.0)
 
     def rapid(self, line: int, major: str, body: str) -> None:
         if body.strip():
@@ -304,12 +305,12 @@ class _Reader:
             # modal tool axis.
             if self.frames == "auto":
                 self.out.set_frame(k, np.eye(3), np.zeros(3))
-            self.axis = tuple(float(c) for c in rot[:, 2])
+            axis = tuple(float(c) for c in rot[:, 2])
         else:
             if self.frames == "auto":
                 self.out.set_frame(k, rot, org)
-            self.axis = (0.0, 0.0, 1.0)  # local +Z; the frame maps it at the end
-        self.out.set_axis(k, *self.axis, False)
+            axis = (0.0, 0.0, 1.0)  # local +Z; the frame maps it at the end
+        self.out.set_axis(k, *axis, False)
 
     def trntyp(self, line: int, major: str, body: str) -> None:
         word = body.split(",")[0].strip().upper()
@@ -323,8 +324,7 @@ class _Reader:
         if self.circle is not None:
             self.fail(self.circle[0], "CIRCLE record", f"has no end point (the next motion record is the "
                       f"CIRCLE at line {line})")  # fmt: skip
-        axis = np.array(v[3:6])
-        norm = float(np.linalg.norm(axis))
+        norm = math.sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5])
         if abs(norm - 1.0) > self.axis_tolerance:
             self.fail(line, "fields 4-6 of CIRCLE", f"axis {tuple(v[3:6])} is not a unit vector "
                       f"(length {norm:.9g})", 4)  # fmt: skip
@@ -332,7 +332,7 @@ class _Reader:
         if len(v) > 6 and not v[6] > 0.0:
             self.fail(line, "field 7 of CIRCLE", f"radius must be positive, got {v[6]:g}", 7)
         s = self.scale
-        self.circle = (line, (v[0] * s, v[1] * s, v[2] * s), tuple(axis / norm), radius)
+        self.circle = (line, (v[0] * s, v[1] * s, v[2] * s), (v[3] / norm, v[4] / norm, v[5] / norm), radius)
 
     def simple(self, kind: str, keep_body: bool = False):
         def handler(line: int, major: str, body: str) -> None:
@@ -386,7 +386,7 @@ class _Reader:
         s = self.scale
         k = self.add_point(line, v[0] * s, v[1] * s, v[2] * s, rapid=True)
         if len(v) == 6:
-            self.set_given_axis(k, v[3], v[4], v[5], line)
+            self.out.set_axis(k, v[3], v[4], v[5], True)
 
     def godlta(self, line: int, major: str, body: str) -> None:
         v = self.numbers(line, major, body, counts=(1, 3))
@@ -433,55 +433,50 @@ class _Reader:
     def run(self, lines) -> None:
         out = self.out
         xyz_extend = out.xyz.extend
-        lines_append = out.lines.append
+        lines_obj = out.lines
+        lines_append = lines_obj.append
+        aidx_append = out.axis_idx.append
+        aval_extend = out.axis_val.extend
+        agiven_append = out.axis_given.append
         comment_cont = False
         pending: list[tuple[int, str]] | None = None
-        lineno = 0
+        s = self.scale
+        simple = True  # no rapid, circle, continuation or comment continuation pending
         it = enumerate(lines, 1)
         for lineno, raw in it:
-            # Hot path: the common single-line "GOTO/x,y,z" with no comment, continuation or rapid.
-            if (
-                raw.startswith("GOTO/")
-                and pending is None
-                and "$" not in raw
-                and "_" not in raw
-                and not self.rapid_next
-                and self.circle is None
-            ):
-                comment_cont = False
+            # Hot path: a single-line "GOTO/x,y,z[,i,j,k]" with nothing pending (most lines of a file).
+            if simple and raw.startswith("GOTO/") and "$" not in raw and "_" not in raw:
                 parts = raw[5:].split(",")
-                if len(parts) == 3:
+                n = len(parts)
+                if n == 3:
                     try:
-                        x, y, z = float(parts[0]), float(parts[1]), float(parts[2])
+                        xyz = (float(parts[0]) * s, float(parts[1]) * s, float(parts[2]) * s)
                     except ValueError:
                         pass
                     else:
-                        s = self.scale
+                        xyz_extend(xyz)
+                        lines_append(lineno)
+                        continue
+                elif n == 6:
+                    try:
+                        x, y, z, i, j, k = map(float, parts)
+                    except ValueError:
+                        pass
+                    else:
+                        aidx_append(len(lines_obj))
                         xyz_extend((x * s, y * s, z * s))
                         lines_append(lineno)
+                        aval_extend((i, j, k))
+                        agiven_append(1)
                         continue
-                elif len(parts) == 6:
-                    try:
-                        v = [float(p) for p in parts]
-                    except ValueError:
-                        pass
-                    else:
-                        s = self.scale
-                        k = len(out.lines)
-                        xyz_extend((v[0] * s, v[1] * s, v[2] * s))
-                        lines_append(lineno)
-                        self.set_given_axis(k, v[3], v[4], v[5], lineno)
-                        continue
-                self.pieces = None
-                self.record(lineno, raw.strip())
-                continue
+                # Not a clean GOTO: the general path below names the bad field.
             text = raw.rstrip("\r\n")
             if lineno == 1 and text.startswith("Information listing created by"):
                 self.skip_listing_header(it, text)
                 continue
             if comment_cont:
-                s = text.lstrip()
-                if s and s[0] in _NUMERIC_START:
+                t = text.lstrip()
+                if t and t[0] in _NUMERIC_START:
                     comment_cont = text.rstrip().endswith("$")
                     continue
                 comment_cont = False
@@ -493,9 +488,11 @@ class _Reader:
                     if pending is None:
                         pending = []
                     pending.append((lineno, c[:-1]))
+                    simple = False
                     continue
                 if cut >= 0 and not code.strip() and pending is None:
                     comment_cont = text.rstrip().endswith("$")
+                    simple = not (comment_cont or self.rapid_next or self.circle is not None)
                     continue
                 text = code
             if pending is not None:
@@ -508,15 +505,15 @@ class _Reader:
                 self.pieces = None
             else:
                 stripped = text.strip()
-                if not stripped:
-                    continue
                 if stripped.startswith("Tool Path Listing has "):
                     self.out.event("listing", lineno, "trailer", math.nan, stripped)
-                    continue
-                self.record(lineno, stripped)
+                elif stripped:
+                    self.record(lineno, stripped)
             if self.finished:
                 self.after_fini(it)
                 break
+            s = self.scale
+            simple = not (comment_cont or self.rapid_next or self.circle is not None)
         if pending is not None:
             self.fail(pending[0][0], "record", "continuation ('$') at the end of the file: record incomplete")
         if self.circle is not None:
@@ -586,6 +583,8 @@ def read_apt(
     reader = _Reader(name, units, frames, axis_tolerance)
     with open_lines(src) as lines:
         reader.run(lines)
+    if reader.out.count == 0:
+        raise InputFileError(name, None, "", "holds no motion (no GOTO or FROM record)")
     tp = reader.out.finish(reader.default_units, axis_tolerance=axis_tolerance)
     check_arcs(tp, reader.warn)
     reader.warn.flush()

@@ -20,9 +20,11 @@ What is read
   axes unknown (a rotary axis named in G28 returns to 0); no point is emitted until X, Y and Z are
   known again, and the next point is flagged rapid. Both are kept as ``home`` events.
 * Rotary words (e.g. ``B``, ``C``) are converted to tool axes with the machine kinematics the user
-  names (:class:`~planner.io.machines.TableTableKinematics`, preset ``"haas-umc-750"``). Under
-  ``G234`` (TCPC) XYZ is taken as the tool tip in the part frame; under ``G254`` (DWO) as the tip in
-  machine-aligned axes about the turned part origin (converted with ``p = Q^T p_prog``); with neither,
+  names (:class:`~planner.io.machines.TableTableKinematics`, preset ``"haas-umc-750"``; the
+  derivation and its check on the real program are in :mod:`planner.io.machines`). Under ``G234``
+  (Haas TCPC; also ``G43.4``/``G43.5``; cancelled by ``G49``) XYZ is taken as the tool tip in the
+  part frame; under ``G254`` (DWO) as the tip in machine-aligned axes about the turned part origin
+  (converted with ``p = Q^T p_prog``); with neither,
   at non-zero angles, as machine positions about the axes' points given in the kinematics (or like
   DWO, with a warning, when the kinematics gives none). Before any rotary word the angles are 0.
   Without a machine, a non-zero rotary angle is an error (the axis cannot be guessed); a program that
@@ -220,7 +222,7 @@ class _Reader:
                 self.warn.warn("G93", line, "inverse-time feed (G93) is not converted: feeds unknown")
         elif g in (40.0, 41.0, 42.0):
             out.event("cutcom", line, {40.0: "OFF", 41.0: "LEFT", 42.0: "RIGHT"}[g], math.nan, text.strip())
-        elif g == 234.0:
+        elif g in (234.0, 43.4, 43.5):
             self.tcpc = True
             out.event("frame", line, "TCPC on", math.nan, text.strip())
         elif g == 49.0:
@@ -509,6 +511,8 @@ def read_gcode(
     reader = _Reader(name, units, kin)
     with open_lines(src) as lines:
         reader.run(lines)
+    if reader.out.count == 0:
+        raise InputFileError(name, None, "", "holds no motion block with a known X, Y and Z")
     tp = reader.finish()
     check_arcs(tp, reader.warn)
     reader.warn.flush()

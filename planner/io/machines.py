@@ -37,10 +37,12 @@ Frames of the programmed XYZ
   ``rotary_point``, in the work frame at zero angles); without them the reader treats the block like
   DWO and warns.
 
-The Haas UMC-750 preset was checked on the NX 2022 program in ``shared/data``: its two 3+2 pocket
-operations at ``B82.875 C-180`` and ``B82.875 C0`` (under G254) land on the part's -X face (x = 0 to
-0.33 in) and +X face (x = 4.03 to 3.7 in) of the 4 in block with tool axes about -X and +X; with the
-opposite signs they would land outside the stock.
+The Haas UMC-750 preset was checked on the NX 2022 program in ``shared/data`` (a 4 in block):
+its 3+2 pockets under G254 land in the block's faces with the tool pointing out of them
+(``B82.875 C-180``: x from -0.04 to 0.35 in, axis within 8 deg of -X; ``B82.875 C0``: x from 3.65 to
+4.04 in, axis near +X; likewise -Y and +Y for ``C-90``/``C90``), and its simultaneous operations
+under G234 approach the faces from outside. With both signs +1 the pockets would fall 2 in below
+the block and the TCPC tools would point into it.
 """
 
 from __future__ import annotations

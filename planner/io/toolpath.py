@@ -153,7 +153,11 @@ class Toolpath:
     rotary: np.ndarray | None = None
 
     def __post_init__(self):
-        pts = np.asarray(self.points, dtype=float).reshape(-1, 3)
+        pts = np.asarray(self.points, dtype=float)
+        if pts.size == 0:
+            pts = pts.reshape(0, 3)
+        if pts.ndim != 2 or pts.shape[1] != 3:
+            raise ValueError(f"Toolpath.points must have shape (n, 3), got {pts.shape}")
         n = pts.shape[0]
 
         def vec(name, dtype, shape):
@@ -207,7 +211,8 @@ def arc_samples(
     centre : ndarray, shape (3,)
         A point on the arc's axis.
     axis : ndarray, shape (3,)
-        Unit axis; the motion is counter-clockwise about it. A start equal to the end is a full turn.
+        Unit axis; the motion is counter-clockwise about it. An end that projects onto the start
+        along the axis is a full turn.
     tolerance : float
         Largest distance, metres, between a chord and the arc (sagitta).
 
@@ -227,8 +232,8 @@ def arc_samples(
     if ru == 0.0 or rv == 0.0:
         return np.empty((0, 3))
     sweep = math.atan2(float(np.cross(up, vp) @ n), float(up @ vp)) % (2.0 * math.pi)
-    if sweep < 1e-12:
-        sweep = 2.0 * math.pi if np.allclose(start, end, rtol=0.0, atol=1e-12) else 0.0
+    if sweep < 1e-12:  # the end projects onto the start: a full turn (a helix if heights differ)
+        sweep = 2.0 * math.pi if np.linalg.norm(up - vp) <= 1e-9 * max(ru, rv) else 0.0
     r = max(ru, rv)
     # Sagitta of a chord spanning angle d on radius r is r (1 - cos(d/2)).
     step = 2.0 * math.acos(max(-1.0, 1.0 - tolerance / r)) if tolerance < r else math.pi
