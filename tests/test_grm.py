@@ -68,7 +68,7 @@ def test_low_objective_13_can_twist_far_more(solutions):
 
 def test_max_twist_figure_matches_frames(solutions):
     g = solutions["twist"]
-    t = np.linspace(0, 1, 2001)
+    t = np.linspace(0, 1, 1001)
     assert max_twist_deg(g.frames(t), rmf_frames(SEED, t)) == pytest.approx(g.max_twist_deg, abs=1e-9)
 
 

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import numpy as np
 import pytest
-from hypothesis import given, settings
+from hypothesis import assume, given, settings
 from scipy.integrate import solve_ivp
 
 from planner.curves import PHCubic, PHQuintic, fit_ph_spline
@@ -26,6 +26,8 @@ def orthonormal_error(F):
 def test_er_and_rmf_frames_are_orthonormal_right_handed_adapted(A0, A1, A2):
     c = PHQuintic.from_quaternions(A0, A1, A2)
     t = np.linspace(0, 1, 41)
+    speed = c.speed(np.linspace(0, 1, 201))
+    assume(speed.min() > 1e-3 * speed.max())  # a cusp (A(t) = 0) has no tangent to compare with
     for F in (er_frames(c, t), rmf_frames(c, t)):
         assert orthonormal_error(F) < 1e-14
         assert np.allclose(np.linalg.det(F), 1.0, atol=1e-14)

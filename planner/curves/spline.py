@@ -135,6 +135,29 @@ class PHSpline:
             out.append(np.ascontiguousarray(c))
         return out
 
+    @cached_property
+    def _A_power(self) -> np.ndarray:
+        """Power-basis coefficients (m, N, 4) in t of every segment's quaternion polynomial A(t)."""
+        m = self.A.shape[1]
+        M = np.zeros((m, m))
+        for k in range(m):
+            for j in range(k + 1):
+                M[k, j] = comb(m - 1, k) * comb(k, j) * (-1) ** (k - j)
+        return np.ascontiguousarray(np.einsum("kj,njc->knc", M, self.A))
+
+    def quaternion(self, u) -> np.ndarray:
+        """The quaternion polynomial A(t) (n, 4) of each sample's segment (r' = A i A* per unit t)."""
+        k, t = self.locate(u)
+        return self._quaternion_t(k, t)
+
+    def _quaternion_t(self, k, t) -> np.ndarray:
+        P = self._A_power
+        r = P[-1][k]
+        tt = t[:, None]
+        for j in range(P.shape[0] - 2, -1, -1):
+            r = r * tt + P[j][k]
+        return r
+
     def _derivative_t(self, k, t, order):
         """d^order r / dt^order of segments k (n,) at local parameters t (n,), by Horner's rule."""
         c = self._power[order]

@@ -22,10 +22,12 @@ degrees more (DESIGN.md). Every result reports the real figure, ``max_twist_deg`
 
 from __future__ import annotations
 
+import time
 from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
+from scipy.optimize import minimize
 
 from planner import bernstein
 from planner import quaternion as qt
@@ -38,11 +40,8 @@ _COLLOC = 0.5 - 0.5 * np.cos((2 * np.arange(7) + 1) * np.pi / 14)
 #: Quadrature for the objectives: 24-point Gauss-Legendre on [0, 1] (exact for eq. 13 with rho = 1, sigma).
 _QX, _QW = np.polynomial.legendre.leggauss(24)
 _QX, _QW = 0.5 * (_QX + 1.0), 0.5 * _QW
-#: Twist objective: angle error at the ends of 48 panels, each integrated with 4-point Gauss-Legendre.
-_TP = 48
-_TX, _TW = np.polynomial.legendre.leggauss(4)
-_TNODES = (np.arange(_TP)[:, None] + 0.5 * (_TX + 1.0)) / _TP
-_TW = 0.5 * _TW / _TP
+#: Parameters where the "twist" objective compares the GRM angle with the exact RMF angle.
+_TS = np.linspace(0.0, 1.0, 201)
 
 WEIGHTS = ("twist", "1", "sigma", "tau_kappa")
 
@@ -95,9 +94,11 @@ class GRMFrame:
         max over [0, 1] of |a b' - a' b - g| / max |g| (eq. 24; round-off for a converged solve).
     max_twist_deg : float
         Largest angle (deg) between this frame's normal-plane vectors and the exact RMF's from the
-        same start frame, over 2001 parameters.
+        same start frame, over 1001 parameters.
     start_angle : float
         Angle (rad) of the frame's column 1 against the ER frame's at t = 0.
+    seconds : float
+        Wall time the solve took (for the per-segment speed figure).
     """
 
     curve: object
@@ -108,6 +109,7 @@ class GRMFrame:
     constraint_residual: float
     max_twist_deg: float
     start_angle: float = 0.0
+    seconds: float = 0.0
 
     def angle(self, t) -> np.ndarray:
         """psi_R(t) - psi_R(0) + start_angle (rad), modulo 2 pi: the frame's angle against the ER frame."""
@@ -125,7 +127,7 @@ class GRMFrame:
         er0 = er_frames(self.curve, [0.0])[0]
         F = check_start_frame(start, er0[:, 0])
         return GRMFrame(self.curve, self.a, self.b, self.weight, self.objective, self.constraint_residual,
-                        self.max_twist_deg, normal_angle(F, er0))
+                        self.max_twist_deg, normal_angle(F, er0), self.seconds)
 
 
 class _Problem:
@@ -136,11 +138,12 @@ class _Problem:
         self.curve = curve
         self.B7, self.dB7 = bernstein.basis(4, _COLLOC), 4 * _diff_basis(_COLLOC)
         self.g7 = g_poly_values(A, _COLLOC)
+        self.target = self.g7  # right-hand side of (24) at the collocation nodes (moved by the homotopy)
         self.gscale = max(np.abs(g_poly_values(A, np.linspace(0, 1, 201))).max(), 1e-300)
         self.weight = weight
-        if weight == "twist":
-            t = _TNODES.ravel()
-            self.Bt, self.g_t, self.s2_t = bernstein.basis(4, t), g_poly_values(A, t), sigma_values(A, t) ** 2
+        if weight == "twist":  # judged directly by the largest twist against the exact RMF
+            self.Bs = bernstein.basis(4, _TS)
+            self.psi = RMFAngle.of(A).on_grid(_TS)
         else:
             self.Bq = bernstein.basis(4, _QX)
             self.s2q = 2.0 * sigma_values(A, _QX) ** 2
@@ -152,7 +155,11 @@ class _Problem:
 
     def constraint(self, x):
         a, b = self.split(x)
-        return (self.B7 @ a * (self.dB7 @ b) - (self.dB7 @ a) * (self.B7 @ b) - self.g7) / self.gscale
+        return (self.lhs7(a, b) - self.target) / self.gscale
+
+    def lhs7(self, a, b):
+        """a b' - a' b at the collocation nodes."""
+        return self.B7 @ a * (self.dB7 @ b) - (self.dB7 @ a) * (self.B7 @ b)
 
     def constraint_jac(self, x):
         a, b = self.split(x)
@@ -161,30 +168,45 @@ class _Problem:
         jb = av[:, None] * self.dB7 - dav[:, None] * self.B7
         return np.hstack((ja[:, 1:], jb)) / self.gscale
 
-    def residuals(self, x):
-        """The objective as a sum of squares: residual vector R (m,) and its Jacobian (m, 9)."""
-        a, b = self.split(x)
+    def constraint_batch(self, X):
+        """constraint() for rows X (G, 9) -> (G, 7)."""
+        a = np.concatenate((np.zeros((X.shape[0], 1)), X[:, :4]), axis=1)
+        b = X[:, 4:]
+        av, bv, dav, dbv = a @ self.B7.T, b @ self.B7.T, a @ self.dB7.T, b @ self.dB7.T
+        return (av * dbv - dav * bv - self.target) / self.gscale
+
+    def constraint_jac_batch(self, X):
+        """constraint_jac() for rows X (G, 9) -> (G, 7, 9)."""
+        a = np.concatenate((np.zeros((X.shape[0], 1)), X[:, :4]), axis=1)
+        b = X[:, 4:]
+        av, bv, dav, dbv = a @ self.B7.T, b @ self.B7.T, a @ self.dB7.T, b @ self.dB7.T
+        ja = self.B7 * dbv[:, :, None] - self.dB7 * bv[:, :, None]
+        jb = av[:, :, None] * self.dB7 - dav[:, :, None] * self.B7
+        return np.concatenate((ja[:, :, 1:], jb), axis=2) / self.gscale
+
+    def objective_batch(self, X):
+        """objective() for rows X (G, 9) -> (G,); NaN rows give NaN."""
+        a = np.concatenate((np.zeros((X.shape[0], 1)), X[:, :4]), axis=1)
+        b = X[:, 4:]
         if self.weight == "twist":
-            B = self.Bt
-            av, bv = B @ a, B @ b
-            r2 = av * av + bv * bv
-            rate = self.g_t * (1.0 / self.s2_t - 2.0 / r2)  # d/dt (psi - psi_R) at the nodes
-            drate = self.g_t * 4.0 / (r2 * r2)  # d rate / d(a^2 + b^2), times 2 for d/da = 2 a
-            R = np.cumsum(rate.reshape(_TP, 4) @ _TW) / np.sqrt(_TP)
-            Ja = np.cumsum(np.einsum("pk,k,pkj->pj", (drate * av).reshape(_TP, 4), _TW,
-                                     B.reshape(_TP, 4, 5)), axis=0)
-            Jb = np.cumsum(np.einsum("pk,k,pkj->pj", (drate * bv).reshape(_TP, 4), _TW,
-                                     B.reshape(_TP, 4, 5)), axis=0)
-            return R, np.hstack((Ja[:, 1:], Jb)) / np.sqrt(_TP)
-        B = self.Bq
-        av, bv = B @ a, B @ b
-        sw = np.sqrt(self.rho)
-        R = sw * (av * av + bv * bv - self.s2q)
-        return R, np.hstack(((2 * sw * av)[:, None] * B[:, 1:], (2 * sw * bv)[:, None] * B))
+            with np.errstate(invalid="ignore"):
+                ang = np.unwrap(2.0 * np.arctan2(a @ self.Bs.T, b @ self.Bs.T), axis=1)
+                return np.abs(ang - ang[:, :1] - self.psi).max(axis=1)
+        av, bv = a @ self.Bq.T, b @ self.Bq.T
+        r = av * av + bv * bv - self.s2q
+        return (r * r) @ self.rho
 
     def objective(self, x):
-        R, _ = self.residuals(x)
-        return float(R @ R)
+        """Eq. (13) with the weight; for "twist", the largest twist (rad) against the exact RMF on 201
+        parameters (the GRM angle unwrapped along t, so a spin of 2 pi is seen)."""
+        if self.weight == "twist":
+            a, b = self.split(x)
+            ang = np.unwrap(2.0 * np.arctan2(self.Bs @ a, self.Bs @ b))
+            return float(np.abs(ang - ang[0] - self.psi).max())
+        a, b = self.split(x)
+        av, bv = self.Bq @ a, self.Bq @ b
+        r = av * av + bv * bv - self.s2q
+        return float(self.rho @ (r * r))
 
 
 def _diff_basis(t):
@@ -208,47 +230,120 @@ def _ideal_start(curve) -> np.ndarray:
     return np.concatenate((a, b))
 
 
-def _project(p: _Problem, x: np.ndarray, iters: int = 30) -> np.ndarray:
-    """Minimum-norm Newton projection onto the constraint set (24), to round-off."""
+_FREE = np.array([0, 1, 2, 3, 5, 6, 7])  # a1..a4, b1..b3; (b0, b4) = x[4], x[8] parametrize the set
+
+
+def _solve_batch(J: np.ndarray, C: np.ndarray) -> np.ndarray:
+    """Solutions of J x = C for stacked square systems; singular ones by least squares."""
+    with np.errstate(all="ignore"):
+        ok = np.abs(np.linalg.det(J)) > 1e-300
+    x = np.empty(C.shape)
+    if ok.any():
+        x[ok] = np.linalg.solve(J[ok], C[ok][..., None])[..., 0]
+    for i in np.flatnonzero(~ok):
+        x[i] = np.linalg.lstsq(J[i], C[i], rcond=None)[0]
+    return x
+
+
+def _on_constraint(p: _Problem, X: np.ndarray, b0: np.ndarray, b4: np.ndarray, iters: int = 12) -> np.ndarray:
+    """Points (G, 9) of the constraint set (24) with b(0) = b0, b(1) = b4 (G,), by batched Newton from X.
+
+    Only rows still iterating are computed; rows where Newton fails (no point of the set nearby, or
+    divergence) are NaN.
+    """
+    X = np.array(X, dtype=float)
+    X[:, 4], X[:, 8] = b0, b4
+    bound = 1e6 * max(np.abs(X).max(), 1e-300)
+    active = np.arange(X.shape[0])
+    first = None
+    for it in range(iters):
+        C = p.constraint_batch(X[active])
+        err = np.abs(C).max(axis=1)
+        first = err if first is None else first
+        keep = (err >= 1e-14) & np.isfinite(err) & ~((it >= 3) & (err > 10 * first))
+        diverged = ~np.isfinite(err) | ((it >= 3) & (err > 10 * first))
+        X[active[diverged]] = np.nan
+        active, C, first = active[keep], C[keep], first[keep]
+        if active.size == 0:
+            break
+        J = p.constraint_jac_batch(X[active])[:, :, _FREE]
+        X[active[:, None], _FREE] -= _solve_batch(J, C)
+        bad = ~np.isfinite(X[active]).all(axis=1) | (np.abs(X[active]).max(axis=1) > bound)
+        X[active[bad]] = np.nan
+        active, first = active[~bad], first[~bad]
+    feasible = np.abs(p.constraint_batch(X)).max(axis=1) < 1e-12
+    X[~feasible] = np.nan
+    return X
+
+
+def _closest_feasible(p: _Problem, x: np.ndarray, iters: int = 20) -> np.ndarray:
+    """Column-scaled least-squares Newton towards (24) from x, keeping the least violating iterate.
+
+    Used where the grid finds no exactly feasible point: on nearly torsion-free segments g is tiny
+    and the constraint set is ill-conditioned (condition numbers of 1e14), but the start itself is
+    already nearly rotation-minimizing. ``constraint_residual`` reports what remains.
+    """
+    best = (np.abs(p.constraint(x)).max(), x)
     for _ in range(iters):
         c = p.constraint(x)
-        if np.abs(c).max() < 1e-15:
-            break
-        x = x - np.linalg.lstsq(p.constraint_jac(x), c, rcond=None)[0]
-    return x
+        J = p.constraint_jac(x)[:, _FREE]
+        sc = np.maximum(np.linalg.norm(J, axis=0), 1e-300)
+        x = x.copy()
+        x[_FREE] -= np.linalg.lstsq(J / sc, c, rcond=None)[0] / sc
+        r = np.abs(p.constraint(x)).max()
+        if r < best[0]:
+            best = (r, x)
+    return best[1]
 
 
-def _solve(p: _Problem, x: np.ndarray, iters: int = 60) -> np.ndarray:
-    """Constrained Gauss-Newton: min |R(x)|^2 subject to (24), from a feasible x.
+def _search(p: _Problem, x0: np.ndarray, size: float, grid: int) -> np.ndarray | None:
+    """Global search of the 2-dimensional constraint set parametrized by (b(0), b(1)).
 
-    Each step solves the linearized KKT system [[J'J + mu I, C'], [C, 0]] of the residual Jacobian J
-    and the constraint Jacobian C; steps that do not lower the objective are damped.
+    A grid x grid of (b(0), b(1)) around the least-squares fit of the exact RMF, solved by Newton with
+    continuation along the b(1) direction (all rows at once), widened if no point is feasible; then
+    Nelder-Mead from the best point, each trial point continued from the last one found.
     """
-    n = x.size
-    f = p.objective(x)
-    mu = 1e-12
-    for _ in range(iters):
-        R, J = p.residuals(x)
-        c, C = p.constraint(x), p.constraint_jac(x)
-        H = J.T @ J
-        K = np.block([[H + mu * np.trace(H) / n * np.eye(n), C.T], [C, np.zeros((C.shape[0], C.shape[0]))]])
-        step = np.linalg.lstsq(K, -np.concatenate((J.T @ R, c)), rcond=None)[0][:n]
-        xn = _project(p, x + step, 8)
-        fn = p.objective(xn)
-        stalled = np.abs(step).max() <= 1e-9 * np.abs(x).max()
-        if fn <= f:
-            stalled |= f - fn <= 1e-10 * f
-            x, f = xn, fn
-            mu = max(mu / 10, 1e-12)
-        else:
-            mu *= 100
-        if stalled or mu > 1e6:
+    best = None
+    for widen in (1.0, 4.0, 16.0):
+        offs = np.linspace(-2.0, 2.0, grid) * size * widen
+        X = np.full((grid, grid, 9), np.nan)
+        # sweep b(1) across the grid for all rows of b(0) at once, each point started from its solved
+        # neighbour (continuation), then sweep back to fill the points the first sweep missed
+        for order in (range(grid), range(grid - 1, -1, -1)):
+            prev = np.tile(x0, (grid, 1))
+            for j in order:
+                todo = ~np.isfinite(X[:, j, 0])
+                if todo.any():
+                    start = np.where(np.isfinite(prev[:, :1]), prev, x0)[todo]
+                    X[todo, j] = _on_constraint(p, start, x0[4] + offs[todo], np.full(todo.sum(), x0[8] + offs[j]))
+                prev = np.where(np.isfinite(X[:, j, :1]), X[:, j], prev)
+        X = X.reshape(-1, 9)
+        f = p.objective_batch(X)
+        if np.isfinite(f).any():
+            k = int(np.nanargmin(f))
+            best, spacing = (f[k], X[k]), offs[1] - offs[0]
             break
-    return x
+    if best is None:
+        return None
+    anchor = [best[1]]
+
+    def key(v):  # the objective on the constraint set, continued from the last point found
+        x = _on_constraint(p, anchor[0][None], np.array([v[0]]), np.array([v[1]]))[0]
+        if not np.isfinite(x).all():
+            return 10.0 * best[0] + 1.0
+        anchor[0] = x
+        return p.objective(x)
+
+    x = best[1]
+    simplex = x[[4, 8]] + 0.5 * spacing * np.array([[0.0, 0.0], [1.0, 0.0], [0.0, 1.0]])
+    res = minimize(key, x[[4, 8]], method="Nelder-Mead",
+                   options={"xatol": 1e-7 * size, "fatol": 1e-9, "maxfev": 60, "initial_simplex": simplex})
+    x = _on_constraint(p, anchor[0][None], res.x[:1], res.x[1:])[0]
+    return x if np.isfinite(x).all() and p.objective(x) <= best[0] else best[1]
 
 
 def _twist_deg(curve, a, b) -> float:
-    t = np.linspace(0.0, 1.0, 2001)
+    t = np.linspace(0.0, 1.0, 1001)
     exact = RMFAngle.of(curve.A).on_grid(t)
     ang = np.unwrap(2.0 * np.arctan2(bernstein.evaluate(a, t), bernstein.evaluate(b, t)))
     d = (ang - ang[0]) - exact
@@ -264,11 +359,9 @@ def constraint_residual(curve, a, b) -> float:
     return float(np.abs(av * dbv - dav * bv - g).max() / np.abs(g).max())
 
 
-#: Deterministic perturbations of the start (relative amplitude) for the global search.
-_PERTURB = np.random.default_rng(20231105).uniform(-1.0, 1.0, size=(6, 9))
 
 
-def grm(curve, weight: str | Callable = "twist", *, starts: int = 4) -> GRMFrame:
+def grm(curve, weight: str | Callable = "twist", *, grid: int = 11) -> GRMFrame:
     """The GRM frame of a PH quintic (``PHQuintic``), starting at its ER frame at t = 0.
 
     Parameters
@@ -277,9 +370,10 @@ def grm(curve, weight: str | Callable = "twist", *, starts: int = 4) -> GRMFrame
     weight : "twist" (default), "1", "sigma", "tau_kappa" or callable rho(t) -> (n,)
         What a^2 + b^2 ~ 2 sigma^2 is optimized for: "twist" minimizes the mean square angle to the
         exact RMF; the others are the paper's eq. (13) with that weight rho.
-    starts : int
-        Local solves from the exact-RMF least-squares start and ``starts - 1`` deterministic
-        perturbations of it (the constraint set has several branches); the best feasible one wins.
+    grid : int
+        The constraint set (24) with a(0) = 0 is 2-dimensional, parametrized here by (b(0), b(1)); it is
+        searched globally on a grid x grid around the least-squares fit of the exact RMF (its branches
+        and infeasible holes included), then refined on finer local grids.
 
     Returns
     -------
@@ -290,25 +384,19 @@ def grm(curve, weight: str | Callable = "twist", *, starts: int = 4) -> GRMFrame
         raise PlannerError("grm needs a PH quintic (quaternion coefficients A of shape (3, 4))")
     if not callable(weight) and weight not in WEIGHTS:
         raise PlannerError(f"weight must be one of {WEIGHTS} or a callable rho(t), got {weight!r}")
+    tic = time.perf_counter()
     p = _Problem(curve, weight)
-    x0 = _project(p, _ideal_start(curve))
-    scale = np.abs(x0).max()
-    best = None
-    for k in range(max(1, starts)):
-        xs = x0 if k == 0 else _project(p, x0 + 0.25 * scale * _PERTURB[(k - 1) % len(_PERTURB)])
-        x = _project(p, _solve(p, xs))
-        if np.abs(p.constraint(x)).max() > 1e-10:
-            continue
-        f = p.objective(x)
-        if best is None or f < best[0]:
-            best = (f, x)
-    if best is None:  # the projected start is always feasible
-        best = (p.objective(x0), x0)
-    f, x = best
+    x0 = _ideal_start(curve)
+    size = np.sqrt(2.0) * float(np.mean(sigma_values(curve.A, _TS)))  # typical |b + i a|
+    x = _search(p, x0, size, grid)
+    if x is None:  # nearly torsion-free segment: (24) is ill-conditioned there (a ~ 0); best effort
+        x = _closest_feasible(p, x0)
+    f = p.objective(x)
     a, b = p.split(x)
     if b[0] < 0:  # same frame, nicer coefficients
         a, b = -a, -b
-    return GRMFrame(curve, a, b, weight, f, constraint_residual(curve, a, b), _twist_deg(curve, a, b))
+    resid, twist = constraint_residual(curve, a, b), _twist_deg(curve, a, b)
+    return GRMFrame(curve, a, b, weight, f, resid, twist, 0.0, time.perf_counter() - tic)
 
 
 def grm_from_coefficients(curve, a, b, weight=None) -> GRMFrame:

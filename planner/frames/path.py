@@ -20,19 +20,25 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner import bernstein
 from planner import quaternion as qt
 from planner.errors import PlannerError
 from planner.frames.grm import grm
-from planner.frames.rmf import RMFAngle, check_start_frame, turn_normals
+from planner.frames.rmf import check_start_frame
+from planner.frames.rmf_batch import PathRMFAngles
 
 METHODS = ("rmf", "grm", "er")
 
 
 def _er_at(path, k: np.ndarray, t: np.ndarray) -> np.ndarray:
     """ER frames (n, 3, 3) of segments k at local parameters t."""
-    A = np.einsum("nj,njq->nq", bernstein.basis(path.A.shape[1] - 1, t), path.A[k])
-    return qt.to_matrix(A)
+    return qt.to_matrix(path._quaternion_t(k, t))
+
+
+def _turned_quaternions(path, k, t, angle) -> np.ndarray:
+    """Unit quaternions (n, 4) of the ER frames turned by ``angle`` about the tangent: A e^{i angle/2}."""
+    A = path._quaternion_t(k, t)
+    A /= np.sqrt(np.einsum("ni,ni->n", A, A))[:, None]
+    return qt.mul(A, qt.exp_i(0.5 * angle))
 
 
 def _angle_in(frame_col1: np.ndarray, basis: np.ndarray) -> np.ndarray:
@@ -49,8 +55,9 @@ class PathFrames:
     ----------
     path : PHSpline
     method : str
-    segment_angles : list of callables
-        Per segment, t (n,) -> angle (n,) of the base frame against the segment's ER frame, 0 at t = 0.
+    segment_angles : list of callables, or None for "rmf"
+        Per segment, t (n,) -> angle (n,) of the base frame against the segment's ER frame, 0 at t = 0
+        (the exact RMF is evaluated for all segments at once from ``panels`` instead).
     offsets : ndarray (N,)
         Angle of the base frame against each segment's ER frame at its start.
     stations : ndarray (m,), corrections : ndarray (m,)
@@ -66,10 +73,13 @@ class PathFrames:
     stations: np.ndarray
     corrections: np.ndarray
     grm_frames: list | None = None
+    panels: PathRMFAngles | None = None
 
     def base_angle(self, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(segment, local t, angle against the ER frame) at global parameters u, before corrections."""
         k, t = self.path.locate(u)
+        if self.segment_angles is None:  # exact RMF, all segments at once along sorted samples
+            return k, t, self.panels(k, t) + self.offsets[k]
         ang = np.empty_like(t)
         for seg in np.unique(k):
             idx = np.flatnonzero(k == seg)
@@ -77,23 +87,27 @@ class PathFrames:
             ang[idx] = f.on_grid(t[idx]) if hasattr(f, "on_grid") else f(t[idx])
         return k, t, ang + self.offsets[k]
 
-    def frames(self, u) -> np.ndarray:
-        """Frames (n, 3, 3) at global parameters u (n,): column 0 the unit tangent, columns 1, 2 the
-        normal-plane vectors; orthonormal, right-handed, continuous along the path."""
+    def quaternions(self, u) -> np.ndarray:
+        """Unit quaternions (n, 4) (scalar first) of the frames at global parameters u (n,)."""
         u = np.atleast_1d(np.asarray(u, dtype=float))
         k, t, ang = self.base_angle(u)
         if self.stations.size:
             ang = ang + np.interp(self.path.arc_length(u), self.stations, self.corrections)
-        return turn_normals(_er_at(self.path, k, t), ang)
+        return _turned_quaternions(self.path, k, t, ang)
+
+    def frames(self, u) -> np.ndarray:
+        """Frames (n, 3, 3) at global parameters u (n,): column 0 the unit tangent, columns 1, 2 the
+        normal-plane vectors; orthonormal, right-handed, continuous along the path."""
+        return qt.to_matrix(self.quaternions(u))
 
     def at_length(self, s) -> np.ndarray:
         """Frames at arc lengths s (n,) from the start (metres)."""
         return self.frames(self.path.parameter_at_length(s))
 
 
-def _segment_functions(path, method: str, weight) -> tuple[list, list | None]:
+def _segment_functions(path, method: str, weight) -> tuple[list | None, list | None]:
     if method == "rmf":
-        return [RMFAngle.of(A) for A in path.A], None
+        return None, None
     if method == "er":
         zero = _Zero()
         return [zero] * path.n_segments, None
@@ -151,7 +165,8 @@ def frame_field(
         F = check_start_frame(start, er0[:, 0])
         off0 = float(_angle_in(F[None, :, 1], er0[None])[0])
     n = path.n_segments
-    totals = np.array([f(np.ones(1))[0] for f in funcs])
+    panels = PathRMFAngles(path.A) if funcs is None else None
+    totals = panels.totals if funcs is None else np.array([f(np.ones(1))[0] for f in funcs])
     if n > 1:
         end = _er_at(path, np.arange(n - 1), np.ones(n - 1))
         nxt = _er_at(path, np.arange(1, n), np.zeros(n - 1))
@@ -159,7 +174,7 @@ def frame_field(
         offsets = off0 + np.concatenate(([0.0], np.cumsum(totals[:-1] - delta)))
     else:
         offsets = np.array([off0])
-    field = PathFrames(path, method, funcs, offsets, np.zeros(0), np.zeros(0), sols)
+    field = PathFrames(path, method, funcs, offsets, np.zeros(0), np.zeros(0), sols, panels)
     if closed and prescribed:
         raise PlannerError("closed=True and prescribed rolls together are not supported; prescribe the roll "
                            "at waypoint 0 instead of start/closing, or open the path")
@@ -183,7 +198,7 @@ def _close(field: PathFrames) -> PathFrames:
         raise PlannerError("closed=True but the tangents at the start and end differ (the path has a corner there)")
     closing = float(_angle_in(ends[:1, :, 1], ends[1:])[0])  # start frame seen from the end frame
     return PathFrames(path, field.method, field.segment_angles, field.offsets,
-                      np.array([0.0, path.length]), np.array([0.0, closing]), field.grm_frames)
+                      np.array([0.0, path.length]), np.array([0.0, closing]), field.grm_frames, field.panels)
 
 
 def _prescribe(field: PathFrames, prescribed: Mapping[int, np.ndarray]) -> PathFrames:
@@ -209,7 +224,8 @@ def _prescribe(field: PathFrames, prescribed: Mapping[int, np.ndarray]) -> PathF
     needed = np.array(needed)
     needed = needed[0] + np.concatenate(([0.0], np.cumsum(np.angle(np.exp(1j * np.diff(needed))))))
     s = path.arc_length(u)
-    return PathFrames(path, field.method, field.segment_angles, field.offsets, s, needed, field.grm_frames)
+    return PathFrames(path, field.method, field.segment_angles, field.offsets, s, needed, field.grm_frames,
+                      field.panels)
 
 
 def path_frames(path, u, method: str = "rmf", **options) -> np.ndarray:
