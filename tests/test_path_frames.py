@@ -105,6 +105,23 @@ def test_prescribed_rolls_are_met_with_uniform_twist_between_them():
     assert abs(extra[-1] - extra[0]) <= np.pi + 1e-12
 
 
+def test_juttler_and_double_reflection_on_whole_paths():
+    cubic = fit_ph_cubic_spline(WAYPOINTS)
+    u = np.linspace(0, cubic.knots[-1], 4001)
+    exact = frame_field(cubic, "rmf").frames(u)
+    jut = frame_field(cubic, "juttler").frames(u)
+    assert np.abs(np.einsum("nji,njk->nik", jut, jut) - np.eye(3)).max() < 1e-12
+    assert np.abs(jut[:, :, 0] - cubic.tangent(u)).max() < 1e-12
+    assert max_twist_deg(jut, exact) < 2.0  # rational approximation; exact at the start
+    k = cubic.knots[1:-1]  # C0 at the joints
+    field = frame_field(cubic, "juttler")
+    assert np.abs(field.frames(k - 1e-10) - field.frames(k)).max() < 1e-6
+    dr = frame_field(PATH, "double-reflection")
+    u = np.linspace(0, PATH.knots[-1], 20001)
+    assert max_twist_deg(dr.frames(u), frame_field(PATH, "rmf").frames(u)) < 1e-6
+    assert np.abs(dr.frames(u[::-1])[::-1] - dr.frames(u)).max() < 1e-12  # order of the samples is irrelevant
+
+
 def test_path_frame_errors():
     with pytest.raises(PlannerError, match="method must be one of"):
         frame_field(PATH, "frenet")
@@ -116,6 +133,8 @@ def test_path_frame_errors():
         frame_field(PATH, closed=True)
     with pytest.raises(PlannerError, match="needs a PH quintic spline"):
         frame_field(fit_ph_cubic_spline(WAYPOINTS), "grm")
+    with pytest.raises(PlannerError, match="needs a G1 PH cubic spline"):
+        frame_field(PATH, "juttler")
 
 
 # -- tool axes given by the CAD data ----------------------------------------------------------------------

@@ -6,6 +6,9 @@ the previous segment's end frame, so frames (and their quaternions) are continuo
 - ``"rmf"``: the exact rotation-minimizing frame (:mod:`planner.frames.rmf`).
 - ``"grm"``: the rational GRM frame of every segment (:mod:`planner.frames.grm`).
 - ``"er"``: the Euler-Rodrigues frame, made continuous at the joints (not rotation-minimizing).
+- ``"juttler"``: Jüttler's rational RMM of a G1 PH cubic spline (juttler seed, section 7.1: one
+  rational motion per circular tangent indicatrix, C0 at the joints).
+- ``"double-reflection"``: the double reflection method on the samples asked for (sampled data).
 
 On top of the base frame, the planner adds the least uniform twist that meets the user's constraints:
 a closed path spreads its closing twist evenly over the arc length; prescribed rolls at waypoints are
@@ -22,11 +25,13 @@ import numpy as np
 
 from planner import quaternion as qt
 from planner.errors import PlannerError
+from planner.frames.double_reflection import double_reflection_frames
 from planner.frames.grm import grm
+from planner.frames.ph_cubic_rmm import ph_cubic_spline_rmm
 from planner.frames.rmf import check_start_frame
 from planner.frames.rmf_batch import PathRMFAngles
 
-METHODS = ("rmf", "grm", "er")
+METHODS = ("rmf", "grm", "er", "juttler", "double-reflection")
 
 
 def _er_at(path, k: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -146,7 +151,7 @@ def frame_field(
     Parameters
     ----------
     path : PHSpline
-    method : "rmf" (exact, default), "grm" or "er"
+    method : "rmf" (exact, default), "grm", "er", "juttler" (PH cubic splines) or "double-reflection"
     start : array_like (3, 3), optional
         Frame at the start (column 0 the unit tangent). Default: the ER frame there.
     closed : bool
@@ -158,6 +163,10 @@ def frame_field(
         uniform twist between consecutive prescriptions.
     weight : GRM objective (method "grm" only), see :func:`planner.frames.grm.grm`.
     """
+    if method in ("juttler", "double-reflection"):
+        if closed or prescribed:
+            raise PlannerError(f"closed paths and prescribed rolls are supported for {METHODS[:3]}, not {method!r}")
+        return _motion_field(path, method, start)
     funcs, sols = _segment_functions(path, method, weight)
     er0 = _er_at(path, np.array([0]), np.zeros(1))[0]
     off0 = 0.0
@@ -226,6 +235,42 @@ def _prescribe(field: PathFrames, prescribed: Mapping[int, np.ndarray]) -> PathF
     s = path.arc_length(u)
     return PathFrames(path, field.method, field.segment_angles, field.offsets, s, needed, field.grm_frames,
                       field.panels)
+
+
+@dataclass(frozen=True, eq=False)
+class MotionFrames:
+    """Frames of a path from a method that is not an angle against the ER frame (Jüttler's rational
+    motion, double reflection): the same ``frames(u)`` / ``at_length(s)`` interface as PathFrames."""
+
+    path: object
+    method: str
+    motion: object | None
+    start: np.ndarray
+
+    def frames(self, u) -> np.ndarray:
+        u = np.atleast_1d(np.asarray(u, dtype=float))
+        if self.method == "juttler":
+            return self.motion.frames(u)
+        order = np.argsort(u, kind="stable")  # double reflection runs along the sorted samples
+        F = np.empty((u.size, 3, 3))
+        F[order] = double_reflection_frames(self.path.points(u[order]), self.path.tangent(u[order]), self.start)
+        return F
+
+    def at_length(self, s) -> np.ndarray:
+        return self.frames(self.path.parameter_at_length(s))
+
+
+def _motion_field(path, method: str, start) -> MotionFrames:
+    F0 = frame_field(path, "er").frames(path.knots[:1])[0]
+    if start is not None:
+        F0 = check_start_frame(start, F0[:, 0])
+    if method == "double-reflection":
+        return MotionFrames(path, method, None, F0)
+    if path.degree != 3:
+        raise PlannerError("method 'juttler' needs a G1 PH cubic spline (fit_ph_cubic_spline): its unit "
+                           "tangents are circular arcs, which Jüttler's rational motions follow")
+    hodographs = 3.0 * np.diff(path.control_points, axis=1)
+    return MotionFrames(path, method, ph_cubic_spline_rmm(hodographs, path.knots, F0), F0)
 
 
 def path_frames(path, u, method: str = "rmf", **options) -> np.ndarray:
