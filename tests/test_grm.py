@@ -125,3 +125,22 @@ def test_bad_input():
         grm(SEED, lambda t: -np.ones_like(t))
     with pytest.raises(PlannerError, match="5 Bernstein coefficients"):
         grm_from_coefficients(SEED, [1, 2], [3, 4])
+
+
+def test_grm_many_solves_every_segment_of_a_path():
+    from planner.curves import fit_ph_spline
+    from planner.frames.grm import grm_many
+
+    th = np.linspace(0, 2.5, 9)
+    path = fit_ph_spline(np.c_[np.cos(th), np.sin(th), 0.3 * th + 0.1 * np.sin(3 * th)])
+    sols = grm_many(path.segments)
+    assert len(sols) == path.n_segments
+    for seg, g in zip(path.segments, sols, strict=True):
+        assert g.constraint_residual < 1e-9
+        single = grm(seg)
+        assert g.max_twist_deg <= max(3 * single.max_twist_deg, 0.05)
+        t = np.linspace(0, 1, 201)
+        assert max_twist_deg(g.frames(t), rmf_frames(seg, t)) == pytest.approx(g.max_twist_deg, abs=0.05)
+    with pytest.raises(PlannerError, match="weight must be one of"):
+        grm_many(path.segments, "nope")
+    assert grm_many([]) == []

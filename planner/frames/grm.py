@@ -34,6 +34,7 @@ from planner import quaternion as qt
 from planner.errors import PlannerError
 from planner.frames.er import er_frames
 from planner.frames.rmf import RMFAngle, check_start_frame, normal_angle, turn_normals
+from planner.frames.rmf_batch import PathRMFAngles
 
 #: Collocation nodes for the 7 equations of (24): Chebyshev points of [0, 1].
 _COLLOC = 0.5 - 0.5 * np.cos((2 * np.arange(7) + 1) * np.pi / 14)
@@ -41,7 +42,7 @@ _COLLOC = 0.5 - 0.5 * np.cos((2 * np.arange(7) + 1) * np.pi / 14)
 _QX, _QW = np.polynomial.legendre.leggauss(24)
 _QX, _QW = 0.5 * (_QX + 1.0), 0.5 * _QW
 #: Parameters where the "twist" objective compares the GRM angle with the exact RMF angle.
-_TS = np.linspace(0.0, 1.0, 201)
+_TS = np.linspace(0.0, 1.0, 101)
 
 WEIGHTS = ("twist", "1", "sigma", "tau_kappa")
 
@@ -131,82 +132,76 @@ class GRMFrame:
 
 
 class _Problem:
-    """Constraint (24) and objectives for one curve; unknowns x = (a1..a4, b0..b4) with a0 = 0."""
+    """Constraint (24) and objectives for S curves at once; unknowns per curve x = (a1..a4, b0..b4), a0 = 0.
 
-    def __init__(self, curve, weight):
-        A = curve.A
-        self.curve = curve
+    Batched methods take rows X (R, 9) and the curve index of each row, ``seg`` (R,).
+    """
+
+    def __init__(self, curves, weight):
+        A = np.stack([c.A for c in curves])  # (S, 3, 4)
+        S = A.shape[0]
         self.B7, self.dB7 = bernstein.basis(4, _COLLOC), 4 * _diff_basis(_COLLOC)
-        self.g7 = g_poly_values(A, _COLLOC)
-        self.target = self.g7  # right-hand side of (24) at the collocation nodes (moved by the homotopy)
-        self.gscale = max(np.abs(g_poly_values(A, np.linspace(0, 1, 201))).max(), 1e-300)
+        self.g7 = np.stack([g_poly_values(a, _COLLOC) for a in A])
+        self.target = self.g7  # right-hand side of (24) at the collocation nodes
+        dense = np.linspace(0, 1, 201)
+        self.gscale = np.maximum(np.stack([np.abs(g_poly_values(a, dense)).max() for a in A]), 1e-300)
         self.weight = weight
         if weight == "twist":  # judged directly by the largest twist against the exact RMF
             self.Bs = bernstein.basis(4, _TS)
-            self.psi = RMFAngle.of(A).on_grid(_TS)
+            psi = PathRMFAngles(A)(np.repeat(np.arange(S), _TS.size), np.tile(_TS, S)).reshape(S, _TS.size)
+            self.w = np.exp(-0.5j * psi)  # conj of the exact RMF's half-angle phase
         else:
             self.Bq = bernstein.basis(4, _QX)
-            self.s2q = 2.0 * sigma_values(A, _QX) ** 2
-            self.rho = _weight_values(weight, curve, _QX) * _QW
+            self.s2q = 2.0 * np.stack([sigma_values(a, _QX) for a in A]) ** 2
+            self.rho = np.stack([_weight_values(weight, c, _QX) for c in curves]) * _QW
 
     @staticmethod
     def split(x):
         return np.concatenate(([0.0], x[:4])), x[4:]
 
-    def constraint(self, x):
-        a, b = self.split(x)
-        return (self.lhs7(a, b) - self.target) / self.gscale
+    @staticmethod
+    def _ab(X):
+        return np.concatenate((np.zeros((X.shape[0], 1)), X[:, :4]), axis=1), X[:, 4:]
 
-    def lhs7(self, a, b):
-        """a b' - a' b at the collocation nodes."""
-        return self.B7 @ a * (self.dB7 @ b) - (self.dB7 @ a) * (self.B7 @ b)
-
-    def constraint_jac(self, x):
-        a, b = self.split(x)
-        av, bv, dav, dbv = self.B7 @ a, self.B7 @ b, self.dB7 @ a, self.dB7 @ b
-        ja = self.B7 * dbv[:, None] - self.dB7 * bv[:, None]
-        jb = av[:, None] * self.dB7 - dav[:, None] * self.B7
-        return np.hstack((ja[:, 1:], jb)) / self.gscale
-
-    def constraint_batch(self, X):
-        """constraint() for rows X (G, 9) -> (G, 7)."""
-        a = np.concatenate((np.zeros((X.shape[0], 1)), X[:, :4]), axis=1)
-        b = X[:, 4:]
+    def constraint_batch(self, X, seg):
+        """(a b' - a' b - g) / max |g| at the collocation nodes, rows X (R, 9) -> (R, 7)."""
+        a, b = self._ab(X)
         av, bv, dav, dbv = a @ self.B7.T, b @ self.B7.T, a @ self.dB7.T, b @ self.dB7.T
-        return (av * dbv - dav * bv - self.target) / self.gscale
+        return (av * dbv - dav * bv - self.target[seg]) / self.gscale[seg, None]
 
-    def constraint_jac_batch(self, X):
-        """constraint_jac() for rows X (G, 9) -> (G, 7, 9)."""
-        a = np.concatenate((np.zeros((X.shape[0], 1)), X[:, :4]), axis=1)
-        b = X[:, 4:]
+    def constraint_jac_batch(self, X, seg):
+        """Jacobian (R, 7, 9) of :meth:`constraint_batch`."""
+        a, b = self._ab(X)
         av, bv, dav, dbv = a @ self.B7.T, b @ self.B7.T, a @ self.dB7.T, b @ self.dB7.T
         ja = self.B7 * dbv[:, :, None] - self.dB7 * bv[:, :, None]
         jb = av[:, :, None] * self.dB7 - dav[:, :, None] * self.B7
-        return np.concatenate((ja[:, :, 1:], jb), axis=2) / self.gscale
+        return np.concatenate((ja[:, :, 1:], jb), axis=2) / self.gscale[seg, None, None]
 
-    def objective_batch(self, X):
-        """objective() for rows X (G, 9) -> (G,); NaN rows give NaN."""
-        a = np.concatenate((np.zeros((X.shape[0], 1)), X[:, :4]), axis=1)
-        b = X[:, 4:]
+    def objective_batch(self, X, seg):
+        """Eq. (13) with the weight, rows X (R, 9) -> (R,); for "twist", the largest twist (rad) against
+        the exact RMF on 201 parameters (the GRM angle unwrapped along t, so a spin of 2 pi is seen).
+        NaN rows give NaN."""
+        a, b = self._ab(X)
         if self.weight == "twist":
+            # with z = b + i a, the GRM angle is 2 arg z; against the RMF (from the same start) the twist
+            # is arg(u^2) for u = z e^{-i psi/2} conj(z(0)): one principal angle per sample, no unwrapping
+            z = (b @ self.Bs.T + 1j * (a @ self.Bs.T)) * self.w[seg]
+            u = z * np.conj(z[:, :1])
             with np.errstate(invalid="ignore"):
-                ang = np.unwrap(2.0 * np.arctan2(a @ self.Bs.T, b @ self.Bs.T), axis=1)
-                return np.abs(ang - ang[:, :1] - self.psi).max(axis=1)
+                return np.abs(np.angle(u * u)).max(axis=1)
         av, bv = a @ self.Bq.T, b @ self.Bq.T
-        r = av * av + bv * bv - self.s2q
-        return (r * r) @ self.rho
+        r = av * av + bv * bv - self.s2q[seg]
+        return np.einsum("rq,rq->r", r * r, self.rho[seg])
+
+    # single-curve conveniences (curve 0)
+    def constraint(self, x):
+        return self.constraint_batch(x[None], np.zeros(1, int))[0]
+
+    def constraint_jac(self, x):
+        return self.constraint_jac_batch(x[None], np.zeros(1, int))[0]
 
     def objective(self, x):
-        """Eq. (13) with the weight; for "twist", the largest twist (rad) against the exact RMF on 201
-        parameters (the GRM angle unwrapped along t, so a spin of 2 pi is seen)."""
-        if self.weight == "twist":
-            a, b = self.split(x)
-            ang = np.unwrap(2.0 * np.arctan2(self.Bs @ a, self.Bs @ b))
-            return float(np.abs(ang - ang[0] - self.psi).max())
-        a, b = self.split(x)
-        av, bv = self.Bq @ a, self.Bq @ b
-        r = av * av + bv * bv - self.s2q
-        return float(self.rho @ (r * r))
+        return float(self.objective_batch(x[None], np.zeros(1, int))[0])
 
 
 def _diff_basis(t):
@@ -245,19 +240,21 @@ def _solve_batch(J: np.ndarray, C: np.ndarray) -> np.ndarray:
     return x
 
 
-def _on_constraint(p: _Problem, X: np.ndarray, b0: np.ndarray, b4: np.ndarray, iters: int = 12) -> np.ndarray:
-    """Points (G, 9) of the constraint set (24) with b(0) = b0, b(1) = b4 (G,), by batched Newton from X.
+def _on_constraint(p: _Problem, X: np.ndarray, b0: np.ndarray, b4: np.ndarray, seg=None, iters: int = 12):
+    """Points (G, 9) of the constraint sets (24) of curves ``seg`` (G,) (default curve 0) with b(0) = b0,
+    b(1) = b4 (G,), by batched Newton from X.
 
     Only rows still iterating are computed; rows where Newton fails (no point of the set nearby, or
     divergence) are NaN.
     """
     X = np.array(X, dtype=float)
     X[:, 4], X[:, 8] = b0, b4
-    bound = 1e6 * max(np.abs(X).max(), 1e-300)
+    seg = np.zeros(X.shape[0], int) if seg is None else np.asarray(seg)
+    bound = 1e6 * np.maximum(np.abs(X).max(axis=1), 1e-300)
     active = np.arange(X.shape[0])
     first = None
     for it in range(iters):
-        C = p.constraint_batch(X[active])
+        C = p.constraint_batch(X[active], seg[active])
         err = np.abs(C).max(axis=1)
         first = err if first is None else first
         keep = (err >= 1e-14) & np.isfinite(err) & ~((it >= 3) & (err > 10 * first))
@@ -266,12 +263,13 @@ def _on_constraint(p: _Problem, X: np.ndarray, b0: np.ndarray, b4: np.ndarray, i
         active, C, first = active[keep], C[keep], first[keep]
         if active.size == 0:
             break
-        J = p.constraint_jac_batch(X[active])[:, :, _FREE]
+        J = p.constraint_jac_batch(X[active], seg[active])[:, :, _FREE]
         X[active[:, None], _FREE] -= _solve_batch(J, C)
-        bad = ~np.isfinite(X[active]).all(axis=1) | (np.abs(X[active]).max(axis=1) > bound)
+        bad = ~np.isfinite(X[active]).all(axis=1) | (np.abs(X[active]).max(axis=1) > bound[active])
         X[active[bad]] = np.nan
         active, first = active[~bad], first[~bad]
-    feasible = np.abs(p.constraint_batch(X)).max(axis=1) < 1e-12
+    with np.errstate(invalid="ignore"):
+        feasible = np.abs(p.constraint_batch(X, seg)).max(axis=1) < 1e-12
     X[~feasible] = np.nan
     return X
 
@@ -318,7 +316,7 @@ def _search(p: _Problem, x0: np.ndarray, size: float, grid: int) -> np.ndarray |
                     X[todo, j] = _on_constraint(p, start, x0[4] + offs[todo], np.full(todo.sum(), x0[8] + offs[j]))
                 prev = np.where(np.isfinite(X[:, j, :1]), X[:, j], prev)
         X = X.reshape(-1, 9)
-        f = p.objective_batch(X)
+        f = p.objective_batch(X, np.zeros(X.shape[0], int))
         if np.isfinite(f).any():
             k = int(np.nanargmin(f))
             best, spacing = (f[k], X[k]), offs[1] - offs[0]
@@ -385,7 +383,7 @@ def grm(curve, weight: str | Callable = "twist", *, grid: int = 11) -> GRMFrame:
     if not callable(weight) and weight not in WEIGHTS:
         raise PlannerError(f"weight must be one of {WEIGHTS} or a callable rho(t), got {weight!r}")
     tic = time.perf_counter()
-    p = _Problem(curve, weight)
+    p = _Problem([curve], weight)
     x0 = _ideal_start(curve)
     size = np.sqrt(2.0) * float(np.mean(sigma_values(curve.A, _TS)))  # typical |b + i a|
     x = _search(p, x0, size, grid)
@@ -399,6 +397,111 @@ def grm(curve, weight: str | Callable = "twist", *, grid: int = 11) -> GRMFrame:
     return GRMFrame(curve, a, b, weight, f, resid, twist, 0.0, time.perf_counter() - tic)
 
 
+def _ideal_starts(curves) -> np.ndarray:
+    """:func:`_ideal_start` for S curves at once (S, 9)."""
+    A = np.stack([c.A for c in curves])
+    S = A.shape[0]
+    t = np.linspace(0.0, 1.0, 41)
+    psi = PathRMFAngles(A)(np.repeat(np.arange(S), t.size), np.tile(t, S)).reshape(S, t.size)
+    s = np.sqrt(2.0) * np.stack([sigma_values(a, t) for a in A])
+    B = bernstein.basis(4, t)
+    a = np.linalg.lstsq(B[:, 1:], (s * np.sin(0.5 * psi)).T, rcond=None)[0].T
+    b = np.linalg.lstsq(B, (s * np.cos(0.5 * psi)).T, rcond=None)[0].T
+    return np.concatenate((a, b), axis=1)
+
+
+def _search_many(p: _Problem, x0: np.ndarray, size: np.ndarray, grid: int, rounds: int = 8):
+    """:func:`_search` for S curves at once, the refinement by shrinking 5 x 5 local grids (batched)
+    instead of Nelder-Mead. Returns X (S, 9), NaN rows where no feasible point was found."""
+    S = x0.shape[0]
+    best_f = np.full(S, np.inf)
+    best_x = np.full((S, 9), np.nan)
+    spacing = np.zeros(S)
+    todo = np.arange(S)
+    unit = np.linspace(-2.0, 2.0, grid)
+    for widen in (1.0, 4.0, 16.0):
+        if todo.size == 0:
+            break
+        offs = unit[None, :] * (size[todo] * widen)[:, None]  # (T, grid)
+        T = todo.size
+        X = np.full((T, grid, grid, 9), np.nan)  # [curve, b0 offset, b4 offset]
+        rows_seg = np.repeat(todo, grid)
+        for order in (range(grid), range(grid - 1, -1, -1)):
+            prev = np.repeat(x0[todo], grid, axis=0)  # (T * grid, 9) per (curve, b0 offset)
+            for j in order:
+                cur = X[:, :, j].reshape(T * grid, 9)
+                need = ~np.isfinite(cur[:, 0])
+                if need.any():
+                    start = np.where(np.isfinite(prev[:, :1]), prev, np.repeat(x0[todo], grid, axis=0))[need]
+                    b0 = (x0[todo, 4][:, None] + offs).ravel()[need]
+                    b4 = np.repeat(x0[todo, 8] + offs[:, j], grid)[need]
+                    cur[need] = _on_constraint(p, start, b0, b4, rows_seg[need])
+                    X[:, :, j] = cur.reshape(T, grid, 9)
+                prev = np.where(np.isfinite(cur[:, :1]), cur, prev)
+        flat = X.reshape(T, grid * grid, 9)
+        f = p.objective_batch(flat.reshape(-1, 9), np.repeat(todo, grid * grid)).reshape(T, grid * grid)
+        f = np.where(np.isfinite(f), f, np.inf)
+        k = np.argmin(f, axis=1)
+        found = np.isfinite(f[np.arange(T), k])
+        best_f[todo[found]] = f[found, k[found]]
+        best_x[todo[found]] = flat[found, k[found]]
+        spacing[todo[found]] = (offs[:, 1] - offs[:, 0])[found]
+        todo = todo[~found]
+    ok = np.flatnonzero(np.isfinite(best_f))
+    local = np.linspace(-1.0, 1.0, 5)
+    d0, d4 = (g.ravel() for g in np.meshgrid(local, local, indexing="ij"))
+    for _ in range(rounds):
+        spacing[ok] /= 2.0
+        G = d0.size
+        start = np.repeat(best_x[ok], G, axis=0)
+        b0 = (best_x[ok, 4][:, None] + spacing[ok, None] * d0).ravel()
+        b4 = (best_x[ok, 8][:, None] + spacing[ok, None] * d4).ravel()
+        seg = np.repeat(ok, G)
+        X = _on_constraint(p, start, b0, b4, seg)
+        f = p.objective_batch(X, seg).reshape(ok.size, G)
+        f = np.where(np.isfinite(f), f, np.inf)
+        k = np.argmin(f, axis=1)
+        better = f[np.arange(ok.size), k] < best_f[ok]
+        best_f[ok[better]] = f[better, k[better]]
+        best_x[ok[better]] = X.reshape(ok.size, G, 9)[better, k[better]]
+    return best_x
+
+
+def grm_many(curves, weight: str | Callable = "twist", *, grid: int = 11) -> list[GRMFrame]:
+    """:func:`grm` for many PH quintics at once (e.g. every segment of a path), vectorized over them.
+
+    The search is the same grid with continuation; its refinement uses shrinking local grids for all
+    curves together instead of a Nelder-Mead run per curve, which makes paths of hundreds of segments
+    fast. ``seconds`` of each result is the wall time divided by the number of curves.
+    """
+    curves = list(curves)
+    if not curves:
+        return []
+    for c in curves:
+        if getattr(c, "A", None) is None or np.shape(c.A) != (3, 4):
+            raise PlannerError("grm needs PH quintics (quaternion coefficients A of shape (3, 4))")
+    if not callable(weight) and weight not in WEIGHTS:
+        raise PlannerError(f"weight must be one of {WEIGHTS} or a callable rho(t), got {weight!r}")
+    tic = time.perf_counter()
+    p = _Problem(curves, weight)
+    x0 = _ideal_starts(curves)
+    size = np.sqrt(2.0) * np.array([np.mean(sigma_values(c.A, _TS)) for c in curves])
+    X = _search_many(p, x0, size, grid)
+    out = []
+    per = (time.perf_counter() - tic) / len(curves)
+    for i, c in enumerate(curves):
+        x = X[i]
+        if not np.isfinite(x).all():  # nearly torsion-free segment: best effort, as in grm()
+            q = _Problem([c], weight)
+            x = _closest_feasible(q, x0[i])
+        a, b = p.split(x)
+        if b[0] < 0:
+            a, b = -a, -b
+        f = float(p.objective_batch(x[None], np.array([i]))[0])
+        out.append(GRMFrame(c, a, b, weight, f, constraint_residual(c, a, b), _twist_deg(c, a, b), 0.0, per))
+    return out
+
+
 def grm_from_coefficients(curve, a, b, weight=None) -> GRMFrame:
     """A GRMFrame from given Bernstein coefficients a, b (5,) (e.g. the paper's printed solution)."""
     a = np.asarray(a, dtype=float)
@@ -407,7 +510,7 @@ def grm_from_coefficients(curve, a, b, weight=None) -> GRMFrame:
         raise PlannerError("a and b must each have 5 Bernstein coefficients")
     obj = float("nan")
     if weight is not None:
-        p = _Problem(curve, weight)
+        p = _Problem([curve], weight)
         x = np.concatenate((a[1:], b))
         obj = p.objective(x) if a[0] == 0 else float("nan")
     return GRMFrame(curve, a, b, weight, obj, constraint_residual(curve, a, b), _twist_deg(curve, a, b))

@@ -26,7 +26,7 @@ import numpy as np
 from planner import quaternion as qt
 from planner.errors import PlannerError
 from planner.frames.double_reflection import double_reflection_frames
-from planner.frames.grm import grm
+from planner.frames.grm import grm_many
 from planner.frames.ph_cubic_rmm import ph_cubic_spline_rmm
 from planner.frames.rmf import check_start_frame
 from planner.frames.rmf_batch import PathRMFAngles
@@ -119,7 +119,7 @@ def _segment_functions(path, method: str, weight) -> tuple[list | None, list | N
     if method == "grm":
         if path.degree != 5:
             raise PlannerError("method 'grm' needs a PH quintic spline (fit_ph_spline)")
-        sols = [grm(seg, weight) for seg in path.segments]
+        sols = grm_many(path.segments, weight)
         return [_GRMAngle(g) for g in sols], sols
     raise PlannerError(f"method must be one of {METHODS}, got {method!r}")
 
