@@ -41,6 +41,10 @@ _COLLOC = 0.5 - 0.5 * np.cos((2 * np.arange(7) + 1) * np.pi / 14)
 #: Quadrature for the objectives: 24-point Gauss-Legendre on [0, 1] (exact for eq. 13 with rho = 1, sigma).
 _QX, _QW = np.polynomial.legendre.leggauss(24)
 _QX, _QW = 0.5 * (_QX + 1.0), 0.5 * _QW
+#: Search results with an objective at or above this (the spin penalty, for "twist") get the fallback.
+_ACCEPT = np.pi
+#: The "twist" objective rejects solutions with a^2 + b^2 below this fraction of 2 sigma^2 anywhere.
+_MIN_RATIO = 0.2
 #: Parameters where the "twist" objective compares the GRM angle with the exact RMF angle.
 _TS = np.linspace(0.0, 1.0, 101)
 
@@ -56,6 +60,20 @@ def g_poly_values(A: np.ndarray, t: np.ndarray) -> np.ndarray:
     dA = bernstein.evaluate(bernstein.derivative(A), t)
     q = Av[:, 0] * dA[:, 1] - Av[:, 1] * dA[:, 0] - Av[:, 2] * dA[:, 3] + Av[:, 3] * dA[:, 2]
     return 2.0 * qt.norm2(Av) * q
+
+
+def _values_batch(A: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """A(t) and A'(t) for stacked curves A (S, 3, 4) at parameters t (n,): (S, n, 4) each."""
+    B = bernstein.basis(2, t)
+    dB = bernstein.basis(1, t)
+    return np.einsum("nj,sjc->snc", B, A), np.einsum("nj,sjc->snc", dB, 2.0 * np.diff(A, axis=1))
+
+
+def g_values_batch(A: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """:func:`g_poly_values` for stacked curves A (S, 3, 4): (S, n)."""
+    Av, dA = _values_batch(A, t)
+    q = Av[..., 0] * dA[..., 1] - Av[..., 1] * dA[..., 0] - Av[..., 2] * dA[..., 3] + Av[..., 3] * dA[..., 2]
+    return 2.0 * (Av * Av).sum(axis=-1) * q
 
 
 def sigma_values(A: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -141,18 +159,18 @@ class _Problem:
         A = np.stack([c.A for c in curves])  # (S, 3, 4)
         S = A.shape[0]
         self.B7, self.dB7 = bernstein.basis(4, _COLLOC), 4 * _diff_basis(_COLLOC)
-        self.g7 = np.stack([g_poly_values(a, _COLLOC) for a in A])
+        self.g7 = g_values_batch(A, _COLLOC)
         self.target = self.g7  # right-hand side of (24) at the collocation nodes
-        dense = np.linspace(0, 1, 201)
-        self.gscale = np.maximum(np.stack([np.abs(g_poly_values(a, dense)).max() for a in A]), 1e-300)
+        self.gscale = np.maximum(np.abs(g_values_batch(A, np.linspace(0, 1, 201))).max(axis=1), 1e-300)
         self.weight = weight
         if weight == "twist":  # judged directly by the largest twist against the exact RMF
             self.Bs = bernstein.basis(4, _TS)
             psi = PathRMFAngles(A)(np.repeat(np.arange(S), _TS.size), np.tile(_TS, S)).reshape(S, _TS.size)
             self.w = np.exp(-0.5j * psi)  # conj of the exact RMF's half-angle phase
+            self.s2s = 2.0 * (_values_batch(A, _TS)[0] ** 2).sum(axis=-1) ** 2  # 2 sigma^2 at the samples
         else:
             self.Bq = bernstein.basis(4, _QX)
-            self.s2q = 2.0 * np.stack([sigma_values(a, _QX) for a in A]) ** 2
+            self.s2q = 2.0 * (_values_batch(A, _QX)[0] ** 2).sum(axis=-1) ** 2
             self.rho = np.stack([_weight_values(weight, c, _QX) for c in curves]) * _QW
 
     @staticmethod
@@ -185,10 +203,14 @@ class _Problem:
         if self.weight == "twist":
             # with z = b + i a, the GRM angle is 2 arg z; against the RMF (from the same start) the twist
             # is arg(u^2) for u = z e^{-i psi/2} conj(z(0)): one principal angle per sample, no unwrapping
-            z = (b @ self.Bs.T + 1j * (a @ self.Bs.T)) * self.w[seg]
+            zr = b @ self.Bs.T + 1j * (a @ self.Bs.T)
+            z = zr * self.w[seg]
             u = z * np.conj(z[:, :1])
             with np.errstate(invalid="ignore"):
-                return np.abs(np.angle(u * u)).max(axis=1)
+                twist = np.abs(np.angle(u * u)).max(axis=1)
+                # |z|^2 = a^2 + b^2 far below 2 sigma^2 somewhere means a fast spin that samples can miss
+                dip = ((zr.real**2 + zr.imag**2) / self.s2s[seg]).min(axis=1) < _MIN_RATIO
+            return np.where(dip, twist + np.pi, twist)
         av, bv = a @ self.Bq.T, b @ self.Bq.T
         r = av * av + bv * bv - self.s2q[seg]
         return np.einsum("rq,rq->r", r * r, self.rho[seg])
@@ -387,8 +409,12 @@ def grm(curve, weight: str | Callable = "twist", *, grid: int = 11) -> GRMFrame:
     x0 = _ideal_start(curve)
     size = np.sqrt(2.0) * float(np.mean(sigma_values(curve.A, _TS)))  # typical |b + i a|
     x = _search(p, x0, size, grid)
-    if x is None:  # nearly torsion-free segment: (24) is ill-conditioned there (a ~ 0); best effort
-        x = _closest_feasible(p, x0)
+    if x is None or not p.objective(x) < _ACCEPT:
+        # nearly torsion-free segment: (24) is ill-conditioned there (a ~ 0), and the grid finds no
+        # point or only spinning ones; best effort from the start, which is already nearly RM
+        alt = _closest_feasible(p, x0)
+        if x is None or p.objective(alt) < p.objective(x):
+            x = alt
     f = p.objective(x)
     a, b = p.split(x)
     if b[0] < 0:  # same frame, nicer coefficients
@@ -403,7 +429,7 @@ def _ideal_starts(curves) -> np.ndarray:
     S = A.shape[0]
     t = np.linspace(0.0, 1.0, 41)
     psi = PathRMFAngles(A)(np.repeat(np.arange(S), t.size), np.tile(t, S)).reshape(S, t.size)
-    s = np.sqrt(2.0) * np.stack([sigma_values(a, t) for a in A])
+    s = np.sqrt(2.0) * (_values_batch(A, t)[0] ** 2).sum(axis=-1)
     B = bernstein.basis(4, t)
     a = np.linalg.lstsq(B[:, 1:], (s * np.sin(0.5 * psi)).T, rcond=None)[0].T
     b = np.linalg.lstsq(B, (s * np.cos(0.5 * psi)).T, rcond=None)[0].T
@@ -485,21 +511,38 @@ def grm_many(curves, weight: str | Callable = "twist", *, grid: int = 11) -> lis
     tic = time.perf_counter()
     p = _Problem(curves, weight)
     x0 = _ideal_starts(curves)
-    size = np.sqrt(2.0) * np.array([np.mean(sigma_values(c.A, _TS)) for c in curves])
+    A = np.stack([c.A for c in curves])
+    size = np.sqrt(2.0) * (_values_batch(A, _TS)[0] ** 2).sum(axis=-1).mean(axis=1)
     X = _search_many(p, x0, size, grid)
-    out = []
+    f = p.objective_batch(X, np.arange(len(curves)))
+    for i in np.flatnonzero(~(f < _ACCEPT)):  # nothing found, or only spinning points: best effort
+        q = _Problem([curves[i]], weight)
+        alt = _closest_feasible(q, x0[i])
+        if not np.isfinite(X[i]).all() or q.objective(alt) < f[i]:
+            X[i] = alt
+    a = np.concatenate((np.zeros((X.shape[0], 1)), X[:, :4]), axis=1)
+    b = X[:, 4:]
+    flip = b[:, :1] < 0  # same frame, nicer coefficients
+    a, b = np.where(flip, -a, a), np.where(flip, -b, b)
+    f = p.objective_batch(X, np.arange(len(curves)))
+    resid, twist = _figures_batch(A, a, b)
     per = (time.perf_counter() - tic) / len(curves)
-    for i, c in enumerate(curves):
-        x = X[i]
-        if not np.isfinite(x).all():  # nearly torsion-free segment: best effort, as in grm()
-            q = _Problem([c], weight)
-            x = _closest_feasible(q, x0[i])
-        a, b = p.split(x)
-        if b[0] < 0:
-            a, b = -a, -b
-        f = float(p.objective_batch(x[None], np.array([i]))[0])
-        out.append(GRMFrame(c, a, b, weight, f, constraint_residual(c, a, b), _twist_deg(c, a, b), 0.0, per))
-    return out
+    return [GRMFrame(c, a[i], b[i], weight, float(f[i]), float(resid[i]), float(twist[i]), 0.0, per)
+            for i, c in enumerate(curves)]
+
+
+def _figures_batch(A: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`constraint_residual` and :func:`_twist_deg` for stacked curves and coefficients."""
+    t = np.linspace(0.0, 1.0, 1001)
+    B, dB = bernstein.basis(4, t), 4 * _diff_basis(t)
+    av, bv, dav, dbv = a @ B.T, b @ B.T, a @ dB.T, b @ dB.T
+    g = g_values_batch(A, t)
+    resid = np.abs(av * dbv - dav * bv - g).max(axis=1) / np.maximum(np.abs(g).max(axis=1), 1e-300)
+    S = A.shape[0]
+    exact = PathRMFAngles(A)(np.repeat(np.arange(S), t.size), np.tile(t, S)).reshape(S, t.size)
+    z = (bv + 1j * av) * np.exp(-0.5j * exact)
+    u = z * np.conj(z[:, :1])
+    return resid, np.degrees(np.abs(np.angle(u * u)).max(axis=1))
 
 
 def grm_from_coefficients(curve, a, b, weight=None) -> GRMFrame:
