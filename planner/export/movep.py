@@ -1,0 +1,141 @@
+"""Targets and blend radii for a ``movep`` program that follows the path within a tolerance.
+
+``movep`` moves the tool at constant speed along straight lines between targets and blends around each
+target with a circular arc inside a sphere of radius r (UR Script Manual, movep; not covered by
+shared/UR-PROTOCOLS.md). Its deviation from the planned path is at most the deviation of the
+polyline of targets from the path plus the corner each blend cuts:
+
+- targets: the path is split at the feed levels and at I/O trigger points, then every piece whose
+  chord strays more than tolerance / 2 from the path (checked at 8 interior points), or whose
+  orientation strays more than ``angle_tolerance`` from the rotation interpolated along the chord, is
+  halved, until none does;
+- blend radius r at a target where the polyline turns by alpha: a blend of radius r cuts the corner
+  by about r sin(alpha / 2) / 2 (the midpoint of the quadratic blend between the points r before and
+  after the corner), so r <= tolerance / sin(alpha / 2); also r <= half of either neighbouring chord
+  (blends must not overlap), and at a target that carries an I/O switch r <= v * event_time_tolerance.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from planner.export.header import ExportError
+from planner.motion.events import ScheduledEvent, schedule_events
+from planner.motion.limits import positive
+from planner.motion.orientation import rotation_angle
+from planner.motion.stream import poses_at_length
+
+_CHECKS = 8
+
+
+@dataclass(frozen=True, eq=False)
+class MovePPlan:
+    """Targets of a ``movep`` program.
+
+    Attributes
+    ----------
+    s : ndarray (m,)
+        Arc length of each target along the path (0 first, the path length last), m.
+    poses : ndarray (m, 6)
+        TCP poses p[x, y, z, rx, ry, rz] of the targets in the base frame.
+    radii : ndarray (m,)
+        Blend radius at each target, m (0 at the first and last).
+    speeds : ndarray (m,)
+        Tool speed of the move into each target, m/s (0 for the first, which is the start).
+    deviation : float
+        Largest distance of the checked path points from the polyline of targets, m.
+    angle_deviation : float
+        Largest angle between the path's tool frame and the rotation interpolated along the chord, rad.
+    events : tuple of ScheduledEvent
+        I/O events in time order; ``index`` is the target after whose move the switch is issued.
+    tolerance : float
+        The path tolerance the plan meets, m.
+    """
+
+    s: np.ndarray
+    poses: np.ndarray
+    radii: np.ndarray
+    speeds: np.ndarray
+    deviation: float
+    angle_deviation: float
+    events: tuple
+    tolerance: float
+
+
+def _deviations(p: np.ndarray, R: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
+    """Distance (m-1, C) of check points from each chord and their angle from the interpolated rotation."""
+    pv, Rv = p[:m], R[:m]
+    pc, Rc = p[m:].reshape(m - 1, _CHECKS, 3), R[m:].reshape(m - 1, _CHECKS, 3, 3)
+    a, d = pv[:-1, None, :], (pv[1:] - pv[:-1])[:, None, :]
+    dd = np.maximum(np.einsum("mki,mki->mk", d, d), 1e-300)
+    lam = np.clip(np.einsum("mki,mki->mk", pc - a, d) / dd, 0.0, 1.0)
+    dist = np.linalg.norm(pc - a - lam[..., None] * d, axis=2)
+    w = Rotation.from_matrix(np.einsum("mji,mjk->mik", Rv[:-1], Rv[1:])).as_rotvec()  # Ra^T Rb
+    step = Rotation.from_rotvec((lam[..., None] * w[:, None, :]).reshape(-1, 3)).as_matrix()
+    interp = np.einsum("mij,mkjl->mkil", Rv[:-1], step.reshape(m - 1, _CHECKS, 3, 3))  # slerp Ra -> Rb
+    ang = rotation_angle(interp.reshape(-1, 3, 3), Rc.reshape(-1, 3, 3)).reshape(m - 1, _CHECKS)
+    return dist, ang
+
+
+def plan_movep(path, orientation, profile, *, tolerance: float, angle_tolerance: float = np.radians(1.0),
+               base=None, events=(), event_time_tolerance: float = 0.002, max_rounds: int = 40) -> MovePPlan:
+    """Choose ``movep`` targets and blend radii so that the program follows the path within ``tolerance``.
+
+    Parameters
+    ----------
+    path : PHSpline
+    orientation : callable s -> (n, 3, 3)
+        Tool frames in the part frame.
+    profile : FeedProfile
+        The time law: its commanded feeds set the move speeds, its timing places the I/O triggers.
+    tolerance : float
+        Largest distance of the programmed motion from the path, m.
+    angle_tolerance : float
+        Largest orientation error of the interpolated tool frame between targets, rad.
+    base : pose (6,) or matrix (4, 4), optional
+        Part frame in the robot base frame.
+    events : sequence of IOEvent
+    event_time_tolerance : float
+        Largest timing error of an I/O switch from blending, s (limits the blend radius there).
+    max_rounds : int
+        Halving rounds before giving up.
+    """
+    tol = positive(tolerance, "tolerance")
+    ang_tol = positive(angle_tolerance, "angle_tolerance")
+    ev_tol = positive(event_time_tolerance, "event_time_tolerance")
+    L = profile.length
+    sched = schedule_events(events, profile, 1.0 / ev_tol, 1)
+    trig = profile.s(np.array([e.time for e in sched])) if sched else np.zeros(0)
+    S = np.unique(np.concatenate(([0.0, L], np.clip(profile.level_bounds, 0.0, L), trig)))
+    frac = np.arange(1, _CHECKS + 1) / (_CHECKS + 1)
+    for _ in range(max_rounds):
+        m = S.size
+        checks = (S[:-1, None] + np.diff(S)[:, None] * frac).ravel()
+        p, R, _ = poses_at_length(path, orientation, np.concatenate((S, checks)), base=base)
+        dist, ang = _deviations(p, R, m)
+        bad = (dist.max(axis=1) > 0.5 * tol) | (ang.max(axis=1) > ang_tol)
+        if not bad.any():
+            break
+        S = np.unique(np.concatenate((S, 0.5 * (S[:-1] + S[1:])[bad])))
+    else:
+        raise ExportError(f"tolerance: the path could not be followed within {tol} m / {ang_tol} rad by "
+                          f"{S.size} movep targets after {max_rounds} halving rounds; raise the tolerance")
+    _, _, poses = poses_at_length(path, orientation, S, base=base)
+    pv = poses[:, :3]
+    chord = np.diff(pv, axis=0)
+    ell = np.linalg.norm(chord, axis=1)
+    cosang = np.einsum("ni,ni->n", chord[:-1], chord[1:]) / np.maximum(ell[:-1] * ell[1:], 1e-300)
+    half = np.sin(0.5 * np.arccos(np.clip(cosang, -1.0, 1.0)))
+    speeds = np.concatenate(([0.0], profile.commanded_at(0.5 * (S[:-1] + S[1:]))))
+    radii = np.zeros(S.size)
+    with np.errstate(divide="ignore"):
+        radii[1:-1] = np.minimum(0.5 * np.minimum(ell[:-1], ell[1:]), np.where(half > 0, tol / half, np.inf))
+    where = np.clip(np.searchsorted(S, trig), 0, S.size - 1) if trig.size else np.zeros(0, int)
+    for i in where:  # a switch after a blended move fires when the blend starts: keep it short
+        radii[i] = min(radii[i], speeds[i] * ev_tol)
+    radii[-1] = 0.0
+    placed = tuple(ScheduledEvent(e.event, e.time, int(i)) for i, e in zip(where, sched, strict=True))
+    return MovePPlan(S, poses, radii, speeds, float(dist.max()), float(ang.max()), placed, tol)

@@ -1,0 +1,70 @@
+"""Time law and sampling: feed profiles along the exact PH arc length, poses at the controller rate.
+
+``plan_feed(path, feed, limits, ...)`` gives a jerk-limited :class:`FeedProfile` s(t) (closed form per
+phase) honouring per-span feeds and speed, acceleration, jerk and tool angular speed limits;
+``sample_poses(path, profile, orientation, rate=500)`` turns it into a :class:`PoseStream` of UR poses
+``p[x, y, z, rx, ry, rz]`` with a continuous rotation vector, TCP offset and base transform.
+"""
+
+from planner.motion.evaluator import SplineEvaluator, evaluator_for, span_bounds
+from planner.motion.events import (
+    OUTPUT_PINS,
+    IOEvent,
+    IOEventWarning,
+    ScheduledEvent,
+    io_states,
+    io_window,
+    schedule_events,
+)
+from planner.motion.feed import plan_feed, span_feeds_from_point_feeds
+from planner.motion.limits import MotionInputError, MotionLimits
+from planner.motion.orientation import (
+    ConstantOrientation,
+    FrameOrientation,
+    orientation_rate,
+    rotation_angle,
+    tool_orientation,
+)
+from planner.motion.profile import FeedProfile
+from planner.motion.rotvec import (
+    continuous_rotvec,
+    matrix_to_quaternion,
+    quaternion_to_matrix,
+    quaternion_to_rotvec,
+    rotvec_from_quaternions,
+)
+from planner.motion.stream import RATES, PoseStream, as_transform, poses_at_length, sample_poses, transform_to_pose
+
+__all__ = [
+    "OUTPUT_PINS",
+    "RATES",
+    "ConstantOrientation",
+    "FeedProfile",
+    "FrameOrientation",
+    "IOEvent",
+    "IOEventWarning",
+    "MotionInputError",
+    "MotionLimits",
+    "PoseStream",
+    "ScheduledEvent",
+    "SplineEvaluator",
+    "as_transform",
+    "continuous_rotvec",
+    "evaluator_for",
+    "io_states",
+    "io_window",
+    "matrix_to_quaternion",
+    "orientation_rate",
+    "plan_feed",
+    "poses_at_length",
+    "quaternion_to_matrix",
+    "quaternion_to_rotvec",
+    "rotvec_from_quaternions",
+    "rotation_angle",
+    "sample_poses",
+    "schedule_events",
+    "span_bounds",
+    "span_feeds_from_point_feeds",
+    "tool_orientation",
+    "transform_to_pose",
+]
