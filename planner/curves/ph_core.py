@@ -59,7 +59,7 @@ def invert_arc_length(sigma: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Parameters t (n,) with s(t) = s, for per-sample speed coefficients sigma (n, d+1), 0 <= s <= L.
 
     Safeguarded Newton iteration on the polynomial s(t) - s (sigma > 0 makes s strictly increasing),
-    vectorized over samples; converges to round-off in a handful of steps.
+    vectorized over samples; each sample stops once its residual is at round-off, so a few steps do.
     """
     S = arc_length_coeffs(sigma)
     d = sigma.shape[-1] - 1
@@ -67,16 +67,21 @@ def invert_arc_length(sigma: np.ndarray, s: np.ndarray) -> np.ndarray:
     t = np.clip(s / np.where(total > 0, total, 1.0), 0.0, 1.0)
     lo = np.zeros_like(t)
     hi = np.ones_like(t)
+    tol = 4 * np.finfo(float).eps * np.maximum(total, np.abs(s))
+    active = np.arange(t.size)
     for _ in range(60):
-        f = np.einsum("nk,nk->n", bernstein.basis(d + 1, t), S) - s
-        lo = np.where(f < 0, t, lo)
-        hi = np.where(f > 0, t, hi)
-        dsdt = np.einsum("nk,nk->n", bernstein.basis(d, t), sigma)
-        tn = t - f / np.where(dsdt > 0, dsdt, 1.0)
-        tn = np.where((tn <= lo) | (tn >= hi) | (dsdt <= 0), 0.5 * (lo + hi), tn)
-        done = np.abs(tn - t) <= 4 * np.finfo(float).eps
-        t = tn
-        if done.all():
+        ta = t[active]
+        f = np.einsum("nk,nk->n", bernstein.basis(d + 1, ta), S[active]) - s[active]
+        conv = np.abs(f) <= tol[active]
+        lo[active] = np.where(f < 0, ta, lo[active])
+        hi[active] = np.where(f > 0, ta, hi[active])
+        dsdt = np.einsum("nk,nk->n", bernstein.basis(d, ta), sigma[active])
+        tn = ta - f / np.where(dsdt > 0, dsdt, 1.0)
+        la, ha = lo[active], hi[active]
+        tn = np.where((tn < la) | (tn > ha) | (dsdt <= 0), 0.5 * (la + ha), tn)
+        t[active] = np.where(conv, ta, tn)
+        active = active[~conv & (ha - la > 2 * np.finfo(float).eps)]
+        if active.size == 0:
             break
     return t
 
