@@ -9,6 +9,7 @@ from __future__ import annotations
 import argparse
 import sys
 import time
+import warnings
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,10 @@ from planner.errors import PlannerError
 
 #: The bundled example the demo runs on (first pass of a real Siemens NX toolpath).
 EXAMPLE_NAME = "nx_first_pass.csv"
+#: The same pass as NX wrote it (CLSF excerpt with MSYS and modal tool axes).
+EXAMPLE_CLS = "nx_first_pass.cls"
+#: Where the demo places the NX part frame in the UR5e base frame (m, rad): the pass in front of the robot.
+DEMO_PART_FRAME = "0.4,0.9965,-0.1,0,0,0"
 
 
 def example_path(name: str = EXAMPLE_NAME) -> Path:
@@ -73,11 +78,150 @@ def cmd_fit(args: argparse.Namespace) -> None:
     _print_fit(Path(args.input), points, methods)
 
 
+def _pose(text: str | None, name: str):
+    if text is None:
+        return None
+    try:
+        v = [float(x) for x in text.split(",")]
+    except ValueError:
+        raise PlannerError(f"{name} must be six numbers x,y,z,rx,ry,rz (m, rad), got {text!r}") from None
+    if len(v) != 6 or not np.isfinite(v).all():
+        raise PlannerError(f"{name} must be six finite numbers x,y,z,rx,ry,rz (m, rad), got {text!r}")
+    return tuple(v)
+
+
+def _passes(points: np.ndarray, rapid: np.ndarray, corner_deg: float) -> list[tuple[int, int]]:
+    """Index ranges [a, b) of the passes: a rapid move into a point starts a new pass, and a corner
+    sharper than ``corner_deg`` between consecutive chords ends one pass and starts the next there
+    (the corner point belongs to both; a spline is never smoothed around a corner the CAM meant)."""
+    n = rapid.size
+    chords = np.diff(points, axis=0)
+    norm = np.linalg.norm(chords, axis=1)
+    good = norm > 0
+    cosang = np.ones(max(n - 2, 0))
+    if n > 2:
+        a, b = chords[:-1], chords[1:]
+        with np.errstate(invalid="ignore", divide="ignore"):
+            cosang = np.einsum("ij,ij->i", a, b) / (norm[:-1] * norm[1:])
+        cosang = np.where(good[:-1] & good[1:], cosang, 1.0)
+    corners = np.flatnonzero(cosang < np.cos(np.radians(corner_deg))) + 1
+    cuts = sorted({0, n, *np.flatnonzero(rapid).tolist()})
+    out = []
+    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
+        inner = [c for c in corners if a < c < b - 1]
+        edges = [a, *inner, b - 1]
+        for x, y in zip(edges[:-1], edges[1:], strict=True):
+            if y - x >= 1:
+                out.append((int(x), int(y) + 1))
+    return out
+
+
+def cmd_plan(args: argparse.Namespace) -> None:
+    from planner.io import detect_format, read_toolpath
+    from planner.job import JobSettings, plan_job
+
+    path_in = Path(args.input)
+    options = {}
+    if args.units:
+        options["units"] = args.units
+    if args.machine:
+        options["machine"] = args.machine
+    tp = read_toolpath(path_in, **options)
+    passes = _passes(tp.points, np.asarray(tp.rapid, dtype=bool), args.corner)
+    if not passes:
+        raise PlannerError(f"{path_in.name}: no cutting motion with at least two points")
+    if args.pass_index is None and len(passes) > 1:
+        listing = ", ".join(f"{k}: lines {tp.lines[a]}-{tp.lines[b - 1]} ({b - a} points)"
+                            for k, (a, b) in enumerate(passes[:8]))
+        raise PlannerError(f"{path_in.name} has {len(passes)} passes separated by rapids and corners sharper than "
+                           f"{args.corner:g} deg ({listing}{', ...' if len(passes) > 8 else ''}); choose one with "
+                           "--pass K or --pass longest")
+    if args.pass_index == "longest":
+        k = int(np.argmax([np.linalg.norm(np.diff(tp.points[a:b], axis=0), axis=1).sum() for a, b in passes]))
+    else:
+        try:
+            k = int(args.pass_index or 0)
+        except ValueError:
+            raise PlannerError(f"--pass must be a pass number or 'longest', got {args.pass_index!r}") from None
+    if not 0 <= k < len(passes):
+        raise PlannerError(f"--pass {k}: {path_in.name} has passes 0..{len(passes) - 1}")
+    a, b = passes[k]
+    points = tp.points[a:b]
+    axes = None
+    if tp.axes is not None and not args.ignore_axes:
+        # CAM tool vectors point from the tool tip to the spindle; the robot tool z approaches the part
+        axes = -tp.axes[a:b] if detect_format(path_in) in ("apt", "gcode") else tp.axes[a:b]
+        if args.axes == "normal":
+            axes = -tp.axes[a:b]
+    feeds = np.asarray(tp.feeds[a:b], dtype=float)
+    span_feeds = feeds[1:] if np.isfinite(feeds[1:]).any() else None
+    settings = JobSettings(
+        frame=args.frame, feed=args.feed / 1e3, rate=args.rate,
+        robot=None if args.robot == "none" else args.robot,
+        base=_pose(args.part_frame, "--part-frame"), tcp=_pose(args.tcp, "--tcp"),
+    )
+    print(f"{path_in.name}: pass {k} of {len(passes)} (lines {tp.lines[a]}-{tp.lines[b - 1]}, {b - a} points"
+          f"{', tool axes from the file' if axes is not None else ''}); planning ...", flush=True)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        job = plan_job(points, axes, settings, span_feeds=span_feeds)
+    for w in caught:  # the job's warnings name waypoints of the pass: say which file lines they are
+        print(f"  warning   {w.message} (pass {k} starts at line {tp.lines[a]})")
+    r = job.summary()
+    print(f"  path      {r['segments']} PH segments, length {r['length_mm']:.3f} mm (exact), "
+          f"waypoint error {r['max_waypoint_error_mm']:.1e} mm")
+    print(f"  frames    {r['frame']}: max twist against the exact RMF {r['max_twist_vs_exact_rmf_deg']:.3g} deg")
+    print(f"  motion    {r['duration_s']:.3f} s, {r['samples']} poses at {settings.rate:g} Hz"
+          + (f", feed lowered to {100 * r['feed_scale']:.0f} % for the joint speed limits"
+             if r["feed_scale"] < 1 else ""))
+    if "reachable" in r:
+        print(f"  robot     {settings.robot}: {r['reachability']}")
+    if args.output:
+        _export(job, Path(args.output), path_in)
+        print(f"  wrote     {args.output}")
+    if args.plot:
+        from planner.plot import plot_job
+
+        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
+        plot_job(job, args.plot, title=f"{path_in.name}, pass {k}: {r['length_mm']:.1f} mm, {r['duration_s']:.2f} s")
+        print(f"  wrote     {args.plot}")
+
+
+def _export(job, out: Path, source: Path) -> None:
+    from planner.export import servoj_program, write_csv, write_json, write_script
+
+    out.parent.mkdir(parents=True, exist_ok=True)
+    params = {"input": source.name, "frame": job.settings.frame, "feed_m_per_s": job.settings.feed,
+              "feed_scale": job.feed_scale, "robot": job.settings.robot}
+    suffix = out.suffix.lower()
+    if suffix == ".csv":
+        write_csv(job.stream, out, joints=job.joints, parameters=params)
+    elif suffix == ".json":
+        write_json(job.stream, out, joints=job.joints, parameters=params)
+    elif suffix in (".script", ".urscript"):
+        if job.joints is None:
+            raise PlannerError("a servoj URScript program needs joint targets: give --robot MODEL")
+        if not np.isfinite(job.joints).all():
+            raise PlannerError(f"not writing {out.name}: {job.reachability.message}")
+        write_script(servoj_program(job.stream, job.joints, model=job.settings.robot, parameters=params), out)
+    else:
+        raise PlannerError(f"-o {out.name}: unknown output type (use .csv, .json or .script)")
+
+
 def cmd_demo(args: argparse.Namespace) -> None:
-    print("Demo: PH spline paths through the first pass of a real Siemens NX toolpath (bundled example).")
+    """Fit, plan and export the bundled example: a real Siemens NX CLSF pass, placed in a UR5e cell."""
+    out = Path(args.out)
+    print("Demo 1/2: PH spline fits through the first pass of a real Siemens NX toolpath (CSV waypoints)")
     example = example_path()
-    points = _read_points(example, "mm")
-    _print_fit(example, points, ["C1", "C2", "cubic"])
+    _print_fit(example, _read_points(example, "mm"), ["C1", "C2", "cubic"])
+    print()
+    print("Demo 2/2: plan the same pass from the NX CL data file for a UR5e: tool frames about the NX tool")
+    print("axes, jerk-limited feed along the exact arc length, 500 Hz poses, inverse kinematics, URScript")
+    plan_args = build_parser().parse_args([
+        "plan", str(example_path(EXAMPLE_CLS)), "--pass", "longest", "--robot", "ur5e",
+        "--part-frame", DEMO_PART_FRAME, "-o", str(out / "demo.script"), "--plot", str(out / "demo.png"),
+    ])
+    cmd_plan(plan_args)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -90,7 +234,26 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--units", choices=["mm", "m", "inch"], default=None,
                    help="units of a CSV/JSON file (default: mm)")
     f.set_defaults(func=cmd_fit)
+    p = sub.add_parser("plan", help="plan a pass of a toolpath file: PH path, tool frames, timing, poses, export")
+    p.add_argument("input", help="toolpath: APT/CL data, CSV, JSON or 5-axis G-code")
+    p.add_argument("--frame", choices=["rmf", "grm", "juttler", "er", "double-reflection"], default="rmf")
+    p.add_argument("--feed", type=float, default=50.0, help="TCP feed in mm/s where the file gives none (default 50)")
+    p.add_argument("--rate", type=float, default=500.0, help="controller rate in Hz (500 e-Series, 125 CB)")
+    p.add_argument("--robot", default="ur5e", help="ur3e, ur5e, ur10e, ur16e, ur20, or none")
+    p.add_argument("--part-frame", help="part frame in the robot base: x,y,z,rx,ry,rz (m, rad)")
+    p.add_argument("--tcp", help="tool centre point in the flange frame: x,y,z,rx,ry,rz (m, rad)")
+    p.add_argument("--pass", dest="pass_index", help="which pass of a multi-pass file to plan: K or 'longest'")
+    p.add_argument("--corner", type=float, default=60.0, help="corners sharper than this (deg) split passes")
+    p.add_argument("--units", choices=["mm", "m", "inch"], help="units of a CSV/JSON file (default mm)")
+    p.add_argument("--machine", help="machine kinematics for 5-axis G-code (e.g. haas-umc-750)")
+    p.add_argument("--axes", choices=["tool", "normal"], default="tool",
+                   help="CSV/JSON i,j,k: the tool approach axis (default) or the surface normal")
+    p.add_argument("--ignore-axes", action="store_true", help="ignore tool axes in the file")
+    p.add_argument("-o", "--output", help="write the job: .csv / .json pose stream or .script URScript program")
+    p.add_argument("--plot", help="write a PNG: path and tool axes, twist, TCP speed, joints")
+    p.set_defaults(func=cmd_plan)
     d = sub.add_parser("demo", help="run the main job on the bundled example")
+    d.add_argument("--out", default="out", help="folder for the program and the plot (default: out)")
     d.set_defaults(func=cmd_demo)
     return ap
 
