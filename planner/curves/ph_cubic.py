@@ -14,26 +14,18 @@ three equations in (x, y, phi), solved here by Newton's method from a grid of st
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
-from planner import bernstein
 from planner import quaternion as qt
-from planner.curves.ph_core import (
-    arc_length_coeffs,
-    batch_control_points,
-    batch_hodograph,
-    batch_sigma,
-    curvature_torsion,
-    invert_arc_length,
-)
+from planner.curves.ph_core import batch_hodograph
+from planner.curves.ph_curve import PHSegment
 from planner.errors import NoSolutionError, PlannerError
 from planner.validation import check_vector
 
 
 @dataclass(frozen=True, eq=False)
-class PHCubic:
+class PHCubic(PHSegment):
     """A spatial PH cubic r(t), t in [0, 1], with hodograph A(t) i A*(t), A linear.
 
     Parameters
@@ -44,18 +36,8 @@ class PHCubic:
         Start point (metres).
     """
 
-    A: np.ndarray
-    p0: np.ndarray
-
-    def __post_init__(self):
-        A = np.array(self.A, dtype=float)
-        if A.shape != (2, 4) or not np.isfinite(A).all():
-            raise PlannerError(f"A must be two finite quaternions, shape (2, 4), got {A.shape}")
-        p0 = check_vector(self.p0, "p0").copy()
-        A.setflags(write=False)
-        p0.setflags(write=False)
-        object.__setattr__(self, "A", A)
-        object.__setattr__(self, "p0", p0)
+    M = 2
+    NAME = "PHCubic"
 
     @classmethod
     def from_quaternions(cls, A0, A1, p0=(0.0, 0.0, 0.0)) -> PHCubic:
@@ -96,74 +78,6 @@ class PHCubic:
                 "with the given tangent directions; subdivide the span"
             )
         return sols[0]
-
-    # -- polynomial data ---------------------------------------------------------------------
-    @cached_property
-    def hodograph_coeffs(self) -> np.ndarray:
-        """Bezier control vectors (3, 3) of the quadratic hodograph: h0, h1, h2."""
-        return batch_hodograph(self.A)
-
-    @cached_property
-    def control_points(self) -> np.ndarray:
-        """Bezier control points (4, 3)."""
-        return batch_control_points(self.A, self.p0)
-
-    @cached_property
-    def sigma_coeffs(self) -> np.ndarray:
-        """Bernstein coefficients (3,) of the speed sigma(t) = |r'(t)|."""
-        return batch_sigma(self.A)
-
-    @property
-    def length(self) -> float:
-        """Exact arc length (metres)."""
-        return float(self.sigma_coeffs.sum() / 3.0)
-
-    # -- evaluation --------------------------------------------------------------------------
-    def points(self, t) -> np.ndarray:
-        """Points r(t), shape (n, 3)."""
-        return bernstein.evaluate(self.control_points, np.atleast_1d(t))
-
-    def derivative(self, t, order: int = 1) -> np.ndarray:
-        """Derivative of the given order (1..3) with respect to t, shape (n, 3)."""
-        if not 1 <= order <= 3:
-            raise PlannerError(f"order must be 1..3, got {order}")
-        c = self.control_points
-        for _ in range(order):
-            c = bernstein.derivative(c)
-        return bernstein.evaluate(c, np.atleast_1d(t))
-
-    def speed(self, t) -> np.ndarray:
-        """Parametric speed |r'(t)|, shape (n,)."""
-        return bernstein.evaluate(self.sigma_coeffs, np.atleast_1d(t))
-
-    def arc_length(self, t0=0.0, t1=1.0):
-        """Exact arc length from t0 to t1."""
-        S = arc_length_coeffs(self.sigma_coeffs)
-        a, b = np.broadcast_arrays(np.asarray(t0, float), np.asarray(t1, float))
-        val = bernstein.evaluate(S, np.ravel(b)) - bernstein.evaluate(S, np.ravel(a))
-        return val.reshape(a.shape) if a.ndim else float(val[0])
-
-    def parameter_at_length(self, s) -> np.ndarray:
-        """Parameters t (n,) at arc lengths s (n,) in [0, length]."""
-        s = np.atleast_1d(np.asarray(s, dtype=float))
-        L = self.length
-        bad = ~np.isfinite(s) | (s < -1e-12 * L) | (s > L * (1 + 1e-12))
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise PlannerError(f"arc length s[{i}] = {s[i]} is outside [0, {L}]")
-        return invert_arc_length(np.broadcast_to(self.sigma_coeffs, (s.size, 3)), np.clip(s, 0, L))
-
-    def tangent(self, t) -> np.ndarray:
-        """Unit tangent, shape (n, 3)."""
-        return self.derivative(t) / self.speed(t)[:, None]
-
-    def curvature(self, t) -> np.ndarray:
-        """Curvature (1/m), shape (n,)."""
-        return curvature_torsion(self.derivative(t), self.derivative(t, 2), self.derivative(t, 3))[0]
-
-    def torsion(self, t) -> np.ndarray:
-        """Torsion (1/m), shape (n,)."""
-        return curvature_torsion(self.derivative(t), self.derivative(t, 2), self.derivative(t, 3))[1]
 
 
 _STARTS = {  # (ratios x / y, magnitudes x y / |dp|, phase offsets) of the Newton starts

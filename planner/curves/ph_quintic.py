@@ -12,20 +12,11 @@ one-segment view with the documented public API.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from functools import cached_property
 
 import numpy as np
 
-from planner import bernstein
 from planner import quaternion as qt
-from planner.curves.ph_core import (
-    arc_length_coeffs,
-    batch_control_points,
-    batch_hodograph,
-    batch_sigma,
-    curvature_torsion,
-    invert_arc_length,
-)
+from planner.curves.ph_curve import PHSegment
 from planner.errors import PlannerError
 from planner.validation import check_vector
 
@@ -165,7 +156,7 @@ def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class PHQuintic:
+class PHQuintic(PHSegment):
     """A spatial PH quintic r(t), t in [0, 1], with hodograph r'(t) = A(t) i A*(t).
 
     Parameters
@@ -178,21 +169,8 @@ class PHQuintic:
     All evaluation methods take a parameter array t of shape (n,) (or a scalar) and are vectorized.
     """
 
-    A: np.ndarray
-    p0: np.ndarray
-
-    def __post_init__(self):
-        A = np.array(self.A, dtype=float)
-        if A.shape != (3, 4):
-            raise PlannerError(f"A must have shape (3, 4) (three quaternions), got {A.shape}")
-        if not np.isfinite(A).all():
-            raise PlannerError("A must be finite")
-        p0 = check_vector(self.p0, "p0")
-        A.setflags(write=False)
-        p0 = p0.copy()
-        p0.setflags(write=False)
-        object.__setattr__(self, "A", A)
-        object.__setattr__(self, "p0", p0)
+    M = 3
+    NAME = "PHQuintic"
 
     # -- constructors ------------------------------------------------------------------------
     @classmethod
@@ -219,76 +197,3 @@ class PHQuintic:
                 raise PlannerError(f"angles must be two finite numbers (phi0, phi2), got {angles}")
         A = batch_hermite(p0[None], p1[None], d0[None], d1[None], angles)[0]
         return cls(A, p0)
-
-    # -- polynomial data ---------------------------------------------------------------------
-    @cached_property
-    def hodograph_coeffs(self) -> np.ndarray:
-        """Bernstein coefficients (5, 3) of r'(t)."""
-        return batch_hodograph(self.A)
-
-    @cached_property
-    def control_points(self) -> np.ndarray:
-        """Bezier control points (6, 3) of r(t)."""
-        return batch_control_points(self.A, self.p0)
-
-    @cached_property
-    def sigma_coeffs(self) -> np.ndarray:
-        """Bernstein coefficients (5,) of the parametric speed sigma(t) = |r'(t)|."""
-        return batch_sigma(self.A)
-
-    @property
-    def length(self) -> float:
-        """Total arc length (metres), exact: (sigma_0 + ... + sigma_4) / 5."""
-        return float(self.sigma_coeffs.sum() / 5.0)
-
-    # -- evaluation --------------------------------------------------------------------------
-    def points(self, t) -> np.ndarray:
-        """Points r(t), shape (n, 3)."""
-        return bernstein.evaluate(self.control_points, np.atleast_1d(t))
-
-    def derivative(self, t, order: int = 1) -> np.ndarray:
-        """Derivative of the given order (1..5) with respect to t, shape (n, 3)."""
-        if not 1 <= order <= 5:
-            raise PlannerError(f"order must be 1..5, got {order}")
-        c = self.control_points
-        for _ in range(order):
-            c = bernstein.derivative(c)
-        return bernstein.evaluate(c, np.atleast_1d(t))
-
-    def speed(self, t) -> np.ndarray:
-        """Parametric speed sigma(t) = |r'(t)| (metres per unit t), shape (n,); a polynomial."""
-        return bernstein.evaluate(self.sigma_coeffs, np.atleast_1d(t))
-
-    def arc_length(self, t0=0.0, t1=1.0):
-        """Exact arc length from t0 to t1 (vectorized over either), metres."""
-        S = arc_length_coeffs(self.sigma_coeffs)
-        t0a, t1a = np.broadcast_arrays(np.asarray(t0, float), np.asarray(t1, float))
-        val = bernstein.evaluate(S, np.ravel(t1a)) - bernstein.evaluate(S, np.ravel(t0a))
-        return val.reshape(t0a.shape) if t0a.ndim else float(val[0])
-
-    def parameter_at_length(self, s) -> np.ndarray:
-        """Parameters t (n,) at arc lengths s (n,) measured from t = 0; s must lie in [0, length]."""
-        s = np.atleast_1d(np.asarray(s, dtype=float))
-        L = self.length
-        if not np.isfinite(s).all() or (s < -1e-12 * L).any() or (s > L * (1 + 1e-12)).any():
-            i = int(np.argmax(~np.isfinite(s) | (s < -1e-12 * L) | (s > L * (1 + 1e-12))))
-            raise PlannerError(f"arc length s[{i}] = {s[i]} is outside [0, {L}]")
-        sig = np.broadcast_to(self.sigma_coeffs, (s.shape[0], 5))
-        return invert_arc_length(sig, np.clip(s, 0.0, L))
-
-    def tangent(self, t) -> np.ndarray:
-        """Unit tangent r'/|r'|, shape (n, 3)."""
-        d = self.derivative(t)
-        return d / self.speed(t)[:, None]
-
-    def curvature(self, t) -> np.ndarray:
-        """Curvature (1/metres), shape (n,)."""
-        return curvature_torsion(self.derivative(t), self.derivative(t, 2), self.derivative(t, 3))[0]
-
-    def torsion(self, t) -> np.ndarray:
-        """Torsion (1/metres), shape (n,); 0 where the curvature vanishes."""
-        return curvature_torsion(self.derivative(t), self.derivative(t, 2), self.derivative(t, 3))[1]
-
-    def quaternion(self, t) -> np.ndarray:
-        """The quaternion polynomial A(t), shape (n, 4)."""
-        return bernstein.evaluate(self.A, np.atleast_1d(t))

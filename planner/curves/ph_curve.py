@@ -1,0 +1,137 @@
+"""The evaluation every spatial PH segment shares, whatever its degree (PH cubics and quintics).
+
+A segment is its quaternion coefficients A (m, 4) (Bernstein form of A(t), r'(t) = A i A*) and its start
+point; subclasses fix m and add their constructors (Hermite interpolation differs by degree).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from planner import bernstein
+from planner.curves.ph_core import (
+    arc_length_coeffs,
+    batch_control_points,
+    batch_hodograph,
+    batch_sigma,
+    curvature_torsion,
+    invert_arc_length,
+)
+from planner.errors import PlannerError
+from planner.validation import check_vector
+
+
+@dataclass(frozen=True, eq=False)
+class PHSegment:
+    """A spatial PH curve r(t), t in [0, 1], with hodograph r'(t) = A(t) i A*(t).
+
+    Parameters
+    ----------
+    A : ndarray (m, 4)
+        Bernstein coefficients of the quaternion polynomial A(t) (scalar, i, j, k); ``m`` is fixed by
+        the subclass (2 for PH cubics, 3 for PH quintics).
+    p0 : ndarray (3,)
+        Start point r(0) (metres).
+
+    All evaluation methods take parameters t of shape (n,) (or a scalar) and are vectorized.
+    """
+
+    A: np.ndarray
+    p0: np.ndarray
+
+    #: Number of quaternion coefficients (set by subclasses).
+    M = 0
+    NAME = "PH curve"
+
+    def __post_init__(self):
+        A = np.array(self.A, dtype=float)
+        if A.shape != (self.M, 4):
+            raise PlannerError(f"{self.NAME}: A must have shape ({self.M}, 4) ({self.M} quaternions), got {A.shape}")
+        if not np.isfinite(A).all():
+            raise PlannerError(f"{self.NAME}: A must be finite")
+        p0 = check_vector(self.p0, "p0").copy()
+        A.setflags(write=False)
+        p0.setflags(write=False)
+        object.__setattr__(self, "A", A)
+        object.__setattr__(self, "p0", p0)
+
+    @property
+    def degree(self) -> int:
+        """Polynomial degree of r(t): 2m - 1."""
+        return 2 * self.M - 1
+
+    # -- polynomial data ---------------------------------------------------------------------
+    @cached_property
+    def hodograph_coeffs(self) -> np.ndarray:
+        """Bernstein coefficients (2m - 1, 3) of r'(t)."""
+        return batch_hodograph(self.A)
+
+    @cached_property
+    def control_points(self) -> np.ndarray:
+        """Bezier control points (2m, 3) of r(t)."""
+        return batch_control_points(self.A, self.p0)
+
+    @cached_property
+    def sigma_coeffs(self) -> np.ndarray:
+        """Bernstein coefficients (2m - 1,) of the parametric speed sigma(t) = |r'(t)|."""
+        return batch_sigma(self.A)
+
+    @property
+    def length(self) -> float:
+        """Total arc length (metres), exact: the mean of the speed's Bernstein coefficients."""
+        return float(self.sigma_coeffs.mean())
+
+    # -- evaluation --------------------------------------------------------------------------
+    def points(self, t) -> np.ndarray:
+        """Points r(t), shape (n, 3)."""
+        return bernstein.evaluate(self.control_points, np.atleast_1d(t))
+
+    def derivative(self, t, order: int = 1) -> np.ndarray:
+        """Derivative of the given order (1..degree) with respect to t, shape (n, 3)."""
+        if not 1 <= order <= self.degree:
+            raise PlannerError(f"order must be 1..{self.degree}, got {order}")
+        c = self.control_points
+        for _ in range(order):
+            c = bernstein.derivative(c)
+        return bernstein.evaluate(c, np.atleast_1d(t))
+
+    def speed(self, t) -> np.ndarray:
+        """Parametric speed sigma(t) = |r'(t)| (metres per unit t), shape (n,); a polynomial."""
+        return bernstein.evaluate(self.sigma_coeffs, np.atleast_1d(t))
+
+    def arc_length(self, t0=0.0, t1=1.0):
+        """Exact arc length from t0 to t1 (vectorized over either), metres."""
+        S = arc_length_coeffs(self.sigma_coeffs)
+        a, b = np.broadcast_arrays(np.asarray(t0, float), np.asarray(t1, float))
+        val = bernstein.evaluate(S, np.ravel(b)) - bernstein.evaluate(S, np.ravel(a))
+        return val.reshape(a.shape) if a.ndim else float(val[0])
+
+    def parameter_at_length(self, s) -> np.ndarray:
+        """Parameters t (n,) at arc lengths s (n,) measured from t = 0; s must lie in [0, length]."""
+        s = np.atleast_1d(np.asarray(s, dtype=float))
+        L = self.length
+        bad = ~np.isfinite(s) | (s < -1e-12 * L) | (s > L * (1 + 1e-12))
+        if bad.any():
+            i = int(np.argmax(bad))
+            raise PlannerError(f"arc length s[{i}] = {s[i]} is outside [0, {L}]")
+        sig = np.broadcast_to(self.sigma_coeffs, (s.size, self.sigma_coeffs.size))
+        return invert_arc_length(sig, np.clip(s, 0.0, L))
+
+    def tangent(self, t) -> np.ndarray:
+        """Unit tangent r'/|r'|, shape (n, 3)."""
+        return self.derivative(t) / self.speed(t)[:, None]
+
+    def curvature(self, t) -> np.ndarray:
+        """Curvature (1/metres), shape (n,)."""
+        return curvature_torsion(self.derivative(t), self.derivative(t, 2), self.derivative(t, 3))[0]
+
+    def torsion(self, t) -> np.ndarray:
+        """Torsion (1/metres), shape (n,); 0 where the curvature vanishes."""
+        return curvature_torsion(self.derivative(t), self.derivative(t, 2), self.derivative(t, 3))[1]
+
+    def quaternion(self, t) -> np.ndarray:
+        """The quaternion polynomial A(t), shape (n, 4)."""
+        return bernstein.evaluate(self.A, np.atleast_1d(t))
