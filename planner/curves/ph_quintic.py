@@ -24,7 +24,7 @@ from planner.validation import check_vector
 # C1 Hermite interpolation (Farouki's family with two free angles)
 # ---------------------------------------------------------------------------------------------
 
-_CC_GRID = 32
+_CC_GRID = 24
 
 
 def _cc_alpha_q(a0, a2, base, delta):
@@ -72,17 +72,23 @@ class _CCMeasure:
         X2 = self.X2 @ b
         return 25 * X2 + alpha - 10 * np.sqrt(np.maximum(0.5 * (alpha * X2 + self.xa @ b), 0.0))
 
-    def __call__(self, delta):
-        """Measure (N, K) at per-segment values delta (N, K)."""
-        b = self._basis(delta)  # (N, 6, K)
-        ev = lambda C: np.einsum("nj,njk->nk", C, b)  # noqa: E731
-        alpha = np.sqrt(np.maximum(ev(self.al2), 0.0))
-        X2 = ev(self.X2)
-        return 25 * X2 + alpha - 10 * np.sqrt(np.maximum(0.5 * (alpha * X2 + ev(self.xa)), 0.0))
+    def __call__(self, delta, rows=None):
+        """Measure at per-segment values delta (N, K) (or (len(rows), K) for a subset of segments)."""
+        sel = slice(None) if rows is None else rows
+        X, G_, H_ = (C[sel].T[..., None] for C in (self.X2, self.al2, self.xa))
+        c, s = np.cos(delta), np.sin(delta)
+        cc, cs, ss = c * c, c * s, s * s
+        P = X[0] + X[1] * c + X[2] * s
+        G = G_[0] + G_[1] * c + G_[2] * s + G_[3] * cc + G_[4] * cs + G_[5] * ss
+        H = H_[0] + H_[1] * c + H_[2] * s + H_[3] * cc + H_[4] * cs + H_[5] * ss
+        alpha = np.sqrt(np.maximum(G, 0.0))
+        return 25 * P + alpha - 10 * np.sqrt(np.maximum(0.5 * (alpha * P + H), 0.0))
 
-    def newton(self, delta, steps: int):
-        """Newton iterations on dF/d delta = 0, exact first and second derivatives; delta (N, m)."""
-        X, G_, H_ = (np.ascontiguousarray(C.T)[..., None] for C in (self.X2, self.al2, self.xa))
+    def newton(self, delta, steps: int, rows=None):
+        """Newton iterations on dF/d delta = 0, exact first and second derivatives; delta (N, m)
+        (or (len(rows), m) for a subset of segments)."""
+        sel = slice(None) if rows is None else rows
+        X, G_, H_ = (np.ascontiguousarray(C[sel].T)[..., None] for C in (self.X2, self.al2, self.xa))
         for _ in range(steps):
             c, s = np.cos(delta), np.sin(delta)
             cc, cs, ss = c * c, c * s, s * s
@@ -122,7 +128,8 @@ def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
     phase of A0, A1, A2 does not change the curve) is returned. With ``angles=None`` the member closest
     to a PH cubic is chosen: the angles minimizing |A0 - 2 A1 + A2|^2 (the "CC" criterion of Farouki,
     Giannelli, Manni, Sestini 2008; zero exactly when the ordinary cubic Hermite interpolant is PH, which
-    is then reproduced). Global over phi2 - phi0 (grid of 32, Newton from the two best), closed form in phi0.
+    is then reproduced). Global over phi2 - phi0 (grid of 24, Newton from the best point and, where
+    the second best is nearly as good, from it too), closed form in phi0.
     """
     p0, p1, d0, d1 = (np.asarray(x, dtype=float) for x in (p0, p1, d0, d1))
     a0 = np.sqrt(np.linalg.norm(d0, axis=-1))[:, None] * qt.rotate_i_to(d0)
@@ -133,9 +140,19 @@ def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
         cc = _CCMeasure(a0, a2, base, d0, d1)
         grid = np.arange(_CC_GRID) * (2 * np.pi / _CC_GRID)
         Fg = cc.on_grid(grid)
-        two = np.argpartition(Fg, 1, axis=1)[:, :2]  # Newton from the two best grid points
-        cand = np.concatenate((grid[two], cc.newton(grid[two], 4)), axis=1)
-        delta = cand[np.arange(n), np.argmin(cc(cand), axis=1)]
+        two = np.argpartition(Fg, 1, axis=1)[:, :2]
+        rows = np.arange(n)
+        best = grid[two[:, :1]]
+        cand = np.concatenate((best, cc.newton(best, 4)), axis=1)  # Newton from the best grid point
+        f = cc(cand)
+        delta, fbest = cand[rows, np.argmin(f, axis=1)], f.min(axis=1)
+        # where the second-best grid point is nearly as good, the basin is ambiguous: Newton from it too
+        amb = np.flatnonzero(Fg[rows, two[:, 1]] < 1.5 * Fg[rows, two[:, 0]] + 1e-12 * np.abs(Fg).max(axis=1))
+        if amb.size:
+            c2 = cc.newton(grid[two[amb, 1:]], 4, amb)
+            f2 = cc(c2, amb)[:, 0]
+            better = f2 < fbest[amb]
+            delta[amb[better]] = c2[better, 0]
         a2d, Q = _cc_alpha_q(a0, a2, base, delta)
         B = a0 + a2d  # A0 + A2 = B e^{i phi0}; phi0 maximizes <B e^{i phi0}, Q>
         phi0 = np.arctan2(qt.dot(qt.mul(B, qt.I), Q), qt.dot(B, Q))
