@@ -165,3 +165,19 @@ def test_hairpin_is_refused_clearly():
 def test_unsplittable_span_names_it():
     with pytest.raises(NoSolutionError, match="span from waypoint 0 to 1"):
         fit_planar_ph_spline([[0, 0], [3, 0]], [[1, 1], [1, 1]], max_depth=0)
+
+
+def test_planar_spline_is_a_first_class_path_for_the_planner():
+    from planner.frames import frame_field
+    from planner.job import JobSettings, plan_job  # noqa: F401  (the planner takes PHSpline paths)
+
+    th = np.linspace(0, 2.5, 12)
+    p = np.c_[np.cos(th), 0.5 * np.sin(2 * th), np.full(12, 0.3)]
+    planar = fit_planar_ph_spline(p)
+    path = planar.to_ph_spline()
+    u = np.linspace(0, path.knots[-1], 400)
+    assert np.abs(path.points(u) - planar.points(u)).max() < 1e-14
+    assert path.length == pytest.approx(planar.length, rel=1e-14)
+    assert path.interpolation_errors(p).max() < 1e-14
+    F = frame_field(path, "rmf").frames(u)  # the RMF of a planar curve keeps the plane normal
+    assert np.abs(np.abs(F[:, 2, 2]) - 1.0).max() < 1e-12

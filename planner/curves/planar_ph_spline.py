@@ -197,6 +197,29 @@ class PlanarPHSpline:
         cross = left[:, 0] * right[:, 1] - left[:, 1] * right[:, 0]
         return np.abs(np.arctan2(cross, np.einsum("nd,nd->n", left, right)))
 
+    def to_ph_spline(self):
+        """The same path as a spatial :class:`~planner.curves.spline.PHSpline` (PH cubic segments), so
+        the frames, the time law and the exports take it like any other path.
+
+        A planar PH cubic with P'(t) = w(t)^2, w = w0 (1-t) + w1 t, is the spatial one with quaternions
+        A_k = Re(w_k) + Im(w_k) k: A i A* = (Re w^2, Im w^2, 0).
+
+        Raises
+        ------
+        NotPHError
+            A segment with no preimage w (a straight piece whose speed is not a perfect square).
+        """
+        from planner.curves.spline import PHSpline
+
+        A = np.zeros((self.n_segments, 2, 4))
+        for k, seg in enumerate(self.segments):
+            w0, w1 = seg.preimage()
+            A[k, :, 0] = (w0.real, w1.real)
+            A[k, :, 3] = (w0.imag, w1.imag)
+        starts = np.column_stack((self.bezier[:, 0, :], np.full(self.n_segments, self.z)))
+        index = np.searchsorted(self.breaks, self.knots)
+        return PHSpline(A, starts, self.breaks, "G1", 0, None if self.breaks.size == self.knots.size else index)
+
     def interpolation_errors(self, waypoints) -> np.ndarray:
         """Distance (N,) of the path at each knot from the given waypoints (N, 2) or (N, 3), metres."""
         w = np.asarray(waypoints, dtype=float)
