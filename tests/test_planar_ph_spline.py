@@ -169,7 +169,6 @@ def test_unsplittable_span_names_it():
 
 def test_planar_spline_is_a_first_class_path_for_the_planner():
     from planner.frames import frame_field
-    from planner.job import JobSettings, plan_job  # noqa: F401  (the planner takes PHSpline paths)
 
     th = np.linspace(0, 2.5, 12)
     p = np.c_[np.cos(th), 0.5 * np.sin(2 * th), np.full(12, 0.3)]
