@@ -252,6 +252,10 @@ _FREE = np.array([0, 1, 2, 3, 5, 6, 7])  # a1..a4, b1..b3; (b0, b4) = x[4], x[8]
 
 def _solve_batch(J: np.ndarray, C: np.ndarray) -> np.ndarray:
     """Solutions of J x = C for stacked square systems; singular ones by least squares."""
+    try:
+        return np.linalg.solve(J, C[..., None])[..., 0]
+    except np.linalg.LinAlgError:
+        pass
     with np.errstate(all="ignore"):
         ok = np.abs(np.linalg.det(J)) > 1e-300
     x = np.empty(C.shape)
