@@ -131,11 +131,8 @@ def cmd_plan(args: argparse.Namespace) -> None:
     if not passes:
         raise PlannerError(f"{path_in.name}: no cutting motion with at least two points")
     if args.pass_index is None and len(passes) > 1:
-        listing = ", ".join(f"{k}: lines {tp.lines[a]}-{tp.lines[b - 1]} ({b - a} points)"
-                            for k, (a, b) in enumerate(passes[:8]))
-        raise PlannerError(f"{path_in.name} has {len(passes)} passes separated by rapids and corners sharper than "
-                           f"{args.corner:g} deg ({listing}{', ...' if len(passes) > 8 else ''}); choose one with "
-                           "--pass K or --pass longest")
+        _plan_whole_job(args, path_in, tp, options)
+        return
     if args.pass_index == "longest":
         k = int(np.argmax([np.linalg.norm(np.diff(tp.points[a:b], axis=0), axis=1).sum() for a, b in passes]))
     else:
@@ -187,6 +184,42 @@ def cmd_plan(args: argparse.Namespace) -> None:
         print(f"  wrote     {args.plot}")
 
 
+def _plan_whole_job(args, path_in: Path, tp, read_options: dict) -> None:
+    """Every pass, rapid and reorientation of a CAM file (planner.cam), with its figures."""
+    from planner.cam import plan_cam_job
+
+    print(f"{path_in.name}: {len(tp)} points; planning every pass (tolerance {args.tolerance:g} mm) ...", flush=True)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        job = plan_cam_job(
+            tp, tolerance=args.tolerance / 1e3, corner_deg=args.corner,
+            part_frame=_pose(args.part_frame, "--part-frame"), tcp=_pose(args.tcp, "--tcp"),
+            robot=None if args.robot == "none" else args.robot, feed=args.feed / 1e3, rate=args.rate,
+        )
+    for line in job.describe():
+        print(line)
+    for w in caught[:10]:
+        print(f"  warning   {w.message}")
+    if args.plot:
+        print("  note      --plot draws one pass: plan it with --pass K (or --pass longest)")
+    if args.output:
+        out = Path(args.output)
+        if out.suffix.lower() != ".csv":
+            raise PlannerError(f"-o {out.name}: a whole multi-pass job streams to .csv (time, pose, move, pass, "
+                               "line); plan one pass with --pass K for .json or .script")
+        out.parent.mkdir(parents=True, exist_ok=True)
+        n = 0
+        with open(out, "w", encoding="utf-8") as f:
+            f.write(f"# planner {path_in.name}: whole job at {args.rate:g} Hz, poses in the robot base frame\n")
+            f.write("t,x,y,z,rx,ry,rz,move,pass,line\n")
+            for chunk in job.iter_stream(args.rate):
+                cols = np.column_stack((chunk.times, chunk.poses, np.full(chunk.times.size, chunk.move),
+                                        np.full(chunk.times.size, chunk.pass_index), chunk.lines))
+                np.savetxt(f, cols, fmt=["%.6f"] + ["%.9g"] * 6 + ["%d"] * 3, delimiter=",")
+                n += chunk.times.size
+        print(f"  wrote     {out} ({n} poses)")
+
+
 def _export(job, out: Path, source: Path) -> None:
     from planner.export import servoj_program, write_csv, write_json, write_script
 
@@ -234,7 +267,8 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--units", choices=["mm", "m", "inch"], default=None,
                    help="units of a CSV/JSON file (default: mm)")
     f.set_defaults(func=cmd_fit)
-    p = sub.add_parser("plan", help="plan a pass of a toolpath file: PH path, tool frames, timing, poses, export")
+    p = sub.add_parser("plan", help="plan a toolpath file (every pass, or one with --pass): PH paths within "
+                       "tolerance, tool frames, timing, poses, robot check, export")
     p.add_argument("input", help="toolpath: APT/CL data, CSV, JSON or 5-axis G-code")
     p.add_argument("--frame", choices=["rmf", "grm", "juttler", "er", "double-reflection"], default="rmf")
     p.add_argument("--feed", type=float, default=50.0, help="TCP feed in mm/s where the file gives none (default 50)")
@@ -242,8 +276,11 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--robot", default="ur5e", help="ur3e, ur5e, ur10e, ur16e, ur20, or none")
     p.add_argument("--part-frame", help="part frame in the robot base: x,y,z,rx,ry,rz (m, rad)")
     p.add_argument("--tcp", help="tool centre point in the flange frame: x,y,z,rx,ry,rz (m, rad)")
-    p.add_argument("--pass", dest="pass_index", help="which pass of a multi-pass file to plan: K or 'longest'")
+    p.add_argument("--pass", dest="pass_index",
+                   help="plan only this pass (K or 'longest'), with the plot and .json/.script exports")
     p.add_argument("--corner", type=float, default=60.0, help="corners sharper than this (deg) split passes")
+    p.add_argument("--tolerance", type=float, default=0.01,
+                   help="largest distance of the path from the CAM polyline, mm (whole jobs; default 0.01)")
     p.add_argument("--units", choices=["mm", "m", "inch"], help="units of a CSV/JSON file (default mm)")
     p.add_argument("--machine", help="machine kinematics for 5-axis G-code (e.g. haas-umc-750)")
     p.add_argument("--axes", choices=["tool", "normal"], default="tool",

@@ -9,7 +9,6 @@ import pytest
 
 from planner.cli import DEMO_PART_FRAME, EXAMPLE_CLS, example_path, main
 from planner.job import JobSettings, plan_job
-from tests.conftest import SHARED_DATA
 
 
 def test_plan_job_without_robot_keeps_a_planar_tool_vertical():
@@ -86,11 +85,19 @@ def test_cli_errors_are_one_line_with_exit_code_2(argv, message, capsys, tmp_pat
     assert err.startswith("planner: error:") and message in err and "Traceback" not in err
 
 
-@pytest.mark.skipif(not SHARED_DATA.is_dir(), reason="shared/data not present")
-def test_cli_multi_pass_file_lists_passes_with_lines(capsys):
-    assert main(["plan", str(SHARED_DATA / "nx_clsf_variable_contour_ust_a2.cls")]) == 2
-    err = capsys.readouterr().err
-    assert re.search(r"has \d+ passes separated by rapids and corners sharper than 60 deg \(0: lines \d+-\d+", err)
+def test_cli_plans_a_whole_multi_pass_file(tmp_path, capsys):
+    from tests.cam_excerpts import NX_HEAD
+
+    src = tmp_path / "head.cls"
+    src.write_text(NX_HEAD)
+    out = tmp_path / "job.csv"
+    assert main(["plan", str(src), "--robot", "none", "-o", str(out)]) == 0
+    text = capsys.readouterr().out
+    assert re.search(r"-> \d+ passes, \d+ rapids", text) and "largest deviation from the CAM polyline" in text
+    rows = [r for r in out.read_text().splitlines() if r and r[0] not in "#t"]
+    data = np.array([[float(x) for x in r.split(",")] for r in rows])
+    assert np.all(np.diff(data[:, 0]) > 0) and set(np.unique(data[:, 8])) >= {0.0, 1.0}
+    assert main(["plan", str(src), "--robot", "none", "-o", str(tmp_path / "job.script")]) == 2
 
 
 def test_cli_fit_prints_figures(capsys):

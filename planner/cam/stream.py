@@ -1,0 +1,140 @@
+"""The pose stream of a whole CAM job at the controller rate: cuts, rapids and turns, move by move.
+
+Every move starts and ends at rest. Move k is sampled at its local times 0, 1/rate, ...,
+(n_k - 1)/rate with n_k = ceil(duration_k * rate): the first sample at or after its end is the
+first sample of the next move (the same pose), so the tool rests less than one sample period at each
+move boundary and the job clock ticks uniformly. The rotation vectors are continuous over the whole
+job. A job of hours is millions of poses: :func:`iter_stream` yields them one move at a time;
+:func:`collect` concatenates them for jobs that fit in memory.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.cam.passes import CamInputError
+from planner.motion import sample_poses, tool_orientation
+from planner.motion.rotvec import continuous_rotvec
+from planner.motion.stream import as_transform
+
+
+@dataclass(frozen=True, eq=False)
+class StreamChunk:
+    """The poses of one move.
+
+    Attributes
+    ----------
+    move : int
+        Index of the move in ``CamJob.moves``.
+    kind : str
+        "cut", "rapid" or "reorientation".
+    pass_index : int
+        Pass number of a cut, -1 otherwise.
+    times : ndarray (k,)
+        Sample times on the job clock, s.
+    poses : ndarray (k, 6)
+        TCP poses p[x, y, z, rx, ry, rz] in the robot base frame (m, rotation vector, continuous).
+    lines : ndarray (k,) of int
+        Source line of the record each sample carries out.
+    """
+
+    move: int
+    kind: str
+    pass_index: int
+    times: np.ndarray
+    poses: np.ndarray
+    lines: np.ndarray
+
+
+@dataclass(frozen=True, eq=False)
+class JobStream:
+    """The whole pose stream of a job (see :class:`StreamChunk` for the fields, here per sample)."""
+
+    rate: float
+    times: np.ndarray
+    poses: np.ndarray
+    move: np.ndarray
+    pass_index: np.ndarray
+    lines: np.ndarray
+
+    def __len__(self) -> int:
+        return self.times.size
+
+
+def sample_counts(moves, rate: float) -> np.ndarray:
+    """Sample intervals (n_k,) each move takes at ``rate``: ceil(duration * rate), 0 for no motion."""
+    d = np.array([m.duration for m in moves], dtype=float)
+    return np.where(d > 0.0, np.ceil(d * rate - 1e-9), 0.0).astype(np.int64)
+
+
+def iter_stream(job, rate: float):
+    """Yield one :class:`StreamChunk` per moving move of the job, in order.
+
+    Parameters
+    ----------
+    job : CamJob
+    rate : float
+        Controller rate, Hz.
+    """
+    rate = float(rate)
+    if not (np.isfinite(rate) and rate > 0.0):
+        raise CamInputError(f"rate must be a positive number of Hz, got {rate!r}")
+    moves = job.moves
+    counts = sample_counts(moves, rate)
+    offsets = np.concatenate(([0], np.cumsum(counts)))
+    moving = np.flatnonzero(counts > 0)
+    final = int(moving[-1]) if moving.size else -1
+    Tb = as_transform(job.settings.part_frame, "part_frame")
+    Rb, pb = Tb[:3, :3], Tb[:3, 3]
+    r_prev = None
+    for k in moving:
+        m = moves[k]
+        n = int(counts[k]) + (1 if k == final else 0)
+        r = None
+        if m.kind in ("cut", "rapid"):
+            ps = sample_poses(m.path, m.profile, tool_orientation(m.frames), rate=rate, base=Tb)
+            pos, R = ps.positions[:n], ps.rotations[:n]
+            r = ps.poses[:n, 3:]  # continuous within the move; checked against the previous move below
+            if m.kind == "cut":
+                lines = m.item.lines[np.minimum(ps.span[:n] + 1, len(m.item) - 1)]
+            else:
+                lines = np.full(n, m.item.line)
+        else:  # a turn in place
+            angle = m.profile.s(np.arange(n) / rate)
+            R = np.matmul(Rb, m.frames.frames(angle))
+            pos = np.broadcast_to(Rb @ m.point + pb, (n, 3))
+            lines = np.full(n, m.item.line)
+        if r is None or (r_prev is not None and np.abs(r[0] - r_prev).max() > 1e-6):
+            r, _ = continuous_rotvec(R, None if r_prev is None else _rotvec_quaternion(r_prev), r_prev)
+        r_prev = r[-1]
+        yield StreamChunk(int(k), m.kind, m.pass_index, (offsets[k] + np.arange(n)) / rate,
+                          np.hstack((pos, r)), np.asarray(lines, dtype=np.int64))
+
+
+def _rotvec_quaternion(r: np.ndarray) -> np.ndarray:
+    """The unit quaternion (4,) whose rotation vector representation is exactly r (any |r|)."""
+    th = float(np.linalg.norm(r))
+    if th == 0.0:
+        return np.array([1.0, 0.0, 0.0, 0.0])
+    return np.concatenate(([np.cos(0.5 * th)], np.sin(0.5 * th) * r / th))
+
+
+def collect(job, rate: float, max_samples: int = 20_000_000) -> JobStream:
+    """The whole pose stream of a job in memory; CamInputError beyond ``max_samples`` poses."""
+    n = job.n_samples(rate)
+    if n > max_samples:
+        raise CamInputError(f"the job is {n} poses at {rate:g} Hz (more than max_samples = {max_samples}); "
+                            "stream it with CamJob.iter_stream()")
+    chunks = list(iter_stream(job, rate))
+    if not chunks:
+        return JobStream(rate, np.zeros(0), np.zeros((0, 6)), np.zeros(0, int), np.zeros(0, int), np.zeros(0, int))
+    return JobStream(
+        rate,
+        np.concatenate([c.times for c in chunks]),
+        np.concatenate([c.poses for c in chunks]),
+        np.concatenate([np.full(c.times.size, c.move) for c in chunks]),
+        np.concatenate([np.full(c.times.size, c.pass_index) for c in chunks]),
+        np.concatenate([c.lines for c in chunks]),
+    )

@@ -1,0 +1,56 @@
+"""plan_cam_job on each whole real CAM file of shared/data (about 40 s in all: marked ``slow``).
+
+Deselect with ``-m "not slow"``. Skipped when shared/data is not next to the repository.
+"""
+
+from __future__ import annotations
+
+import itertools
+import warnings
+
+import numpy as np
+import pytest
+
+from planner.cam import plan_cam_job
+from planner.io import read_toolpath
+from tests.conftest import SHARED_DATA
+
+pytestmark = [
+    pytest.mark.slow,
+    pytest.mark.skipif(not SHARED_DATA.is_dir(), reason=f"the shared CAM files are not at {SHARED_DATA}"),
+]
+
+FILES = {
+    "nx_clsf_variable_contour_ust_a2.cls": {},
+    "nx2022_haas_umc750_5axis_gcode.txt": {"machine": "haas-umc-750"},
+    "solidworks_cam_apt_boss_3plus2.apt": {},
+}
+
+
+@pytest.mark.parametrize("name", list(FILES))
+def test_whole_file_plans_within_tolerance(name):
+    path = SHARED_DATA / name
+    if not path.is_file():
+        pytest.skip(f"{name} not in {SHARED_DATA}")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        tp = read_toolpath(path, **FILES[name])
+    job = plan_cam_job(tp)
+    s = job.summary()
+    assert s["passes"] > 100 and s["max_deviation_mm"] <= 0.01 and s["max_axis_error_deg"] < 0.05
+    # every rapid record of the file is a rapid move (the first one only positions the tool)
+    assert s["rapids"] + s["skipped"] + s["reorientations"] >= int(tp.rapid[1:].sum())
+    assert s["corners"] == sum(p.start_reason == "corner" for p in job.passes)
+    # passes are in file order and never cross a rapid
+    firsts = [p.first_line for p in job.passes]
+    assert firsts == sorted(firsts)
+    for m in job.moves:
+        if m.kind == "cut":
+            assert not job.toolpath.rapid[m.item.source_index[1:]].any()
+    # the stream of the first moves is continuous and starts where the file starts
+    chunks = list(itertools.islice(job.iter_stream(), 6))
+    poses = np.concatenate([c.poses for c in chunks])
+    assert np.abs(poses[0, :3] - job.toolpath.points[0]).max() <= 1e-12
+    assert np.linalg.norm(np.diff(poses[:, :3], axis=0), axis=1).max() <= 0.25 / 500.0 * (1 + 1e-6)
+    text = "\n".join(job.describe())
+    assert f"{s['passes']} passes" in text and "largest deviation" in text
