@@ -90,32 +90,6 @@ def _pose(text: str | None, name: str):
     return tuple(v)
 
 
-def _passes(points: np.ndarray, rapid: np.ndarray, corner_deg: float) -> list[tuple[int, int]]:
-    """Index ranges [a, b) of the passes: a rapid move into a point starts a new pass, and a corner
-    sharper than ``corner_deg`` between consecutive chords ends one pass and starts the next there
-    (the corner point belongs to both; a spline is never smoothed around a corner the CAM meant)."""
-    n = rapid.size
-    chords = np.diff(points, axis=0)
-    norm = np.linalg.norm(chords, axis=1)
-    good = norm > 0
-    cosang = np.ones(max(n - 2, 0))
-    if n > 2:
-        a, b = chords[:-1], chords[1:]
-        with np.errstate(invalid="ignore", divide="ignore"):
-            cosang = np.einsum("ij,ij->i", a, b) / (norm[:-1] * norm[1:])
-        cosang = np.where(good[:-1] & good[1:], cosang, 1.0)
-    corners = np.flatnonzero(cosang < np.cos(np.radians(corner_deg))) + 1
-    cuts = sorted({0, n, *np.flatnonzero(rapid).tolist()})
-    out = []
-    for a, b in zip(cuts[:-1], cuts[1:], strict=True):
-        inner = [c for c in corners if a < c < b - 1]
-        edges = [a, *inner, b - 1]
-        for x, y in zip(edges[:-1], edges[1:], strict=True):
-            if y - x >= 1:
-                out.append((int(x), int(y) + 1))
-    return out
-
-
 def cmd_plan(args: argparse.Namespace) -> None:
     from planner.io import detect_format, read_toolpath
     from planner.job import JobSettings, plan_job
@@ -127,14 +101,16 @@ def cmd_plan(args: argparse.Namespace) -> None:
     if args.machine:
         options["machine"] = args.machine
     tp = read_toolpath(path_in, **options)
-    passes = _passes(tp.points, np.asarray(tp.rapid, dtype=bool), args.corner)
+    from planner.cam import CutPass, split_passes
+
+    passes = [m for m in split_passes(tp, corner_deg=args.corner).moves if isinstance(m, CutPass)]
     if not passes:
         raise PlannerError(f"{path_in.name}: no cutting motion with at least two points")
     if args.pass_index is None and len(passes) > 1:
         _plan_whole_job(args, path_in, tp, options)
         return
     if args.pass_index == "longest":
-        k = int(np.argmax([np.linalg.norm(np.diff(tp.points[a:b], axis=0), axis=1).sum() for a, b in passes]))
+        k = int(np.argmax([np.linalg.norm(np.diff(p.points, axis=0), axis=1).sum() for p in passes]))
     else:
         try:
             k = int(args.pass_index or 0)
@@ -142,31 +118,33 @@ def cmd_plan(args: argparse.Namespace) -> None:
             raise PlannerError(f"--pass must be a pass number or 'longest', got {args.pass_index!r}") from None
     if not 0 <= k < len(passes):
         raise PlannerError(f"--pass {k}: {path_in.name} has passes 0..{len(passes) - 1}")
-    a, b = passes[k]
-    points = tp.points[a:b]
+    cut = passes[k]
+    points = cut.points
     axes = None
-    if tp.axes is not None and not args.ignore_axes:
+    if cut.axes is not None and not args.ignore_axes:
         # CAM tool vectors point from the tool tip to the spindle; the robot tool z approaches the part
-        axes = -tp.axes[a:b] if detect_format(path_in) in ("apt", "gcode") else tp.axes[a:b]
-        if args.axes == "normal":
-            axes = -tp.axes[a:b]
-    feeds = np.asarray(tp.feeds[a:b], dtype=float)
+        cam_format = detect_format(path_in) in ("apt", "gcode")
+        axes = -cut.axes if (cam_format or args.axes == "normal") else cut.axes
+    feeds = np.asarray(cut.feeds, dtype=float)
     span_feeds = feeds[1:] if np.isfinite(feeds[1:]).any() else None
     settings = JobSettings(
         frame=args.frame, feed=args.feed / 1e3, rate=args.rate,
         robot=None if args.robot == "none" else args.robot,
-        base=_pose(args.part_frame, "--part-frame"), tcp=_pose(args.tcp, "--tcp"),
+        base=_pose(args.part_frame, "--part-frame"), tcp=_pose(args.tcp, "--tcp"), tolerance=args.tolerance / 1e3,
     )
-    print(f"{path_in.name}: pass {k} of {len(passes)} (lines {tp.lines[a]}-{tp.lines[b - 1]}, {b - a} points"
+    first, last = int(cut.lines[0]), int(cut.lines[-1])
+    print(f"{path_in.name}: pass {k} of {len(passes)} (lines {first}-{last}, {len(points)} points"
           f"{', tool axes from the file' if axes is not None else ''}); planning ...", flush=True)
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
         job = plan_job(points, axes, settings, span_feeds=span_feeds)
     for w in caught:  # the job's warnings name waypoints of the pass: say which file lines they are
-        print(f"  warning   {w.message} (pass {k} starts at line {tp.lines[a]})")
+        print(f"  warning   {w.message} (pass {k} starts at line {first})")
     r = job.summary()
     print(f"  path      {r['segments']} PH segments, length {r['length_mm']:.3f} mm (exact), "
-          f"waypoint error {r['max_waypoint_error_mm']:.1e} mm")
+          f"waypoint error {r['max_waypoint_error_mm']:.1e} mm"
+          + (f", largest deviation from the CAM polyline {r['max_deviation_mm']:.4f} mm" if "max_deviation_mm" in r
+             else ""))
     print(f"  frames    {r['frame']}: max twist against the exact RMF {r['max_twist_vs_exact_rmf_deg']:.3g} deg")
     print(f"  motion    {r['duration_s']:.3f} s, {r['samples']} poses at {settings.rate:g} Hz"
           + (f", feed lowered to {100 * r['feed_scale']:.0f} % for the joint speed limits"

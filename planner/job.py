@@ -43,6 +43,10 @@ class JobSettings:
         The part frame in the robot base frame, p[x, y, z, rx, ry, rz].
     tcp : pose (6,) or None
         The tool centre point in the flange frame.
+    tolerance : float or None
+        Fit the path within this distance (m) of the waypoint polyline everywhere (straight runs kept
+        straight, knots added where needed; :func:`planner.cam.fit_pass`) instead of interpolating the
+        waypoints with a C2 spline (None).
     """
 
     frame: str = "rmf"
@@ -54,6 +58,7 @@ class JobSettings:
     robot: str | None = "ur5e"
     base: tuple | None = None
     tcp: tuple | None = None
+    tolerance: float | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -73,6 +78,7 @@ class Job:
     twist_s: np.ndarray
     twist_curve_deg: np.ndarray
     timings: dict = field(default_factory=dict)
+    max_deviation: float | None = None
 
     def summary(self) -> dict:
         """The job's figures in human units (mm, s, deg)."""
@@ -87,6 +93,8 @@ class Job:
             "max_twist_vs_exact_rmf_deg": self.twist_deg,
             "feed_scale": self.feed_scale,
         }
+        if self.max_deviation is not None:
+            out["max_deviation_mm"] = self.max_deviation * 1e3
         if self.reachability is not None:
             out["reachable"] = bool(self.reachability.ok)
             out["reachability"] = self.reachability.message
@@ -123,7 +131,16 @@ def plan_job(waypoints, axes=None, settings: JobSettings = JobSettings(), *, spa
     timings = {}
     tic = time.perf_counter()
     wp = np.asarray(waypoints, dtype=float)
-    path = fit_ph_cubic_spline(wp) if (s.frame == "juttler" and axes is None) else fit_ph_spline(wp)
+    deviation = None
+    if s.frame == "juttler" and axes is None:
+        path = fit_ph_cubic_spline(wp)
+    elif s.tolerance is not None:
+        from planner.cam import fit_pass
+
+        fit = fit_pass(wp, s.tolerance)
+        path, deviation = fit.path, fit.max_deviation
+    else:
+        path = fit_ph_spline(wp)
     timings["fit_s"] = time.perf_counter() - tic
 
     tic = time.perf_counter()
@@ -174,4 +191,4 @@ def plan_job(waypoints, axes=None, settings: JobSettings = JobSettings(), *, spa
             break
         feed_scale *= report.feed_scale
     return Job(s, wp, path, field_used, stream, profile, joints, report, feed_scale, twist, sv,
-               twist_curve, timings)
+               twist_curve, timings, deviation)
