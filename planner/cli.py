@@ -162,18 +162,47 @@ def cmd_plan(args: argparse.Namespace) -> None:
         print(f"  wrote     {args.plot}")
 
 
+class _ProgressBar:
+    """A one-line text progress bar on stderr for long jobs (only when stderr is a terminal or forced)."""
+
+    def __init__(self, enabled: bool):
+        self.enabled = enabled
+        self.last = ""
+
+    def __call__(self, stage: str, done: int, total: int) -> None:
+        if not self.enabled:
+            return
+        frac = done / total if total else 1.0
+        bar = "#" * int(30 * frac)
+        line = f"\r  {stage:<6} [{bar:<30}] {100 * frac:5.1f} % ({done}/{total})"
+        if line != self.last:
+            sys.stderr.write(line)
+            sys.stderr.flush()
+            self.last = line
+
+    def close(self) -> None:
+        if self.enabled and self.last:
+            sys.stderr.write("\n")
+            sys.stderr.flush()
+
+
 def _plan_whole_job(args, path_in: Path, tp, read_options: dict) -> None:
     """Every pass, rapid and reorientation of a CAM file (planner.cam), with its figures."""
     from planner.cam import plan_cam_job
 
     print(f"{path_in.name}: {len(tp)} points; planning every pass (tolerance {args.tolerance:g} mm) ...", flush=True)
+    bar = _ProgressBar(args.progress or sys.stderr.isatty())
     with warnings.catch_warnings(record=True) as caught:
         warnings.simplefilter("always")
-        job = plan_cam_job(
-            tp, tolerance=args.tolerance / 1e3, corner_deg=args.corner,
-            part_frame=_pose(args.part_frame, "--part-frame"), tcp=_pose(args.tcp, "--tcp"),
-            robot=None if args.robot == "none" else args.robot, feed=args.feed / 1e3, rate=args.rate,
-        )
+        try:
+            job = plan_cam_job(
+                tp, tolerance=args.tolerance / 1e3, corner_deg=args.corner,
+                part_frame=_pose(args.part_frame, "--part-frame"), tcp=_pose(args.tcp, "--tcp"),
+                robot=None if args.robot == "none" else args.robot, feed=args.feed / 1e3, rate=args.rate,
+                progress=bar,
+            )
+        finally:
+            bar.close()
     for line in job.describe():
         print(line)
     for w in caught[:10]:
@@ -264,6 +293,7 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--axes", choices=["tool", "normal"], default="tool",
                    help="CSV/JSON i,j,k: the tool approach axis (default) or the surface normal")
     p.add_argument("--ignore-axes", action="store_true", help="ignore tool axes in the file")
+    p.add_argument("--progress", action="store_true", help="show the progress bar even when not on a terminal")
     p.add_argument("-o", "--output", help="write the job: .csv / .json pose stream or .script URScript program")
     p.add_argument("--plot", help="write a PNG: path and tool axes, twist, TCP speed, joints")
     p.set_defaults(func=cmd_plan)

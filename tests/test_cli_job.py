@@ -92,8 +92,10 @@ def test_cli_plans_a_whole_multi_pass_file(tmp_path, capsys):
     src = tmp_path / "head.cls"
     src.write_text(NX_HEAD)
     out = tmp_path / "job.csv"
-    assert main(["plan", str(src), "--robot", "none", "-o", str(out)]) == 0
-    text = capsys.readouterr().out
+    assert main(["plan", str(src), "--robot", "none", "-o", str(out), "--progress"]) == 0
+    captured = capsys.readouterr()
+    text = captured.out
+    assert re.search(r"moves +\[#+ *\] +\d+\.\d %", captured.err)  # the progress bar
     assert re.search(r"-> \d+ passes, \d+ rapids", text) and "largest deviation from the CAM polyline" in text
     rows = [r for r in out.read_text().splitlines() if r and r[0] not in "#t"]
     data = np.array([[float(x) for x in r.split(",")] for r in rows])

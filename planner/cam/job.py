@@ -426,6 +426,7 @@ def plan_cam_job(
     rate: float = 500.0,
     reach_step: float = 2e-3,
     read_options: dict | None = None,
+    progress=None,
 ) -> CamJob:
     """Plan a whole CAM toolpath: passes within tolerance, modal tool axes, rapids, time law, robot.
 
@@ -509,12 +510,16 @@ def plan_cam_job(
     fit_time = time.perf_counter() - tic
     timings["fit"] = fit_time
     spans_total = max(sum(len(p) - 1 for p in cuts), 1)
-    moves, reports = _plan_moves(tp, seg, fits, settings, fit_time / spans_total, timings)
+    if progress is not None:
+        progress("fit", len(cuts), len(cuts))
+    moves, reports = _plan_moves(tp, seg, fits, settings, fit_time / spans_total, timings, progress)
     timings["plan"] = time.perf_counter() - t_plan
     job = CamJob(tp.source, settings, tp, seg, tuple(moves), tuple(reports), timings)
     if settings.robot is not None:
         from planner.cam.reach import check_job
 
+        if progress is not None:
+            progress("reach", 0, 1)
         tic = time.perf_counter()
         reach = check_job(job)
         timings["reach"] = time.perf_counter() - tic
@@ -526,14 +531,16 @@ def plan_cam_job(
     return job
 
 
-def _plan_moves(tp, seg: Segmentation, fits, s: CamSettings, fit_share: float, timings: dict):
+def _plan_moves(tp, seg: Segmentation, fits, s: CamSettings, fit_share: float, timings: dict, progress=None):
     """Frames and time laws of every move, in order, each starting from the previous end frame."""
     moves: list[PlannedMove] = []
     reports: list[PassReport] = []
     frame: np.ndarray | None = None  # tool frame at the end of the previous move
     t_frames = t_law = 0.0
     cut_limits = MotionLimits(s.limits.speed, s.limits.acceleration, s.limits.jerk)
-    for item in seg.moves:
+    for n_done, item in enumerate(seg.moves):
+        if progress is not None and n_done % 25 == 0:
+            progress("moves", n_done, len(seg.moves))
         try:
             if isinstance(item, CutPass):
                 tic = time.perf_counter()
