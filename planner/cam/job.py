@@ -513,6 +513,8 @@ def plan_cam_job(
     if progress is not None:
         progress("fit", len(cuts), len(cuts))
     moves, reports = _plan_moves(tp, seg, fits, settings, fit_time / spans_total, timings, progress)
+    if progress is not None:
+        progress("moves", len(seg.moves), len(seg.moves))
     timings["plan"] = time.perf_counter() - t_plan
     job = CamJob(tp.source, settings, tp, seg, tuple(moves), tuple(reports), timings)
     if settings.robot is not None:
