@@ -106,3 +106,24 @@ def test_cli_plans_a_whole_multi_pass_file(tmp_path, capsys):
 def test_cli_fit_prints_figures(capsys):
     assert main(["fit", str(example_path()), "--method", "C2"]) == 0
     assert "C2 PH quintic spline" in capsys.readouterr().out
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize(
+    "name, extra",
+    [
+        ("nx_clsf_variable_contour_ust_a2.cls", []),
+        ("solidworks_cam_apt_boss_3plus2.apt", []),
+        ("nx2022_haas_umc750_5axis_gcode.txt", ["--machine", "haas-umc-750", "--units", "inch"]),
+    ],
+)
+def test_cli_plans_each_shared_cam_file(name, extra, capsys):
+    from tests.conftest import SHARED_DATA
+
+    if not (SHARED_DATA / name).is_file():
+        pytest.skip("shared/data not present")
+    assert main(["plan", str(SHARED_DATA / name), "--robot", "none", *extra]) == 0
+    out = capsys.readouterr().out
+    assert re.search(r"-> \d+ passes", out)
+    dev = float(re.search(r"largest deviation from the CAM polyline ([0-9.]+) mm", out).group(1))
+    assert dev <= 0.01

@@ -92,6 +92,7 @@ def test_er_frame_spins_about_the_tangent_where_the_rmf_does_not():
     assert np.abs(np.einsum("ni,ni->n", w_rmf, tan)).max() < 1e-9 * np.linalg.norm(w_rmf, axis=1).max()
 
 
+@pytest.mark.filterwarnings("ignore::scipy.integrate.IntegrationWarning")
 def test_rmf_angle_integral_matches_quadrature_of_the_seed_rate():
     """psi(1) - psi(0) = -int (d/dt A j A*).(A k A*) / sigma^2 dt (seed eq. 6 up to its factor 2 theta)."""
     from scipy.integrate import quad
