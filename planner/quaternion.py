@@ -113,14 +113,19 @@ def from_vector(v: np.ndarray) -> np.ndarray:
 def to_matrix(q: np.ndarray) -> np.ndarray:
     """Rotation matrices (..., 3, 3) of quaternions q, not necessarily unit: q v q* / |q|^2."""
     q = np.asarray(q, dtype=float)
-    w, x, y, z = np.moveaxis(q, -1, 0)
-    n = w * w + x * x + y * y + z * z
-    m = np.stack(
-        (
-            np.stack((w * w + x * x - y * y - z * z, 2 * (x * y - w * z), 2 * (x * z + w * y)), -1),
-            np.stack((2 * (x * y + w * z), w * w - x * x + y * y - z * z, 2 * (y * z - w * x)), -1),
-            np.stack((2 * (x * z - w * y), 2 * (y * z + w * x), w * w - x * x - y * y + z * z), -1),
-        ),
-        axis=-2,
-    )
-    return m / n[..., None, None]
+    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
+    ww, xx, yy, zz = w * w, x * x, y * y, z * z
+    inv = 1.0 / (ww + xx + yy + zz)
+    two = 2.0 * inv
+    xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
+    m = np.empty(q.shape[:-1] + (3, 3))
+    m[..., 0, 0] = (ww + xx - yy - zz) * inv
+    m[..., 0, 1] = (xy - wz) * two
+    m[..., 0, 2] = (xz + wy) * two
+    m[..., 1, 0] = (xy + wz) * two
+    m[..., 1, 1] = (ww - xx + yy - zz) * inv
+    m[..., 1, 2] = (yz - wx) * two
+    m[..., 2, 0] = (xz - wy) * two
+    m[..., 2, 1] = (yz + wx) * two
+    m[..., 2, 2] = (ww - xx - yy + zz) * inv
+    return m

@@ -39,11 +39,19 @@ def _er_at(path, k: np.ndarray, t: np.ndarray) -> np.ndarray:
     return qt.to_matrix(path._quaternion_t(k, t))
 
 
-def _turned_quaternions(path, k, t, angle) -> np.ndarray:
-    """Unit quaternions (n, 4) of the ER frames turned by ``angle`` about the tangent: A e^{i angle/2}."""
+def _turned_quaternions(path, k, t, angle, unit: bool = True) -> np.ndarray:
+    """Quaternions (n, 4) of the ER frames turned by ``angle`` about the tangent: A e^{i angle/2}
+    (normalized when ``unit``)."""
     A = path._quaternion_t(k, t)
-    A /= np.sqrt(np.einsum("ni,ni->n", A, A))[:, None]
-    return qt.mul(A, qt.exp_i(0.5 * angle))
+    c, s = np.cos(0.5 * angle), np.sin(0.5 * angle)
+    Q = np.empty_like(A)  # A (c + s i), written out
+    Q[:, 0] = A[:, 0] * c - A[:, 1] * s
+    Q[:, 1] = A[:, 0] * s + A[:, 1] * c
+    Q[:, 2] = A[:, 2] * c + A[:, 3] * s
+    Q[:, 3] = A[:, 3] * c - A[:, 2] * s
+    if unit:
+        Q /= np.sqrt(np.einsum("ni,ni->n", Q, Q))[:, None]
+    return Q
 
 
 def _angle_in(frame_col1: np.ndarray, basis: np.ndarray) -> np.ndarray:
@@ -92,18 +100,18 @@ class PathFrames:
             ang[idx] = f.on_grid(t[idx]) if hasattr(f, "on_grid") else f(t[idx])
         return k, t, ang + self.offsets[k]
 
-    def quaternions(self, u) -> np.ndarray:
-        """Unit quaternions (n, 4) (scalar first) of the frames at global parameters u (n,)."""
+    def quaternions(self, u, unit: bool = True) -> np.ndarray:
+        """Quaternions (n, 4) (scalar first, unit unless ``unit=False``) of the frames at parameters u (n,)."""
         u = np.atleast_1d(np.asarray(u, dtype=float))
         k, t, ang = self.base_angle(u)
         if self.stations.size:
             ang = ang + np.interp(self.path.arc_length(u), self.stations, self.corrections)
-        return _turned_quaternions(self.path, k, t, ang)
+        return _turned_quaternions(self.path, k, t, ang, unit)
 
     def frames(self, u) -> np.ndarray:
         """Frames (n, 3, 3) at global parameters u (n,): column 0 the unit tangent, columns 1, 2 the
         normal-plane vectors; orthonormal, right-handed, continuous along the path."""
-        return qt.to_matrix(self.quaternions(u))
+        return qt.to_matrix(self.quaternions(u, unit=False))
 
     def at_length(self, s) -> np.ndarray:
         """Frames at arc lengths s (n,) from the start (metres)."""
