@@ -9,6 +9,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from planner.curves import fit_ph_spline
+from planner.errors import PlannerError
 from planner.frames.path import frame_field
 from planner.motion import (
     ConstantOrientation,
@@ -91,10 +92,9 @@ def test_evaluator_matches_the_spline():
         s = np.concatenate((s, path.cumulative_lengths))
         k, t = ev.locate(s)
         u = ev.parameter(k, t)
-        np.testing.assert_allclose(u, path.parameter_at_length(s), rtol=0, atol=1e-14 * path.knots[-1])
-        np.testing.assert_allclose(path.arc_length(u), s, rtol=0, atol=1e-14)
+        np.testing.assert_allclose(path.arc_length(u), s, rtol=0, atol=1e-14)  # Bernstein evaluation, independent
         np.testing.assert_allclose(ev.points(k, t), path.points(u), rtol=0, atol=1e-14)
-    with pytest.raises(MotionInputError, match=r"s\[1\]"):
+    with pytest.raises(PlannerError, match=r"s\[1\]"):
         ev.locate([0.0, -1.0])
 
 

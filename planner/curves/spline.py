@@ -21,7 +21,6 @@ from planner.curves.ph_core import (
     batch_control_points,
     batch_sigma,
     curvature_torsion,
-    invert_arc_length,
 )
 from planner.curves.ph_cubic import PHCubic
 from planner.curves.ph_quintic import PHQuintic, batch_hermite
@@ -206,18 +205,18 @@ class PHSpline:
         return self.cumulative_lengths[k] + np.einsum("nk,nk->n", bernstein.basis(self.degree, t), S)
 
     def parameter_at_length(self, s) -> np.ndarray:
-        """Global parameters u (n,) at arc lengths s (n,) from the start, s in [0, length]; exact."""
-        s = np.atleast_1d(np.asarray(s, dtype=float))
-        L = self.length
-        bad = ~np.isfinite(s) | (s < -1e-12 * L) | (s > L * (1 + 1e-12))
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise PlannerError(f"arc length s[{i}] = {s[i]} is outside [0, {L}]")
-        s = np.clip(s, 0.0, L)
-        cum = self.cumulative_lengths
-        k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, self.n_segments - 1)
-        t = invert_arc_length(self.sigma_coeffs[k], s - cum[k])
-        return self.knots[k] + t * (self.knots[k + 1] - self.knots[k])
+        """Global parameters u (n,) at arc lengths s (n,) from the start, s in [0, length]; exact.
+
+        Newton on each segment's arc-length polynomial from a cubic Hermite guess of the inverse
+        (:class:`~planner.curves.arc_evaluator.SplineEvaluator`, built once per spline).
+        """
+        return self._evaluator(np.asarray(s, dtype=float))
+
+    @cached_property
+    def _evaluator(self):
+        from planner.curves.arc_evaluator import SplineEvaluator
+
+        return SplineEvaluator.of(self)
 
     # -- quality figures -----------------------------------------------------------------------
     def curvature_jumps(self) -> np.ndarray:
