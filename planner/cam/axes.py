@@ -29,6 +29,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from planner import quaternion as qt
+from planner.frames.spherical_rmm import _reference, _spin_rate  # the same RMM formulas (seed eq. 3)
 from planner.motion.rotvec import matrix_to_quaternion
 
 #: Accuracy (rad) asked of each spin panel (its Chebyshev series' last two terms).
@@ -154,18 +155,6 @@ class AxisField:
         """Angle (m,) between the frames' tool axis and the given axis at each CAM point, radians."""
         F = self.frames(self.path.waypoint_knots)
         return angle_between(F[:, :, 2], self.axes)
-
-
-def _spin_rate(b: np.ndarray, z: np.ndarray, dz: np.ndarray) -> np.ndarray:
-    """theta' = b.(z x z') / (1 + b.z): the spin that cancels the reference motion's (juttler seed eq. 3)."""
-    return np.einsum("ij,ij->i", b, np.cross(z, dz)) / (1.0 + np.einsum("ij,ij->i", b, z))
-
-
-def _reference(b: np.ndarray, z: np.ndarray) -> np.ndarray:
-    """Unit quaternions (n, 4) of the shortest-arc rotations taking b to z (half-angle formula)."""
-    s = 1.0 + np.einsum("ij,ij->i", b, z)
-    q = np.concatenate((s[:, None], np.cross(b, z)), axis=1)
-    return q / np.sqrt(2.0 * s)[:, None]
 
 
 def _clenshaw(C: np.ndarray, x: np.ndarray) -> np.ndarray:
