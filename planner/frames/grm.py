@@ -235,18 +235,6 @@ def _diff_basis(t):
     return out
 
 
-def _ideal_start(curve) -> np.ndarray:
-    """Least-squares degree-4 fit of a = sqrt2 sigma sin(psi/2), b = sqrt2 sigma cos(psi/2) (exact RMF)."""
-    t = np.linspace(0.0, 1.0, 41)
-    psi = RMFAngle.of(curve.A)(t)
-    s = np.sqrt(2.0) * sigma_values(curve.A, t)
-    B = bernstein.basis(4, t)
-    B0 = B[:, 1:]  # a0 = 0
-    a = np.linalg.lstsq(B0, s * np.sin(0.5 * psi), rcond=None)[0]
-    b = np.linalg.lstsq(B, s * np.cos(0.5 * psi), rcond=None)[0]
-    return np.concatenate((a, b))
-
-
 _FREE = np.array([0, 1, 2, 3, 5, 6, 7])  # a1..a4, b1..b3; (b0, b4) = x[4], x[8] parametrize the set
 
 
@@ -410,7 +398,7 @@ def grm(curve, weight: str | Callable = "twist", *, grid: int = 11) -> GRMFrame:
         raise PlannerError(f"weight must be one of {WEIGHTS} or a callable rho(t), got {weight!r}")
     tic = time.perf_counter()
     p = _Problem([curve], weight)
-    x0 = _ideal_start(curve)
+    x0 = _ideal_starts([curve])[0]
     size = np.sqrt(2.0) * float(np.mean(sigma_values(curve.A, _TS)))  # typical |b + i a|
     x = _search(p, x0, size, grid)
     if x is None or not p.objective(x) < _ACCEPT:
@@ -428,7 +416,8 @@ def grm(curve, weight: str | Callable = "twist", *, grid: int = 11) -> GRMFrame:
 
 
 def _ideal_starts(curves) -> np.ndarray:
-    """:func:`_ideal_start` for S curves at once (S, 9)."""
+    """Least-squares degree-4 fits (S, 9) of a = sqrt2 sigma sin(psi/2), b = sqrt2 sigma cos(psi/2), a(0) = 0,
+    to the exact RMF angle psi of each curve: the starting point of the search."""
     A = np.stack([c.A for c in curves])
     S = A.shape[0]
     t = np.linspace(0.0, 1.0, 41)

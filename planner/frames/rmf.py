@@ -12,6 +12,7 @@ angle exact to round-off (about 1e-15 rad), unlike the trapezoid rule of the see
 from __future__ import annotations
 
 from dataclasses import dataclass
+from math import comb
 
 import numpy as np
 
@@ -38,8 +39,6 @@ def _panels(A: np.ndarray) -> int:
     """Panels for 16-point Gauss-Legendre to reach round-off: about 1 / (distance of roots of sigma)."""
     sigma = np.zeros(2 * A.shape[0] - 1)
     m = A.shape[0]
-    from math import comb
-
     for i in range(m):
         for j in range(m):
             w = comb(m - 1, i) * comb(m - 1, j) / comb(2 * m - 2, i + j)
