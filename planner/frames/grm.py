@@ -195,7 +195,7 @@ class _Problem:
         jb = av[:, :, None] * self.dB7 - dav[:, :, None] * self.B7
         return np.concatenate((ja[:, :, 1:], jb), axis=2) / self.gscale[seg, None, None]
 
-    def objective_batch(self, X, seg):
+    def objective_batch(self, X, seg, coarse: bool = False):
         """Eq. (13) with the weight, rows X (R, 9) -> (R,); for "twist", the largest twist (rad) against
         the exact RMF on 201 parameters (the GRM angle unwrapped along t, so a spin of 2 pi is seen).
         NaN rows give NaN."""
@@ -203,13 +203,15 @@ class _Problem:
         if self.weight == "twist":
             # with z = b + i a, the GRM angle is 2 arg z; against the RMF (from the same start) the twist
             # is arg(u^2) for u = z e^{-i psi/2} conj(z(0)): one principal angle per sample, no unwrapping
-            zr = b @ self.Bs.T + 1j * (a @ self.Bs.T)
-            z = zr * self.w[seg]
+            step = 3 if coarse else 1  # the global grid screens on every third sample
+            Bs = self.Bs[::step]
+            zr = b @ Bs.T + 1j * (a @ Bs.T)
+            z = zr * self.w[seg][:, ::step]
             u = z * np.conj(z[:, :1])
             with np.errstate(invalid="ignore"):
                 twist = np.abs(np.angle(u * u)).max(axis=1)
                 # |z|^2 = a^2 + b^2 far below 2 sigma^2 somewhere means a fast spin that samples can miss
-                dip = ((zr.real**2 + zr.imag**2) / self.s2s[seg]).min(axis=1) < _MIN_RATIO
+                dip = ((zr.real**2 + zr.imag**2) / self.s2s[seg][:, ::step]).min(axis=1) < _MIN_RATIO
             return np.where(dip, twist + np.pi, twist)
         av, bv = a @ self.Bq.T, b @ self.Bq.T
         r = av * av + bv * bv - self.s2q[seg]
@@ -458,11 +460,12 @@ def _search_many(p: _Problem, x0: np.ndarray, size: np.ndarray, grid: int, round
                     X[:, :, j] = cur.reshape(T, grid, 9)
                 prev = np.where(np.isfinite(cur[:, :1]), cur, prev)
         flat = X.reshape(T, grid * grid, 9)
-        f = p.objective_batch(flat.reshape(-1, 9), np.repeat(todo, grid * grid)).reshape(T, grid * grid)
+        f = p.objective_batch(flat.reshape(-1, 9), np.repeat(todo, grid * grid), coarse=True).reshape(T, grid * grid)
         f = np.where(np.isfinite(f), f, np.inf)
         k = np.argmin(f, axis=1)
         found = np.isfinite(f[np.arange(T), k])
-        best_f[todo[found]] = f[found, k[found]]
+        fine = p.objective_batch(flat[np.arange(T), k], todo)  # the chosen points on all samples
+        best_f[todo[found]] = fine[found]
         best_x[todo[found]] = flat[found, k[found]]
         spacing[todo[found]] = (offs[:, 1] - offs[:, 0])[found]
         todo = todo[~found]
