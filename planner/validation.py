@@ -6,7 +6,7 @@ from collections.abc import Sequence
 
 import numpy as np
 
-from planner.errors import WaypointError
+from planner.errors import PlannerError, WaypointError
 
 #: Two consecutive waypoints closer than this fraction of the path's extent are duplicates.
 DUPLICATE_RTOL = 1e-12
@@ -92,3 +92,14 @@ def check_vector(v, name: str, dim: int = 3, nonzero: bool = False) -> np.ndarra
     if nonzero and not np.any(a):
         raise WaypointError(f"{name} must not be the zero vector")
     return a
+
+
+def check_arc_lengths(s, length: float) -> np.ndarray:
+    """Arc lengths s (n,) as floats clipped to [0, length]; values beyond round-off outside it, or not
+    finite, raise naming the index (``arc length s[i] = ... is outside [0, L]``)."""
+    s = np.atleast_1d(np.asarray(s, dtype=float))
+    bad = ~np.isfinite(s) | (s < -1e-12 * length) | (s > length * (1 + 1e-12))
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise PlannerError(f"arc length s[{i}] = {s[i]} is outside [0, {length}]")
+    return np.clip(s, 0.0, length)

@@ -16,6 +16,7 @@ import numpy as np
 
 from planner.curves.ph_core import arc_length_coeffs
 from planner.errors import PlannerError
+from planner.validation import check_arc_lengths
 
 #: Newton step (in t) after which one more step would change t only at round-off.
 _NEWTON_DONE = 1e-8
@@ -71,12 +72,8 @@ class SplineEvaluator:
 
     def locate(self, s) -> tuple[np.ndarray, np.ndarray]:
         """Segment index k (n,) and local parameter t (n,) in [0, 1] with s_k(t) = s - cumulative[k]."""
-        s = np.atleast_1d(np.asarray(s, dtype=float))
         L = self.length
-        bad = ~np.isfinite(s) | (s < -1e-12 * L) | (s > L * (1 + 1e-12))
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise PlannerError(f"arc length s[{i}] = {s[i]} is outside [0, {L}]")
+        s = check_arc_lengths(s, L)
         n_seg = self.S.shape[1]
         k = np.clip(np.searchsorted(self.cumulative, s, side="right") - 1, 0, n_seg - 1)
         c0, c1 = self.cumulative[k], self.cumulative[k + 1]

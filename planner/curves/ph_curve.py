@@ -21,7 +21,7 @@ from planner.curves.ph_core import (
     invert_arc_length,
 )
 from planner.errors import PlannerError
-from planner.validation import check_vector
+from planner.validation import check_arc_lengths, check_vector
 
 
 @dataclass(frozen=True, eq=False)
@@ -111,14 +111,10 @@ class PHSegment:
 
     def parameter_at_length(self, s) -> np.ndarray:
         """Parameters t (n,) at arc lengths s (n,) measured from t = 0; s must lie in [0, length]."""
-        s = np.atleast_1d(np.asarray(s, dtype=float))
         L = self.length
-        bad = ~np.isfinite(s) | (s < -1e-12 * L) | (s > L * (1 + 1e-12))
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise PlannerError(f"arc length s[{i}] = {s[i]} is outside [0, {L}]")
+        s = check_arc_lengths(s, L)
         sig = np.broadcast_to(self.sigma_coeffs, (s.size, self.sigma_coeffs.size))
-        return invert_arc_length(sig, np.clip(s, 0.0, L))
+        return invert_arc_length(sig, s)
 
     def tangent(self, t) -> np.ndarray:
         """Unit tangent r'/|r'|, shape (n, 3)."""

@@ -27,7 +27,7 @@ from planner.curves.dp_cubic import DPCubic
 from planner.curves.dp_ph_hermite import HermiteDataError, dp_ph_hermite
 from planner.curves.tangents import chord_knots, cubic_spline_slopes
 from planner.errors import NoSolutionError, PlannerError, WaypointError
-from planner.validation import check_tangents, check_waypoints
+from planner.validation import check_arc_lengths, check_tangents, check_waypoints
 
 #: Waypoints given in 3-D must share z to this fraction of the path's extent.
 Z_RTOL = 1e-9
@@ -151,13 +151,8 @@ class PlanarPHSpline:
 
         Safeguarded Newton iteration on each piece's cubic arc-length polynomial (monotone in t).
         """
-        s = np.atleast_1d(np.asarray(s, dtype=float))
         L = self.length
-        bad = ~np.isfinite(s) | (s < -1e-12 * L) | (s > L * (1 + 1e-12))
-        if bad.any():
-            i = int(np.argmax(bad))
-            raise PlannerError(f"arc length s[{i}] = {s[i]} is outside [0, {L}]")
-        s = np.clip(s, 0.0, L)
+        s = check_arc_lengths(s, L)
         cum = self.cumulative_lengths
         k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, self.n_segments - 1)
         sig = self.sigma_coeffs[k]
