@@ -195,6 +195,18 @@ class _Problem:
         jb = av[:, :, None] * self.dB7 - dav[:, :, None] * self.B7
         return np.concatenate((ja[:, :, 1:], jb), axis=2) / self.gscale[seg, None, None]
 
+    def newton_system(self, X, seg):
+        """Residual (R, 7) and its Jacobian in the free unknowns a1..a4, b1..b3 (R, 7, 7), sharing the
+        polynomial values (the Newton step of :func:`_on_constraint`)."""
+        a, b = self._ab(X)
+        av, bv, dav, dbv = a @ self.B7.T, b @ self.B7.T, a @ self.dB7.T, b @ self.dB7.T
+        inv = 1.0 / self.gscale[seg]
+        C = (av * dbv - dav * bv - self.target[seg]) * inv[:, None]
+        B, dB = self.B7[:, 1:4], self.dB7[:, 1:4]  # the free columns (b1..b3; a1..a4 take 1..4)
+        ja = self.B7[:, 1:] * dbv[:, :, None] - self.dB7[:, 1:] * bv[:, :, None]
+        jb = av[:, :, None] * dB - dav[:, :, None] * B
+        return C, np.concatenate((ja, jb), axis=2) * inv[:, None, None]
+
     def objective_batch(self, X, seg, coarse: bool = False):
         """Eq. (13) with the weight, rows X (R, 9) -> (R,); for "twist", the largest twist (rad) against
         the exact RMF on 201 parameters (the GRM angle unwrapped along t, so a spin of 2 pi is seen).
@@ -270,19 +282,20 @@ def _on_constraint(p: _Problem, X: np.ndarray, b0: np.ndarray, b4: np.ndarray, s
     active = np.arange(X.shape[0])
     first = None
     for it in range(iters):
-        C = p.constraint_batch(X[active], seg[active])
+        Xa = X[active]
+        C, J = p.newton_system(Xa, seg[active])
         err = np.abs(C).max(axis=1)
         first = err if first is None else first
-        keep = (err >= 1e-14) & np.isfinite(err) & ~((it >= 3) & (err > 10 * first))
-        diverged = ~np.isfinite(err) | ((it >= 3) & (err > 10 * first))
-        X[active[diverged]] = np.nan
-        active, C, first = active[keep], C[keep], first[keep]
+        failing = ~np.isfinite(err) | ((it >= 3) & (err > 10 * first))
+        keep = (err >= 1e-14) & ~failing
+        X[active[failing]] = np.nan
+        active, C, J, first, Xa = active[keep], C[keep], J[keep], first[keep], Xa[keep]
         if active.size == 0:
             break
-        J = p.constraint_jac_batch(X[active], seg[active])[:, :, _FREE]
-        X[active[:, None], _FREE] -= _solve_batch(J, C)
-        bad = ~np.isfinite(X[active]).all(axis=1) | (np.abs(X[active]).max(axis=1) > bound[active])
-        X[active[bad]] = np.nan
+        Xa[:, _FREE] -= _solve_batch(J, C)
+        bad = ~np.isfinite(Xa).all(axis=1) | (np.abs(Xa).max(axis=1) > bound[active])
+        Xa[bad] = np.nan
+        X[active] = Xa
         active, first = active[~bad], first[~bad]
     with np.errstate(invalid="ignore"):
         feasible = np.abs(p.constraint_batch(X, seg)).max(axis=1) < 1e-12
