@@ -101,7 +101,7 @@ class Job:
         return out
 
 
-def _down_start(path, frames_kind: str):
+def _down_start(path):
     """Start frame of a path frame field with column 2 (the tool z) as close to -Z as possible."""
     t = path.tangent(path.knots[:1])[0]
     z = np.array([0.0, 0.0, -1.0]) - (-t[2]) * t
@@ -151,8 +151,9 @@ def plan_job(waypoints, axes=None, settings: JobSettings = JobSettings(), *, spa
         orientation = tool_orientation(tool, z_column=2)
         field_used, reference = tool, exact
     else:
-        field_used = frame_field(path, s.frame, start=_down_start(path, s.frame))
-        reference = frame_field(path, "rmf", start=_down_start(path, "rmf"))
+        start = _down_start(path)
+        field_used = frame_field(path, s.frame, start=start)
+        reference = field_used if s.frame == "rmf" else frame_field(path, "rmf", start=start)
         orientation = tool_orientation(field_used, z_column=2)
     sv = np.linspace(0.0, path.length, 2001)
     F, R = field_used.at_length(sv), reference.at_length(sv)

@@ -187,14 +187,6 @@ class _Problem:
         av, bv, dav, dbv = a @ self.B7.T, b @ self.B7.T, a @ self.dB7.T, b @ self.dB7.T
         return (av * dbv - dav * bv - self.target[seg]) / self.gscale[seg, None]
 
-    def constraint_jac_batch(self, X, seg):
-        """Jacobian (R, 7, 9) of :meth:`constraint_batch`."""
-        a, b = self._ab(X)
-        av, bv, dav, dbv = a @ self.B7.T, b @ self.B7.T, a @ self.dB7.T, b @ self.dB7.T
-        ja = self.B7 * dbv[:, :, None] - self.dB7 * bv[:, :, None]
-        jb = av[:, :, None] * self.dB7 - dav[:, :, None] * self.B7
-        return np.concatenate((ja[:, :, 1:], jb), axis=2) / self.gscale[seg, None, None]
-
     def newton_system(self, X, seg):
         """Residual (R, 7) and its Jacobian in the free unknowns a1..a4, b1..b3 (R, 7, 7), sharing the
         polynomial values (the Newton step of :func:`_on_constraint`)."""
@@ -232,9 +224,6 @@ class _Problem:
     # single-curve conveniences (curve 0)
     def constraint(self, x):
         return self.constraint_batch(x[None], np.zeros(1, int))[0]
-
-    def constraint_jac(self, x):
-        return self.constraint_jac_batch(x[None], np.zeros(1, int))[0]
 
     def objective(self, x):
         return float(self.objective_batch(x[None], np.zeros(1, int))[0])
@@ -311,9 +300,9 @@ def _closest_feasible(p: _Problem, x: np.ndarray, iters: int = 20) -> np.ndarray
     already nearly rotation-minimizing. ``constraint_residual`` reports what remains.
     """
     best = (np.abs(p.constraint(x)).max(), x)
+    first = np.zeros(1, int)
     for _ in range(iters):
-        c = p.constraint(x)
-        J = p.constraint_jac(x)[:, _FREE]
+        c, J = (v[0] for v in p.newton_system(x[None], first))
         sc = np.maximum(np.linalg.norm(J, axis=0), 1e-300)
         x = x.copy()
         x[_FREE] -= np.linalg.lstsq(J / sc, c, rcond=None)[0] / sc
