@@ -29,7 +29,7 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from planner import quaternion as qt
-from planner.frames.spherical_rmm import _reference, _spin_rate  # the same RMM formulas (seed eq. 3)
+from planner.frames.spherical_rmm import _reference, _spin_rate, base_starts  # the same RMM (seed eq. 3)
 from planner.motion.rotvec import matrix_to_quaternion
 
 #: Accuracy (rad) asked of each spin panel (its Chebyshev series' last two terms).
@@ -252,13 +252,7 @@ def _rmm(z, dz, knots: np.ndarray, F0: np.ndarray) -> SpinTable:
     # pieces: renew the base direction at a knot before z gets MAX_BASE_ANGLE away from it
     grid = np.unique(np.concatenate((knots, 0.5 * (knots[1:] + knots[:-1]))))
     zg = z(grid)
-    starts, j = [0], 0
-    while True:
-        far = np.flatnonzero(zg[j:] @ zg[j] < np.cos(MAX_BASE_ANGLE))
-        if far.size == 0:
-            break
-        j = j + max(int(far[0]) - 1, 1)
-        starts.append(j)
+    starts = base_starts(zg, MAX_BASE_ANGLE)
     pieces = np.append(grid[starts], knots[-1])
     bases = zg[starts]
     breaks = np.unique(np.concatenate((knots, pieces)))

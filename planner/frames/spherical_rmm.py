@@ -41,6 +41,19 @@ MAX_BASE_ANGLE = 2.0 * np.pi / 3.0
 _GL_X, _GL_W = np.polynomial.legendre.leggauss(GL_ORDER)
 
 
+def base_starts(zg: np.ndarray, max_angle: float = MAX_BASE_ANGLE) -> list[int]:
+    """Indices into samples zg (m, 3) of a curve on the sphere where a new base direction starts: each
+    base is used until z comes within one sample of ``max_angle`` (rad) from it, so that the
+    shortest-arc reference 1 + b.z stays away from 0."""
+    starts, j = [0], 0
+    while True:
+        far = np.flatnonzero(zg[j:] @ zg[j] < np.cos(max_angle))
+        if far.size == 0:
+            return starts
+        j = j + max(int(far[0]) - 1, 1)
+        starts.append(j)
+
+
 def _spin_rate(b: np.ndarray, z: np.ndarray, dz: np.ndarray) -> np.ndarray:
     """theta' = b.(z x z') / (1 + b.z), (n,): minus the reference motion's spin about z (seed eq. 3)."""
     return np.einsum("ij,ij->i", b, np.cross(z, dz)) / (1.0 + np.einsum("ij,ij->i", b, z))
@@ -204,13 +217,7 @@ def exact_spherical_rmm(z: Callable, dz: Callable, start=None, *, interval: tupl
     # pieces: renew the base before z is MAX_BASE_ANGLE away from it (checked on a fine grid)
     grid = np.linspace(lo, hi, 4097)
     zg = _call(z, grid, "z", True)
-    starts, j = [0], 0
-    while True:
-        far = np.flatnonzero(zg[j:] @ zg[j] < np.cos(MAX_BASE_ANGLE))
-        if far.size == 0:
-            break
-        j = j + max(int(far[0]) - 1, 1)
-        starts.append(j)
+    starts = base_starts(zg)
     pieces = np.append(grid[starts], hi)
     bases = zg[starts]
 
