@@ -15,7 +15,6 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner import quaternion as qt
 from planner.curves.ph_curve import PHSegment
 from planner.errors import PlannerError
 from planner.validation import check_vector
@@ -25,15 +24,54 @@ from planner.validation import check_vector
 # ---------------------------------------------------------------------------------------------
 
 _CC_GRID = 24
+_CC_NEWTON = 4
+
+# The kernel below works on component rows: a quaternion array is (4, N), a vector array (3, N), so that
+# every arithmetic operation runs on a contiguous row of N segments (the fitters call it for thousands).
 
 
-def _cc_alpha_q(a0, a2, base, delta):
-    """alpha = Q i Q* and Q (phase 0) for phase offset delta = phi2 - phi0; shapes (N, 3), (N, 4)."""
-    a2d = qt.mul(a2, qt.exp_i(delta))  # a2 e^{i delta}
-    alpha = base + 10.0 * qt.i_product(a0, a2d)  # Farouki: (3A0+4A1+3A2) i (..)* = alpha
-    anorm = np.linalg.norm(alpha, axis=-1)
-    safe = np.where(anorm[..., None] > 0, alpha, np.array([1.0, 0.0, 0.0]))
-    return a2d, np.sqrt(anorm)[..., None] * qt.rotate_i_to(safe)
+def _sqrt_rot(v: np.ndarray) -> np.ndarray:
+    """Rows (4, N) of a quaternion A with A i A* = v, for vector rows v (3, N) (sqrt|v| rotate_i_to(v))."""
+    l, m, n = v
+    r = np.sqrt(l * l + m * m + n * n)
+    with np.errstate(invalid="ignore", divide="ignore"):  # v = 0 gives A = 0 (nan masked below)
+        inv = np.where(r > 0, 1.0 / r, 0.0)
+    lam, mu, nu = l * inv, m * inv, n * inv
+    pos = lam >= 0
+    c = 1.0 + np.abs(lam)
+    scale = np.sqrt(r / (2.0 * c))  # see quaternion.rotate_i_to for the two branches
+    return np.stack(
+        (
+            np.where(pos, c, -nu) * scale,
+            np.where(pos, 0.0, mu) * scale,
+            np.where(pos, -nu, c) * scale,
+            np.where(pos, mu, 0.0) * scale,
+        )
+    )
+
+
+def _i_product(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Vector part of p i q* on rows, (3, N) (quaternion.i_product)."""
+    p0, p1, p2, p3 = p
+    q0, q1, q2, q3 = q
+    return np.stack(
+        (
+            p0 * q0 + p1 * q1 - p2 * q2 - p3 * q3,
+            p1 * q2 + p2 * q1 + p0 * q3 + p3 * q0,
+            p1 * q3 + p3 * q1 - p0 * q2 - p2 * q0,
+        )
+    )
+
+
+def _times_e_i(q: np.ndarray, c: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """q e^{i phi} on rows, with c = cos phi and s = sin phi."""
+    w, x, y, z = q
+    return np.stack((c * w - s * x, c * x + s * w, c * y + s * z, c * z - s * y))
+
+
+def _dot(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Row-wise inner products (N,) of component rows."""
+    return np.einsum("ij,ij->j", p, q)
 
 
 class _CCMeasure:
@@ -42,68 +80,73 @@ class _CCMeasure:
     min over phi0 of |5 (A0 + A2) - Q|^2 = 25 |X|^2 + |alpha| - 10 sqrt((|alpha| |X|^2 + <X i X*, alpha>) / 2)
     with X = a0 + a2 e^{i delta}, because max_phi <X e^{i phi}, Q> = |(w0, w1)| for w = Q* X, and
     w0^2 + w1^2 = (|w|^2 + (w i w*)_i) / 2 = (|alpha| |X|^2 + <X i X*, alpha>) / 2. Everything is a
-    trigonometric polynomial in delta with per-segment coefficients precomputed here.
+    trigonometric polynomial in delta: ``P`` = |X|^2 holds the per-segment coefficients on the basis
+    (1, cos, sin) of delta, ``G`` = |alpha|^2 and ``H`` = <X i X*, alpha> on (1, cos, sin, cos 2 delta,
+    sin 2 delta), as rows (3, N) and (5, N). Inputs are component rows (a0, a2: (4, N); base, e: (3, N)).
     """
 
-    def __init__(self, a0, a2, base, d0, d1):
-        Sc = qt.i_product(a0, a2)
-        a2i = qt.mul(a2, qt.I)
-        Ss = qt.i_product(a0, a2i)
-        e = d0 + d1
-        dot = qt.dot
-        bc, bs = dot(base, Sc), dot(base, Ss)
-        cc, cs, ss = dot(Sc, Sc), dot(Sc, Ss), dot(Ss, Ss)
-        z = np.zeros_like(cc)
-        # coefficients on the basis (1, c, s, c^2, c s, s^2) of |X|^2, |alpha|^2 and <X i X*, alpha>
-        self.X2 = np.stack((qt.norm2(a0) + qt.norm2(a2), 2 * dot(a0, a2), 2 * dot(a0, a2i), z, z, z), 1)
-        self.al2 = np.stack((dot(base, base), 20 * bc, 20 * bs, 100 * cc, 200 * cs, 100 * ss), 1)
-        ec, es = 10 * dot(e, Sc) + 2 * bc, 10 * dot(e, Ss) + 2 * bs
-        self.xa = np.stack((dot(e, base), ec, es, 20 * cc, 40 * cs, 20 * ss), 1)
+    def __init__(self, a0, a2, base, e):
+        Sc = _i_product(a0, a2)  # i_product(a0, a2 e^{i delta}) = Sc c + Ss s
+        a2i = np.stack((-a2[1], a2[0], a2[3], -a2[2]))  # a2 i
+        Ss = _i_product(a0, a2i)
+        V = np.stack((base, Sc, Ss, e))  # (4, 3, N): every inner product needed, in one einsum
+        D = np.einsum("aik,bik->abk", V, V)
+        (bb, bc, bs, be), (_, cc, cs, ce), (_, _, ss, se) = D[0], D[1], D[2]
+        self.P = np.stack((_dot(a0, a0) + _dot(a2, a2), 2 * _dot(a0, a2), 2 * _dot(a0, a2i)))
+        # on (1, c, s, c^2, cs, s^2): G = (bb, 20 bc, 20 bs, 100 cc, 200 cs, 100 ss),
+        # H = (be, 10 ce + 2 bc, 10 se + 2 bs, 20 cc, 40 cs, 20 ss); c^2, s^2 = (1 +- cos 2d)/2, cs = sin 2d / 2
+        self.G = np.stack((bb + 50 * (cc + ss), 20 * bc, 20 * bs, 50 * (cc - ss), 100 * cs))
+        self.H = np.stack((be + 10 * (cc + ss), 10 * ce + 2 * bc, 10 * se + 2 * bs, 10 * (cc - ss), 20 * cs))
 
     @staticmethod
     def _basis(delta):
+        """(5, ...) rows 1, cos, sin, cos 2 delta, sin 2 delta."""
         c, s = np.cos(delta), np.sin(delta)
-        return np.stack((np.ones_like(c), c, s, c * c, c * s, s * s), axis=-2)
+        return np.stack((np.ones_like(c), c, s, c * c - s * s, 2 * c * s))
+
+    @staticmethod
+    def _measure(P, G, H):
+        """F from P, G, H (overwrites G and H)."""
+        alpha = np.sqrt(np.abs(G, out=G), out=G)  # |alpha|^2 >= 0 up to round-off
+        H += alpha * P  # 2 (w0^2 + w1^2) >= 0 up to round-off
+        r = np.sqrt(np.abs(H, out=H), out=H)
+        return 25 * P + alpha - (10 / np.sqrt(2)) * r
 
     def on_grid(self, delta):
-        """Measure (N, K) at the same K values of delta (K,) for every segment (three matrix products)."""
-        b = self._basis(delta)
-        alpha = np.sqrt(np.maximum(self.al2 @ b, 0.0))
-        X2 = self.X2 @ b
-        return 25 * X2 + alpha - 10 * np.sqrt(np.maximum(0.5 * (alpha * X2 + self.xa @ b), 0.0))
+        """Measure (K, N) at the same K values of delta (K,) for every segment (three matrix products)."""
+        b = self._basis(delta).T
+        return self._measure(b[:, :3] @ self.P, b @ self.G, b @ self.H)
+
+    def _rows(self, rows):
+        if rows is None:
+            return self.P, self.G, self.H
+        return self.P[:, rows], self.G[:, rows], self.H[:, rows]
 
     def __call__(self, delta, rows=None):
-        """Measure at per-segment values delta (N, K) (or (len(rows), K) for a subset of segments)."""
-        sel = slice(None) if rows is None else rows
-        X, G_, H_ = (C[sel].T[..., None] for C in (self.X2, self.al2, self.xa))
-        c, s = np.cos(delta), np.sin(delta)
-        cc, cs, ss = c * c, c * s, s * s
-        P = X[0] + X[1] * c + X[2] * s
-        G = G_[0] + G_[1] * c + G_[2] * s + G_[3] * cc + G_[4] * cs + G_[5] * ss
-        H = H_[0] + H_[1] * c + H_[2] * s + H_[3] * cc + H_[4] * cs + H_[5] * ss
-        alpha = np.sqrt(np.maximum(G, 0.0))
-        return 25 * P + alpha - 10 * np.sqrt(np.maximum(0.5 * (alpha * P + H), 0.0))
+        """Measure at per-segment values delta (N,) (or (len(rows),) for a subset of segments)."""
+        X, G_, H_ = self._rows(rows)
+        b = self._basis(delta)
+        return self._measure(_dot(X, b[:3]), _dot(G_, b), _dot(H_, b))
 
     def newton(self, delta, steps: int, rows=None):
-        """Newton iterations on dF/d delta = 0, exact first and second derivatives; delta (N, m)
-        (or (len(rows), m) for a subset of segments)."""
-        sel = slice(None) if rows is None else rows
-        X, G_, H_ = (np.ascontiguousarray(C[sel].T)[..., None] for C in (self.X2, self.al2, self.xa))
-        for _ in range(steps):
-            c, s = np.cos(delta), np.sin(delta)
-            cc, cs, ss = c * c, c * s, s * s
-            d1 = cc - ss  # basis (1, c, s, c^2, cs, s^2); first derivative (0, -s, c, -2cs, c^2-s^2, 2cs)
-            # second derivative (0, -c, -s, -2(c^2-s^2), -4cs, 2(c^2-s^2))
-            P = X[0] + X[1] * c + X[2] * s
-            P1 = X[2] * c - X[1] * s
-            P2 = -X[1] * c - X[2] * s
-            G = G_[0] + G_[1] * c + G_[2] * s + G_[3] * cc + G_[4] * cs + G_[5] * ss
-            G1 = G_[2] * c - G_[1] * s + 2 * cs * (G_[5] - G_[3]) + G_[4] * d1
-            G2 = -G_[1] * c - G_[2] * s + 2 * d1 * (G_[5] - G_[3]) - 4 * G_[4] * cs
-            H = H_[0] + H_[1] * c + H_[2] * s + H_[3] * cc + H_[4] * cs + H_[5] * ss
-            H1 = H_[2] * c - H_[1] * s + 2 * cs * (H_[5] - H_[3]) + H_[4] * d1
-            H2 = -H_[1] * c - H_[2] * s + 2 * d1 * (H_[5] - H_[3]) - 4 * H_[4] * cs
-            with np.errstate(all="ignore"):  # cusps of the measure (alpha or r = 0) give inf/nan
+        """Newton iterations on dF/d delta = 0, exact first and second derivatives; delta (N,)
+        (or (len(rows),) for a subset of segments)."""
+        X, G_, H_ = self._rows(rows)
+        with np.errstate(all="ignore"):  # cusps of the measure (alpha or r = 0) give inf/nan
+            for _ in range(steps):
+                c, s = np.cos(delta), np.sin(delta)
+                C2, S2 = c * c - s * s, 2 * c * s  # cos 2 delta, sin 2 delta
+                P = X[0] + X[1] * c + X[2] * s
+                P1 = X[2] * c - X[1] * s
+                P2 = X[0] - P
+                Ga, Gb = G_[1] * c + G_[2] * s, G_[3] * C2 + G_[4] * S2
+                G = G_[0] + Ga + Gb
+                G1 = G_[2] * c - G_[1] * s + 2 * (G_[4] * C2 - G_[3] * S2)
+                G2 = -Ga - 4 * Gb
+                Ha, Hb = H_[1] * c + H_[2] * s, H_[3] * C2 + H_[4] * S2
+                H = H_[0] + Ha + Hb
+                H1 = H_[2] * c - H_[1] * s + 2 * (H_[4] * C2 - H_[3] * S2)
+                H2 = -Ha - 4 * Hb
                 a = np.sqrt(np.maximum(G, 1e-300))  # alpha = sqrt(G) and its derivatives
                 a1 = G1 / (2 * a)
                 a2 = (G2 - 2 * a1 * a1) / (2 * a)
@@ -112,11 +155,35 @@ class _CCMeasure:
                 r2 = (0.5 * (a2 * P + 2 * a1 * P1 + a * P2 + H2) - 2 * r1 * r1) / (2 * r)
                 F1 = 25 * P1 + a1 - 10 * r1
                 F2 = 25 * P2 + a2 - 10 * r2
-                convex = F2 > 0
-                step = np.where(convex, F1 / np.where(convex, F2, 1.0), 0.0)
-            step = np.where(np.isfinite(step), step, 0.0)
-            delta = delta - np.clip(step, -0.2, 0.2)
+                step = F1 / F2
+                step[~((F2 > 0) & np.isfinite(step))] = 0.0
+                delta = delta - np.clip(step, -0.2, 0.2)
         return delta
+
+
+def _cc_delta(a0, a2, base, e) -> np.ndarray:
+    """phi2 - phi0 (N,) of the member closest to a PH cubic, searched globally (see batch_hermite)."""
+    cc = _CCMeasure(a0, a2, base, e)
+    n = a0.shape[1]
+    cols = np.arange(n)
+    grid = np.arange(_CC_GRID) * (2 * np.pi / _CC_GRID)
+    Fg = cc.on_grid(grid)  # (K, N)
+    first = np.argmin(Fg, axis=0)
+    f_first = Fg[first, cols]
+    Fg[first, cols] = np.inf
+    second = np.argmin(Fg, axis=0)
+    f_second = Fg[second, cols]
+    delta = cc.newton(grid[first], _CC_NEWTON)  # Newton from the best grid point, kept where it improved
+    f = cc(delta)
+    worse = f > f_first
+    delta[worse], f[worse] = grid[first[worse]], f_first[worse]
+    # where the second-best grid point is nearly as good, the basin is ambiguous: Newton from it too
+    amb = np.flatnonzero(f_second < 1.5 * f_first + 1e-12 * cc.P[0])
+    if amb.size:
+        d2 = cc.newton(grid[second[amb]], _CC_NEWTON, amb)
+        better = cc(d2, amb) < f[amb]
+        delta[amb[better]] = d2[better]
+    return delta
 
 
 def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
@@ -131,40 +198,25 @@ def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
     is then reproduced). Global over phi2 - phi0 (grid of 24, Newton from the best point and, where
     the second best is nearly as good, from it too), closed form in phi0.
     """
-    p0, p1, d0, d1 = (np.asarray(x, dtype=float) for x in (p0, p1, d0, d1))
-    a0 = np.sqrt(np.linalg.norm(d0, axis=-1))[:, None] * qt.rotate_i_to(d0)
-    a2 = np.sqrt(np.linalg.norm(d1, axis=-1))[:, None] * qt.rotate_i_to(d1)
+    p0, p1, d0, d1 = (np.asarray(x, dtype=float).T for x in (p0, p1, d0, d1))
+    a0, a2 = _sqrt_rot(d0), _sqrt_rot(d1)
     base = 120.0 * (p1 - p0) - 15.0 * (d0 + d1)
-    n = p0.shape[0]
+    n = p0.shape[1]
     if angles is None:
-        cc = _CCMeasure(a0, a2, base, d0, d1)
-        grid = np.arange(_CC_GRID) * (2 * np.pi / _CC_GRID)
-        Fg = cc.on_grid(grid)
-        two = np.argpartition(Fg, 1, axis=1)[:, :2]
-        rows = np.arange(n)
-        best = grid[two[:, :1]]
-        cand = np.concatenate((best, cc.newton(best, 4)), axis=1)  # Newton from the best grid point
-        f = cc(cand)
-        delta, fbest = cand[rows, np.argmin(f, axis=1)], f.min(axis=1)
-        # where the second-best grid point is nearly as good, the basin is ambiguous: Newton from it too
-        amb = np.flatnonzero(Fg[rows, two[:, 1]] < 1.5 * Fg[rows, two[:, 0]] + 1e-12 * np.abs(Fg).max(axis=1))
-        if amb.size:
-            c2 = cc.newton(grid[two[amb, 1:]], 4, amb)
-            f2 = cc(c2, amb)[:, 0]
-            better = f2 < fbest[amb]
-            delta[amb[better]] = c2[better, 0]
-        a2d, Q = _cc_alpha_q(a0, a2, base, delta)
-        B = a0 + a2d  # A0 + A2 = B e^{i phi0}; phi0 maximizes <B e^{i phi0}, Q>
-        phi0 = np.arctan2(qt.dot(qt.mul(B, qt.I), Q), qt.dot(B, Q))
-        phi2 = phi0 + delta
+        delta = _cc_delta(a0, a2, base, d0 + d1)
     else:
         phi0 = np.broadcast_to(np.asarray(angles[0], dtype=float), (n,))
-        phi2 = np.broadcast_to(np.asarray(angles[1], dtype=float), (n,))
-        _, Q = _cc_alpha_q(qt.mul(a0, qt.exp_i(phi0)), a2, base, phi2)
-    A0 = qt.mul(a0, qt.exp_i(phi0))
-    A2 = qt.mul(a2, qt.exp_i(phi2))
+        delta = np.broadcast_to(np.asarray(angles[1], dtype=float), (n,)) - phi0
+    a2d = _times_e_i(a2, np.cos(delta), np.sin(delta))  # a2 e^{i delta}
+    Q = _sqrt_rot(base + 10.0 * _i_product(a0, a2d))  # Farouki: (3A0+4A1+3A2) i (..)* = alpha
+    if angles is None:  # A0 + A2 = (a0 + a2d) e^{i phi0}; phi0 maximizes <(a0 + a2d) e^{i phi0}, Q>
+        B = a0 + a2d
+        phi0 = np.arctan2(_dot(np.stack((-B[1], B[0], B[3], -B[2])), Q), _dot(B, Q))
+    c0, s0 = np.cos(phi0), np.sin(phi0)
+    A0 = _times_e_i(a0, c0, s0)
+    A2 = _times_e_i(a2d, c0, s0)  # a2 e^{i phi2}
     A1 = -0.75 * (A0 + A2) + 0.25 * Q  # Farouki's solution of the end-point condition
-    return np.stack((A0, A1, A2), axis=-2)
+    return np.stack((A0, A1, A2)).transpose(2, 0, 1).copy()
 
 
 # ---------------------------------------------------------------------------------------------
