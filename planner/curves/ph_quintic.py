@@ -24,7 +24,7 @@ from planner.validation import check_vector
 # ---------------------------------------------------------------------------------------------
 
 _CC_GRID = 24
-_CC_NEWTON = 4
+_CC_NEWTON = 3
 
 # The kernel below works on component rows: a quaternion array is (4, N), a vector array (3, N), so that
 # every arithmetic operation runs on a contiguous row of N segments (the fitters call it for thousands).
@@ -132,21 +132,18 @@ class _CCMeasure:
         """Newton iterations on dF/d delta = 0, exact first and second derivatives; delta (N,)
         (or (len(rows),) for a subset of segments)."""
         X, G_, H_ = self._rows(rows)
+        C = np.zeros((3, 5, X.shape[1]))  # coefficients of P, G, H on (1, c, s, cos 2d, sin 2d)
+        C[0, :3], C[1], C[2] = X, G_, H_
+        B = np.empty((3, 5, X.shape[1]))  # the basis and its first and second derivatives in delta
+        B[0, 0], B[1:, 0] = 1.0, 0.0
         with np.errstate(all="ignore"):  # cusps of the measure (alpha or r = 0) give inf/nan
             for _ in range(steps):
                 c, s = np.cos(delta), np.sin(delta)
                 C2, S2 = c * c - s * s, 2 * c * s  # cos 2 delta, sin 2 delta
-                P = X[0] + X[1] * c + X[2] * s
-                P1 = X[2] * c - X[1] * s
-                P2 = X[0] - P
-                Ga, Gb = G_[1] * c + G_[2] * s, G_[3] * C2 + G_[4] * S2
-                G = G_[0] + Ga + Gb
-                G1 = G_[2] * c - G_[1] * s + 2 * (G_[4] * C2 - G_[3] * S2)
-                G2 = -Ga - 4 * Gb
-                Ha, Hb = H_[1] * c + H_[2] * s, H_[3] * C2 + H_[4] * S2
-                H = H_[0] + Ha + Hb
-                H1 = H_[2] * c - H_[1] * s + 2 * (H_[4] * C2 - H_[3] * S2)
-                H2 = -Ha - 4 * Hb
+                B[0, 1:] = c, s, C2, S2
+                B[1, 1:] = -s, c, -2 * S2, 2 * C2
+                B[2, 1:] = -c, -s, -4 * C2, -4 * S2
+                (P, G, H), (P1, G1, H1), (P2, G2, H2) = np.einsum("gkn,dkn->dgn", C, B)
                 a = np.sqrt(np.maximum(G, 1e-300))  # alpha = sqrt(G) and its derivatives
                 a1 = G1 / (2 * a)
                 a2 = (G2 - 2 * a1 * a1) / (2 * a)
@@ -164,21 +161,24 @@ class _CCMeasure:
 def _cc_delta(a0, a2, base, e) -> np.ndarray:
     """phi2 - phi0 (N,) of the member closest to a PH cubic, searched globally (see batch_hermite)."""
     cc = _CCMeasure(a0, a2, base, e)
-    n = a0.shape[1]
+    n, k, h = a0.shape[1], _CC_GRID, 2 * np.pi / _CC_GRID
     cols = np.arange(n)
-    grid = np.arange(_CC_GRID) * (2 * np.pi / _CC_GRID)
+    grid = np.arange(k) * h
     Fg = cc.on_grid(grid)  # (K, N)
     first = np.argmin(Fg, axis=0)
-    f_first = Fg[first, cols]
-    Fg[first, cols] = np.inf
-    second = np.argmin(Fg, axis=0)
-    f_second = Fg[second, cols]
-    delta = cc.newton(grid[first], _CC_NEWTON)  # Newton from the best grid point, kept where it improved
+    fm, f0, fp = Fg[first - 1, cols], Fg[first, cols], Fg[(first + 1) % k, cols]
+    # start Newton from the vertex of the parabola through the best grid point and its neighbours
+    curv = fm - 2 * f0 + fp
+    with np.errstate(all="ignore"):
+        off = np.where(curv > 0, 0.5 * h * (fm - fp) / curv, 0.0)
+    delta = cc.newton(grid[first] + np.clip(off, -h, h), _CC_NEWTON)
     f = cc(delta)
-    worse = f > f_first
-    delta[worse], f[worse] = grid[first[worse]], f_first[worse]
-    # where the second-best grid point is nearly as good, the basin is ambiguous: Newton from it too
-    amb = np.flatnonzero(f_second < 1.5 * f_first + 1e-12 * cc.P[0])
+    worse = ~(f <= f0)
+    delta[worse], f[worse] = grid[first[worse]], f0[worse]
+    # a second basin whose best grid point (away from the first's neighbours) is nearly as good: Newton there too
+    Fg[first - 1, cols] = Fg[first, cols] = Fg[(first + 1) % k, cols] = np.inf
+    second = np.argmin(Fg, axis=0)
+    amb = np.flatnonzero(Fg[second, cols] < 1.5 * f0 + 1e-12 * cc.P[0])
     if amb.size:
         d2 = cc.newton(grid[second[amb]], _CC_NEWTON, amb)
         better = cc(d2, amb) < f[amb]
