@@ -3,8 +3,9 @@
 The arc length of a PH segment is the polynomial s_k(t) = integral of sigma_k (grm seed, section 2.2:
 sigma = |A|^2 is a polynomial, so s is one of degree deg + 1). Inverting it is root finding on a
 monotone polynomial, built here for 10^5..10^7 samples: coefficients stored coefficient-major so that
-every Horner step is a contiguous gather, and a cubic Hermite initial guess of the inverse t(s) (end
-slopes 1 / sigma) so that two Newton steps reach round-off. ``PHSpline.parameter_at_length`` uses it.
+every Horner step is a contiguous gather, and a quintic Hermite initial guess of the inverse t(s) (end
+slopes 1 / sigma and their derivatives) so that one Newton step usually reaches round-off.
+``PHSpline.parameter_at_length`` uses it.
 """
 
 from __future__ import annotations
@@ -28,6 +29,22 @@ def _bernstein_to_power(n: int) -> np.ndarray:
                      for k in range(n + 1)])
 
 
+def _inverse_guess(dS: np.ndarray, h: np.ndarray) -> np.ndarray:
+    """Power coefficients (5, N) (r^1..r^5) of the quintic Hermite guess of t(r) on every segment."""
+    sig0, sig1 = dS[0], dS.sum(axis=0)  # sigma at t = 0 and t = 1
+    dsig0, dsig1 = dS[1], (np.arange(dS.shape[0])[:, None] * dS).sum(axis=0)  # sigma' there
+    a, c = h / sig0, h / sig1  # dt/dr at r = 0, 1
+    b, d = -h * h * dsig0 / sig0**3, -h * h * dsig1 / sig1**3  # d2t/dr2 at r = 0, 1
+    # t(0) = 0, t(1) = 1 with the quintic Hermite basis, collected by powers of r
+    return np.ascontiguousarray(np.stack((
+        a,
+        0.5 * b,
+        10.0 - 6.0 * a - 1.5 * b - 4.0 * c + 0.5 * d,
+        -15.0 + 8.0 * a + 1.5 * b + 7.0 * c - d,
+        6.0 - 3.0 * a - 0.5 * b - 3.0 * c + 0.5 * d,
+    )))
+
+
 @dataclass(frozen=True, eq=False)
 class SplineEvaluator:
     """Arc-length inversion and point evaluation of a PH spline, vectorized for long sample sets.
@@ -44,6 +61,11 @@ class SplineEvaluator:
         Power-basis coefficients of sigma_k(t) = s_k'(t).
     P : ndarray (d + 2, 3, N)
         Power-basis coefficients of each segment's points r_k(t).
+    guess : ndarray (5, N)
+        Power coefficients (r^1..r^5) of each segment's initial guess of the inverse t(r), r = s / (segment
+        length) in [0, 1]: the quintic Hermite interpolant of t(r) with t' = h / sigma and
+        t'' = -h^2 sigma' / sigma^3 at both ends (h the segment length), good to ~1e-9 on CAM paths, so
+        that one Newton step usually reaches round-off.
     """
 
     knots: np.ndarray
@@ -51,6 +73,7 @@ class SplineEvaluator:
     S: np.ndarray
     dS: np.ndarray
     P: np.ndarray
+    guess: np.ndarray
 
     @classmethod
     def of(cls, path) -> SplineEvaluator:
@@ -63,8 +86,9 @@ class SplineEvaluator:
         dS = S[1:] * np.arange(1, S.shape[0])[:, None]
         cp = np.asarray(path.control_points, dtype=float)  # (N, d + 2, 3)
         P = np.einsum("kj,njc->kcn", _bernstein_to_power(cp.shape[1] - 1), cp)
-        return cls(np.asarray(path.knots, float), np.asarray(path.cumulative_lengths, float),
-                   np.ascontiguousarray(S), np.ascontiguousarray(dS), np.ascontiguousarray(P))
+        cumulative = np.asarray(path.cumulative_lengths, float)
+        return cls(np.asarray(path.knots, float), cumulative, np.ascontiguousarray(S), np.ascontiguousarray(dS),
+                   np.ascontiguousarray(P), _inverse_guess(dS, np.diff(cumulative)))
 
     @property
     def length(self) -> float:
@@ -80,12 +104,13 @@ class SplineEvaluator:
         x = np.maximum(s - c0, 0.0)
         S = [row[k] for row in self.S]  # contiguous gathers, one per coefficient
         dS = [row[k] for row in self.dS]
-        seg = c1 - c0
-        # cubic Hermite guess of t(x) on [0, seg]: t(0) = 0, t(seg) = 1, t'(0) = 1/sigma(0), t'(seg) = 1/sigma(1)
-        r = x / seg
-        m0 = seg / dS[0]
-        m1 = seg / sum(dS)
-        t = np.clip(r * r * (3.0 - 2.0 * r) + r * (1.0 - r) * ((1.0 - r) * m0 - r * m1), 0.0, 1.0)
+        r = x / (c1 - c0)
+        G = self.guess
+        t = G[4][k] * r
+        for j in (3, 2, 1, 0):
+            t += G[j][k]
+            t *= r
+        t = np.clip(t, 0.0, 1.0)
         lo = np.zeros_like(t)
         hi = np.ones_like(t)
         active = np.arange(t.size)

@@ -108,6 +108,14 @@ class PathFrames:
             ang = ang + np.interp(self.path.arc_length(u), self.stations, self.corrections)
         return _turned_quaternions(self.path, k, t, ang, unit)
 
+    def quaternions_at(self, k, t) -> np.ndarray | None:
+        """Unit quaternions (n, 4) of the exact RMF at segments k (n,) and local parameters t (n,), for
+        samplers that located their samples already; None for other methods or with prescribed rolls
+        (then use :meth:`quaternions`)."""
+        if self.segment_angles is not None or self.stations.size:
+            return None
+        return _turned_quaternions(self.path, k, t, self.panels(k, t) + self.offsets[k])
+
     def frames(self, u) -> np.ndarray:
         """Frames (n, 3, 3) at global parameters u (n,): column 0 the unit tangent, columns 1, 2 the
         normal-plane vectors; orthonormal, right-handed, continuous along the path."""

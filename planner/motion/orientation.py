@@ -91,6 +91,16 @@ class FrameOrientation:
         return qt.mul(q, matrix_to_quaternion(self.column_map[None])[0])
 
 
+    def quaternions_at_segment(self, k, t) -> np.ndarray | None:
+        """Unit quaternions (n, 4) of the tool frames at path segments k (n,) and local parameters t (n,),
+        if the provider evaluates there directly (``quaternions_at(k, t)``); else None."""
+        get = getattr(self.provider, "quaternions_at", None)
+        q = None if get is None else get(k, t)
+        if q is None or (self.z_column == 2 and not self.flip):
+            return q
+        return qt.mul(q, matrix_to_quaternion(self.column_map[None])[0])
+
+
 def tool_orientation(provider, z_column: int = 2, flip: bool = False) -> FrameOrientation:
     """Orientation callable of a frame provider; see :class:`FrameOrientation`.
 

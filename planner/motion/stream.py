@@ -190,6 +190,7 @@ def sample_poses(
     ev = evaluator_for(path) if inversion == "fast" and hasattr(path, "sigma_coeffs") else None
     frames_u = getattr(orientation, "at_parameter", None)
     quats_u = getattr(orientation, "quaternions_at_parameter", None)
+    quats_kt = getattr(orientation, "quaternions_at_segment", None) if ev is not None else None
     if not (callable(orientation) or frames_u is not None):
         raise MotionInputError("orientation",
                                f"must be a callable s -> (n, 3, 3) frames, got {type(orientation).__name__}")
@@ -203,13 +204,17 @@ def sample_poses(
     for a in range(0, n, chunk):
         b = min(a + chunk, n)
         sc = profile.s(times[a:b])
+        qc = None
         if ev is not None:
             k, t = ev.locate(sc)
             uc, pc = ev.parameter(k, t), ev.points(k, t)
+            if quats_kt is not None:  # frames at the located samples: no second search for the segment
+                qc = quats_kt(k, t)
         else:
             uc = path.parameter_at_length(sc)
             pc = path.points(uc)
-        qc = quats_u(uc) if quats_u is not None else None
+        if qc is None and quats_u is not None:
+            qc = quats_u(uc)
         if qc is not None:  # quaternion path: tool frame in base = qb * q
             qc = qt.mul(qb, qc) if turn else qc
             r, qc = rotvec_from_quaternions(qc, q_prev, r_prev)
