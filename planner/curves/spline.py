@@ -135,27 +135,36 @@ class PHSpline:
         return out
 
     @cached_property
-    def _A_power(self) -> np.ndarray:
-        """Power-basis coefficients (m, N, 4) in t of every segment's quaternion polynomial A(t)."""
+    def _A_rows(self) -> np.ndarray:
+        """Power-basis coefficients (m, 4, N) in t of every segment's quaternion polynomial A(t),
+        component-major so that evaluation gathers contiguous rows."""
         m = self.A.shape[1]
         M = np.zeros((m, m))
         for k in range(m):
             for j in range(k + 1):
                 M[k, j] = comb(m - 1, k) * comb(k, j) * (-1) ** (k - j)
-        return np.ascontiguousarray(np.einsum("kj,njc->knc", M, self.A))
+        return np.ascontiguousarray(np.einsum("kj,njc->kcn", M, self.A))
 
     def quaternion(self, u) -> np.ndarray:
         """The quaternion polynomial A(t) (n, 4) of each sample's segment (r' = A i A* per unit t)."""
         k, t = self.locate(u)
         return self._quaternion_t(k, t)
 
+    def _quaternion_rows(self, k, t) -> list[np.ndarray]:
+        """Components (w, x, y, z), each (n,), of A(t) of segments k (n,) at local parameters t (n,)."""
+        P = self._A_rows
+        out = []
+        for c in range(4):
+            r = P[-1, c][k] * t
+            for j in range(P.shape[0] - 2, 0, -1):
+                r += P[j, c][k]
+                r *= t
+            r += P[0, c][k]
+            out.append(r)
+        return out
+
     def _quaternion_t(self, k, t) -> np.ndarray:
-        P = self._A_power
-        r = P[-1][k]
-        tt = t[:, None]
-        for j in range(P.shape[0] - 2, -1, -1):
-            r = r * tt + P[j][k]
-        return r
+        return np.stack(self._quaternion_rows(k, np.asarray(t, dtype=float)), axis=1)
 
     def _derivative_t(self, k, t, order):
         """d^order r / dt^order of segments k (n,) at local parameters t (n,), by Horner's rule."""

@@ -42,15 +42,16 @@ def _er_at(path, k: np.ndarray, t: np.ndarray) -> np.ndarray:
 def _turned_quaternions(path, k, t, angle, unit: bool = True) -> np.ndarray:
     """Quaternions (n, 4) of the ER frames turned by ``angle`` about the tangent: A e^{i angle/2}
     (normalized when ``unit``)."""
-    A = path._quaternion_t(k, t)
+    a0, a1, a2, a3 = path._quaternion_rows(k, t)
     c, s = np.cos(0.5 * angle), np.sin(0.5 * angle)
-    Q = np.empty_like(A)  # A (c + s i), written out
-    Q[:, 0] = A[:, 0] * c - A[:, 1] * s
-    Q[:, 1] = A[:, 0] * s + A[:, 1] * c
-    Q[:, 2] = A[:, 2] * c + A[:, 3] * s
-    Q[:, 3] = A[:, 3] * c - A[:, 2] * s
-    if unit:
-        Q /= np.sqrt(np.einsum("ni,ni->n", Q, Q))[:, None]
+    if unit:  # |A e^{i angle/2}| = |A|
+        inv = 1.0 / np.sqrt(a0 * a0 + a1 * a1 + a2 * a2 + a3 * a3)
+        c, s = c * inv, s * inv
+    Q = np.empty((t.size, 4))  # A (c + s i), written out
+    Q[:, 0] = a0 * c - a1 * s
+    Q[:, 1] = a0 * s + a1 * c
+    Q[:, 2] = a2 * c + a3 * s
+    Q[:, 3] = a3 * c - a2 * s
     return Q
 
 
