@@ -1,8 +1,11 @@
 """One planning job, end to end: waypoints (and tool axes) in, a timed UR pose stream out.
 
 PH path -> tool frames (rotation-minimizing about the tool axis) -> jerk-limited feed along the exact arc
-length -> poses at the controller rate -> UR inverse kinematics and reachability (lowering the feed where
-joint speed limits would be exceeded). Pure orchestration of the planner packages; no file I/O.
+length -> poses at the controller rate -> UR inverse kinematics and reachability. Where a joint would be
+faster than its speed limit the feed is lowered locally, only over the stretch that needs it
+(:func:`planner.motion.local_feed.lower_feed_locally`), and the job names every stretch slowed; what
+the floor of the feed cannot fix is reported, never streamed silently. Pure orchestration of the
+planner packages; no file I/O.
 """
 
 from __future__ import annotations
@@ -15,7 +18,11 @@ import numpy as np
 from planner.curves import fit_ph_cubic_spline, fit_ph_spline
 from planner.errors import PlannerError
 from planner.frames import frame_field, max_twist_deg, tool_frames
-from planner.motion import MotionLimits, PoseStream, plan_feed, sample_poses, tool_orientation
+from planner.kinematics import check_reachability, inverse_path, speed_ratios
+from planner.kinematics.reachability import JOINT_SPEED_REASONS
+from planner.motion import MotionLimits, PoseStream, plan_feed, sample_poses, span_bounds, tool_orientation
+from planner.motion.caps import DEFAULT_FLOOR
+from planner.motion.local_feed import Measurement, lower_feed_locally
 
 FRAME_METHODS = ("rmf", "grm", "juttler", "er", "double-reflection")
 
@@ -47,6 +54,9 @@ class JobSettings:
         Fit the path within this distance (m) of the waypoint polyline everywhere (straight runs kept
         straight, knots added where needed; :func:`planner.cam.fit_pass`) instead of interpolating the
         waypoints with a C2 spline (None).
+    feed_floor : float
+        With a robot: the lowest fraction (0..1] of the commanded feed to which the feed is lowered
+        where a joint would exceed its speed limit; if that is not slow enough the job reports it.
     """
 
     frame: str = "rmf"
@@ -59,11 +69,17 @@ class JobSettings:
     base: tuple | None = None
     tcp: tuple | None = None
     tolerance: float | None = None
+    feed_floor: float = DEFAULT_FLOOR
 
 
 @dataclass(frozen=True, eq=False)
 class Job:
-    """A planned job: the path, its tool frames and time law, the pose stream and its figures."""
+    """A planned job: the path, its tool frames and time law, the pose stream and its figures.
+
+    ``feed_caps`` holds one :class:`planner.motion.caps.CapWindow` per stretch where the feed was
+    lowered for the joint speed limits (start and end arc length, lowest factor, spans, joint; tag =
+    joint index), in path order; ``feed_scale`` is the lowest factor (1 if the feed was not lowered).
+    """
 
     settings: JobSettings
     waypoints: np.ndarray
@@ -73,15 +89,26 @@ class Job:
     profile: object
     joints: np.ndarray | None
     reachability: object | None
-    feed_scale: float
+    feed_caps: tuple
     twist_deg: float
     twist_s: np.ndarray
     twist_curve_deg: np.ndarray
     timings: dict = field(default_factory=dict)
     max_deviation: float | None = None
+    feed_rounds: int = 0
+
+    @property
+    def feed_scale(self) -> float:
+        """Lowest fraction of the commanded feed anywhere on the path (1 where it was never lowered)."""
+        return min((w.factor for w in self.feed_caps), default=1.0)
+
+    def feed_cap_lines(self) -> list[str]:
+        """One line per stretch slowed for the joint speed limits, e.g. "feed lowered to 38 % over 41 mm
+        at spans 120-131 (joint 4 (wrist 2) speed)"."""
+        return [w.describe(JOINT_SPEED_REASONS) for w in self.feed_caps]
 
     def summary(self) -> dict:
-        """The job's figures in human units (mm, s, deg)."""
+        """The job's figures in human units (mm, s, deg); ``feed_caps`` lists the slowed stretches."""
         out = {
             "waypoints": int(len(self.waypoints)),
             "segments": int(self.path.n_segments),
@@ -92,6 +119,12 @@ class Job:
             "frame": self.settings.frame,
             "max_twist_vs_exact_rmf_deg": self.twist_deg,
             "feed_scale": self.feed_scale,
+            "feed_caps": [
+                {"start_mm": 1e3 * w.start, "end_mm": 1e3 * w.end, "percent": 100 * w.factor,
+                 "spans": [w.first_span, w.last_span], "joint": w.tag, "at_floor": w.floored}
+                for w in self.feed_caps
+            ],
+            "feed_lowered": self.feed_cap_lines(),
         }
         if self.max_deviation is not None:
             out["max_deviation_mm"] = self.max_deviation * 1e3
@@ -124,10 +157,20 @@ def plan_job(waypoints, axes=None, settings: JobSettings = JobSettings(), *, spa
     settings : JobSettings
     span_feeds : array_like (N - 1,), optional
         Per-span feeds from the input, m/s (NaN: the job's feed).
+
+    Returns
+    -------
+    Job
+        With a robot, the feed is lowered wherever a joint would exceed its speed limit at the
+        controller rate, only there (``Job.feed_caps`` names every stretch), until every sample is
+        within the limits or the feed is at ``settings.feed_floor`` there (``Job.reachability`` then
+        names the samples still too fast).
     """
     s = settings
     if s.frame not in FRAME_METHODS:
         raise PlannerError(f"frame must be one of {FRAME_METHODS}, got {s.frame!r}")
+    if not (isinstance(s.feed_floor, int | float) and 0.0 < s.feed_floor <= 1.0):
+        raise PlannerError(f"feed_floor must be a fraction in (0, 1] of the commanded feed, got {s.feed_floor!r}")
     timings = {}
     tic = time.perf_counter()
     wp = np.asarray(waypoints, dtype=float)
@@ -169,27 +212,42 @@ def plan_job(waypoints, axes=None, settings: JobSettings = JobSettings(), *, spa
     timings["frames_s"] = time.perf_counter() - tic
 
     limits = MotionLimits(s.feed, s.acceleration, s.jerk, s.angular_speed)
-    feed_scale = 1.0
-    joints = report = None
-    for _ in range(4):  # lower the feed until the joint speeds fit (reported, never silent)
+    tic = time.perf_counter()
+    reference = plan_feed(path, s.feed, limits, span_feeds=span_feeds,
+                          orientation=orientation if s.angular_speed else None)
+    timings["feed_s"] = time.perf_counter() - tic
+    if s.robot is None:
         tic = time.perf_counter()
-        feeds = None if span_feeds is None else np.asarray(span_feeds, float) * feed_scale
-        profile = plan_feed(path, s.feed * feed_scale, limits, span_feeds=feeds,
-                            orientation=orientation if s.angular_speed else None)
-        stream = sample_poses(path, profile, orientation, rate=s.rate, tcp=s.tcp, base=s.base)
+        stream = sample_poses(path, reference, orientation, rate=s.rate, tcp=s.tcp, base=s.base)
         timings["stream_s"] = time.perf_counter() - tic
-        if s.robot is None:
-            break
-        from planner.kinematics import check_reachability, inverse_path
+        return Job(s, wp, path, field_used, stream, reference, None, None, (), twist, sv, twist_curve, timings,
+                   deviation)
 
+    lowered = lower_feed_locally(reference, _joint_measure(path, orientation, s, timings),
+                                 span_bounds=span_bounds(path), floor=s.feed_floor)
+    stream, joints = lowered.measurement.data
+    tic = time.perf_counter()
+    report = check_reachability(s.robot, joints, stream.times, arc_length=stream.s, span=stream.span)
+    timings["kinematics_s"] += time.perf_counter() - tic
+    return Job(s, wp, path, field_used, stream, lowered.profile, joints, report, lowered.windows, twist, sv,
+               twist_curve, timings, deviation, lowered.rounds)
+
+
+def _joint_measure(path, orientation, s: JobSettings, timings: dict):
+    """The job's measurement for :func:`lower_feed_locally`: poses at the controller rate, inverse
+    kinematics, the joint speed ratio of every sample interval (data: the stream and its joints).
+    Adds the wall times of every round to ``timings`` ("stream_s", "kinematics_s")."""
+    timings["stream_s"] = timings["kinematics_s"] = 0.0
+
+    def measure(profile) -> Measurement:
         tic = time.perf_counter()
+        stream = sample_poses(path, profile, orientation, rate=s.rate, tcp=s.tcp, base=s.base)
+        toc = time.perf_counter()
         joints = inverse_path(s.robot, stream.flange_poses if s.tcp is not None else stream.poses,
                               allow_unreachable=True)
-        span = np.searchsorted(path.waypoint_knots, stream.u, side="right") - 1
-        report = check_reachability(s.robot, joints, stream.times, arc_length=stream.s, span=span)
-        timings["kinematics_s"] = time.perf_counter() - tic
-        if report.ok or not np.isfinite(joints).all() or report.feed_scale >= 1.0:
-            break
-        feed_scale *= report.feed_scale
-    return Job(s, wp, path, field_used, stream, profile, joints, report, feed_scale, twist, sv,
-               twist_curve, timings, deviation)
+        ratio, joint = speed_ratios(s.robot, joints, stream.times)
+        timings["stream_s"] += toc - tic
+        timings["kinematics_s"] += time.perf_counter() - toc
+        return Measurement(stream.s, stream.times, ratio, joint, (stream, joints))
+
+    return measure

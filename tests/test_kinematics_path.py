@@ -18,6 +18,7 @@ from planner.kinematics import (
     inverse_path,
     joint_speeds,
     model_names,
+    speed_ratios,
 )
 
 NAMES = model_names()
@@ -159,6 +160,19 @@ def test_feed_scale_brings_speeds_within_limits():
     q_slow, t_slow = timed_path(duration=200.0)
     assert feed_scale("ur10e", q_slow, t_slow) == 1.0
     assert np.all(feed_scale_profile("ur10e", q_slow, t_slow) == 1.0)
+
+
+def test_speed_ratios_name_the_fastest_joint_per_interval():
+    q, t = timed_path(duration=0.5)
+    limits = get_model("ur10e").speed_limits
+    ratio, joint = speed_ratios("ur10e", q, t)
+    full = np.abs(joint_speeds(q, t)) / limits
+    assert ratio.shape == joint.shape == (len(t) - 1,)
+    assert np.array_equal(ratio, full.max(axis=1)) and np.array_equal(joint, full.argmax(axis=1))
+    assert ratio.max() == check_reachability("ur10e", q, t).max_speed_ratio
+    q[50] = np.nan  # an unreachable sample: its two intervals are undefined
+    ratio, _ = speed_ratios("ur10e", q, t)
+    assert np.isnan(ratio[[49, 50]]).all() and np.isfinite(np.delete(ratio, [49, 50])).all()
 
 
 def test_check_poses_end_to_end():

@@ -12,7 +12,8 @@
 5. the jerk-limited time law of every move (cuts at the file's feeds, rapids at rapid speed, turns at
    the turning speed), starting and ending at rest;
 6. with a robot: inverse kinematics along every move, unreachable passes reported by pass number and
-   source line (:mod:`planner.cam.reach`).
+   source line; where a joint would exceed its speed limit the feed is lowered locally, only over the
+   stretch that needs it, and every stretch slowed is named (:mod:`planner.cam.reach`).
 
 The 500 Hz pose stream of the job is produced on demand, move by move (:mod:`planner.cam.stream`):
 a whole NX job is millions of poses.
@@ -23,7 +24,7 @@ from __future__ import annotations
 import math
 import os
 import time
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 
@@ -131,6 +132,9 @@ class PassReport:
         Whether the robot reaches the whole pass within its joint limits (None without a robot).
     reach_message : str
         The first problem, naming the pass and the source line ("" if none).
+    feed_caps : tuple of CapWindow
+        Stretches of the pass where the feed was lowered for the joint speed limits (spans of the
+        pass; tag = joint index); ``duration`` includes them.
     """
 
     index: int
@@ -153,6 +157,7 @@ class PassReport:
     merged: int = 0
     reachable: bool | None = None
     reach_message: str = ""
+    feed_caps: tuple = ()
 
 
 @dataclass(frozen=True, eq=False)
@@ -229,6 +234,9 @@ class CamJob:
         planning after parsing), "reach" (robot check).
     problems : tuple of str
         Reachability problems of the whole job (passes, rapids, turns), each naming its source line.
+    slowed : tuple of str
+        Stretches where the feed was lowered for the joint speed limits, each naming the pass (or move),
+        the source lines, the factor and the joint.
     """
 
     source: str
@@ -239,6 +247,7 @@ class CamJob:
     passes: tuple
     timings: dict = field(default_factory=dict)
     problems: tuple = ()
+    slowed: tuple = ()
 
     # -- figures -------------------------------------------------------------------------------
     @property
@@ -316,6 +325,8 @@ class CamJob:
             out["robot"] = self.settings.robot
             out["reachable"] = not self.problems
             out["unreachable_passes"] = [p.index for p in self.passes if p.reachable is False]
+            out["slowed_passes"] = [p.index for p in self.passes if p.feed_caps]
+            out["slowed"] = list(self.slowed)
         return out
 
     def describe(self, max_lines: int = 10) -> list[str]:
@@ -336,6 +347,12 @@ class CamJob:
             f"  motion    {s['duration_s']:.1f} s, planned in {s['planning_s']:.2f} s",
         ]
         if self.settings.robot is not None:
+            if self.slowed:
+                n = len(self.slowed)
+                lines.append(f"  slowed    feed lowered for the joint speed limits on {n} stretch{'es' * (n > 1)}")
+                lines += [f"    {p}" for p in self.slowed[:max_lines]]
+                if len(self.slowed) > max_lines:
+                    lines.append(f"    ... {len(self.slowed) - max_lines} more")
             if not self.problems:
                 lines.append(f"  robot     {self.settings.robot}: every move reachable within joint limits")
             else:
@@ -525,11 +542,17 @@ def plan_cam_job(
         tic = time.perf_counter()
         reach = check_job(job)
         timings["reach"] = time.perf_counter() - tic
+        # moves whose feed was lowered locally for the joint speed limits take their new time law
+        moves = [replace(m, profile=reach.profiles[k]) if k in reach.profiles else m for k, m in enumerate(moves)]
+        caps = {m.pass_index: reach.windows[k] for k, m in enumerate(moves) if m.kind == "cut" and k in reach.windows}
+        duration = {m.pass_index: m.duration for m in moves if m.kind == "cut"}
         reports = [
             PassReport(**{**r.__dict__, "reachable": reach.passes.get(r.index) is None,
-                          "reach_message": reach.passes.get(r.index, "")}) for r in reports
+                          "reach_message": reach.passes.get(r.index, ""), "feed_caps": caps.get(r.index, ()),
+                          "duration": duration[r.index]}) for r in reports
         ]
-        job = CamJob(tp.source, settings, tp, seg, tuple(moves), tuple(reports), timings, tuple(reach.problems))
+        job = CamJob(tp.source, settings, tp, seg, tuple(moves), tuple(reports), timings, tuple(reach.problems),
+                     tuple(reach.slowed))
     return job
 
 

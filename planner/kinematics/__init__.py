@@ -15,6 +15,7 @@ from planner.kinematics.reachability import (
     feed_scale,
     feed_scale_profile,
     joint_speeds,
+    speed_ratios,
 )
 from planner.kinematics.ur_models import MODELS, UnknownModelError, URModel, get_model, model_names
 
@@ -41,5 +42,6 @@ __all__ = [
     "matrix_to_pose",
     "model_names",
     "pose_to_matrix",
+    "speed_ratios",
     "wrap_angle",
 ]

@@ -18,9 +18,11 @@ from planner.kinematics.inverse import inverse_path
 from planner.kinematics.ur_models import JOINT_NAMES, URModel, get_model
 
 __all__ = [
+    "JOINT_SPEED_REASONS",
     "Violation",
     "ReachabilityReport",
     "joint_speeds",
+    "speed_ratios",
     "check_reachability",
     "check_poses",
     "feed_scale",
@@ -28,6 +30,9 @@ __all__ = [
 ]
 
 _KINDS = ("unreachable", "position", "speed")
+
+#: What limits the feed where a joint is the fastest, by joint index (e.g. "joint 4 (wrist 2) speed").
+JOINT_SPEED_REASONS = tuple(f"joint {j} ({name}) speed" for j, name in enumerate(JOINT_NAMES))
 
 
 @dataclass(frozen=True)
@@ -156,6 +161,36 @@ def _speed_ratios(m: URModel, q: np.ndarray, t: np.ndarray) -> np.ndarray:
     """|qdot| / limit per interval (n - 1, 6), 0 where undefined (next to unreachable samples)."""
     ratio = np.abs(np.diff(q, axis=0) / np.diff(t)[:, None]) / m.speed_limits
     return np.nan_to_num(ratio, nan=0.0)
+
+
+def speed_ratios(model: str | URModel, q, t) -> tuple[np.ndarray, np.ndarray]:
+    """How many times too fast every sample interval is, and which joint is the fastest.
+
+    Parameters
+    ----------
+    model : str or URModel
+    q : array_like, shape (n, 6)
+        Joint trajectory in rad (rows of NaN: unreachable samples).
+    t : array_like, shape (n,)
+        Strictly increasing sample times in s.
+
+    Returns
+    -------
+    ratio : ndarray, shape (n - 1,)
+        max_j |q[i + 1, j] - q[i, j]| / (t[i + 1] - t[i]) / limit_j: > 1 where a joint is too fast;
+        NaN next to an unreachable sample.
+    joint : ndarray of int, shape (n - 1,)
+        The joint j of that largest ratio (0 next to an unreachable sample).
+    """
+    m = get_model(model)
+    q, t = _trajectory(q, t)
+    r = np.abs(np.diff(q, axis=0) / np.diff(t)[:, None]) / m.speed_limits
+    if not r.size:
+        return np.zeros(0), np.zeros(0, dtype=int)
+    undefined = np.isnan(r).any(axis=1)
+    r = np.nan_to_num(r, nan=0.0)
+    j = np.argmax(r, axis=1)
+    return np.where(undefined, np.nan, r[np.arange(len(r)), j]), j
 
 
 def _margin(margin: float) -> float:

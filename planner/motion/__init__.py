@@ -4,8 +4,11 @@
 phase) honouring per-span feeds and speed, acceleration, jerk and tool angular speed limits;
 ``sample_poses(path, profile, orientation, rate=500)`` turns it into a :class:`PoseStream` of UR poses
 ``p[x, y, z, rx, ry, rz]`` with a continuous rotation vector, TCP offset and base transform.
+:class:`FeedCaps` lower the feed on arc-length windows (``plan_feed(..., caps=...)``, :func:`cap_feed`);
+:func:`lower_feed_locally` places them where a sampled trajectory (e.g. robot joints) is too fast.
 """
 
+from planner.motion.caps import CapWindow, FeedCaps
 from planner.motion.evaluator import SplineEvaluator, evaluator_for, span_bounds
 from planner.motion.events import (
     OUTPUT_PINS,
@@ -16,8 +19,9 @@ from planner.motion.events import (
     io_window,
     schedule_events,
 )
-from planner.motion.feed import plan_feed, span_feeds_from_point_feeds
+from planner.motion.feed import cap_feed, plan_feed, span_feeds_from_point_feeds
 from planner.motion.limits import MotionInputError, MotionLimits
+from planner.motion.local_feed import LoweredFeed, Measurement, lower_feed_locally
 from planner.motion.orientation import (
     ConstantOrientation,
     FrameOrientation,
@@ -38,21 +42,27 @@ from planner.motion.stream import RATES, PoseStream, as_transform, poses_at_leng
 __all__ = [
     "OUTPUT_PINS",
     "RATES",
+    "CapWindow",
     "ConstantOrientation",
+    "FeedCaps",
     "FeedProfile",
     "FrameOrientation",
     "IOEvent",
     "IOEventWarning",
+    "LoweredFeed",
+    "Measurement",
     "MotionInputError",
     "MotionLimits",
     "PoseStream",
     "ScheduledEvent",
     "SplineEvaluator",
     "as_transform",
+    "cap_feed",
     "continuous_rotvec",
     "evaluator_for",
     "io_states",
     "io_window",
+    "lower_feed_locally",
     "matrix_to_quaternion",
     "orientation_rate",
     "plan_feed",

@@ -7,6 +7,8 @@ and changes speed by jerk-limited S-curves (:mod:`planner.motion.scurve`) that n
 commanded feed: a slow-down ends where the slower level starts, a speed-up starts where the faster
 level starts. Plateau speeds come from a forward and a backward pass (the speed reachable within each
 level) and, at local peaks, from the largest speed whose speed-up and slow-down both fit in the level.
+Feed caps on arc-length windows (:mod:`planner.motion.caps`) lower the commanded feed further where
+given (``plan_feed(..., caps=...)``, or :func:`cap_feed` on a planned profile).
 """
 
 from __future__ import annotations
@@ -14,6 +16,7 @@ from __future__ import annotations
 import numpy as np
 
 from planner.motion import scurve
+from planner.motion.caps import FeedCaps, apply_caps
 from planner.motion.evaluator import span_bounds
 from planner.motion.limits import MotionInputError, MotionLimits, positive
 from planner.motion.orientation import Orientation, orientation_rate
@@ -165,6 +168,7 @@ def plan_feed(
     span_feeds=None,
     orientation: Orientation | None = None,
     angular_pieces: int = 8,
+    caps: FeedCaps | None = None,
 ) -> FeedProfile:
     """Jerk-limited feed profile along a path: start and end at rest, cruise at the commanded feeds.
 
@@ -185,6 +189,9 @@ def plan_feed(
     angular_pieces : int
         Initial pieces per span on which the angular speed cap is constant (|dR/ds| is sampled at
         their ends, and pieces are halved where it changes by more than 2 %).
+    caps : FeedCaps, optional
+        Upper bounds of the feed on arc-length windows (:mod:`planner.motion.caps`, e.g. where robot
+        joints would be too fast): the commanded feed is lowered to them where they are lower.
 
     Returns
     -------
@@ -200,7 +207,6 @@ def plan_feed(
     if not isinstance(limits, MotionLimits):
         raise MotionInputError("limits", f"must be a MotionLimits, got {type(limits).__name__}")
     feed = positive(feed, "feed")
-    A, J = limits.acceleration, limits.jerk
     cmd = _span_commands(feed, limits, span_feeds, b.size - 1)
     if limits.angular_speed is not None:
         if orientation is None:
@@ -211,6 +217,29 @@ def plan_feed(
         V = np.minimum(cmd[piece_span], cap)
     else:
         bounds, V = b, cmd
+    if caps is not None:
+        bounds, V = apply_caps(bounds, V, caps)
+    return profile_from_levels(bounds, V, L, limits)
+
+
+def cap_feed(profile: FeedProfile, caps: FeedCaps) -> FeedProfile:
+    """``profile`` re-planned with its commanded feed lowered to ``caps`` where they are lower.
+
+    Same limits and length; the levels (span feeds, angular speed caps) are the profile's own, so this
+    is cheap. Outside the caps and the speed changes into and out of them nothing changes.
+    """
+    if not isinstance(profile, FeedProfile):
+        raise MotionInputError("profile", f"must be a FeedProfile, got {type(profile).__name__}")
+    bounds, V = apply_caps(profile.level_bounds, profile.commanded, caps)
+    return profile_from_levels(bounds, V, profile.length, profile.limits)
+
+
+def profile_from_levels(bounds: np.ndarray, V: np.ndarray, length: float, limits: MotionLimits) -> FeedProfile:
+    """The jerk-limited profile of commanded levels: feed V[k] (m/s) on [bounds[k], bounds[k + 1]] (m).
+
+    Neighbouring levels with the same feed are merged; the tool starts and ends at rest.
+    """
+    A, J = limits.acceleration, limits.jerk
     keep = np.concatenate(([True], V[1:] != V[:-1]))  # merge neighbours with the same command
     V = V[keep]
     bounds = np.concatenate((bounds[:-1][keep], bounds[-1:]))
@@ -218,4 +247,4 @@ def plan_feed(
     dur, s0, v0, a0, jerk = (x.ravel() for x in _phases(bounds, c, A, J))
     live = dur > 0.0
     t = np.concatenate(([0.0], np.cumsum(dur[live])))
-    return FeedProfile(t, s0[live], v0[live], a0[live], jerk[live], L, limits, bounds, V, c)
+    return FeedProfile(t, s0[live], v0[live], a0[live], jerk[live], length, limits, bounds, V, c)
