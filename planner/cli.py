@@ -106,7 +106,7 @@ def cmd_plan(args: argparse.Namespace) -> None:
     passes = [m for m in split_passes(tp, corner_deg=args.corner).moves if isinstance(m, CutPass)]
     if not passes:
         raise PlannerError(f"{path_in.name}: no cutting motion with at least two points")
-    if args.pass_index is None and len(passes) > 1:
+    if args.pass_index == "all" or (args.pass_index is None and len(passes) > 1):
         _plan_whole_job(args, path_in, tp, options)
         return
     if args.pass_index == "longest":
@@ -115,7 +115,7 @@ def cmd_plan(args: argparse.Namespace) -> None:
         try:
             k = int(args.pass_index or 0)
         except ValueError:
-            raise PlannerError(f"--pass must be a pass number or 'longest', got {args.pass_index!r}") from None
+            raise PlannerError(f"--pass must be a pass number, 'longest' or 'all', got {args.pass_index!r}") from None
     if not 0 <= k < len(passes):
         raise PlannerError(f"--pass {k}: {path_in.name} has passes 0..{len(passes) - 1}")
     cut = passes[k]
@@ -146,11 +146,16 @@ def cmd_plan(args: argparse.Namespace) -> None:
           + (f", largest deviation from the CAM polyline {r['max_deviation_mm']:.4f} mm" if "max_deviation_mm" in r
              else ""))
     print(f"  frames    {r['frame']}: max twist against the exact RMF {r['max_twist_vs_exact_rmf_deg']:.3g} deg")
+    n_slow = len(job.feed_caps)
     print(f"  motion    {r['duration_s']:.3f} s, {r['samples']} poses at {settings.rate:g} Hz"
-          + (f", feed lowered to {100 * r['feed_scale']:.0f} % for the joint speed limits"
-             if r["feed_scale"] < 1 else ""))
+          + (f"; feed lowered for the joint speed limits on {n_slow} stretch{'es' * (n_slow > 1)}" if n_slow else ""))
+    for w, text in list(zip(job.feed_caps, r["feed_lowered"], strict=True))[:10]:  # spans -> file lines
+        a, b = int(cut.lines[w.first_span + 1]), int(cut.lines[w.last_span + 1])
+        print(f"  slowed    {text}, {f'line {a}' if a == b else f'lines {a}-{b}'}")
+    if n_slow > 10:
+        print(f"  slowed    ... {n_slow - 10} more stretches")
     if "reachable" in r:
-        print(f"  robot     {settings.robot}: {r['reachability']}")
+        print(f"  robot     {r['reachability']}")  # the message names the model
     if args.output:
         _export(job, Path(args.output), path_in)
         print(f"  wrote     {args.output}")
@@ -184,12 +189,32 @@ class _ProgressBar:
         if self.enabled and self.last:
             sys.stderr.write("\n")
             sys.stderr.flush()
+        self.last = ""
+
+
+#: Output types of a whole multi-pass job (``-o``).
+WHOLE_JOB_OUTPUTS = (".csv", ".json", ".script", ".urscript")
+
+
+def _whole_job_output(args) -> Path | None:
+    """The ``-o`` file of a whole job, checked before the (long) planning."""
+    if not args.output:
+        return None
+    out = Path(args.output)
+    if out.suffix.lower() not in WHOLE_JOB_OUTPUTS:
+        raise PlannerError(f"-o {out.name}: unknown output type for a whole job (use .csv or .json for the pose "
+                           "stream, .script for the URScript program)")
+    if out.suffix.lower() in (".script", ".urscript") and args.robot == "none":
+        raise PlannerError(f"-o {out.name}: a whole-job URScript program starts on the robot's planned joint "
+                           "branch and needs the reachability check: give --robot MODEL")
+    return out
 
 
 def _plan_whole_job(args, path_in: Path, tp, read_options: dict) -> None:
-    """Every pass, rapid and reorientation of a CAM file (planner.cam), with its figures."""
+    """Every pass, rapid and reorientation of a CAM file (planner.cam), with its figures and exports."""
     from planner.cam import plan_cam_job
 
+    out = _whole_job_output(args)
     print(f"{path_in.name}: {len(tp)} points; planning every pass (tolerance {args.tolerance:g} mm) ...", flush=True)
     bar = _ProgressBar(args.progress or sys.stderr.isatty())
     with warnings.catch_warnings(record=True) as caught:
@@ -207,24 +232,55 @@ def _plan_whole_job(args, path_in: Path, tp, read_options: dict) -> None:
         print(line)
     for w in caught[:10]:
         print(f"  warning   {w.message}")
-    if args.plot:
-        print("  note      --plot draws one pass: plan it with --pass K (or --pass longest)")
-    if args.output:
-        out = Path(args.output)
-        if out.suffix.lower() != ".csv":
-            raise PlannerError(f"-o {out.name}: a whole multi-pass job streams to .csv (time, pose, move, pass, "
-                               "line); plan one pass with --pass K for .json or .script")
+    if args.plot:  # first: it shows where the robot has problems when the program is refused
+        from planner.plot_cam import plot_cam_job
+
+        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
+        s = job.summary()
+        digest = plot_cam_job(job, args.plot, rate=args.rate, title=(
+            f"{path_in.name}: {s['passes']} passes, {s['cut_length_mm']:.0f} mm of cut, {s['duration_s']:.1f} s"))
+        print(f"  wrote     {args.plot} (speeds from all {digest.samples} poses, joints from 1 in {digest.step})")
+    if out is not None:
         out.parent.mkdir(parents=True, exist_ok=True)
-        n = 0
-        with open(out, "w", encoding="utf-8") as f:
-            f.write(f"# planner {path_in.name}: whole job at {args.rate:g} Hz, poses in the robot base frame\n")
-            f.write("t,x,y,z,rx,ry,rz,move,pass,line\n")
-            for chunk in job.iter_stream(args.rate):
-                cols = np.column_stack((chunk.times, chunk.poses, np.full(chunk.times.size, chunk.move),
-                                        np.full(chunk.times.size, chunk.pass_index), chunk.lines))
-                np.savetxt(f, cols, fmt=["%.6f"] + ["%.9g"] * 6 + ["%d"] * 3, delimiter=",")
-                n += chunk.times.size
-        print(f"  wrote     {out} ({n} poses)")
+        try:
+            print(f"  wrote     {out} ({_export_whole_job(job, out, path_in, args.rate, bar)})")
+        finally:
+            bar.close()
+
+
+def _counted(chunks, total: int, bar: _ProgressBar):
+    """The chunks, reporting the poses passed on to ``bar``."""
+    done = 0
+    for item in chunks:
+        yield item
+        done += (item[0] if isinstance(item, tuple) else item).times.size
+        bar("write", done, total)
+
+
+def _export_whole_job(job, out: Path, source: Path, rate: float, bar: _ProgressBar) -> str:
+    """Write a whole job to ``out`` (.csv / .json pose stream, .script program); what was written."""
+    from planner.export import job_program, write_job_csv, write_job_json, write_script
+
+    params = {"input": source.name}
+    suffix = out.suffix.lower()
+    if suffix in (".script", ".urscript"):
+        try:
+            text = job_program(job, parameters=params, progress=bar)
+        except PlannerError as exc:
+            raise PlannerError(f"not writing {out.name}: {exc}") from None
+        write_script(text, out)
+        return f"{text.count(chr(10) + '  movep(')} movep, {text.count(chr(10) + '  movel(')} movel"
+    chunks = job.iter_stream(rate)
+    if job.settings.robot is not None and suffix == ".json":
+        from planner.cam.stream import track_joints
+
+        chunks = track_joints(job, chunks)
+        if job.problems:
+            print(f"  warning   {job.settings.robot}: {len(job.problems)} moves with problems; joints without an "
+                  "inverse kinematics solution are null", flush=True)
+    writer = write_job_json if suffix == ".json" else write_job_csv
+    n = writer(job, _counted(chunks, job.n_samples(rate), bar), out, rate=rate, parameters=params)
+    return f"{n} poses" + (", with joints" if job.settings.robot is not None and suffix == ".json" else "")
 
 
 def _export(job, out: Path, source: Path) -> None:
@@ -284,7 +340,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--part-frame", help="part frame in the robot base: x,y,z,rx,ry,rz (m, rad)")
     p.add_argument("--tcp", help="tool centre point in the flange frame: x,y,z,rx,ry,rz (m, rad)")
     p.add_argument("--pass", dest="pass_index",
-                   help="plan only this pass (K or 'longest'), with the plot and .json/.script exports")
+                   help="plan only pass K (or 'longest'): servoj program, exact pose stream; 'all' plans the whole "
+                        "job even when the file has one pass (default with several)")
     p.add_argument("--corner", type=float, default=60.0, help="corners sharper than this (deg) split passes")
     p.add_argument("--tolerance", type=float, default=0.01,
                    help="largest distance of the path from the CAM polyline, mm (whole jobs; default 0.01)")
@@ -294,8 +351,9 @@ def build_parser() -> argparse.ArgumentParser:
                    help="CSV/JSON i,j,k: the tool approach axis (default) or the surface normal")
     p.add_argument("--ignore-axes", action="store_true", help="ignore tool axes in the file")
     p.add_argument("--progress", action="store_true", help="show the progress bar even when not on a terminal")
-    p.add_argument("-o", "--output", help="write the job: .csv / .json pose stream or .script URScript program")
-    p.add_argument("--plot", help="write a PNG: path and tool axes, twist, TCP speed, joints")
+    p.add_argument("-o", "--output", help="write the job: .csv / .json pose stream or .script URScript program "
+                   "(one pass: servoj stream; whole job: movep along the passes within --tolerance, movel between)")
+    p.add_argument("--plot", help="write a PNG: paths and tool axes, twist or spin, TCP speed, joints")
     p.set_defaults(func=cmd_plan)
     d = sub.add_parser("demo", help="run the main job on the bundled example")
     d.add_argument("--out", default="out", help="folder for the program and the plot (default: out)")

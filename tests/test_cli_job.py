@@ -72,7 +72,7 @@ def test_cli_plan_csv_pose_stream(tmp_path):
     [
         (["plan", "missing.apt"], "missing.apt"),
         (["plan", "EXAMPLE", "--pass", "7"], "--pass 7: nx_first_pass.cls has passes 0..0"),
-        (["plan", "EXAMPLE", "--pass", "x"], "--pass must be a pass number or 'longest'"),
+        (["plan", "EXAMPLE", "--pass", "x"], "--pass must be a pass number, 'longest' or 'all'"),
         (["plan", "EXAMPLE", "--part-frame", "1,2,3"], "--part-frame must be six"),
         (["plan", "EXAMPLE", "-o", "x.docx"], "unknown output type"),
         (["plan", "EXAMPLE", "--robot", "none", "-o", "x.script"], "needs joint targets"),

@@ -5,7 +5,8 @@ Every move starts and ends at rest. Move k is sampled at its local times 0, 1/ra
 first sample of the next move (the same pose), so the tool rests less than one sample period at each
 move boundary and the job clock ticks uniformly. The rotation vectors are continuous over the whole
 job. A job of hours is millions of poses: :func:`iter_stream` yields them one move at a time;
-:func:`collect` concatenates them for jobs that fit in memory.
+:func:`collect` concatenates them for jobs that fit in memory; :func:`track_joints` adds the robot's
+joint positions, chunk by chunk, on one continuous inverse-kinematics branch.
 """
 
 from __future__ import annotations
@@ -111,6 +112,55 @@ def iter_stream(job, rate: float):
         r_prev = r[-1]
         yield StreamChunk(int(k), m.kind, m.pass_index, (offsets[k] + np.arange(n)) / rate,
                           np.hstack((pos, r)), np.asarray(lines, dtype=np.int64))
+
+
+def track_joints(job, chunks, q_start=None):
+    """Yield ``(chunk, q)`` for each chunk of a job's stream: q (k, 6) the joint positions (rad) of the robot.
+
+    The joint trajectory follows one inverse-kinematics branch over the whole job
+    (:func:`planner.kinematics.inverse_path`, with the job's TCP): each chunk starts from the last
+    reachable joint vector of the previous one. Poses without a solution are rows of NaN (the job's
+    ``problems`` name them by pass and line). Bounded memory: one chunk at a time.
+
+    Parameters
+    ----------
+    job : CamJob
+        Planned with a robot (``job.settings.robot``).
+    chunks : iterable of StreamChunk
+        The job's stream (``job.iter_stream(rate)``), or a subsequence of it in order (e.g. every k-th
+        pose of each chunk, for a plot).
+    q_start : array_like (6,), optional
+        Joint positions before the first chunk (rad); without it the branch of the first chunk with
+        the least joint travel is taken, as the job's reachability check does.
+    """
+    from planner.kinematics import inverse_path
+
+    robot, tcp = job.settings.robot, job.settings.tcp
+    if robot is None:
+        raise CamInputError("joint positions need a robot: the job was planned without one (robot=None)")
+    q_prev = None if q_start is None else np.asarray(q_start, dtype=float)
+    for c in chunks:
+        if c.times.size == 0:
+            yield c, np.zeros((0, 6))
+            continue
+        q = inverse_path(robot, c.poses, q_prev, tcp=tcp, allow_unreachable=True)
+        ok = np.flatnonzero(np.isfinite(q).all(axis=1))
+        if ok.size:
+            q_prev = q[ok[-1]]
+        yield c, q
+
+
+def thin_chunk(chunk: StreamChunk, step: int, offset: int = 0) -> StreamChunk:
+    """The samples of a chunk whose job-wide sample number is a multiple of ``step``, and its last sample.
+
+    ``offset`` is the job-wide number of the chunk's first sample. For plots of long jobs: every move
+    keeps at least its last pose, so rapids and turns stay visible.
+    """
+    n = chunk.times.size
+    first = (-offset) % step
+    keep = np.union1d(np.arange(first, n, step), [n - 1]) if n else np.zeros(0, dtype=np.int64)
+    return StreamChunk(chunk.move, chunk.kind, chunk.pass_index, chunk.times[keep], chunk.poses[keep],
+                       chunk.lines[keep])
 
 
 def _rotvec_quaternion(r: np.ndarray) -> np.ndarray:

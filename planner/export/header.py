@@ -85,6 +85,48 @@ def job_parameters(stream=None, parameters: Mapping | None = None, *, profile=No
     return out
 
 
+def cam_job_parameters(job, rate: float | None = None, parameters: Mapping | None = None,
+                       max_problems: int = 20) -> dict:
+    """The parameters and figures of a whole CAM job (:class:`planner.cam.CamJob`) for an export header.
+
+    SI units (m, s, rad) except the thresholds in degrees, as the keys say. ``rate`` (Hz) adds the
+    rate and the number of poses of the stream at it; ``parameters`` adds anything else (input file
+    name, ...); ``max_problems`` caps the robot problems listed (their count is always given).
+    """
+    s = job.settings
+    lim, turn = s.limits, s.turn_limits
+    out: dict = {
+        "source": job.source,
+        "passes": len(job.passes),
+        "rapids": job.count("rapid"),
+        "reorientations": job.count("reorientation"),
+        "skipped": job.count("skipped"),
+        "cut_length_m": float(sum(p.length for p in job.passes)),
+        "duration_s": job.duration,
+        "tolerance_m": s.tolerance,
+        "max_deviation_m": job.max_deviation,
+        "corner_deg": s.corner_deg,
+        "axis_jump_deg": s.axis_jump_deg,
+        "feed_m_s": s.feed,
+        "feed_override": s.feed_override,
+        "rapid_speed_m_s": s.rapid_speed,
+        "limits": {"speed_m_s": lim.speed, "acceleration_m_s2": lim.acceleration, "jerk_m_s3": lim.jerk,
+                   "angular_speed_rad_s": lim.angular_speed},
+        "turn_limits": {"angular_speed_rad_s": turn.speed, "angular_acceleration_rad_s2": turn.acceleration,
+                        "angular_jerk_rad_s3": turn.jerk},
+        "part_frame": None if s.part_frame is None else [float(x) for x in s.part_frame],
+        "tcp_pose": None if s.tcp is None else [float(x) for x in s.tcp],
+        "robot": s.robot,
+    }
+    if rate is not None:
+        out.update({"rate_hz": float(rate), "samples": job.n_samples(rate)})
+    if s.robot is not None:
+        out["reachable"] = not job.problems
+        out["problems"] = len(job.problems)
+        out["problem_list"] = list(job.problems[:max_problems])
+    return job_parameters(None, {**out, **dict(parameters or {})})
+
+
 def header_lines(params: Mapping) -> list[str]:
     """``key: value`` lines (values JSON-encoded) for a comment header."""
     lines = []

@@ -8,7 +8,7 @@ polyline of targets from the path plus the corner each blend cuts:
 - targets: the path is split at the feed levels and at I/O trigger points, then every piece whose
   chord strays more than tolerance / 2 from the path (checked at 8 interior points), or whose
   orientation strays more than ``angle_tolerance`` from the rotation interpolated along the chord, is
-  halved, until none does;
+  halved, until none does (only the new halves are checked again);
 - blend radius r at a target where the polyline turns by alpha: a blend of radius r cuts the corner
   by about r sin(alpha / 2) / 2 (the midpoint of the quadratic blend between the points r before and
   after the corner), so r <= tolerance / sin(alpha / 2); also r <= half of either neighbouring chord
@@ -65,18 +65,18 @@ class MovePPlan:
     tolerance: float
 
 
-def _deviations(p: np.ndarray, R: np.ndarray, m: int) -> tuple[np.ndarray, np.ndarray]:
-    """Distance (m-1, C) of check points from each chord and their angle from the interpolated rotation."""
-    pv, Rv = p[:m], R[:m]
-    pc, Rc = p[m:].reshape(m - 1, _CHECKS, 3), R[m:].reshape(m - 1, _CHECKS, 3, 3)
-    a, d = pv[:-1, None, :], (pv[1:] - pv[:-1])[:, None, :]
+def _deviations(pa, Ra, pb, Rb, pc, Rc) -> tuple[np.ndarray, np.ndarray]:
+    """Distance (k, C) of the check points pc (k, C, 3) of k pieces from their chords pa -> pb (k, 3), and the
+    angle of their frames Rc (k, C, 3, 3) from the rotation interpolated from Ra to Rb (k, 3, 3)."""
+    k = pa.shape[0]
+    a, d = pa[:, None, :], (pb - pa)[:, None, :]
     dd = np.maximum(np.einsum("mki,mki->mk", d, d), 1e-300)
     lam = np.clip(np.einsum("mki,mki->mk", pc - a, d) / dd, 0.0, 1.0)
     dist = np.linalg.norm(pc - a - lam[..., None] * d, axis=2)
-    w = Rotation.from_matrix(np.einsum("mji,mjk->mik", Rv[:-1], Rv[1:])).as_rotvec()  # Ra^T Rb
+    w = Rotation.from_matrix(np.einsum("mji,mjk->mik", Ra, Rb)).as_rotvec()  # Ra^T Rb
     step = Rotation.from_rotvec((lam[..., None] * w[:, None, :]).reshape(-1, 3)).as_matrix()
-    interp = np.einsum("mij,mkjl->mkil", Rv[:-1], step.reshape(m - 1, _CHECKS, 3, 3))  # slerp Ra -> Rb
-    ang = rotation_angle(interp.reshape(-1, 3, 3), Rc.reshape(-1, 3, 3)).reshape(m - 1, _CHECKS)
+    interp = np.einsum("mij,mkjl->mkil", Ra, step.reshape(k, _CHECKS, 3, 3))  # slerp Ra -> Rb
+    ang = rotation_angle(interp.reshape(-1, 3, 3), Rc.reshape(-1, 3, 3)).reshape(k, _CHECKS)
     return dist, ang
 
 
@@ -111,18 +111,26 @@ def plan_movep(path, orientation, profile, *, tolerance: float, angle_tolerance:
     trig = profile.s(np.array([e.time for e in sched])) if sched else np.zeros(0)
     S = np.unique(np.concatenate(([0.0, L], np.clip(profile.level_bounds, 0.0, L), trig)))
     frac = np.arange(1, _CHECKS + 1) / (_CHECKS + 1)
+    a, b = S[:-1], S[1:]  # the pieces still to check: a piece once within tolerance is never checked again
+    starts, dev, ang_dev = [], 0.0, 0.0
     for _ in range(max_rounds):
-        m = S.size
-        checks = (S[:-1, None] + np.diff(S)[:, None] * frac).ravel()
-        p, R, _ = poses_at_length(path, orientation, np.concatenate((S, checks)), base=base)
-        dist, ang = _deviations(p, R, m)
+        k = a.size
+        checks = (a[:, None] + (b - a)[:, None] * frac).ravel()
+        p, R, _ = poses_at_length(path, orientation, np.concatenate((a, b, checks)), base=base)
+        dist, ang = _deviations(p[:k], R[:k], p[k:2 * k], R[k:2 * k], p[2 * k:].reshape(k, _CHECKS, 3),
+                                R[2 * k:].reshape(k, _CHECKS, 3, 3))
         bad = (dist.max(axis=1) > 0.5 * tol) | (ang.max(axis=1) > ang_tol)
+        starts.append(a[~bad])
+        dev, ang_dev = max(dev, float(dist[~bad].max(initial=0.0))), max(ang_dev, float(ang[~bad].max(initial=0.0)))
         if not bad.any():
             break
-        S = np.unique(np.concatenate((S, 0.5 * (S[:-1] + S[1:])[bad])))
+        c = 0.5 * (a[bad] + b[bad])
+        a, b = np.concatenate((a[bad], c)), np.concatenate((c, b[bad]))
     else:
+        n = sum(x.size for x in starts) + a.size
         raise ExportError(f"tolerance: the path could not be followed within {tol} m / {ang_tol} rad by "
-                          f"{S.size} movep targets after {max_rounds} halving rounds; raise the tolerance")
+                          f"{n + 1} movep targets after {max_rounds} halving rounds; raise the tolerance")
+    S = np.unique(np.concatenate(starts + [np.array([L])]))
     _, _, poses = poses_at_length(path, orientation, S, base=base)
     pv = poses[:, :3]
     chord = np.diff(pv, axis=0)
@@ -138,4 +146,4 @@ def plan_movep(path, orientation, profile, *, tolerance: float, angle_tolerance:
         radii[i] = min(radii[i], speeds[i] * ev_tol)
     radii[-1] = 0.0
     placed = tuple(ScheduledEvent(e.event, e.time, int(i)) for i, e in zip(where, sched, strict=True))
-    return MovePPlan(S, poses, radii, speeds, float(dist.max()), float(ang.max()), placed, tol)
+    return MovePPlan(S, poses, radii, speeds, dev, ang_dev, placed, tol)

@@ -1,0 +1,265 @@
+"""A whole CAM job as one compact URScript program: ``movep`` along the passes, ``movel`` between them.
+
+Millions of inline ``servoj`` targets are no program for a job of hours (the single-pass
+:func:`~planner.export.urscript.servoj_program` is). The whole-job program is one statement per
+``movep`` target, rapid and turn:
+
+- ``movej`` to the job's first pose, given as joint positions on the inverse-kinematics branch the
+  job's reachability check followed: every later move is Cartesian and stays on that branch;
+- each cutting pass as ``movep`` moves (:func:`~planner.export.movep.plan_movep`): targets on the
+  planned PH path whose polyline stays within ``tolerance / 2`` of it, blend radii with a corner cut
+  of at most ``tolerance / 2``, so the program follows the planned path within ``tolerance``; the
+  speed of every move is the pass's feed there, the acceleration the job's; the last target of a
+  pass has r = 0 (passes end where the CAM system stops: rapids, corners, axis jumps);
+- each rapid as ``movel`` (a straight line, as the CAM system checked it, at the rapid speed, r = 0).
+  movel interpolates the orientation about one fixed axis, which is what the planned rapid does
+  (the tool axis turns about z0 x z1); where it turns, ``t`` = the planned duration keeps the
+  angular speed to the plan's (the time setting takes precedence over v and a);
+- each turn in place as ``movel`` to the same point with ``t`` = the planned duration of the turn
+  (movel's v is a tool speed in m/s, which a pure rotation does not have);
+- comments: what generated the program and the job's parameters, each pass, rapid and turn with
+  its source lines, and the file's operation, tool-change, spindle, coolant, INSERT and machine
+  records where they occur. A CAM job carries no tool I/O, so the program switches no outputs.
+
+movej/movel/movep semantics: UR Script Manual (e-Series); shared/UR-PROTOCOLS.md does not cover them.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.export.header import ExportError, cam_job_parameters
+from planner.export.movep import MovePPlan, plan_movep
+from planner.export.script_text import check_name, comment, header, num, pose, vec
+from planner.export.urscript import movep_lines
+from planner.motion.limits import positive
+from planner.motion.stream import as_transform, transform_to_pose
+
+#: Kinds of CAM records written as comments where they occur.
+NOTED_EVENTS = ("operation", "tool_change", "spindle", "coolant", "insert", "machine")
+
+
+@dataclass(frozen=True, eq=False)
+class ProgramMove:
+    """One move of a whole-job program.
+
+    Attributes
+    ----------
+    move : int
+        Index of the move in ``CamJob.moves``.
+    kind : str
+        "cut", "rapid" or "reorientation".
+    pass_index : int
+        Pass number of a cut, -1 otherwise.
+    first_line, last_line : int
+        Source lines of the move.
+    motion_line : int
+        Source line of the first record the move carries out (CAM records before it come first).
+    plan : MovePPlan or None
+        The movep targets of a cut.
+    start, target : ndarray (6,)
+        TCP poses p[x, y, z, rx, ry, rz] (base frame) where the move starts and ends.
+    speed : float
+        Tool speed of a rapid, m/s (the cut's speeds are in its plan; 0 for a turn).
+    duration : float
+        Planned time of the move, s.
+    turn : float
+        Angle the tool turns by (rapids and turns), rad.
+    """
+
+    move: int
+    kind: str
+    pass_index: int
+    first_line: int
+    last_line: int
+    motion_line: int
+    plan: MovePPlan | None
+    start: np.ndarray
+    target: np.ndarray
+    speed: float
+    duration: float
+    turn: float
+
+
+def _turn_pose(m, Tb: np.ndarray, angle: float) -> np.ndarray:
+    """TCP pose (6,) in the base frame of a turn in place after turning by ``angle``."""
+    R = Tb[:3, :3] @ m.frames.frames(np.array([angle]))[0]
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = R, Tb[:3, :3] @ m.point + Tb[:3, 3]
+    return transform_to_pose(T)
+
+
+def plan_job_program(job, *, tolerance: float | None = None, angle_tolerance: float = math.radians(1.0),
+                     progress=None) -> tuple[ProgramMove, ...]:
+    """The moves of a whole-job program (see the module doc), skipped records left out.
+
+    Parameters
+    ----------
+    job : CamJob
+    tolerance : float, optional
+        Largest distance of the programmed motion from the planned path, m (default: the job's
+        tolerance, so the program stays within twice it of the CAM polyline).
+    angle_tolerance : float
+        Largest orientation error of the interpolated tool frame between movep targets, rad.
+    progress : callable(stage, done, total), optional
+        Called every 25 moves.
+    """
+    from planner.cam.passes import CamInputError
+    from planner.motion import poses_at_length, tool_orientation
+
+    tol = positive(job.settings.tolerance if tolerance is None else tolerance, "tolerance")
+    Tb = as_transform(job.settings.part_frame, "part_frame")
+    out = []
+    for k, m in enumerate(job.moves):
+        if progress is not None and k % 25 == 0:
+            progress("script", k, len(job.moves))
+        if m.profile is None:  # skipped records and zero turns: nothing moves
+            continue
+        if m.kind == "cut":
+            try:
+                plan = plan_movep(m.path, tool_orientation(m.frames), m.profile, tolerance=tol,
+                                  angle_tolerance=angle_tolerance, base=Tb)
+            except ExportError as exc:
+                raise CamInputError(f"{job.source} pass {m.pass_index} (lines {m.item.first_line}-"
+                                    f"{m.item.last_line}): {exc}") from None
+            lines = m.item.lines
+            out.append(ProgramMove(k, "cut", m.pass_index, int(lines[0]), int(lines[-1]), int(lines[1]), plan,
+                                   plan.poses[0], plan.poses[-1], float(np.max(plan.speeds)), m.duration, 0.0))
+        elif m.kind == "rapid":
+            _, _, ends = poses_at_length(m.path, tool_orientation(m.frames), [0.0, m.path.length], base=Tb)
+            speed = float(np.max(m.profile.commanded))
+            out.append(ProgramMove(k, "rapid", -1, m.line, m.line, m.line, None, ends[0], ends[1], speed, m.duration,
+                                   float(m.frames.angle)))
+        else:
+            angle = float(m.frames.angle)
+            out.append(ProgramMove(k, m.kind, -1, m.line, m.line, m.line, None, _turn_pose(m, Tb, 0.0),
+                                   _turn_pose(m, Tb, angle), 0.0, m.duration, angle))
+    if progress is not None:
+        progress("script", len(job.moves), len(job.moves))
+    return tuple(out)
+
+
+def _start_joints(job) -> np.ndarray:
+    """Joint positions (6,) at the job's first pose, on the branch the reachability check follows."""
+    from planner.cam.stream import iter_stream, track_joints
+
+    for _, q in track_joints(job, iter_stream(job, job.settings.rate)):
+        if not np.isfinite(q[0]).all():  # pragma: no cover - job.problems names it first
+            raise ExportError(f"{job.source}: the job's first pose has no inverse kinematics solution")
+        return q[0]
+    raise ExportError(f"{job.source}: the job has no motion")
+
+
+def _noted_events(job) -> list:
+    tp = job.toolpath
+    return sorted(tp.events_of(*NOTED_EVENTS), key=lambda e: e.line) if hasattr(tp, "events_of") else []
+
+
+def job_program(
+    job,
+    moves: tuple[ProgramMove, ...] | None = None,
+    *,
+    tolerance: float | None = None,
+    angle_tolerance: float = math.radians(1.0),
+    approach_speed: float = 0.25,
+    approach_acceleration: float = 0.5,
+    parameters: Mapping | None = None,
+    name: str = "planner_job",
+    progress=None,
+) -> str:
+    """A URScript program that runs a whole CAM job (see the module doc).
+
+    Parameters
+    ----------
+    job : CamJob
+        Planned with a robot, every move reachable (``job.problems`` empty).
+    moves : tuple of ProgramMove, optional
+        From :func:`plan_job_program` (default: planned here with ``tolerance`` and ``angle_tolerance``).
+    tolerance, angle_tolerance : float, optional
+        See :func:`plan_job_program`.
+    approach_speed, approach_acceleration : float
+        movej to the job's first pose, rad/s and rad/s^2.
+    parameters : mapping, optional
+        Extra header entries (e.g. the input file name).
+    name : str
+        Program name.
+
+    Raises
+    ------
+    ExportError
+        Without a robot, or when the job reports a move the robot cannot make (the message names
+        the pass and source line).
+    """
+    name = check_name(name)
+    va = positive(approach_speed, "approach_speed")
+    aa = positive(approach_acceleration, "approach_acceleration")
+    s = job.settings
+    if s.robot is None:
+        raise ExportError("a whole-job URScript program needs the robot (start joints, reachability): plan it "
+                          "with a robot model")
+    if job.problems:
+        more = f" (and {len(job.problems) - 1} more moves with problems)" if len(job.problems) > 1 else ""
+        raise ExportError(f"the robot cannot make the job: {job.problems[0]}{more}")
+    if moves is None:
+        moves = plan_job_program(job, tolerance=tolerance, angle_tolerance=angle_tolerance, progress=progress)
+    if not moves:
+        raise ExportError(f"{job.source}: the job has no motion")
+    q0 = _start_joints(job)
+    a = s.limits.acceleration
+    plans = [m.plan for m in moves if m.plan is not None]
+    stats = {
+        "tolerance_m": float(plans[0].tolerance) if plans else tolerance,
+        "angle_tolerance_deg": math.degrees(angle_tolerance),
+        "movep_targets": int(sum(p.s.size - 1 for p in plans)),
+        "movep_deviation_m": max((p.deviation for p in plans), default=0.0),
+        "movep_angle_deviation_deg": math.degrees(max((p.angle_deviation for p in plans), default=0.0)),
+        "movel_moves": sum(1 for m in moves if m.plan is None),
+        "start_joints_rad": [float(x) for x in q0],
+    }
+    params = cam_job_parameters(job, None, {**dict(parameters or {}), "program": stats})
+    tcp_pose = transform_to_pose(as_transform(s.tcp, "tcp"))
+    lines = [f"def {name}():"]
+    lines += header("whole-job movep/movel", params, [])
+    lines += [
+        "  # movej/movel/movep semantics: UR Script Manual (e-Series), not covered by shared/UR-PROTOCOLS.md.",
+        "  # Passes: movep within tolerance of the planned path, ending with r = 0 where the CAM system stops.",
+        "  # Rapids and turns in place: movel (straight, orientation about one axis); t = planned time where",
+        "  # the tool turns. No outputs are switched: the CAM job carries no tool I/O.",
+        f"  set_tcp({pose(tcp_pose)})",
+    ]
+    events = _noted_events(job)
+    e_next = 0
+    for i, m in enumerate(moves):
+        while e_next < len(events) and events[e_next].line < m.motion_line:
+            ev = events[e_next]
+            lines.append(comment(f"line {ev.line}: {ev.text or ev.kind}"[:200]))
+            e_next += 1
+        if i == 0:
+            lines += [f"  # start of the job (line {m.first_line}): joint move onto the planned branch",
+                      f"  movej({vec(q0)}, a={num(aa)}, v={num(va)})"]
+        if m.kind == "cut":
+            item = job.moves[m.move].item
+            op = f" ({item.operation})" if item.operation else ""
+            lines.append(comment(
+                f"pass {m.pass_index}{op}, lines {m.first_line}-{m.last_line}: {1e3 * m.plan.s[-1]:.3f} mm at up to "
+                f"{1e3 * m.speed:.3f} mm/s in movep moves: {m.plan.s.size - 1}, planned {m.duration:.3f} s"))
+            lines += movep_lines(m.plan, a)
+        elif m.kind == "rapid":
+            dist = float(np.linalg.norm(m.target[:3] - m.start[:3]))
+            timing = f", t={num(m.duration)}" if m.turn > 0.0 else ""
+            lines.append(comment(f"rapid, line {m.first_line}: {1e3 * dist:.3f} mm, tool axis turns "
+                                 f"{math.degrees(m.turn):.3f} deg"))
+            lines.append(f"  movel({pose(m.target)}, a={num(a)}, v={num(m.speed)}{timing}, r={num(0.0)})")
+        else:
+            lines.append(comment(f"turn in place, line {m.first_line}: {math.degrees(m.turn):.3f} deg in "
+                                 f"{m.duration:.3f} s"))
+            lines.append(f"  movel({pose(m.target)}, a={num(a)}, v={num(s.limits.speed)}, t={num(m.duration)}, "
+                         f"r={num(0.0)})")
+    lines += [comment(f"line {ev.line}: {ev.text or ev.kind}"[:200]) for ev in events[e_next:]]
+    lines += ["end", ""]
+    return "\n".join(lines)
+
