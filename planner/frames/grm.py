@@ -15,9 +15,16 @@ objective of eq. 13, with a weight rho). Of the 10 coefficients, 7 go to eq. (24
 angle: fixing a(0) = 0 leaves a 2-dimensional constraint set to search.
 
 Weights: "1", "sigma", "tau_kappa" (|tau kappa|, the paper's three), a callable rho(t), and "twist" (the
-default, ours): minimize the mean square angle between the GRM frame and the exact RMF from the same
-start frame, which is what users of the frame feel; eq. (13) with rho = 1 can twist the tool by tens of
-degrees more (DESIGN.md). Every result reports the real figure, ``max_twist_deg``.
+default, ours): minimize the largest angle between the GRM frame and the exact RMF from the same start
+frame (at 101 parameters, with a penalty on spins between them), which is what users of the frame feel;
+eq. (13) with rho = 1 can twist the tool by tens of degrees more (DESIGN.md). Every result reports the
+real figure, ``max_twist_deg``.
+
+Search. "twist" uses the closed form of the constraint set (:mod:`planner.frames.grm_orbits`): the pairs
+with W(a, b) = a b' - a' b = g are the SL(2) orbits of the few real 2-planes of degree-4 polynomials whose
+Wronskian is g, so every trial point is explicit and the search costs no Newton solve of (24). The other
+weights, and curves where that finds nothing acceptable (torsion-free ones, g ~ 0), use the grid search
+over (b(0), b(1)) with Newton continuation onto (24) (``search="grid"`` forces it).
 """
 
 from __future__ import annotations
@@ -31,22 +38,52 @@ from scipy.optimize import minimize
 
 from planner import bernstein
 from planner import quaternion as qt
+from planner.curves.ph_core import batch_sigma
 from planner.errors import PlannerError
 from planner.frames.er import er_frames
+from planner.frames.grm_orbits import (
+    bernstein_bend,
+    compass_search,
+    g_power,
+    minimax_twist,
+    orbit_objective,
+    orbit_point,
+    plane_orbits,
+    spin_suspect,
+)
 from planner.frames.rmf import RMFAngle, check_start_frame, normal_angle, turn_normals
 from planner.frames.rmf_batch import PathRMFAngles
 
 #: Collocation nodes for the 7 equations of (24): Chebyshev points of [0, 1].
 _COLLOC = 0.5 - 0.5 * np.cos((2 * np.arange(7) + 1) * np.pi / 14)
+#: Power-basis values of degree 6 at the nodes, and at the 201 parameters that fix the scale of (24).
+_V7_COLLOC = np.vander(_COLLOC, 7, increasing=True)
+_V7_SCALE = np.vander(np.linspace(0.0, 1.0, 201), 7, increasing=True)
 #: Quadrature for the objectives: 24-point Gauss-Legendre on [0, 1] (exact for eq. 13 with rho = 1, sigma).
 _QX, _QW = np.polynomial.legendre.leggauss(24)
 _QX, _QW = 0.5 * (_QX + 1.0), 0.5 * _QW
 #: Search results with an objective at or above this (the spin penalty, for "twist") get the fallback.
 _ACCEPT = np.pi
-#: The "twist" objective rejects solutions with a^2 + b^2 below this fraction of 2 sigma^2 anywhere.
+#: The "twist" objective rejects solutions with a^2 + b^2 below this fraction of 2 sigma^2 at a sample (half of
+#: it between samples): there the frame spins fast.
 _MIN_RATIO = 0.2
 #: Parameters where the "twist" objective compares the GRM angle with the exact RMF angle.
 _TS = np.linspace(0.0, 1.0, 101)
+#: Parameters of the reported figures (residual of (24), max twist); _TS and the fit's are every 10th and 25th.
+_TF = np.linspace(0.0, 1.0, 1001)
+#: Curves with max |g| below this times max |A_k|^4 are torsion-free for the closed-form search.
+_G_FLOOR = 1e-12
+#: The global screen of each plane's orbit (every 5th sample): log(lam / lam0) and asinh(mu / mu_scale),
+#: lam0 from the least-squares fit and mu_scale = rms b_V / rms a_V; its best 4 are judged on all samples.
+_SCREEN_LOG_LAM = np.linspace(-4.0, 4.0, 9)
+_SCREEN_ASINH_MU = np.linspace(-3.0, 3.0, 9)
+_SCREEN_KEEP = 4
+#: Curves whose closed-form search twists more than this (rad; 1 degree) get the dense screen: a 25 x 25
+#: grid of every plane's orbit on all samples, the best 6 points of each as starts.
+_HARD = np.radians(1.0)
+_DENSE_LOG_LAM = np.linspace(-6.0, 4.0, 25)
+_DENSE_ASINH_MU = np.linspace(-4.0, 4.0, 25)
+_DENSE_KEEP = 6
 
 WEIGHTS = ("twist", "1", "sigma", "tau_kappa")
 
@@ -62,18 +99,15 @@ def g_poly_values(A: np.ndarray, t: np.ndarray) -> np.ndarray:
     return 2.0 * qt.norm2(Av) * q
 
 
-def _values_batch(A: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """A(t) and A'(t) for stacked curves A (S, 3, 4) at parameters t (n,): (S, n, 4) each."""
-    B = bernstein.basis(2, t)
-    dB = bernstein.basis(1, t)
-    return np.einsum("nj,sjc->snc", B, A), np.einsum("nj,sjc->snc", dB, 2.0 * np.diff(A, axis=1))
+def _sigma2_batch(A: np.ndarray, t: np.ndarray) -> np.ndarray:
+    """2 sigma^2 = 2 |A|^4 for stacked curves A (S, 3, 4) at parameters t (n,): (S, n)."""
+    s = (bernstein.basis(4, t) @ batch_sigma(A).T).T
+    return 2.0 * s * s
 
 
 def g_values_batch(A: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """:func:`g_poly_values` for stacked curves A (S, 3, 4): (S, n)."""
-    Av, dA = _values_batch(A, t)
-    q = Av[..., 0] * dA[..., 1] - Av[..., 1] * dA[..., 0] - Av[..., 2] * dA[..., 3] + Av[..., 3] * dA[..., 2]
-    return 2.0 * (Av * Av).sum(axis=-1) * q
+    """:func:`g_poly_values` for stacked curves A (S, 3, 4): (S, n), from the power coefficients of g."""
+    return g_power(A) @ np.vander(np.asarray(t, dtype=float), 7, increasing=True).T
 
 
 def sigma_values(A: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -108,7 +142,8 @@ class GRMFrame:
     weight : str or callable
         The objective the pair minimizes.
     objective : float
-        Value of eq. (13) with the weight (for ``"twist"``: the mean square twist angle, rad^2).
+        Value of eq. (13) with the weight (for ``"twist"``: the largest twist angle at 101 parameters, rad,
+        plus pi if the frame may spin).
     constraint_residual : float
         max over [0, 1] of |a b' - a' b - g| / max |g| (eq. 24; round-off for a converged solve).
     max_twist_deg : float
@@ -155,22 +190,27 @@ class _Problem:
     Batched methods take rows X (R, 9) and the curve index of each row, ``seg`` (R,).
     """
 
-    def __init__(self, curves, weight):
+    def __init__(self, curves, weight, psi=None, gp=None):
+        """``psi``: the exact RMF angle at _TS (S, 101) if already known; ``gp``: g's power coefficients."""
         A = np.stack([c.A for c in curves])  # (S, 3, 4)
         S = A.shape[0]
+        gp = g_power(A) if gp is None else gp
         self.B7, self.dB7 = bernstein.basis(4, _COLLOC), 4 * _diff_basis(_COLLOC)
-        self.g7 = g_values_batch(A, _COLLOC)
+        self.g7 = gp @ _V7_COLLOC.T
         self.target = self.g7  # right-hand side of (24) at the collocation nodes
-        self.gscale = np.maximum(np.abs(g_values_batch(A, np.linspace(0, 1, 201))).max(axis=1), 1e-300)
+        self.gscale = np.maximum(np.abs(gp @ _V7_SCALE.T).max(axis=1), 1e-300)
         self.weight = weight
+        self.gp = gp
         if weight == "twist":  # judged directly by the largest twist against the exact RMF
             self.Bs = bernstein.basis(4, _TS)
-            psi = PathRMFAngles(A)(np.repeat(np.arange(S), _TS.size), np.tile(_TS, S)).reshape(S, _TS.size)
+            if psi is None:
+                psi = PathRMFAngles(A)(np.repeat(np.arange(S), _TS.size), np.tile(_TS, S)).reshape(S, _TS.size)
+            self.psi = psi
             self.w = np.exp(-0.5j * psi)  # conj of the exact RMF's half-angle phase
-            self.s2s = 2.0 * (_values_batch(A, _TS)[0] ** 2).sum(axis=-1) ** 2  # 2 sigma^2 at the samples
+            self.s2s = _sigma2_batch(A, _TS)  # 2 sigma^2 at the samples
         else:
             self.Bq = bernstein.basis(4, _QX)
-            self.s2q = 2.0 * (_values_batch(A, _QX)[0] ** 2).sum(axis=-1) ** 2
+            self.s2q = _sigma2_batch(A, _QX)
             self.rho = np.stack([_weight_values(weight, c, _QX) for c in curves]) * _QW
 
     @staticmethod
@@ -201,8 +241,8 @@ class _Problem:
 
     def objective_batch(self, X, seg, coarse: bool = False):
         """Eq. (13) with the weight, rows X (R, 9) -> (R,); for "twist", the largest twist (rad) against
-        the exact RMF on 201 parameters (the GRM angle unwrapped along t, so a spin of 2 pi is seen).
-        NaN rows give NaN."""
+        the exact RMF on 101 parameters (every third with ``coarse``), plus pi where |z|^2 = a^2 + b^2 may
+        dip so low that the frame spins (:func:`planner.frames.grm_orbits.spin_suspect`). NaN rows give NaN."""
         a, b = self._ab(X)
         if self.weight == "twist":
             # with z = b + i a, the GRM angle is 2 arg z; against the RMF (from the same start) the twist
@@ -214,8 +254,11 @@ class _Problem:
             u = z * np.conj(z[:, :1])
             with np.errstate(invalid="ignore"):
                 twist = np.abs(np.angle(u * u)).max(axis=1)
-                # |z|^2 = a^2 + b^2 far below 2 sigma^2 somewhere means a fast spin that samples can miss
-                dip = ((zr.real**2 + zr.imag**2) / self.s2s[seg][:, ::step]).min(axis=1) < _MIN_RATIO
+                # |z|^2 = a^2 + b^2 far below 2 sigma^2 somewhere, at the samples or between, means a fast
+                # spin that samples can miss
+                m2 = zr.real**2 + zr.imag**2
+                dip = spin_suspect(zr.real, zr.imag, m2, _MIN_RATIO * self.s2s[seg][:, ::step], bernstein_bend(a, b),
+                                   step / (_TS.size - 1))
             return np.where(dip, twist + np.pi, twist)
         av, bv = a @ self.Bq.T, b @ self.Bq.T
         r = av * av + bv * bv - self.s2q[seg]
@@ -236,6 +279,10 @@ def _diff_basis(t):
     out[:, 1:] += b3
     out[:, :-1] -= b3
     return out
+
+
+_B_TF, _DB_TF = bernstein.basis(4, _TF), 4 * _diff_basis(_TF)
+_V7_TF = np.vander(_TF, 7, increasing=True)
 
 
 _FREE = np.array([0, 1, 2, 3, 5, 6, 7])  # a1..a4, b1..b3; (b0, b4) = x[4], x[8] parametrize the set
@@ -375,8 +422,6 @@ def constraint_residual(curve, a, b) -> float:
     return float(np.abs(av * dbv - dav * bv - g).max() / np.abs(g).max())
 
 
-
-
 def grm(curve, weight: str | Callable = "twist", *, grid: int = 11) -> GRMFrame:
     """The GRM frame of a PH quintic (``PHQuintic``), starting at its ER frame at t = 0.
 
@@ -384,12 +429,14 @@ def grm(curve, weight: str | Callable = "twist", *, grid: int = 11) -> GRMFrame:
     ----------
     curve : PHQuintic
     weight : "twist" (default), "1", "sigma", "tau_kappa" or callable rho(t) -> (n,)
-        What a^2 + b^2 ~ 2 sigma^2 is optimized for: "twist" minimizes the mean square angle to the
-        exact RMF; the others are the paper's eq. (13) with that weight rho.
+        What a^2 + b^2 ~ 2 sigma^2 is optimized for: "twist" minimizes the largest angle to the exact
+        RMF (the search of :func:`grm_many`, so both give the same frame); the others are the paper's
+        eq. (13) with that weight rho.
     grid : int
-        The constraint set (24) with a(0) = 0 is 2-dimensional, parametrized here by (b(0), b(1)); it is
-        searched globally on a grid x grid around the least-squares fit of the exact RMF (its branches
-        and infeasible holes included), then refined on finer local grids.
+        For the weights other than "twist" (and its torsion-free fallback): the constraint set (24) with
+        a(0) = 0 is 2-dimensional, parametrized here by (b(0), b(1)); it is searched globally on a grid x
+        grid around the least-squares fit of the exact RMF (its branches and infeasible holes included),
+        then refined by Nelder-Mead.
 
     Returns
     -------
@@ -400,6 +447,8 @@ def grm(curve, weight: str | Callable = "twist", *, grid: int = 11) -> GRMFrame:
         raise PlannerError("grm needs a PH quintic (quaternion coefficients A of shape (3, 4))")
     if not callable(weight) and weight not in WEIGHTS:
         raise PlannerError(f"weight must be one of {WEIGHTS} or a callable rho(t), got {weight!r}")
+    if weight == "twist":
+        return grm_many([curve], weight, grid=grid)[0]
     tic = time.perf_counter()
     p = _Problem([curve], weight)
     x0 = _ideal_starts([curve])[0]
@@ -419,14 +468,16 @@ def grm(curve, weight: str | Callable = "twist", *, grid: int = 11) -> GRMFrame:
     return GRMFrame(curve, a, b, weight, f, resid, twist, 0.0, time.perf_counter() - tic)
 
 
-def _ideal_starts(curves) -> np.ndarray:
+def _ideal_starts(curves, psi=None) -> np.ndarray:
     """Least-squares degree-4 fits (S, 9) of a = sqrt2 sigma sin(psi/2), b = sqrt2 sigma cos(psi/2), a(0) = 0,
-    to the exact RMF angle psi of each curve: the starting point of the search."""
+    to the exact RMF angle psi of each curve (at 41 parameters: ``psi`` (S, 41) if already known): the
+    starting point of the search."""
     A = np.stack([c.A for c in curves])
     S = A.shape[0]
-    t = np.linspace(0.0, 1.0, 41)
-    psi = PathRMFAngles(A)(np.repeat(np.arange(S), t.size), np.tile(t, S)).reshape(S, t.size)
-    s = np.sqrt(2.0) * (_values_batch(A, t)[0] ** 2).sum(axis=-1)
+    t = _TF[::25]
+    if psi is None:
+        psi = PathRMFAngles(A)(np.repeat(np.arange(S), t.size), np.tile(t, S)).reshape(S, t.size)
+    s = np.sqrt(_sigma2_batch(A, t))
     B = bernstein.basis(4, t)
     a = np.linalg.lstsq(B[:, 1:], (s * np.sin(0.5 * psi)).T, rcond=None)[0].T
     b = np.linalg.lstsq(B, (s * np.cos(0.5 * psi)).T, rcond=None)[0].T
@@ -491,12 +542,120 @@ def _search_many(p: _Problem, x0: np.ndarray, size: np.ndarray, grid: int, round
     return best_x
 
 
-def grm_many(curves, weight: str | Callable = "twist", *, grid: int = 11) -> list[GRMFrame]:
+def _orbit_planes(p: _Problem, A: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The real planes of (24) of every curve as rows: curve index (R,), orbit basis a_V, b_V (R, 5) each
+    (a_V(0) = 0, b_V(0) = 1, W(a_V, b_V) = g to round-off: Newton confirms each candidate of
+    :func:`planner.frames.grm_orbits.plane_orbits`; those from complex solutions fail). Torsion-free curves
+    (max |g| below _G_FLOOR max |A_k|^4) get none."""
+    g = p.gp  # eq. (24)'s right-hand side, power basis
+    live = np.flatnonzero(np.abs(g).max(axis=1) > _G_FLOOR * np.abs(A).max(axis=(1, 2)) ** 4)
+    aV, bV = plane_orbits(g[live])  # (L, 5, 5) each: 5 candidate planes per curve
+    seg = np.repeat(live, 5)
+    Xc = np.concatenate((aV[..., 1:], bV), axis=-1).reshape(-1, 9)
+    keep = np.isfinite(Xc).all(axis=1)
+    seg, Xc = seg[keep], Xc[keep]
+    Xc = _on_constraint(p, Xc, Xc[:, 4], Xc[:, 8], seg, iters=6)
+    keep = np.isfinite(Xc[:, 0])
+    seg, Xc = seg[keep], Xc[keep]
+    return seg, np.concatenate((np.zeros((seg.size, 1)), Xc[:, :4]), axis=1), Xc[:, 4:]
+
+
+def _best_per_curve(seg: np.ndarray, f: np.ndarray) -> np.ndarray:
+    """Indices of the row with the least f for each curve in seg (ties: the first)."""
+    order = np.lexsort((f, seg))
+    first = np.ones(order.size, bool)
+    first[1:] = seg[order][1:] != seg[order][:-1]
+    return order[first]
+
+
+def _orbit_search(p: _Problem, A: np.ndarray, x0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The "twist" search on the closed-form constraint set (:mod:`planner.frames.grm_orbits`), all curves
+    at once. On every real plane of (24): the minimax iteration from the orbit point nearest the
+    least-squares fit x0 (S, 9), and from the best point of a coarse global screen of the orbit where that
+    is better still; a pattern search from the best row per curve. Curves still twisting more than _HARD
+    get a dense screen of every plane and more starts. Then Newton onto (24) to round-off. Returns X (S, 9),
+    NaN rows where no plane was found (e.g. a torsion-free curve, g = 0), and the objective (S,)."""
+    S = A.shape[0]
+    X = np.full((S, 9), np.nan)
+    fo = np.full(S, np.inf)
+    seg, aV, bV = _orbit_planes(p, A)
+    if seg.size == 0:
+        return X, fo
+    aVs, bVs = aV @ p.Bs.T, bV @ p.Bs.T
+    dV = np.stack((np.diff(aV, 2, axis=1), np.diff(bV, 2, axis=1)))
+    psi = p.psi[seg]
+    rot = np.stack((np.cos(psi), -np.sin(psi)))  # exp(-i psi): the exact RMF angle (eq. 6) to compare with
+    floor2 = _MIN_RATIO * p.s2s[seg]  # the least |z|^2 = a^2 + b^2 at the samples (2 sigma^2 is ideal, eq. 13)
+    # lam from b(0) of the fit, mu by least squares of the fit's b on the plane; the screen's mu scale
+    lam0 = 1.0 / np.maximum(np.abs(x0[seg, 4]), 1e-300)
+    with np.errstate(all="ignore"):
+        mu0 = ((lam0[:, None] * (x0[seg, 4:] @ p.Bs.T) - bVs) * aVs).sum(axis=1) / (aVs * aVs).sum(axis=1)
+        mscale = np.sqrt((bVs * bVs).sum(axis=1) / (aVs * aVs).sum(axis=1))
+    mu0 = np.where(np.isfinite(mu0), mu0, 0.0)
+    mscale = np.where(np.isfinite(mscale), mscale, 1.0)
+
+    def screen(rows, log_lam, asinh_mu, step, keep):
+        """The best ``keep`` points (rows, keep) of a grid of each row's orbit, on every step-th sample."""
+        E, U = (v.ravel() for v in np.meshgrid(log_lam, asinh_mu, indexing="ij"))
+        lg, mg = lam0[rows, None] * np.exp(E), mscale[rows, None] * np.sinh(U)
+        c = slice(None, None, step)
+        fg = orbit_objective(aVs[rows, None, c], bVs[rows, None, c], rot[:, rows, None, c], floor2[rows, None, c],
+                             dV[:, rows, None], lg, mg)
+        k = np.argsort(fg, axis=1, kind="stable")[:, :keep]
+        r = np.arange(rows.size)[:, None]
+        return lg[r, k], mg[r, k]
+
+    def minimax(rows, lam, mu):
+        return minimax_twist(aVs[rows], bVs[rows], rot[:, rows], floor2[rows], dV[:, rows], lam, mu)
+
+    def polish(rows, lam, mu, f):
+        """The pattern search from the best row per curve: its rows, lam, mu, f (one per curve, by curve)."""
+        pick = _best_per_curve(seg[rows], f)
+        pr = rows[pick]
+        lam, mu, f = compass_search(aVs[pr], bVs[pr], rot[:, pr], floor2[pr], dV[:, pr], lam[pick], mu[pick], f[pick],
+                                    np.full(pick.size, 0.02), 0.02 * mscale[pr])
+        return pr, lam, mu, f
+
+    R = np.arange(seg.size)
+    lam, mu, f = minimax(R, lam0, mu0)
+    lg, mg = screen(R, _SCREEN_LOG_LAM, _SCREEN_ASINH_MU, 5, _SCREEN_KEEP)
+    fg = orbit_objective(aVs[:, None], bVs[:, None], rot[:, :, None], floor2[:, None], dV[:, :, None], lg, mg)
+    k = fg.argmin(axis=1)
+    redo = np.flatnonzero(fg[R, k] < f)  # the screen found better than the descent from the fit: go there
+    if redo.size:
+        l2, m2, f2 = minimax(redo, lg[redo, k[redo]], mg[redo, k[redo]])
+        better = f2 < f[redo]
+        lam[redo[better]], mu[redo[better]], f[redo[better]] = l2[better], m2[better], f2[better]
+    pr, lam, mu, f = polish(R, lam, mu, f)
+    hard = np.isin(seg, seg[pr[f >= _HARD]])
+    if hard.any():  # dense screen of every plane of these curves, several starts each
+        H = np.flatnonzero(hard)
+        lg, mg = screen(H, _DENSE_LOG_LAM, _DENSE_ASINH_MU, 1, _DENSE_KEEP)
+        rows = np.repeat(H, lg.shape[1])
+        hl, hm, hf = minimax(rows, lg.ravel(), mg.ravel())
+        hr, hl, hm, hf = polish(rows, hl, hm, hf)
+        pos = np.searchsorted(seg[pr], seg[hr])  # pr is sorted by curve
+        won = hf < f[pos]
+        pr[pos[won]], lam[pos[won]], mu[pos[won]], f[pos[won]] = hr[won], hl[won], hm[won], hf[won]
+    a, b = orbit_point(aV[pr], bV[pr], lam, mu)  # W(a, b) = W(a_V, b_V) = g (eq. 24)
+    Xb = np.concatenate((a[:, 1:], b), axis=1)
+    sb = seg[pr]
+    Xp = _on_constraint(p, Xb, Xb[:, 4], Xb[:, 8], sb, iters=4)  # round-off on (24)
+    Xb = np.where(np.isfinite(Xp[:, :1]), Xp, Xb)
+    X[sb] = Xb
+    fo[sb] = p.objective_batch(Xb, sb)
+    return X, np.where(np.isfinite(fo), fo, np.inf)
+
+
+def grm_many(curves, weight: str | Callable = "twist", *, grid: int = 11, search: str = "auto") -> list[GRMFrame]:
     """:func:`grm` for many PH quintics at once (e.g. every segment of a path), vectorized over them.
 
-    The search is the same grid with continuation; its refinement uses shrinking local grids for all
-    curves together instead of a Nelder-Mead run per curve, which makes paths of hundreds of segments
-    fast. ``seconds`` of each result is the wall time divided by the number of curves.
+    ``search``: "auto" is, for weight "twist", the closed-form search on the planes of (24)
+    (:func:`_orbit_search`), with the grid search for the curves where it finds nothing acceptable
+    (torsion-free ones); for the other weights the grid search. "grid" forces the grid search (the slower
+    exhaustive reference): a grid x grid grid over (b(0), b(1)) with Newton continuation onto (24), refined
+    by shrinking local grids for all curves together. ``seconds`` of each result is the wall time divided
+    by the number of curves.
     """
     curves = list(curves)
     if not curves:
@@ -506,38 +665,62 @@ def grm_many(curves, weight: str | Callable = "twist", *, grid: int = 11) -> lis
             raise PlannerError("grm needs PH quintics (quaternion coefficients A of shape (3, 4))")
     if not callable(weight) and weight not in WEIGHTS:
         raise PlannerError(f"weight must be one of {WEIGHTS} or a callable rho(t), got {weight!r}")
+    if search not in ("auto", "grid"):
+        raise PlannerError(f"search must be 'auto' or 'grid', got {search!r}")
     tic = time.perf_counter()
-    p = _Problem(curves, weight)
-    x0 = _ideal_starts(curves)
     A = np.stack([c.A for c in curves])
-    size = np.sqrt(2.0) * (_values_batch(A, _TS)[0] ** 2).sum(axis=-1).mean(axis=1)
-    X = _search_many(p, x0, size, grid)
-    f = p.objective_batch(X, np.arange(len(curves)))
-    for i in np.flatnonzero(~(f < _ACCEPT)):  # nothing found, or only spinning points: best effort
-        q = _Problem([curves[i]], weight)
-        alt = _closest_feasible(q, x0[i])
-        if not np.isfinite(X[i]).all() or q.objective(alt) < f[i]:
-            X[i] = alt
-    a = np.concatenate((np.zeros((X.shape[0], 1)), X[:, :4]), axis=1)
-    b = X[:, 4:]
-    flip = b[:, :1] < 0  # same frame, nicer coefficients
-    a, b = np.where(flip, -a, a), np.where(flip, -b, b)
-    f = p.objective_batch(X, np.arange(len(curves)))
-    resid, twist = _figures_batch(A, a, b)
+    S = A.shape[0]
+    gp = g_power(A)
+    # the exact RMF angle once, at the figures' parameters; the search and the fit use every 10th, 25th
+    exact = PathRMFAngles(A)(np.repeat(np.arange(S), _TF.size), np.tile(_TF, S)).reshape(S, _TF.size)
+    p = _Problem(curves, weight, exact[:, ::10], gp)
+    x0 = _ideal_starts(curves, exact[:, ::25])
+    if weight == "twist" and search == "auto":
+        X, f = _orbit_search(p, A, x0)
+        rest = np.flatnonzero(~(f < _ACCEPT))  # nothing acceptable (e.g. torsion-free): the grid search
+    else:
+        X, f, rest = np.full((S, 9), np.nan), np.full(S, np.inf), np.arange(S)
+    if rest.size:
+        q = _Problem([curves[i] for i in rest], weight, exact[rest, ::10], gp[rest]) if rest.size < S else p
+        size = np.sqrt(_sigma2_batch(A[rest], _TS)).mean(axis=1)
+        Xr = _search_many(q, x0[rest], size, grid)
+        fr = q.objective_batch(Xr, np.arange(rest.size))
+        take = (fr < f[rest]) | ~np.isfinite(X[rest, 0])  # else keep the closed-form point
+        Xr, fr = np.where(take[:, None], Xr, X[rest]), np.where(take, fr, f[rest])
+        for j in np.flatnonzero(~(fr < _ACCEPT)):  # nothing found, or only spinning points: best effort
+            i = rest[j]
+            qi = _Problem([curves[i]], weight, exact[i : i + 1, ::10], gp[i : i + 1])
+            alt = _closest_feasible(qi, x0[i])
+            if not np.isfinite(Xr[j]).all() or qi.objective(alt) < fr[j]:
+                Xr[j] = alt
+        X[rest] = Xr
+    a, b = _ab_normalized(X)
+    resid, twist = _figures_batch(A, a, b, exact, gp)
+    f = p.objective_batch(X, np.arange(S))
     per = (time.perf_counter() - tic) / len(curves)
     return [GRMFrame(c, a[i], b[i], weight, float(f[i]), float(resid[i]), float(twist[i]), 0.0, per)
             for i, c in enumerate(curves)]
 
 
-def _figures_batch(A: np.ndarray, a: np.ndarray, b: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """:func:`constraint_residual` and :func:`_twist_deg` for stacked curves and coefficients."""
-    t = np.linspace(0.0, 1.0, 1001)
-    B, dB = bernstein.basis(4, t), 4 * _diff_basis(t)
+def _ab_normalized(X: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Coefficients a, b (R, 5) of rows X (R, 9), signs flipped so that b(0) >= 0 (the same frame)."""
+    a = np.concatenate((np.zeros((X.shape[0], 1)), X[:, :4]), axis=1)
+    b = X[:, 4:]
+    flip = b[:, :1] < 0
+    return np.where(flip, -a, a), np.where(flip, -b, b)
+
+
+def _figures_batch(A: np.ndarray, a: np.ndarray, b: np.ndarray, exact=None, gp=None) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`constraint_residual` and :func:`_twist_deg` for stacked curves and coefficients (``exact``:
+    the exact RMF angle at the 1001 parameters, ``gp``: g's power coefficients, if already known)."""
+    t = _TF
+    B, dB = _B_TF, _DB_TF
     av, bv, dav, dbv = a @ B.T, b @ B.T, a @ dB.T, b @ dB.T
-    g = g_values_batch(A, t)
+    g = (g_power(A) if gp is None else gp) @ _V7_TF.T
     resid = np.abs(av * dbv - dav * bv - g).max(axis=1) / np.maximum(np.abs(g).max(axis=1), 1e-300)
     S = A.shape[0]
-    exact = PathRMFAngles(A)(np.repeat(np.arange(S), t.size), np.tile(t, S)).reshape(S, t.size)
+    if exact is None:
+        exact = PathRMFAngles(A)(np.repeat(np.arange(S), t.size), np.tile(t, S)).reshape(S, t.size)
     z = (bv + 1j * av) * np.exp(-0.5j * exact)
     u = z * np.conj(z[:, :1])
     return resid, np.degrees(np.abs(np.angle(u * u)).max(axis=1))
