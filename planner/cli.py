@@ -297,7 +297,7 @@ def _export(job, out: Path, source: Path) -> None:
     elif suffix in (".script", ".urscript"):
         if job.joints is None:
             raise PlannerError("a servoj URScript program needs joint targets: give --robot MODEL")
-        if not np.isfinite(job.joints).all():
+        if not job.reachability.ok:  # unreachable, outside joint limits, or too fast even at the feed floor
             raise PlannerError(f"not writing {out.name}: {job.reachability.message}")
         write_script(servoj_program(job.stream, job.joints, model=job.settings.robot, parameters=params), out)
     else:

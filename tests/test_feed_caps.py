@@ -247,6 +247,22 @@ def test_plan_job_reports_what_the_floor_cannot_fix():
     assert "feed lowered to 2 % (the floor)" in job.summary()["feed_lowered"][0]
 
 
+def test_no_servoj_program_for_joints_too_fast_at_the_floor(tmp_path):
+    """The controller would stop on it: the .script export refuses, naming the joint; a pose stream is written."""
+    from pathlib import Path
+
+    from planner.cli import _export
+    from planner.errors import PlannerError
+
+    points, axes = near_singular_pass(3e-4)
+    job = plan(points, axes, robot="ur5e", feed_floor=0.02)
+    with pytest.raises(PlannerError, match=r"not writing pass\.script: .*speed"):
+        _export(job, tmp_path / "pass.script", Path("pass.csv"))
+    assert not (tmp_path / "pass.script").exists()
+    _export(job, tmp_path / "pass.csv", Path("pass.csv"))
+    assert (tmp_path / "pass.csv").stat().st_size > 0
+
+
 def test_cam_job_lowers_the_feed_of_the_pass_locally():
     from planner.cam import plan_cam_job
     from planner.io import Toolpath
