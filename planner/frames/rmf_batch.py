@@ -17,11 +17,11 @@ from planner.curves.ph_core import batch_sigma
 from planner.frames.rmf import RMFAngle
 
 _X16, _W16 = np.polynomial.legendre.leggauss(16)
-_X6, _W6 = np.polynomial.legendre.leggauss(6)
-#: Neighbouring samples are chained when they are at most this fraction of a panel apart: the rate's
-#: poles lie >= ~1.5 panel widths away (batch_panels), so 6-point Gauss-Legendre over a quarter panel
-#: converges like (24)^-12, far below round-off.
-_CHAIN_WIDTH = 0.25
+#: Neighbouring samples of one segment are chained (integrated from one to the next) with a Gauss-Legendre
+#: rule whose size grows with their distance in panel widths: the rate's poles lie >= ~1.5 panel widths
+#: away (batch_panels), so over w panels the rule converges like rho^-2q with rho = 3/w + sqrt(9/w^2 + 1):
+#: 6 points up to a quarter panel (24^-12), 8 up to half (12^-16), 12 up to a whole panel (6.2^-24).
+_CHAIN_RULES = tuple((w, *np.polynomial.legendre.leggauss(q)) for w, q in ((0.25, 6), (0.5, 8), (1.0, 12)))
 
 
 def rate_coefficients(A: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -148,23 +148,28 @@ class PathRMFAngles:
         return self.cum[self.offsets[k] + j] + (_W16 @ self._rate(k, a + half * (1.0 + _X16[:, None]))) * half
 
     def __call__(self, k: np.ndarray, t: np.ndarray) -> np.ndarray:
-        """Angles at samples (k, t). Runs of close samples of one segment, sorted along the path,
-        are chained with 6-point Gauss-Legendre between neighbours (6 instead of 16 rate evaluations
-        per sample; at the controller rate nearly every sample is chained); every other sample is
-        evaluated directly."""
+        """Angles at samples (k, t). Runs of samples of one segment, sorted along the path, are chained:
+        each sample adds the integral from its predecessor (6 to 12 rate evaluations, by distance, instead
+        of 16; at the controller rate nearly every sample is chained); the first of a run is evaluated
+        directly."""
         n = t.size
         prev_t = np.concatenate(([0.0], t[:-1]))
         width = t - prev_t
-        chained = np.zeros(n, dtype=bool)
-        chained[1:] = (k[1:] == k[:-1]) & (width[1:] >= 0) & (width[1:] * self.panels[k[1:]] <= _CHAIN_WIDTH)
+        span = np.full(n, np.inf)  # distance to the predecessor in panel widths; inf: start a new run
+        same = np.flatnonzero((k[1:] == k[:-1]) & (width[1:] >= 0)) + 1
+        span[same] = width[same] * self.panels[k[same]]
         out = np.empty(n)
-        anchors = np.flatnonzero(~chained)
+        anchors = np.flatnonzero(span > _CHAIN_RULES[-1][0])
         out[anchors] = self.direct(k[anchors], t[anchors])
-        if chained.any():
-            idx = np.flatnonzero(chained)
-            half = 0.5 * width[idx]
+        if anchors.size < n:
             inc = np.zeros(n)
-            inc[idx] = (_W6 @ self._rate(k[idx], prev_t[idx] + half * (1.0 + _X6[:, None]))) * half
+            lower = -1.0
+            for w, x, wts in _CHAIN_RULES:
+                idx = np.flatnonzero((span > lower) & (span <= w))
+                lower = w
+                if idx.size:
+                    half = 0.5 * width[idx]
+                    inc[idx] = (wts @ self._rate(k[idx], prev_t[idx] + half * (1.0 + x[:, None]))) * half
             inc[anchors] = out[anchors]
             total = np.cumsum(inc)
             run = np.repeat(anchors, np.diff(np.append(anchors, n)))  # the anchor of each sample's run
