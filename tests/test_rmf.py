@@ -148,3 +148,22 @@ def test_bad_start_frame():
         rmf_frames(SEED, [0.0], start=2 * np.eye(3))
     with pytest.raises(PlannerError, match="3x3"):
         rmf_frames(SEED, [0.0], start=np.eye(2))
+
+
+@pytest.mark.parametrize("per_segment", [1.5, 4, 12, 60])
+def test_path_angles_chained_along_samples_equal_the_direct_quadrature(per_segment):
+    """PathRMFAngles chains sorted samples (6 to 12 Gauss points from the previous sample, by distance);
+    each sample must equal its own 16-point quadrature from the panel edge, at any sample density,
+    with repeated samples and runs that cross segment joints."""
+    from planner.frames.rmf_batch import PathRMFAngles
+
+    rng = np.random.default_rng(5)
+    s = np.linspace(0.0, 6 * np.pi, 40)
+    wp = np.c_[np.cos(s), np.sin(s) + 0.3 * np.sin(3 * s), 0.1 * s] + rng.normal(scale=0.01, size=(40, 3))
+    path = fit_ph_spline(wp)
+    u = np.sort(rng.uniform(path.knots[0], path.knots[-1], int(per_segment * path.n_segments)))
+    u = np.concatenate((u, u[::7]))  # repeated samples
+    u.sort()
+    k, t = path.locate(u)
+    angles = PathRMFAngles(path.A)
+    assert np.abs(angles(k, t) - angles.direct(k, t)).max() < 1e-13
