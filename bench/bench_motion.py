@@ -22,12 +22,19 @@ Joint speed limits: a 0.5 m pass whose horizontal tool axis sweeps past a UR5e w
 (wrist 2 within 0.02 rad of 0), feed 50 mm/s: the feed lowered locally where a joint would be too fast
 (plan_job, 500 Hz stream, inverse kinematics, re-planned until every sample is within the limits)
 against the whole pass at the lowest factor (what the planner did before), best of 3.
+
+Inverse kinematics: ``inverse_path`` (UR5e, all 8 branches solved and tracked, least-travel branch kept)
+on the spiral's poses sampled at 2 kHz (~10^5 poses), best of 3; the baseline is the same function as
+of commit 545be10 (before the blocked, trig-free solver and the same-branch shortcut), loaded from git
+history in the same run when it is available, with the largest joint difference between the two.
 """
 
 from __future__ import annotations
 
+import subprocess
 import sys
 import time
+import types
 from pathlib import Path
 
 import numpy as np
@@ -39,7 +46,7 @@ from _common import best_time, print_table  # noqa: E402
 from planner.curves import fit_ph_spline  # noqa: E402
 from planner.frames.path import frame_field  # noqa: E402
 from planner.job import JobSettings, plan_job  # noqa: E402
-from planner.kinematics import get_model, joint_speeds  # noqa: E402
+from planner.kinematics import get_model, inverse_path, joint_speeds  # noqa: E402
 from planner.motion import MotionLimits, SplineEvaluator, plan_feed, sample_poses, tool_orientation  # noqa: E402
 
 FEED = 0.25
@@ -199,6 +206,45 @@ def joint_speed_table() -> None:
     print_table(["plan", "duration s", "peak joint speed / limit", "slowed", "rounds", "plan_job s"], rows)
 
 
+#: The last commit with the former inverse kinematics (8 x 8 branch comparisons at every sample, sin/cos).
+IK_BASELINE_COMMIT = "545be10"
+
+
+def _baseline_inverse_path():
+    """``inverse_path`` as of IK_BASELINE_COMMIT, from git history (None if that is not available)."""
+    root = Path(__file__).resolve().parents[1]
+    try:
+        text = subprocess.run(["git", "show", f"{IK_BASELINE_COMMIT}:planner/kinematics/inverse.py"], cwd=root,
+                              capture_output=True, text=True, check=True, timeout=30).stdout
+        module = types.ModuleType("inverse_baseline")
+        exec(compile(text, f"{IK_BASELINE_COMMIT}:planner/kinematics/inverse.py", "exec"), module.__dict__)
+        return module.inverse_path
+    except (OSError, subprocess.SubprocessError, SyntaxError, ImportError, AttributeError):
+        return None
+
+
+def ik_table() -> None:
+    path = fit_ph_spline(waypoints())
+    orient = tool_orientation(frame_field(path, "rmf"), z_column=2)
+    poses = sample_poses(path, plan_feed(path, FEED, LIMITS), orient, rate=2000.0).poses
+    n = len(poses)
+    q = inverse_path("ur5e", poses)
+    rows = []
+    t = best_time(lambda: inverse_path("ur5e", poses), repeat=3)
+    rows.append(["inverse_path (this version)", n, f"{t:.3f}", f"{n / t:,.0f}", f"{t / n * 1e6:.2f}", "-"])
+    old = _baseline_inverse_path()
+    if old is None:
+        rows.append([f"inverse_path as of {IK_BASELINE_COMMIT}", n, "-", "not available (no git history)", "-", "-"])
+    else:
+        q_old = old("ur5e", poses)
+        t_old = best_time(lambda: old("ur5e", poses), repeat=3)
+        rows.append([f"inverse_path as of {IK_BASELINE_COMMIT}", n, f"{t_old:.3f}", f"{n / t_old:,.0f}",
+                     f"{t_old / n * 1e6:.2f}", f"{np.abs(q - q_old).max():.1e}"])
+    print(f"\nInverse kinematics along the spiral (UR5e, {n} poses at 2 kHz, every pose reachable)")
+    print_table(["method", "poses", "time s", "IK poses/s", "us/pose", "max |q - q_this| rad"], rows)
+
+
 if __name__ == "__main__":
     main()
     joint_speed_table()
+    ik_table()

@@ -74,8 +74,9 @@ def parse_program(text):
         elif m := re.fullmatch(rf"movel\(p{VEC}, a=({NUM}), v=({NUM})(?:, t=({NUM}))?, r=({NUM})\)", body):
             t = None if m[4] is None else float(m[4])
             out.append(("movel", np.array(m[1].split(", "), float), float(m[2]), float(m[3]), t, float(m[5])))
-        elif m := re.fullmatch(rf"movej\({VEC}, a=({NUM}), v=({NUM})\)", body):
-            out.append(("movej", np.array(m[1].split(", "), float)))
+        elif m := re.fullmatch(rf"movej\({VEC}, a=({NUM}), v=({NUM})(?:, t=({NUM}))?\)", body):
+            t = None if m[4] is None else float(m[4])
+            out.append(("movej", np.array(m[1].split(", "), float), float(m[2]), float(m[3]), t))
         elif m := re.fullmatch(rf"set_tcp\(p{VEC}\)", body):
             out.append(("set_tcp", np.array(m[1].split(", "), float)))
         else:
@@ -292,8 +293,8 @@ def test_whole_job_plot_is_one_picture_of_every_pass(nx_excerpt, tmp_path, capsy
 
 @pytest.mark.slow
 def test_whole_nx_job_plot_and_program(tmp_path, capsys):
-    """The whole real NX job (867 passes, 12.9 million poses at 500 Hz): plot, then the program or a refusal
-    naming the pass and line the robot cannot make."""
+    """The whole real NX job (867 passes, 12.9 million poses at 500 Hz): plot, then the program, with the one
+    change of the arm configuration the job needs."""
     if not NX_JOB.is_file():
         pytest.skip(f"{NX_JOB} not present")
     png, script = tmp_path / "job.png", tmp_path / "job.script"
@@ -304,9 +305,15 @@ def test_whole_nx_job_plot_and_program(tmp_path, capsys):
     with Image.open(png) as im:
         assert im.size == (1870, 1100)
     passes = int(re.search(r"-> (\d+) passes", captured.out).group(1))
-    if code == 0:
-        stmts = parse_program(script.read_text())
-        assert sum(1 for s in stmts if s[0] == "comment" and re.match(r"pass \d+\b", s[1])) == passes
-    else:
-        assert code == 2 and "not writing job.script: the robot cannot make the job" in captured.err
-        assert re.search(r"(pass \d+ .*\(lines \d+-\d+\), line \d+|rapid at line \d+|at line \d+):", captured.err)
+    # pass 768 runs the configuration the arm inherits out of reach (line 20413): the arm changes configuration
+    # in the rapid before passes 766-768 (joined at corners), and the robot makes the whole job
+    assert code == 0, captured.err
+    assert "1 change of the arm configuration" in captured.out and "every move reachable" in captured.out
+    assert re.search(r"before passes 766-768 \(lines 20357-20416\), at the end of the rapid at line 20357: joint move",
+                     captured.out)
+    stmts = parse_program(script.read_text())
+    assert sum(1 for s in stmts if s[0] == "comment" and re.match(r"pass \d+\b", s[1])) == passes
+    (i,) = [k for k, s in enumerate(stmts) if s[0] == "comment" and s[1].startswith("change of the arm configuration")]
+    assert stmts[i][1].startswith("change of the arm configuration for pass 766, line 20357 (at the end of the rapid")
+    assert stmts[i + 1][0] == "movej" and stmts[i + 1][4] > 0.0  # timed
+    assert re.match(r"pass 766\b", next(s[1] for s in stmts[i + 1 :] if s[0] == "comment"))

@@ -321,4 +321,9 @@ def test_cam_job_reports_what_the_floor_cannot_fix():
     assert sum(w.length for w in caps) < 0.02  # still only around the singularity
     msg = job.passes[0].reach_message
     assert msg.startswith("wrist.apt pass 0 (lines 10-60), line ") and "joint 5 (wrist 3) speed" in msg
-    assert msg.endswith("the feed is lowered to 1 % there")
+    # no other arm configuration helps: the message says why and what the user can do
+    assert "at the wrist singularity (|sin q5| = " in msg
+    assert msg.endswith("the feed is lowered to 1 % there; none of the 7 other arm configurations makes it feasible "
+                        "either; re-place the part (part frame) or tilt the tool so that its axis stays away from the "
+                        "shoulder axis there")
+    assert not job.reconfigurations and job.count("reconfiguration") == 0

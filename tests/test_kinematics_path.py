@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import importlib
+
 import numpy as np
 import pytest
 
@@ -17,8 +19,10 @@ from planner.kinematics import (
     get_model,
     inverse_path,
     joint_speeds,
+    matrix_to_pose,
     model_names,
     speed_ratios,
+    wrap_angle,
 )
 
 NAMES = model_names()
@@ -73,6 +77,56 @@ def test_path_through_stretched_elbow():
     out = inverse_path("ur16e", forward("ur16e", q), q_start=q[0])
     np.testing.assert_allclose(out, q, atol=1e-6)
     assert np.abs(np.diff(out[:, 2])).max() < 0.0021
+
+
+def _next_branch_by_definition(Q, V, multiturn):
+    """Nearest valid branch at sample i + 1 for every branch at i, comparing all 8 x 8 pairs (the definition)."""
+    Qs, Vs = Q.transpose(2, 1, 0), V.T  # (n, 8, 6), (n, 8)
+    d = Qs[1:, None] - Qs[:-1, :, None]  # (n - 1, from, to, 6)
+    d = np.where(multiturn, wrap_angle(d), d)
+    D = np.linalg.norm(d, axis=-1)
+    D = np.where(Vs[1:, None, :] & ~np.isnan(D), D, np.inf)
+    nxt, dist = np.argmin(D, axis=-1), np.min(D, axis=-1)
+    nxt[~np.isfinite(dist)] = -1
+    return nxt, dist
+
+
+def _radial_through_shoulder_cylinder(name, n=301):
+    """Poses whose wrist centre moves radially from 5 cm outside the d4 cylinder to 1 cm inside it."""
+    m = get_model(name)
+    T = forward_matrix(name, [0.4, -1.3, 1.9, -0.5, 1.0, 0.2])
+    p5 = T[:3, 3] - m.d6 * T[:3, 2]
+    r = np.hypot(*p5[:2])
+    Ts = np.repeat(T[None], n, axis=0)
+    Ts[:, :2, 3] += p5[:2] * ((m.d4 + np.linspace(0.05, -0.01, n)) / r - 1.0)[:, None]
+    return matrix_to_pose(Ts)
+
+
+@pytest.mark.parametrize("name", NAMES)
+def test_same_branch_shortcut_gives_the_nearest_branch_by_definition(name):
+    """The tracker compares all 8 x 8 branch pairs only where the same-branch test fails; it must pick the
+    nearest valid branch exactly as comparing every pair does: through the wrist, elbow and shoulder
+    singularities, across unreachable gaps and with steps so coarse that branches swap."""
+    m = get_model(name)
+    s = np.linspace(-1.0, 1.0, 401)[:, None]
+    rng = np.random.default_rng(11)
+    paths = [
+        forward(name, np.array([0.3, -1.2, 1.5, -1.8, 0.0, 0.5]) + s * [0.1, 0.1, 0.1, 0.1, 0.3, 0.2]),
+        forward(name, np.array([0.3, -1.0, 0.0, -1.2, 1.0, 0.5]) + s * [0.1, 0.1, 0.2, 0.1, 0.1, 0.1]),
+        forward(name, smooth_joint_path(400)[::8]),  # about 0.1 rad per sample
+        forward(name, np.cumsum(rng.normal(scale=0.4, size=(400, 6)), axis=0)),  # branches cross
+        _radial_through_shoulder_cylinder(name),
+    ]
+    inv = importlib.import_module("planner.kinematics.inverse")
+    shortcut_rows = 0
+    for poses in paths:
+        sol = inv._solve(m, inv._flange_targets(m, poses, None), np.zeros(len(poses)))
+        nxt, dist = inv._next_branch(sol.q, sol.valid, m.multiturn)
+        ref_nxt, ref_dist = _next_branch_by_definition(sol.q, sol.valid, m.multiturn)
+        assert np.array_equal(nxt, ref_nxt)
+        np.testing.assert_allclose(dist, ref_dist, rtol=1e-12, atol=1e-15)
+        shortcut_rows += int((nxt == np.arange(8)).all(axis=1).sum())
+    assert 0 < shortcut_rows < sum(len(p) - 1 for p in paths)  # both ways exercised
 
 
 def test_first_unreachable_sample_is_reported():

@@ -4,13 +4,15 @@
 rapid moves and reorientations (:mod:`~planner.cam.passes`), fits every pass with a PH quintic spline
 within a tolerance of the CAM polyline (:mod:`~planner.cam.fidelity`), interpolates the modal tool
 axes without overshoot with rotation-minimizing spin (:mod:`~planner.cam.axes`), times every move and
-checks the robot (:mod:`~planner.cam.job`, :mod:`~planner.cam.reach`); ``CamJob.iter_stream()`` gives
+checks the robot and chooses the arm configuration of every run of passes (:mod:`~planner.cam.job`,
+:mod:`~planner.cam.reach`, :mod:`~planner.cam.configure`); ``CamJob.iter_stream()`` gives
 the pose stream at the controller rate (:mod:`~planner.cam.stream`).
 """
 
 from planner.cam.axes import AxisField, axis_field
 from planner.cam.fidelity import PassFit, fit_pass, fit_passes
 from planner.cam.job import CamJob, CamSettings, PassReport, PlannedMove, plan_cam_job
+from planner.cam.moves import Reconfiguration
 from planner.cam.passes import (
     CamInputError,
     CutPass,
@@ -33,6 +35,7 @@ __all__ = [
     "PassReport",
     "PlannedMove",
     "RapidMove",
+    "Reconfiguration",
     "Reorientation",
     "Segmentation",
     "Skipped",

@@ -13,7 +13,12 @@
    the turning speed), starting and ending at rest;
 6. with a robot: inverse kinematics along every move, unreachable passes reported by pass number and
    source line; where a joint would exceed its speed limit the feed is lowered locally, only over the
-   stretch that needs it, and every stretch slowed is named (:mod:`planner.cam.reach`).
+   stretch that needs it, and every stretch slowed is named (:mod:`planner.cam.reach`);
+7. with a robot: the arm configuration (shoulder, elbow, wrist branch and whole turns) of every run of
+   passes: the current one is kept while it can make the run; otherwise the nearest one that can is
+   taken, changed by a joint move (movej) at the safe point of the rapid before the run, never during a
+   cut (:mod:`planner.cam.configure`); each change is a "reconfiguration" move of the job, named by pass
+   and source line.
 
 The 500 Hz pose stream of the job is produced on demand, move by move (:mod:`planner.cam.stream`):
 a whole NX job is millions of poses.
@@ -64,6 +69,9 @@ DEFAULT_TURN_LIMITS = MotionLimits(speed=1.0, acceleration=2.0, jerk=20.0)
 DEFAULT_FEED = 0.01
 #: Default speed of rapid moves, m/s.
 DEFAULT_RAPID_SPEED = 0.25
+#: Default limits of every joint in a reconfiguration (joint move): speed rad/s, acceleration rad/s^2 (UR's
+#: movej defaults v = 1.05, a = 1.4), jerk rad/s^3; the model's joint speed limits apply too.
+DEFAULT_JOINT_LIMITS = MotionLimits(speed=1.05, acceleration=1.4, jerk=14.0)
 #: The CAM default tool axis (APT: +Z, from the tip towards the spindle).
 CAM_DEFAULT_AXIS = np.array([0.0, 0.0, 1.0])
 
@@ -86,6 +94,7 @@ class CamSettings:
     turn_limits: MotionLimits = DEFAULT_TURN_LIMITS
     rate: float = 500.0
     reach_step: float = 2e-3
+    joint_limits: MotionLimits = DEFAULT_JOINT_LIMITS
 
 
 @dataclass(frozen=True)
@@ -167,15 +176,17 @@ class PlannedMove:
     Attributes
     ----------
     kind : str
-        "cut", "rapid", "reorientation" or "skipped".
-    item : CutPass, RapidMove, Reorientation or Skipped
-        What the file asks for.
+        "cut", "rapid", "reorientation", "reconfiguration" or "skipped".
+    item : CutPass, RapidMove, Reorientation, Reconfiguration or Skipped
+        What the file asks for (a Reconfiguration: what the planner adds to change the arm configuration).
     path : PHSpline or None
         The path in the part frame (None for moves in place).
     frames : AxisField or TurningFrames or None
-        Tool frames: along the path (parameter u), or of the turn (parameter: angle turned).
+        Tool frames: along the path (parameter u), or of the turn (parameter: angle turned); None for a
+        reconfiguration (its poses come from forward kinematics of its joints).
     profile : FeedProfile or None
-        Time law: arc length (or angle, for a turn) against time; None for skipped moves.
+        Time law: arc length (or angle, for a turn; fraction of the joint move, for a reconfiguration)
+        against time; None for skipped moves.
     start_frame, end_frame : ndarray (3, 3)
         Tool frame (part frame; column 2 the approach axis) at the start and end.
     point : ndarray (3,)
@@ -237,6 +248,11 @@ class CamJob:
     slowed : tuple of str
         Stretches where the feed was lowered for the joint speed limits, each naming the pass (or move),
         the source lines, the factor and the joint.
+    start_joints : ndarray (6,) or None
+        With a robot: the joints (rad) at the job's first pose, on the configuration the check followed
+        (the joint streams and the program start there).
+    start_note : str
+        Why the arm starts on another configuration than the one of least joint travel ("" if not).
     """
 
     source: str
@@ -248,6 +264,8 @@ class CamJob:
     timings: dict = field(default_factory=dict)
     problems: tuple = ()
     slowed: tuple = ()
+    start_joints: np.ndarray | None = None
+    start_note: str = ""
 
     # -- figures -------------------------------------------------------------------------------
     @property
@@ -291,8 +309,30 @@ class CamJob:
         return None if self.settings.robot is None else not self.problems
 
     def count(self, kind: str) -> int:
-        """Number of moves of a kind ("cut", "rapid", "reorientation", "skipped")."""
+        """Number of moves of a kind ("cut", "rapid", "reorientation", "reconfiguration", "skipped")."""
         return sum(1 for m in self.moves if m.kind == kind)
+
+    @property
+    def reconfigurations(self) -> tuple:
+        """The changes of the arm configuration (:class:`~planner.cam.moves.Reconfiguration`), in order."""
+        return tuple(m.item for m in self.moves if m.kind == "reconfiguration")
+
+    def reconfiguration_lines(self) -> list[str]:
+        """One line per change of the arm configuration, for a person: before which pass, where (source
+        line), what changes, how long, how far the tool swings, and what the former configuration could
+        not do."""
+        out = []
+        for m in self.moves:
+            if m.kind != "reconfiguration":
+                continue
+            r = m.item
+            cut = next(c for c in self.segmentation.passes if c.index == r.pass_index)
+            last = next(c for c in self.segmentation.passes if c.index == r.passes[-1])
+            run = f"pass {r.pass_index}" if len(r.passes) == 1 else f"passes {r.pass_index}-{r.passes[-1]}"
+            out.append(f"{self.source} before {run} (lines {cut.first_line}-{last.last_line}), {r.where}: "
+                       f"joint move of {m.duration:.2f} s ({r.change}; the tool swings up to "
+                       f"{1e3 * r.tcp_excursion:.0f} mm from the point); the former configuration: {r.reason}")
+        return out
 
     def n_samples(self, rate: float | None = None) -> int:
         """Number of poses of the stream at ``rate`` (default the job's)."""
@@ -327,6 +367,10 @@ class CamJob:
             out["unreachable_passes"] = [p.index for p in self.passes if p.reachable is False]
             out["slowed_passes"] = [p.index for p in self.passes if p.feed_caps]
             out["slowed"] = list(self.slowed)
+            out["reconfigurations"] = self.reconfiguration_lines()
+            out["reconfigured_passes"] = [r.pass_index for r in self.reconfigurations]
+            if self.start_note:
+                out["start"] = self.start_note
         return out
 
     def describe(self, max_lines: int = 10) -> list[str]:
@@ -353,6 +397,15 @@ class CamJob:
                 lines += [f"    {p}" for p in self.slowed[:max_lines]]
                 if len(self.slowed) > max_lines:
                     lines.append(f"    ... {len(self.slowed) - max_lines} more")
+            if self.start_note:
+                lines.append(f"  arm       {self.start_note}")
+            changes = s["reconfigurations"]
+            if changes:
+                n = len(changes)
+                lines.append(f"  arm       {n} change{'s' * (n > 1)} of the arm configuration (joint moves in rapids)")
+                lines += [f"    {p}" for p in changes[:max_lines]]
+                if n > max_lines:
+                    lines.append(f"    ... {n - max_lines} more")
             if not self.problems:
                 lines.append(f"  robot     {self.settings.robot}: every move reachable within joint limits")
             else:
@@ -391,7 +444,7 @@ def _settings(**kw) -> CamSettings:
     check_threshold(s.axis_jump_deg, "axis_jump_deg", 0.0, 90.0)
     for name in ("feed", "feed_override", "rapid_speed", "rate", "reach_step"):
         check_threshold(getattr(s, name), name, 0.0, math.inf)
-    for name in ("limits", "turn_limits"):
+    for name in ("limits", "turn_limits", "joint_limits"):
         if not isinstance(getattr(s, name), MotionLimits):
             raise CamInputError(f"{name} must be a planner.motion.MotionLimits, got {type(getattr(s, name)).__name__}")
     poses = {}
@@ -442,6 +495,7 @@ def plan_cam_job(
     turn_limits: MotionLimits = DEFAULT_TURN_LIMITS,
     rate: float = 500.0,
     reach_step: float = 2e-3,
+    joint_limits: MotionLimits = DEFAULT_JOINT_LIMITS,
     read_options: dict | None = None,
     progress=None,
 ) -> CamJob:
@@ -482,6 +536,9 @@ def plan_cam_job(
     reach_step : float
         With a robot: spacing of the reachability check along each move, m (the CAM points are
         always checked).
+    joint_limits : MotionLimits
+        With a robot: speed (rad/s), acceleration (rad/s^2) and jerk (rad/s^3) of every joint in a change
+        of the arm configuration (a joint move in a rapid); the model's joint speed limits apply too.
     read_options : dict, optional
         Options for the reader when ``toolpath`` is a file.
 
@@ -502,7 +559,7 @@ def plan_cam_job(
         tolerance=tolerance, corner_deg=corner_deg, axis_jump_deg=axis_jump_deg, arc_tolerance=arc_tolerance,
         part_frame=part_frame, tcp=tcp, robot=robot, feed=feed,
         feed_override=feed_override, rapid_speed=rapid_speed, limits=limits, turn_limits=turn_limits, rate=rate,
-        reach_step=reach_step,
+        reach_step=reach_step, joint_limits=joint_limits,
     )  # fmt: skip
     timings = {}
     if isinstance(toolpath, str | os.PathLike):
@@ -551,9 +608,24 @@ def plan_cam_job(
                           "reach_message": reach.passes.get(r.index, ""), "feed_caps": caps.get(r.index, ()),
                           "duration": duration[r.index]}) for r in reports
         ]
+        moves = _with_reconfigurations(moves, reach.reconfigurations, settings)
         job = CamJob(tp.source, settings, tp, seg, tuple(moves), tuple(reports), timings, tuple(reach.problems),
-                     tuple(reach.slowed))
+                     tuple(reach.slowed), reach.start_joints, reach.start_note)
     return job
+
+
+def _with_reconfigurations(moves: list, changes: list, s: CamSettings) -> list:
+    """The moves with a joint move inserted before move k for every (k, Reconfiguration) in ``changes``."""
+    from planner.cam.moves import joint_move_profile
+    from planner.kinematics import get_model
+
+    out = list(moves)
+    speeds = get_model(s.robot).speed_limits
+    for k, r in sorted(changes, key=lambda c: c[0], reverse=True):
+        F = moves[k].start_frame
+        profile = joint_move_profile(r.q_from, r.q_to, s.joint_limits, speeds)
+        out.insert(k, PlannedMove("reconfiguration", r, None, None, profile, F, F, r.point.copy()))
+    return out
 
 
 def _plan_moves(tp, seg: Segmentation, fits, s: CamSettings, fit_share: float, timings: dict, progress=None):

@@ -1,8 +1,11 @@
-"""Paths and tool frames of the moves between cutting passes: straight rapids and turns in place.
+"""Paths and tool frames of the moves between cutting passes: straight rapids and turns in place, and
+the joint moves that change the arm configuration in a rapid.
 
-Both turn the tool about an axis perpendicular to the tool axis (n = z0 x z1), so they never spin it
-about itself: a rapid turns the axis along the great circle in proportion to the distance travelled,
-a reorientation turns it in place with a jerk-limited angle profile.
+Rapids and turns turn the tool about an axis perpendicular to the tool axis (n = z0 x z1), so they never
+spin it about itself: a rapid turns the axis along the great circle in proportion to the distance
+travelled, a reorientation turns it in place with a jerk-limited angle profile. A reconfiguration
+(:class:`Reconfiguration`) moves the joints on a straight line in joint space, movej-like, with a
+jerk-limited time law from joint speed and acceleration limits (:func:`joint_move_profile`).
 """
 
 from __future__ import annotations
@@ -14,6 +17,7 @@ import numpy as np
 from planner import quaternion as qt
 from planner.cam.axes import rotation_matrices, turn_axis
 from planner.curves.spline import PHSpline
+from planner.errors import PlannerError
 from planner.motion import MotionLimits, plan_feed
 from planner.motion.rotvec import matrix_to_quaternion
 
@@ -81,3 +85,75 @@ def turn_frames(start: np.ndarray, z_end: np.ndarray) -> TurningFrames:
 def turn_profile(angle: float, limits: MotionLimits):
     """Jerk-limited angle profile (a FeedProfile whose "length" is the angle, radians) of a turn."""
     return plan_feed(float(angle), limits.speed, limits)
+
+
+@dataclass(frozen=True, eq=False)
+class Reconfiguration:
+    """A change of the arm configuration in joint space (movej-like) at a rapid's safe point.
+
+    The tool leaves the point and comes back to it: both joint vectors put the tool on the same pose,
+    on different inverse-kinematics branches (shoulder, elbow, wrist solution) or with a joint turned by
+    a whole turn. Every joint moves on the straight line between them, all starting and stopping
+    together (like UR's ``movej``).
+
+    Attributes
+    ----------
+    q_from, q_to : ndarray (6,)
+        Joint positions before and after, rad.
+    point : ndarray (3,)
+        The safe point, part frame, m.
+    line : int
+        Source line of the rapid record the safe point belongs to.
+    pass_index : int
+        The first pass made on the new configuration.
+    passes : tuple of int
+        The passes of the run (joined at corners, without a rapid between them) it is made for.
+    reason : str
+        What the former configuration could not do (names the pass or rapid and the source line).
+    change : str
+        What changes, for a person (e.g. "wrist flipped, wrist 3 +1 turn").
+    where : str
+        Where in the rapids it happens (e.g. "at the end of the rapid at line 20357").
+    tcp_excursion : float
+        Largest distance of the TCP from the safe point during the joint move, m (from forward
+        kinematics of the straight joint-space line; the part may be in the way: the planner has no
+        geometry of it).
+    """
+
+    q_from: np.ndarray
+    q_to: np.ndarray
+    point: np.ndarray
+    line: int
+    pass_index: int
+    passes: tuple
+    reason: str
+    change: str
+    where: str
+    tcp_excursion: float = 0.0
+
+    kind = "reconfiguration"
+
+    def joints(self, fraction) -> np.ndarray:
+        """Joint positions (n, 6) at fractions (n,) of the move (0: q_from, 1: q_to)."""
+        f = np.atleast_1d(np.asarray(fraction, dtype=float))
+        return self.q_from + f[:, None] * (self.q_to - self.q_from)
+
+
+def joint_move_profile(q_from, q_to, joint_limits: MotionLimits, speed_limits=None):
+    """Jerk-limited time law of a synchronized joint move: a FeedProfile over the fraction [0, 1] of it.
+
+    Joint j moves by |dq_j| times the fraction, so its speed, acceleration and jerk are |dq_j| times
+    those of the fraction: the fraction's limits are the smallest of ``joint_limits`` (rad/s, rad/s^2,
+    rad/s^3, the same for every joint, e.g. UR's movej defaults v = 1.05, a = 1.4) and ``speed_limits``
+    (6,) (the model's joint speed limits, rad/s) divided by |dq_j|. The joint with the largest ratio of
+    travel to limit leads; the others are slower and finish together with it.
+    """
+    dq = np.abs(np.asarray(q_to, dtype=float) - np.asarray(q_from, dtype=float))
+    if not (dq > 0.0).any():
+        raise PlannerError("a joint move needs two different joint vectors")
+    v = np.full(6, joint_limits.speed) if speed_limits is None else np.minimum(joint_limits.speed, speed_limits)
+    moving = dq > 0.0
+    speed = float(np.min(v[moving] / dq[moving]))
+    acc = joint_limits.acceleration / float(dq.max())
+    jerk = joint_limits.jerk / float(dq.max())
+    return plan_feed(1.0, speed, MotionLimits(speed, acc, jerk))

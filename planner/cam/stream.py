@@ -6,7 +6,9 @@ first sample of the next move (the same pose), so the tool rests less than one s
 move boundary and the job clock ticks uniformly. The rotation vectors are continuous over the whole
 job. A job of hours is millions of poses: :func:`iter_stream` yields them one move at a time;
 :func:`collect` concatenates them for jobs that fit in memory; :func:`track_joints` adds the robot's
-joint positions, chunk by chunk, on one continuous inverse-kinematics branch.
+joint positions, chunk by chunk, on one continuous inverse-kinematics branch between the changes of the
+arm configuration. A change (a "reconfiguration" move, in a rapid) is a joint move: its chunk carries
+its joints, and its poses are their forward kinematics.
 """
 
 from __future__ import annotations
@@ -30,7 +32,7 @@ class StreamChunk:
     move : int
         Index of the move in ``CamJob.moves``.
     kind : str
-        "cut", "rapid" or "reorientation".
+        "cut", "rapid", "reorientation" or "reconfiguration".
     pass_index : int
         Pass number of a cut, -1 otherwise.
     times : ndarray (k,)
@@ -38,7 +40,10 @@ class StreamChunk:
     poses : ndarray (k, 6)
         TCP poses p[x, y, z, rx, ry, rz] in the robot base frame (m, rotation vector, continuous).
     lines : ndarray (k,) of int
-        Source line of the record each sample carries out.
+        Source line of the record each sample carries out (of a reconfiguration: its rapid's record).
+    joints : ndarray (k, 6) or None
+        Joint positions (rad) of a reconfiguration (a joint move); None for the Cartesian moves, whose
+        joints come from inverse kinematics (:func:`track_joints`).
     """
 
     move: int
@@ -47,6 +52,7 @@ class StreamChunk:
     times: np.ndarray
     poses: np.ndarray
     lines: np.ndarray
+    joints: np.ndarray | None = None
 
 
 @dataclass(frozen=True, eq=False)
@@ -93,8 +99,15 @@ def iter_stream(job, rate: float):
     for k in moving:
         m = moves[k]
         n = int(counts[k]) + (1 if k == final else 0)
-        r = None
-        if m.kind in ("cut", "rapid"):
+        r = q = None
+        if m.kind == "reconfiguration":  # a joint move: its poses are the forward kinematics of its joints
+            from planner.kinematics import forward_matrix
+
+            q = m.item.joints(m.profile.s(np.arange(n) / rate))
+            T = forward_matrix(job.settings.robot, q, tcp=job.settings.tcp)
+            pos, R = T[:, :3, 3], T[:, :3, :3]
+            lines = np.full(n, m.item.line)
+        elif m.kind in ("cut", "rapid"):
             ps = sample_poses(m.path, m.profile, tool_orientation(m.frames), rate=rate, base=Tb)
             pos, R = ps.positions[:n], ps.rotations[:n]
             r = ps.poses[:n, 3:]  # continuous within the move; checked against the previous move below
@@ -111,15 +124,16 @@ def iter_stream(job, rate: float):
             r, _ = continuous_rotvec(R, None if r_prev is None else _rotvec_quaternion(r_prev), r_prev)
         r_prev = r[-1]
         yield StreamChunk(int(k), m.kind, m.pass_index, (offsets[k] + np.arange(n)) / rate,
-                          np.hstack((pos, r)), np.asarray(lines, dtype=np.int64))
+                          np.hstack((pos, r)), np.asarray(lines, dtype=np.int64), q)
 
 
 def track_joints(job, chunks, q_start=None):
     """Yield ``(chunk, q)`` for each chunk of a job's stream: q (k, 6) the joint positions (rad) of the robot.
 
-    The joint trajectory follows one inverse-kinematics branch over the whole job
-    (:func:`planner.kinematics.inverse_path`, with the job's TCP): each chunk starts from the last
-    reachable joint vector of the previous one. Poses without a solution are rows of NaN (the job's
+    The joint trajectory follows one inverse-kinematics branch from one change of the arm configuration
+    to the next (:func:`planner.kinematics.inverse_path`, with the job's TCP): each chunk starts from the
+    last reachable joint vector of the previous one; a reconfiguration chunk carries its joints, and the
+    chunks after it continue from them. Poses without a solution are rows of NaN (the job's
     ``problems`` name them by pass and line). Bounded memory: one chunk at a time.
 
     Parameters
@@ -130,18 +144,24 @@ def track_joints(job, chunks, q_start=None):
         The job's stream (``job.iter_stream(rate)``), or a subsequence of it in order (e.g. every k-th
         pose of each chunk, for a plot).
     q_start : array_like (6,), optional
-        Joint positions before the first chunk (rad); without it the branch of the first chunk with
-        the least joint travel is taken, as the job's reachability check does.
+        Joint positions before the first chunk (rad); default: the job's ``start_joints`` (the
+        configuration its reachability check chose), else the branch of least joint travel.
     """
     from planner.kinematics import inverse_path
 
     robot, tcp = job.settings.robot, job.settings.tcp
     if robot is None:
         raise CamInputError("joint positions need a robot: the job was planned without one (robot=None)")
+    if q_start is None:
+        q_start = getattr(job, "start_joints", None)
     q_prev = None if q_start is None else np.asarray(q_start, dtype=float)
     for c in chunks:
         if c.times.size == 0:
             yield c, np.zeros((0, 6))
+            continue
+        if c.joints is not None:  # a joint move: the configuration changes here
+            q_prev = c.joints[-1]
+            yield c, c.joints
             continue
         q = inverse_path(robot, c.poses, q_prev, tcp=tcp, allow_unreachable=True)
         ok = np.flatnonzero(np.isfinite(q).all(axis=1))
@@ -160,7 +180,7 @@ def thin_chunk(chunk: StreamChunk, step: int, offset: int = 0) -> StreamChunk:
     first = (-offset) % step
     keep = np.union1d(np.arange(first, n, step), [n - 1]) if n else np.zeros(0, dtype=np.int64)
     return StreamChunk(chunk.move, chunk.kind, chunk.pass_index, chunk.times[keep], chunk.poses[keep],
-                       chunk.lines[keep])
+                       chunk.lines[keep], None if chunk.joints is None else chunk.joints[keep])
 
 
 def _rotvec_quaternion(r: np.ndarray) -> np.ndarray:

@@ -5,7 +5,10 @@ Millions of inline ``servoj`` targets are no program for a job of hours (the sin
 ``movep`` target, rapid and turn:
 
 - ``movej`` to the job's first pose, given as joint positions on the inverse-kinematics branch the
-  job's reachability check followed: every later move is Cartesian and stays on that branch;
+  job's reachability check followed: the Cartesian moves after it stay on that branch;
+- each change of the arm configuration (a "reconfiguration" move the planner put at a rapid's safe
+  point) as ``movej`` to the new joint positions at the same pose, timed (``t``) as planned from the
+  joint limits: the Cartesian moves after it stay on the new branch;
 - each cutting pass as ``movep`` moves (:func:`~planner.export.movep.plan_movep`): targets on the
   planned PH path whose polyline stays within ``tolerance / 2`` of it, blend radii with a corner cut
   of at most ``tolerance / 2``, so the program follows the planned path within ``tolerance``; the
@@ -52,7 +55,7 @@ class ProgramMove:
     move : int
         Index of the move in ``CamJob.moves``.
     kind : str
-        "cut", "rapid" or "reorientation".
+        "cut", "rapid", "reorientation" or "reconfiguration".
     pass_index : int
         Pass number of a cut, -1 otherwise.
     first_line, last_line : int
@@ -69,6 +72,8 @@ class ProgramMove:
         Planned time of the move, s.
     turn : float
         Angle the tool turns by (rapids and turns), rad.
+    joints : ndarray (6,) or None
+        Target joint positions of a reconfiguration (rad).
     """
 
     move: int
@@ -83,6 +88,7 @@ class ProgramMove:
     speed: float
     duration: float
     turn: float
+    joints: np.ndarray | None = None
 
 
 def _turn_pose(m, Tb: np.ndarray, angle: float) -> np.ndarray:
@@ -129,6 +135,13 @@ def plan_job_program(job, *, tolerance: float | None = None, angle_tolerance: fl
             lines = m.item.lines
             out.append(ProgramMove(k, "cut", m.pass_index, int(lines[0]), int(lines[-1]), int(lines[1]), plan,
                                    plan.poses[0], plan.poses[-1], float(np.max(plan.speeds)), m.duration, 0.0))
+        elif m.kind == "reconfiguration":
+            from planner.kinematics import forward
+
+            r = m.item
+            ends = forward(job.settings.robot, np.vstack((r.q_from, r.q_to)), tcp=job.settings.tcp)
+            out.append(ProgramMove(k, m.kind, -1, m.line, m.line, m.line, None, ends[0], ends[1], 0.0, m.duration,
+                                   0.0, r.q_to.copy()))
         elif m.kind == "rapid":
             _, _, ends = poses_at_length(m.path, tool_orientation(m.frames), [0.0, m.path.length], base=Tb)
             speed = float(np.max(m.profile.commanded))
@@ -217,10 +230,12 @@ def job_program(
         "movep_targets": int(sum(p.s.size - 1 for p in plans)),
         "movep_deviation_m": max((p.deviation for p in plans), default=0.0),
         "movep_angle_deviation_deg": math.degrees(max((p.angle_deviation for p in plans), default=0.0)),
-        "movel_moves": sum(1 for m in moves if m.plan is None),
+        "movel_moves": sum(1 for m in moves if m.plan is None and m.kind != "reconfiguration"),
+        "movej_reconfigurations": sum(1 for m in moves if m.kind == "reconfiguration"),
         "start_joints_rad": [float(x) for x in q0],
     }
-    params = cam_job_parameters(job, None, {**dict(parameters or {}), "program": stats})
+    extra = {"reconfigurations": job.reconfiguration_lines()} if job.reconfigurations else {}
+    params = cam_job_parameters(job, None, {**extra, **dict(parameters or {}), "program": stats})
     tcp_pose = transform_to_pose(as_transform(s.tcp, "tcp"))
     lines = [f"def {name}():"]
     lines += header("whole-job movep/movel", params, [])
@@ -229,6 +244,7 @@ def job_program(
         "  # Passes: movep within tolerance of the planned path, ending with r = 0 where the CAM system stops.",
         "  # Rapids and turns in place: movel (straight, orientation about one axis); t = planned time where",
         "  # the tool turns. No outputs are switched: the CAM job carries no tool I/O.",
+        "  # Changes of the arm configuration: movej at a rapid's safe point, t = planned time of the joint move.",
         f"  set_tcp({pose(tcp_pose)})",
     ]
     events = _noted_events(job)
@@ -248,6 +264,12 @@ def job_program(
                 f"pass {m.pass_index}{op}, lines {m.first_line}-{m.last_line}: {1e3 * m.plan.s[-1]:.3f} mm at up to "
                 f"{1e3 * m.speed:.3f} mm/s in movep moves: {m.plan.s.size - 1}, planned {m.duration:.3f} s"))
             lines += movep_lines(m.plan, a)
+        elif m.kind == "reconfiguration":
+            r = job.moves[m.move].item
+            jl = s.joint_limits
+            lines.append(comment(f"change of the arm configuration for pass {r.pass_index}, line {m.first_line} "
+                                 f"({r.where}): {r.change}; joint move of {m.duration:.3f} s"))
+            lines.append(f"  movej({vec(m.joints)}, a={num(jl.acceleration)}, v={num(jl.speed)}, t={num(m.duration)})")
         elif m.kind == "rapid":
             dist = float(np.linalg.norm(m.target[:3] - m.start[:3]))
             timing = f", t={num(m.duration)}" if m.turn > 0.0 else ""

@@ -11,13 +11,15 @@ JSON layout (one object; the keys come in this order, so a streaming parser meet
     {"format": "planner-cam-job-stream/1",
      "parameters": {...},                  # generator, job parameters and figures (header.cam_job_parameters)
      "moves": [{"move", "kind", "pass", "operation", "first_line", "last_line", "t_start", "duration_s",
-                "samples"}, ...],          # every move of the job, skipped records included
+                "samples"(, "for_pass", "q_from", "q_to")}, ...],  # every move, skipped records included;
+                                           # a change of the arm configuration with its joints (rad)
      "columns": ["t", "x", "y", "z", "rx", "ry", "rz", "kind", "move", "pass", "line"(, "q0".."q5")],
      "samples": [[t, x, y, z, rx, ry, rz, kind, move, pass, line(, q0..q5)], ...]}
 
 Poses are p[x, y, z, rx, ry, rz] of the TCP in the robot base frame (m, rotation vector, continuous
-over the job, so |r| may exceed pi); ``pass`` is -1 on rapids and turns; ``line`` is the source line
-of the record the sample carries out.
+over the job, so |r| may exceed pi); ``pass`` is -1 on rapids, turns and changes of the arm
+configuration ("reconfiguration": a joint move in a rapid, its poses the forward kinematics of its
+joints); ``line`` is the source line of the record the sample carries out.
 """
 
 from __future__ import annotations
@@ -43,7 +45,8 @@ def _chunks_with_joints(chunks: Iterable) -> Iterable:
 
 def move_table(job, rate: float) -> list[dict]:
     """One dict per move of the job: move, kind, pass, operation, first_line, last_line, t_start (s),
-    duration_s, samples (poses the move starts in the stream at ``rate``; 0 for skipped records)."""
+    duration_s, samples (poses the move starts in the stream at ``rate``; 0 for skipped records); a change
+    of the arm configuration adds for_pass (the first pass made on it) and q_from, q_to (rad)."""
     from planner.cam.stream import sample_counts
 
     counts = sample_counts(job.moves, rate)
@@ -57,9 +60,18 @@ def move_table(job, rate: float) -> list[dict]:
             "first_line": int(m.line), "last_line": int(m.line if last is None else last),
             "t_start": float(starts[k]), "duration_s": m.duration, "samples": int(counts[k]),
         })
+        if m.kind == "reconfiguration":
+            out[-1].update({"for_pass": int(item.pass_index), "q_from": [float(x) for x in item.q_from],
+                            "q_to": [float(x) for x in item.q_to]})
     if out and counts.any():
         out[int(np.flatnonzero(counts)[-1])]["samples"] += 1  # the job's final pose
     return out
+
+
+def _parameters(job, rate: float, parameters: Mapping | None) -> dict:
+    """The header of a job's stream: its parameters and figures, and its changes of the arm configuration."""
+    extra = {"reconfigurations": job.reconfiguration_lines()} if getattr(job, "reconfigurations", ()) else {}
+    return cam_job_parameters(job, rate, {**extra, **dict(parameters or {})})
 
 
 def _open(target):
@@ -85,7 +97,7 @@ def write_job_csv(job, chunks: Iterable, target, *, rate: float, parameters: Map
     parameters : mapping, optional
         Extra header entries (e.g. the input file name).
     """
-    params = cam_job_parameters(job, rate, parameters)
+    params = _parameters(job, rate, parameters)
     f, close = _open(target)
     n, names = 0, None
     try:
@@ -115,7 +127,7 @@ def write_job_json(job, chunks: Iterable, target, *, rate: float, parameters: Ma
     Parameters are those of :func:`write_job_csv`; with joints the columns ``q0..q5`` (rad) follow.
     Memory stays bounded by one move's poses; the file is valid JSON only once complete.
     """
-    params = cam_job_parameters(job, rate, parameters)
+    params = _parameters(job, rate, parameters)
     try:
         head = json.dumps(params, allow_nan=False)
         moves = json.dumps(move_table(job, rate), allow_nan=False)

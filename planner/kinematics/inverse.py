@@ -20,6 +20,12 @@ that every quantity is computed from well-conditioned inputs):
   q3 = +-acos((x^2 + y^2 - a2^2 - a3^2) / (2 a2 a3)), q2 = atan2(y, x) - atan2(a3 sin q3, a2 + a3 cos q3),
   q4 = q234 - q2 - q3.
 
+The sines and cosines of the angles found by atan2 / asin / acos are never evaluated by sin and cos:
+they are the normalized arguments (cos atan2(y, x) = x / hypot(x, y), cos asin(s) = sqrt(1 - s^2),
+sin acos(c) = sqrt((1 - c)(1 + c))), equal to round-off and several times cheaper. The solver works on
+blocks of samples with the sample axis last (contiguous, cache-sized), so a path of 10^5 poses costs
+a few microseconds per pose.
+
 Candidates computed from clipped round-off (workspace boundary) or turned next to the wrist
 singularity are checked by forward kinematics and discarded unless they reproduce the pose to 1e-9
 (m and rad); elsewhere the formulas are exact and FK(IK(p)) = p holds to round-off (~1e-15).
@@ -50,15 +56,23 @@ _POS_TOL = 1e-9
 _ROT_TOL = 1e-9
 # Joint-space distance below which two solutions of one pose count as the same one.
 _SAME_SOLUTION = 1e-9
-# Samples per block when comparing all 8 x 8 branch pairs of consecutive path samples.
+# Samples per block: the solver's arrays and the branch comparisons of a block stay in cache.
 _BLOCK = 4096
+# Margin (rad) of the test that a branch's nearest successor is the same branch (see _next_branch).
+_SAME_BRANCH_MARGIN = 1e-12
+_TWO_PI = 2.0 * np.pi
+_INV_TWO_PI = 1.0 / _TWO_PI
+_SIGNS = np.array([1.0, -1.0])
 
 
 def wrap_angle(x) -> np.ndarray:
-    """Angles wrapped into (-pi, pi]."""
+    """Angles wrapped into (-pi, pi] (a new array)."""
     x = np.asarray(x, dtype=float)
-    w = np.pi - np.mod(np.pi - x, 2.0 * np.pi)
-    return np.where(w <= -np.pi, w + 2.0 * np.pi, w)  # mod may round up to 2 pi for tiny negatives
+    w = np.subtract(x, _TWO_PI * np.round(x * _INV_TWO_PI), out=np.empty_like(x))
+    # round(x / 2 pi) may leave w a rounding error outside (-pi, pi]: one step back covers it
+    np.add(w, _TWO_PI, out=w, where=w <= -np.pi)
+    np.subtract(w, _TWO_PI, out=w, where=w > np.pi)
+    return w
 
 
 @dataclass(frozen=True)
@@ -105,99 +119,155 @@ def _flange_targets(m: URModel, poses: np.ndarray, tcp) -> np.ndarray:
     return T
 
 
-def _solve(m: URModel, T: np.ndarray, q6_ref: np.ndarray) -> IKSolutions:
+@dataclass(frozen=True)
+class _Branches:
+    """The solver's own layout of all 8 branches for n poses (sample axis last, contiguous rows).
+
+    ``q`` (6, 8, n): joint, branch, sample (rad, wrapped; NaN where not valid); ``valid`` and
+    ``singular`` (8, n): as in :class:`IKSolutions`, branch by sample.
+    """
+
+    q: np.ndarray
+    valid: np.ndarray
+    singular: np.ndarray
+
+    def public(self, m: URModel) -> IKSolutions:
+        """The same solutions as :class:`IKSolutions` (sample-major arrays)."""
+        q = np.ascontiguousarray(self.q.transpose(2, 1, 0))
+        valid = np.ascontiguousarray(self.valid.T)
+        if (m.lower <= -np.pi).all() and (m.upper >= np.pi).all():
+            within = valid.copy()  # wrapped angles lie in (-pi, pi]: inside such limits
+        else:
+            within = valid & ((q >= m.lower) & (q <= m.upper)).all(axis=-1)
+        return IKSolutions(q=q, valid=valid, within_limits=within, singular=np.ascontiguousarray(self.singular.T))
+
+
+def _solve(m: URModel, T: np.ndarray, q6_ref: np.ndarray) -> _Branches:
     """All branches for flange transforms T (n, 4, 4); q6_ref (n,) used at wrist singularities."""
     n = len(T)
-    R, p = T[:, :3, :3], T[:, :3, 3]
-    x6, y6, z6 = R[:, :, 0], R[:, :, 1], R[:, :, 2]
-
-    # Shoulder: wrist centre p5 . z1 = d4 (Hawkins 2013, eq. for theta1).
-    p5 = p - m.d6 * z6
-    r = np.hypot(p5[:, 0], p5[:, 1])
-    psi = np.arctan2(p5[:, 1], p5[:, 0])
-    with np.errstate(divide="ignore", invalid="ignore"):
-        ratio = m.d4 / r
-    ok1 = ratio <= 1.0 + _BOUNDARY_TOL  # False also for r = 0 (ratio inf)
-    beta = np.arcsin(np.clip(ratio, -1.0, 1.0))
-    q1 = np.stack([psi + beta, psi + np.pi - beta], axis=1)  # (n, 2)
-    s1, c1 = np.sin(q1), np.cos(q1)
-
-    # Wrist: z1 in the flange frame is (cos q6 sin q5, -sin q6 sin q5, cos q5).
-    u = x6[:, None, 0] * s1 - x6[:, None, 1] * c1
-    v = y6[:, None, 0] * s1 - y6[:, None, 1] * c1
-    w = z6[:, None, 0] * s1 - z6[:, None, 1] * c1
-    h = np.hypot(u, v)  # |sin q5|, exact from the rotation (no sqrt(1 - cos^2) cancellation)
-    sgn = np.array([1.0, -1.0])
-    q5 = np.arctan2(sgn * h[:, :, None], w[:, :, None])  # (n, 2, 2)
-    singular = np.broadcast_to((h < _WRIST_SINGULAR)[:, :, None], q5.shape)
-    q6 = np.where(
-        singular,
-        q6_ref[:, None, None],
-        np.arctan2(-sgn * v[:, :, None], sgn * u[:, :, None]),
-    )
-
-    # Planar 2R arm in frame 1 (T14 = T01^-1 T06 T56^-1 T45^-1, written out): with x1 = (c1, s1, 0),
-    # y1 = (0, 0, 1), the flange x/y axes give (-s234, c234) = s6 x6_1 + c6 y6_1 (first two entries),
-    # and the frame-4 origin is p6_1 - (-d6 s5 c234 + d5 s234, -d6 s5 s234 - d5 c234).
-    s5, c6, s6 = np.sin(q5), np.cos(q6), np.sin(q6)
-    c1b, s1b = c1[:, :, None], s1[:, :, None]
-
-    def in_frame1(vec):  # (n, 3) base-frame vectors -> their x1, y1 components, shape (n, 2, 1)
-        return vec[:, None, None, 0] * c1b + vec[:, None, None, 1] * s1b, vec[:, None, None, 2]
-
-    x6x, x6y = in_frame1(x6)
-    y6x, y6y = in_frame1(y6)
-    q234 = np.arctan2(-(s6 * x6x + c6 * y6x), s6 * x6y + c6 * y6y)  # (n, 2, 2)
-    px, pz = in_frame1(p)
-    near = np.broadcast_to((h < _WRIST_NEAR)[:, :, None], q5.shape)
-    adjusted = np.zeros(q5.shape, dtype=bool)
-    if near.any():
-        c5 = np.sign(w)[:, :, None]
-        q234, q6, adjusted = _reachable_self_motion(m, q234, q6, s5, c5, near, px, pz - m.d1)
-        s5, c6, s6 = np.sin(q5), np.cos(q6), np.sin(q6)
-    c234, s234 = np.cos(q234), np.sin(q234)
-    x = px + m.d6 * s5 * c234 - m.d5 * s234
-    y = (pz - m.d1) + m.d6 * s5 * s234 + m.d5 * c234
-    cos3 = (x * x + y * y - m.a2**2 - m.a3**2) / (2.0 * m.a2 * m.a3)
-    ok3 = np.abs(cos3) <= 1.0 + _BOUNDARY_TOL
-    q3 = np.arccos(np.clip(cos3, -1.0, 1.0))[..., None] * sgn  # (n, 2, 2, 2)
-    q2 = np.arctan2(y, x)[..., None] - np.arctan2(m.a3 * np.sin(q3), m.a2 + m.a3 * np.cos(q3))
-    q4 = q234[..., None] - q2 - q3
-
-    shape = (n, 2, 2, 2)
-    q = np.stack(
-        [
-            np.broadcast_to(q1[:, :, None, None], shape),
-            q2,
-            q3,
-            q4,
-            np.broadcast_to(q5[..., None], shape),
-            np.broadcast_to(q6[..., None], shape),
-        ],
-        axis=-1,
-    )
-    q = wrap_angle(q).reshape(n, 8, 6)
-    valid = np.broadcast_to(ok1[:, None, None, None] & ok3[..., None], shape).reshape(n, 8)
-    valid = valid & np.isfinite(q).all(axis=-1)  # a fresh, writable array
-    singular = np.broadcast_to(singular[..., None], shape).reshape(n, 8)
+    q = np.empty((6, 2, 2, 2, n))
+    valid = np.empty((2, 2, 2, n), dtype=bool)
+    singular = np.empty((2, 2, 2, n), dtype=bool)
+    clipped = np.empty((2, 2, 2, n), dtype=bool)
+    for a in range(0, n, _BLOCK):
+        b = min(a + _BLOCK, n)
+        _solve_block(m, T[a:b], q6_ref[a:b], q[..., a:b], valid[..., a:b], singular[..., a:b], clipped[..., a:b])
+    q, valid, singular, clipped = q.reshape(6, 8, n), valid.reshape(8, n), singular.reshape(8, n), clipped.reshape(8, n)
 
     # Where round-off was clipped at the workspace boundary, or q4, q6 were turned next to the wrist
     # singularity, keep only candidates that reproduce the pose (elsewhere the formulas are exact
     # identities; tests check FK(IK(p)) = p).
-    clipped = np.broadcast_to(
-        (np.abs(ratio) > 1.0)[:, None, None, None] | ((np.abs(cos3) > 1.0) | adjusted)[..., None], shape
-    ).reshape(n, 8)
-    check = np.flatnonzero(valid & clipped)
+    check = np.flatnonzero(valid & clipped)  # branch * n + sample
     if len(check):
-        R_chk, p_chk = flange_rp(m, q.reshape(-1, 6)[check])
-        rows = check // 8
-        pos_err = np.linalg.norm(p_chk - p[rows], axis=-1)
-        rot_err = np.linalg.norm(R_chk - R[rows], axis=(-1, -2)) / np.sqrt(2.0)  # ~ angle (rad)
+        br, rows = np.divmod(check, n)
+        R_chk, p_chk = flange_rp(m, q[:, br, rows].T)
+        pos_err = np.linalg.norm(p_chk - T[rows, :3, 3], axis=-1)
+        rot_err = np.linalg.norm(R_chk - T[rows, :3, :3], axis=(-1, -2)) / np.sqrt(2.0)  # ~ angle (rad)
         valid.reshape(-1)[check] = (pos_err <= _POS_TOL) & (rot_err <= _ROT_TOL)
+    np.copyto(q, np.nan, where=~valid)
+    return _Branches(q=q, valid=valid, singular=singular & valid)
 
-    q = np.where(valid[..., None], q, np.nan)
-    within = valid & ((q >= m.lower) & (q <= m.upper)).all(axis=-1)
-    return IKSolutions(q=q, valid=valid, within_limits=within, singular=singular & valid)
+
+def _solve_block(m: URModel, T, q6_ref, q_out, valid_out, singular_out, clipped_out) -> None:
+    """The branches of one block of flange transforms T (k, 4, 4), written into the ``*_out`` arrays
+    ((6, 2, 2, 2, k) wrapped joints by shoulder, wrist and elbow solution; (2, 2, 2, k) masks; clipped:
+    candidates to verify by forward kinematics).
+
+    Arrays here put the sample axis last: (k,), shoulder (2, k), shoulder x wrist (2, 2, k) and
+    shoulder x wrist x elbow (2, 2, 2, k), so every operation runs over contiguous memory."""
+    C = np.ascontiguousarray(T[:, :3, :].transpose(1, 2, 0))  # (3, 4, k): C[i, j] = T[:, i, j]
+    x6, y6, z6, p = C[:, 0], C[:, 1], C[:, 2], C[:, 3]  # (3, k) each: columns of R and the origin
+    sg2 = _SIGNS[:, None]  # (2, 1): + / - branch on the next axis
+
+    # Shoulder: wrist centre p5 . z1 = d4 (Hawkins 2013, eq. for theta1).
+    p5x, p5y = p[0] - m.d6 * z6[0], p[1] - m.d6 * z6[1]
+    r = np.hypot(p5x, p5y)
+    psi = np.arctan2(p5y, p5x)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        ratio = m.d4 / r
+        r_safe = np.where(r > 0.0, r, 1.0)  # r = 0: psi = 0 as atan2 gives (the branch is invalid)
+    cpsi, spsi = np.where(r > 0.0, p5x / r_safe, 1.0), p5y / r_safe
+    ok1 = ratio <= 1.0 + _BOUNDARY_TOL  # False also for r = 0 (ratio inf)
+    sb = np.clip(ratio, -1.0, 1.0)  # sin beta
+    beta = np.arcsin(sb)
+    cb = np.sqrt((1.0 - sb) * (1.0 + sb))  # cos beta >= 0
+    q1 = np.stack([psi + beta, psi + np.pi - beta])  # (2, k)
+    # cos, sin of psi + beta and psi + pi - beta by the angle-sum formulas
+    c1 = np.stack([cpsi * cb - spsi * sb, -(cpsi * cb + spsi * sb)])
+    s1 = np.stack([spsi * cb + cpsi * sb, cpsi * sb - spsi * cb])
+
+    # Wrist: z1 in the flange frame is (cos q6 sin q5, -sin q6 sin q5, cos q5).
+    u = x6[0] * s1 - x6[1] * c1  # (2, k)
+    v = y6[0] * s1 - y6[1] * c1
+    w = z6[0] * s1 - z6[1] * c1
+    h = np.sqrt(u * u + v * v)  # |sin q5|, exact from the rotation (no sqrt(1 - cos^2) cancellation)
+    q5 = np.arctan2(sg2 * h[:, None], w[:, None])  # (2, 2, k)
+    s5 = sg2 * (h / np.sqrt(h * h + w * w))[:, None]  # sin q5
+    sing = h < _WRIST_SINGULAR  # (2, k)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        q6 = np.arctan2(-sg2 * v[:, None], sg2 * u[:, None])  # (2, 2, k)
+        c6 = sg2 * (u / h)[:, None]  # cos and sin of that atan2
+        s6 = -sg2 * (v / h)[:, None]
+    if sing.any():
+        sing3 = np.broadcast_to(sing[:, None], q6.shape)
+        ref = np.broadcast_to(q6_ref, q6.shape)
+        q6 = np.where(sing3, ref, q6)
+        c6 = np.where(sing3, np.cos(ref), c6)
+        s6 = np.where(sing3, np.sin(ref), s6)
+
+    # Planar 2R arm in frame 1 (T14 = T01^-1 T06 T56^-1 T45^-1, written out): with x1 = (c1, s1, 0),
+    # y1 = (0, 0, 1), the flange x/y axes give (-s234, c234) = s6 x6_1 + c6 y6_1 (first two entries),
+    # and the frame-4 origin is p6_1 - (-d6 s5 c234 + d5 s234, -d6 s5 s234 - d5 c234).
+    x6x = (x6[0] * c1 + x6[1] * s1)[:, None]  # (2, 1, k): x1 components; the y1 components are x6[2]
+    y6x = (y6[0] * c1 + y6[1] * s1)[:, None]
+    Y = -(s6 * x6x + c6 * y6x)  # sin q234
+    X = s6 * x6[2] + c6 * y6[2]  # cos q234
+    q234 = np.arctan2(Y, X)  # (2, 2, k)
+    nrm = np.sqrt(X * X + Y * Y)
+    c234, s234 = X / nrm, Y / nrm
+    px = (p[0] * c1 + p[1] * s1)[:, None]  # (2, 1, k)
+    pz = p[2] - m.d1  # (k,)
+    adjusted = np.zeros(q5.shape, dtype=bool)
+    near = h < _WRIST_NEAR
+    turned = sing.any()
+    if near.any():
+        near3 = np.broadcast_to(near[:, None], q5.shape)
+        c5 = np.sign(w)[:, None]
+        q234, q6, adjusted = _reachable_self_motion(m, q234, q6, s5, c5, near3, px, pz)
+        if adjusted.any():
+            turned = True
+            c6, s6 = np.where(adjusted, np.cos(q6), c6), np.where(adjusted, np.sin(q6), s6)
+            c234, s234 = np.where(adjusted, np.cos(q234), c234), np.where(adjusted, np.sin(q234), s234)
+    x = px + m.d6 * s5 * c234 - m.d5 * s234  # (2, 2, k)
+    y = pz + m.d6 * s5 * s234 + m.d5 * c234
+    cos3 = (x * x + y * y - m.a2**2 - m.a3**2) / (2.0 * m.a2 * m.a3)
+    ok3 = np.abs(cos3) <= 1.0 + _BOUNDARY_TOL
+    c3 = np.clip(cos3, -1.0, 1.0)
+    t3 = np.arccos(c3)  # q3 = +-t3
+    s3 = np.sqrt((1.0 - c3) * (1.0 + c3))  # sin t3 >= 0
+    phi = np.arctan2(y, x)
+    gam = np.arctan2(m.a3 * s3, m.a2 + m.a3 * c3)  # atan2(a3 sin q3, a2 + a3 cos q3) = +-gam (odd in y)
+
+    # Joints wrapped to (-pi, pi] as they are written: atan2, acos and asin give [-pi, pi] or (-3 pi, 3 pi)
+    # (q1: psi +- asin, q2: a difference of atan2, q4 = q234 - q2 - q3), q6 any value where it was set.
+    q_out[0] = wrap_angle(q1)[:, None, None]
+    q2 = np.stack([phi - gam, phi + gam], axis=2)  # (2, 2, 2, k): shoulder, wrist, elbow
+    q_out[1] = wrap_angle(q2)
+    q3 = q_out[2]
+    q3[:, :, 0], q3[:, :, 1] = t3, -t3
+    _pi_not_minus_pi(q3)
+    q_out[3] = wrap_angle(q234[:, :, None] - q2 - q3)
+    q_out[4] = _pi_not_minus_pi(q5)[:, :, None]
+    q_out[5] = (wrap_angle(q6) if turned else _pi_not_minus_pi(q6))[:, :, None]
+    valid_out[...] = (ok1 & ok3)[:, :, None]
+    singular_out[...] = sing[:, None, None]
+    clipped_out[...] = ((np.abs(ratio) > 1.0) | (np.abs(cos3) > 1.0) | adjusted)[:, :, None]
+
+
+def _pi_not_minus_pi(x: np.ndarray) -> np.ndarray:
+    """Angles in [-pi, pi] moved into (-pi, pi] in place (-pi becomes pi exactly); returns x."""
+    np.add(x, _TWO_PI, out=x, where=x <= -np.pi)
+    return x
 
 
 def _reachable_self_motion(m: URModel, q234, q6, s5, c5, near, cx, cy):
@@ -265,7 +335,7 @@ def inverse_batch(model: str | URModel, poses, tcp=None, q6_ref=0.0) -> IKSoluti
     """
     m = get_model(model)
     P, _ = rows_of_six(poses, "pose")
-    return _solve(m, _flange_targets(m, P, tcp), _q6_reference(q6_ref, len(P)))
+    return _solve(m, _flange_targets(m, P, tcp), _q6_reference(q6_ref, len(P))).public(m)
 
 
 def _unique_rows(q: np.ndarray) -> np.ndarray:
@@ -305,7 +375,7 @@ def inverse(model: str | URModel, pose, tcp=None, q6_ref: float = 0.0) -> np.nda
             f"pose: inverse() takes one pose of shape (6,), got {np.shape(pose)}; "
             "use inverse_batch() or inverse_path() for many poses"
         )
-    sol = _solve(m, _flange_targets(m, P, tcp), _q6_reference(q6_ref, 1))
+    sol = _solve(m, _flange_targets(m, P, tcp), _q6_reference(q6_ref, 1)).public(m)
     return _unique_rows(sol.q[0][sol.within_limits[0]])
 
 
@@ -327,28 +397,82 @@ def _joint_delta(a: np.ndarray, b: np.ndarray, multiturn: np.ndarray) -> np.ndar
     return np.where(multiturn, wrap_angle(d), d)
 
 
+def _branch_distances(d: np.ndarray, multiturn: np.ndarray) -> np.ndarray:
+    """Joint-space distances (...) of differences d (6, ...) of wrapped solutions (|d| < 2 pi), changed
+    in place: the multiturn joints count the shorter way round (one turn at most)."""
+    for j in np.flatnonzero(multiturn):
+        np.subtract(d[j], 2.0 * np.pi, out=d[j], where=d[j] > np.pi)
+        np.add(d[j], 2.0 * np.pi, out=d[j], where=d[j] <= -np.pi)
+    return np.sqrt(np.einsum("j...,j...->...", d, d))
+
+
+def _separation(Q: np.ndarray, multiturn: np.ndarray) -> np.ndarray:
+    """A lower bound (8, k) on the joint-space distance from each branch of a sample to its nearest other
+    valid branch of the same sample (inf if there is none), for solutions Q (6, 8, k) from ``_solve``.
+
+    Branches that differ in the shoulder solution differ in q1 at least; with the same shoulder, those
+    that differ in the wrist solution differ in q5; with both the same, the two elbow solutions differ
+    in q3. ``_solve`` gives q1 per shoulder solution and q5 per (shoulder, wrist) pair to all the
+    branches that share them (NaN where not valid), so one difference per pair of classes bounds the
+    distance of every pair of valid branches.
+    """
+
+    def apart(d: np.ndarray, j: int) -> np.ndarray:  # |d| in the joint's metric, inf where undefined
+        d = np.abs(d)
+        if multiturn[j]:
+            d = np.minimum(d, 2.0 * np.pi - d)
+        return np.where(np.isnan(d), np.inf, d)
+
+    k = Q.shape[-1]
+    q1 = Q[0].reshape(2, 4, k)
+    q1 = np.fmax(np.fmax(q1[:, 0], q1[:, 1]), np.fmax(q1[:, 2], q1[:, 3]))  # per shoulder solution
+    q5 = Q[4].reshape(2, 2, 2, k)
+    q5 = np.fmax(q5[:, :, 0], q5[:, :, 1])  # per (shoulder, wrist)
+    q3 = Q[2].reshape(2, 2, 2, k)
+    bound = np.minimum(apart(q1[0] - q1[1], 0), apart(q5[:, 0] - q5[:, 1], 4)[:, None, None])  # (2, 1, 1, k)
+    bound = np.minimum(bound, apart(q3[:, :, 0] - q3[:, :, 1], 2)[:, :, None])  # (2, 2, 1, k)
+    return np.broadcast_to(bound, (2, 2, 2, k)).reshape(8, k)
+
+
 def _next_branch(Q: np.ndarray, V: np.ndarray, multiturn: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """For each sample i and branch b, the valid branch at i + 1 nearest in joint space.
 
-    Returns ``nxt`` (n-1, 8) int (-1 if sample i + 1 has no valid branch) and its distance.
+    Q (6, 8, n) and V (8, n) come from ``_solve`` (see :func:`_separation`). Returns ``nxt`` (n-1, 8) int
+    (-1 if sample i + 1 has no valid branch, or b is not valid at i) and its distance.
+
+    Along a path the nearest successor of a branch is almost always the same branch: by the triangle
+    inequality it is whenever the branch's step D(b_i, b_i+1) is less than half the distance from
+    b_i+1 to every other branch at i + 1 (bounded below by :func:`_separation`). Only the samples where
+    that test fails for some branch (next to singularities, where branches meet) compare all 8 x 8
+    pairs; the result is the same as comparing all pairs everywhere.
     """
-    n = len(Q)
-    nxt = np.full((max(n - 1, 0), 8), -1)
-    dist = np.full((max(n - 1, 0), 8), np.inf)
-    for i in range(0, n - 1, _BLOCK):  # blocks bound the memory of the (block, 8, 8, 6) differences
+    n = Q.shape[-1]
+    nxt = np.full((8, max(n - 1, 0)), -1)
+    dist = np.full((8, max(n - 1, 0)), np.inf)
+    same = np.arange(8)[:, None]
+    full: list[np.ndarray] = []
+    for i in range(0, n - 1, _BLOCK):  # blocks: the (6, 8, block) differences stay in cache
         j = min(i + _BLOCK, n - 1)
-        d = Q[i + 1 : j + 1, None] - Q[i:j, :, None]  # both wrapped, so |d| < 2 pi: one turn at most
-        d -= (2.0 * np.pi) * (multiturn & (d > np.pi))
-        d += (2.0 * np.pi) * (multiturn & (d <= -np.pi))
-        D = np.sqrt(np.einsum("...j,...j->...", d, d))
-        D = np.where(V[i + 1 : j + 1, None, :] & ~np.isnan(D), D, np.inf)
-        nxt[i:j] = np.argmin(D, axis=-1)
-        dist[i:j] = np.take_along_axis(D, nxt[i:j, :, None], axis=-1)[..., 0]
-    nxt[~np.isfinite(dist)] = -1
-    return nxt, dist
+        D = _branch_distances(Q[:, :, i + 1 : j + 1] - Q[:, :, i:j], multiturn)  # (8, block): b_i to b_i+1
+        stays = V[:, i + 1 : j + 1] & (2.0 * D + _SAME_BRANCH_MARGIN < _separation(Q[:, :, i + 1 : j + 1], multiturn))
+        nxt[:, i:j] = np.where(stays, same, -1)
+        dist[:, i:j] = np.where(stays, D, np.inf)
+        settled = (stays | ~V[:, i:j]).all(axis=0)  # a branch not valid at i has no successor (-1, inf)
+        full.append(i + np.flatnonzero(~settled))
+    rows = np.concatenate(full) if full else np.zeros(0, dtype=np.int64)
+    for a in range(0, len(rows), _BLOCK // 8):  # all 8 x 8 pairs where the test fails
+        r = rows[a : a + _BLOCK // 8]
+        D = _branch_distances(Q[:, None, :, r + 1] - Q[:, :, None, r], multiturn)  # (8 from, 8 to, rows)
+        D = np.where(V[None, :, r + 1] & ~np.isnan(D), D, np.inf)
+        best = np.argmin(D, axis=1)
+        d = np.take_along_axis(D, best[:, None], axis=1)[:, 0]
+        nxt[:, r] = np.where(np.isfinite(d), best, -1)
+        dist[:, r] = d
+    return nxt.T, dist.T
 
 
 def _nearest(Q_row: np.ndarray, V_row: np.ndarray, q: np.ndarray, multiturn: np.ndarray) -> int:
+    """The valid branch of one sample (Q_row (8, 6), V_row (8,)) nearest to joints q (6,)."""
     D = np.linalg.norm(_joint_delta(q, Q_row, multiturn), axis=-1)
     D = np.where(V_row & ~np.isnan(D), D, np.inf)
     return int(np.argmin(D))
@@ -357,17 +481,21 @@ def _nearest(Q_row: np.ndarray, V_row: np.ndarray, q: np.ndarray, multiturn: np.
 def _follow(nxt: np.ndarray, start: np.ndarray) -> np.ndarray:
     """Branch sequences (L, k) from ``start`` (k,) along transition maps ``nxt`` (L - 1, 8).
 
-    The prefix compositions f_i o ... o f_0 are built by a parallel (Hillis-Steele) scan in
-    log2(L) vectorized steps instead of a per-sample loop; -1 (no valid successor) is absorbing.
+    Only the maps that are not the identity change a sequence: their prefix compositions
+    f_i o ... o f_0 are built by a parallel (Hillis-Steele) scan in log2 steps, and each sample takes
+    the composition of the maps before it; -1 (no valid successor) is absorbing.
     """
-    P = nxt.copy()
+    L = len(nxt) + 1
+    moves = np.flatnonzero((nxt != np.arange(8)).any(axis=1))  # transitions that are not the identity
+    P = nxt[moves]
     shift = 1
     while shift < len(P):
         inner = P[:-shift]
         outer = np.take_along_axis(P[shift:], np.maximum(inner, 0), axis=1)
         P[shift:] = np.where(inner < 0, -1, outer)
         shift *= 2
-    return np.concatenate([start[None, :], P[:, start]], axis=0)
+    prefix = np.concatenate([start[None, :], P[:, start]], axis=0)  # after 0, 1, ... of those maps
+    return prefix[np.searchsorted(moves, np.arange(L), side="left")]  # maps before sample i: moves < i
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -376,24 +504,24 @@ def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
     return list(zip(edges[::2].tolist(), edges[1::2].tolist(), strict=True))
 
 
-def _track(m: URModel, sol: IKSolutions, q_start: np.ndarray | None) -> np.ndarray:
+def _track(m: URModel, sol: _Branches, q_start: np.ndarray | None) -> np.ndarray:
     """Chosen branch per sample (n,), -1 where unreachable."""
     Q, V = sol.q, sol.valid
     multiturn = m.multiturn
     nxt, dist = _next_branch(Q, V, multiturn)
-    runs = _runs(V.any(axis=1))
+    runs = _runs(V.any(axis=0))
     first = runs[0][0]
     if q_start is not None:
-        starts = np.array([_nearest(Q[first], V[first], q_start, multiturn)])
+        starts = np.array([_nearest(Q[:, :, first].T, V[:, first], q_start, multiturn)])
     else:
-        starts = np.flatnonzero(V[first])
-    chains = np.full((len(Q), len(starts)), -1)
+        starts = np.flatnonzero(V[:, first])
+    chains = np.full((Q.shape[-1], len(starts)), -1)
     cost = np.zeros(len(starts))
     cur = starts
     for k, (s, e) in enumerate(runs):  # one pass per run of reachable samples (gaps are rare)
         if k:  # leaving a gap: nearest solution to the last one reached before it
             last = runs[k - 1][1] - 1
-            cur = np.array([_nearest(Q[s], V[s], Q[last, b], multiturn) for b in chains[last]])
+            cur = np.array([_nearest(Q[:, :, s].T, V[:, s], Q[:, b, last], multiturn) for b in chains[last]])
         chains[s:e] = _follow(nxt[s : e - 1], cur)
         cost += np.take_along_axis(dist[s : e - 1], chains[s : e - 1], axis=1).sum(axis=0)
     return chains[:, int(np.argmin(cost))]  # least total joint travel
@@ -450,7 +578,7 @@ def inverse_path(
         q_start = qs[0]
     T = _flange_targets(m, P, tcp)
     sol = _solve(m, T, np.zeros(n))
-    reach = sol.valid.any(axis=1)
+    reach = sol.valid.any(axis=0)
     if not reach.all() and not allow_unreachable:
         i = int(np.argmin(reach))
         raise UnreachableError(f"no inverse kinematics solution: {_why_unreachable(m, T[i])}", i)
@@ -459,11 +587,11 @@ def inverse_path(
 
     chain = _track(m, sol, q_start)
     rows = np.flatnonzero(chain >= 0)
-    sing = rows[sol.singular[rows, chain[rows]]]
+    sing = rows[sol.singular[chain[rows], rows]]
     if len(sing):
         # Wrist-singular samples fix only q4 + q6: re-solve them with q6 interpolated (in sample
         # index) between the nearest regular samples, held constant beyond the last one.
-        q6 = sol.q[rows, chain[rows], 5]
+        q6 = sol.q[5, chain[rows], rows]
         is_sing = np.isin(rows, sing)
         if is_sing.all():
             ref = np.full(len(sing), 0.0 if q_start is None else float(wrap_angle(q_start[5])))
@@ -471,12 +599,12 @@ def inverse_path(
             ref = np.interp(sing, rows[~is_sing], np.unwrap(q6[~is_sing]))
         fixed = _solve(m, T[sing], ref)
         q_all, valid = sol.q.copy(), sol.valid.copy()
-        q_all[sing], valid[sing] = fixed.q, fixed.valid
-        sol = IKSolutions(q_all, valid, sol.within_limits, sol.singular)
+        q_all[..., sing], valid[:, sing] = fixed.q, fixed.valid
+        sol = _Branches(q_all, valid, sol.singular)
         chain = _track(m, sol, q_start)
         rows = np.flatnonzero(chain >= 0)
 
-    qw = sol.q[rows, chain[rows]]  # (r, 6) wrapped solutions on the reached samples
+    qw = sol.q[:, chain[rows], rows].T  # (r, 6) wrapped solutions on the reached samples
     mt = m.multiturn
     steps = _joint_delta(qw[:-1], qw[1:], mt)
     q0 = qw[0].copy()
