@@ -269,7 +269,8 @@ def _export_whole_job(job, out: Path, source: Path, rate: float, bar: _ProgressB
         except PlannerError as exc:
             raise PlannerError(f"not writing {out.name}: {exc}") from None
         write_script(text, out)
-        return f"{text.count(chr(10) + '  movep(')} movep, {text.count(chr(10) + '  movel(')} movel"
+        counts = {cmd: text.count(f"\n  {cmd}(") for cmd in ("movep", "movel", "movej")}
+        return ", ".join(f"{n} {cmd}" for cmd, n in counts.items() if n)
     chunks = job.iter_stream(rate)
     if job.settings.robot is not None and suffix == ".json":
         from planner.cam.stream import track_joints
