@@ -9,13 +9,19 @@ samples of the cubic spline) against a converged quadrature of the cubic spline'
 Targets (issue 2): C1 fit of 1000 waypoints < 20 ms and within 3x of CubicSpline; C2 fit of 1000
 waypoints < 1 s; PH arc length relative error < 1e-12.
 
-Run: python bench/bench_paths.py [--sizes 10,100,1000,10000]
+The C1 and CubicSpline fits are timed in alternation, best of ``--repeat`` rounds each, so that their
+ratio compares like with like on a shared machine; the load average is printed with the table.
+
+Run: python bench/bench_paths.py [--sizes 10,100,1000,10000] [--repeat 15]
 """
 
 from __future__ import annotations
 
 import argparse
+import os
 import sys
+import time
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -37,6 +43,23 @@ def waypoints(n: int) -> np.ndarray:
     return p + rng.normal(scale=1e-6, size=p.shape)  # CAD export precision, 1 micron
 
 
+def best_times(fns: dict[str, Callable[[], object]], repeat: int, min_round: float = 0.02) -> dict[str, float]:
+    """Best wall time of one call (s) of each function, timed in alternation over ``repeat`` rounds."""
+    number = {}
+    for k, fn in fns.items():
+        t0 = time.perf_counter()
+        fn()
+        number[k] = max(1, int(min_round / max(time.perf_counter() - t0, 1e-9)))
+    best = dict.fromkeys(fns, float("inf"))
+    for _ in range(repeat):
+        for k, fn in fns.items():
+            t0 = time.perf_counter()
+            for _ in range(number[k]):
+                fn()
+            best[k] = min(best[k], (time.perf_counter() - t0) / number[k])
+    return best
+
+
 def gauss_length(deriv, knots: np.ndarray, nodes: int) -> float:
     """Integral of |deriv(u)| over the knot spans with a Gauss-Legendre rule per span."""
     x, w = np.polynomial.legendre.leggauss(nodes)
@@ -49,14 +72,18 @@ def gauss_length(deriv, knots: np.ndarray, nodes: int) -> float:
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", default="10,100,1000,10000")
-    sizes = [int(v) for v in ap.parse_args().sizes.split(",")]
+    ap.add_argument("--repeat", type=int, default=15, help="rounds of the alternating C1 / CubicSpline timing")
+    args = ap.parse_args()
+    sizes = [int(v) for v in args.sizes.split(",")]
     rows = []
+    load = os.getloadavg()
     for n in sizes:
         p = waypoints(n)
         u = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))))
-        t_c1 = best_time(lambda p=p: fit_ph_spline(p, continuity="C1"))
+        fits = {"c1": lambda p=p: fit_ph_spline(p, continuity="C1"), "cs": lambda p=p, u=u: CubicSpline(u, p)}
+        t = best_times(fits, args.repeat)
+        t_c1, t_cs = t["c1"], t["cs"]
         t_c2 = best_time(lambda p=p: fit_ph_spline(p, continuity="C2"), repeat=2 if n >= 10000 else 3)
-        t_cs = best_time(lambda p=p, u=u: CubicSpline(u, p))
         ph = fit_ph_spline(p, continuity="C1")
         ph2 = fit_ph_spline(p, continuity="C2")
         cs = CubicSpline(u, p)
@@ -87,6 +114,7 @@ def main() -> None:
                 f"{ph2.curvature_jumps().max(initial=0):.1e}",
             ]
         )
+    print(f"load average before / after: {load[0]:.2f} / {os.getloadavg()[0]:.2f} ({os.cpu_count()} cpus)")
     print_table(
         [
             "N",

@@ -47,20 +47,27 @@ def check_waypoints(waypoints, *, min_count: int = 2, dim: int = 3) -> np.ndarra
         Fewer than ``min_count`` points, wrong dimension, NaN/inf coordinates, or two consecutive
         points that coincide (the message names the index of the second one).
     """
+    return checked_waypoint_steps(waypoints, min_count=min_count, dim=dim)[0]
+
+
+def checked_waypoint_steps(waypoints, *, min_count: int = 2, dim: int = 3):
+    """:func:`check_waypoints`, also returning the steps between consecutive waypoints as contiguous rows
+    (dim, n - 1) and their lengths (n - 1,) (the chord lengths the fitters need)."""
     p = _as_rows(waypoints, "waypoints", dim)
     if p.shape[0] < min_count:
         raise WaypointError(f"need at least {min_count} waypoints, got {p.shape[0]}")
-    bad = ~np.isfinite(p).all(axis=1)
-    if bad.any():
-        i = int(np.argmax(bad))
+    if not np.isfinite(p).all():
+        i = int(np.argmax(~np.isfinite(p).all(axis=1)))
         raise WaypointError(f"coordinates must be finite, got {p[i].tolist()}", i)
-    step = np.linalg.norm(np.diff(p, axis=0), axis=1)
-    extent = float(np.ptp(p, axis=0).max()) if p.shape[0] > 1 else 0.0
+    rows = np.ascontiguousarray(p.T)  # reductions along contiguous rows are fast
+    d = rows[:, 1:] - rows[:, :-1]
+    step = np.sqrt(np.einsum("ij,ij->j", d, d))
+    extent = float((rows.max(axis=1) - rows.min(axis=1)).max()) if p.shape[0] > 1 else 0.0
     dup = step <= DUPLICATE_RTOL * max(extent, np.finfo(float).tiny)
     if dup.any():
         i = int(np.argmax(dup)) + 1
         raise WaypointError(f"duplicates waypoint {i - 1} (consecutive points must differ)", i)
-    return p
+    return p, d, step
 
 
 def check_tangents(tangents, n: int, *, dim: int = 3) -> np.ndarray:

@@ -8,8 +8,11 @@ from hypothesis import given, settings
 from scipy.integrate import quad
 from scipy.interpolate import CubicSpline
 
+from planner.curves.ph_core import batch_control_points
 from planner.curves.ph_cubic_spline import fit_ph_cubic_spline
+from planner.curves.ph_quintic import batch_hermite
 from planner.curves.spline import fit_ph_spline
+from planner.curves.tangents import chord_knots, cubic_spline_slopes
 from planner.errors import PlannerError
 from tests.conftest import waypoint_sets
 
@@ -61,6 +64,37 @@ def test_exact_length_and_inverse(p):
     u = s.parameter_at_length(sv)
     assert np.all(np.diff(u) >= -1e-13 * s.knots[-1])  # monotone up to round-off
     assert np.abs(s.arc_length(u) - sv).max() <= 1e-12 * s.length
+
+
+@given(waypoint_sets(max_size=40))
+@settings(max_examples=30, deadline=None)
+def test_c1_segments_are_the_hermite_interpolants_of_the_cubic_spline_tangents(p):
+    """The fitter builds each segment from shared, length-normalised tangent roots: with given free angles the
+    same curves as batch_hermite on the Hermite data (h m_k, h m_k+1); by default members as close to a PH
+    cubic (the CC measure |A0 - 2 A1 + A2|^2 agrees within the selection's tolerance)."""
+    u = chord_knots(p)
+    h = np.diff(u)[:, None]
+    m = cubic_spline_slopes(u, p)
+    data = (p[:-1], p[1:], h * m[:-1], h * m[1:])
+    s = fit_ph_spline(p, continuity="C1", angles=(0.3, -1.2))
+    ref = batch_control_points(batch_hermite(*data, angles=(0.3, -1.2)), p[:-1])
+    assert np.abs(s.control_points - ref).max() <= 1e-12 * extent(p)
+    s = fit_ph_spline(p, continuity="C1")
+    A = batch_hermite(*data)
+    cc = lambda A: ((A[:, 0] - 2 * A[:, 1] + A[:, 2]) ** 2).sum(axis=1)  # noqa: E731
+    scale = 25 * h[:, 0] * (np.linalg.norm(m[:-1], axis=1) + np.linalg.norm(m[1:], axis=1)) / 4
+    assert np.all(np.abs(cc(s.A) - cc(A)) <= 1e-9 * cc(A) + 1e-13 * scale)
+
+
+@pytest.mark.parametrize("n", [2, 3, 4, 5, 6, 40])
+@pytest.mark.parametrize("dim", [2, 3])
+def test_cubic_spline_slopes_are_scipys(n, dim):
+    p = np.cumsum(np.random.default_rng(n).normal(size=(n, dim)), axis=0)
+    u = chord_knots(p)
+    m = cubic_spline_slopes(u, p)
+    ref = CubicSpline(u, p)(u, 1) if n > 2 else np.tile((p[1] - p[0]) / u[1], (2, 1))
+    assert m.shape == (n, dim)
+    assert np.abs(m - ref).max() <= 1e-12 * np.abs(ref).max()
 
 
 def test_given_tangents_are_honoured():

@@ -23,11 +23,11 @@ from planner.curves.ph_core import (
     curvature_torsion,
 )
 from planner.curves.ph_cubic import PHCubic
-from planner.curves.ph_quintic import PHQuintic, batch_hermite
+from planner.curves.ph_quintic import PHQuintic, _hermite_rows, _sqrt_rot
 from planner.curves.ph_spline_c2 import solve_c2
-from planner.curves.tangents import chord_knots, cubic_spline_slopes
+from planner.curves.tangents import slopes_rows
 from planner.errors import PlannerError
-from planner.validation import check_tangents, check_vector, check_waypoints
+from planner.validation import check_tangents, check_vector, checked_waypoint_steps
 
 
 @dataclass(frozen=True, eq=False)
@@ -330,11 +330,10 @@ def fit_ph_spline(
     ConvergenceError
         The C2 solve failed (the message names the span).
     """
-    p = check_waypoints(waypoints)
+    p, dp, h = checked_waypoint_steps(waypoints)  # dp: p[k + 1] - p[k] as rows (3, N)
     if continuity not in ("C1", "C2"):
         raise PlannerError(f"continuity must be 'C1' or 'C2', got {continuity!r}")
-    u = chord_knots(p)
-    h = np.diff(u)
+    u = np.concatenate(([0.0], np.cumsum(h)))  # chord_knots(p)
     if tangents is not None:
         if continuity == "C2":
             raise PlannerError(
@@ -342,9 +341,9 @@ def fit_ph_spline(
                 "or continuity='C1' to prescribe tangents at every waypoint"
             )
         d = check_tangents(tangents, p.shape[0])
-        m = d / np.linalg.norm(d, axis=1, keepdims=True)
+        m = np.ascontiguousarray((d / np.linalg.norm(d, axis=1, keepdims=True)).T)  # unit tangents as rows
     else:
-        m = cubic_spline_slopes(u, p)
+        m = slopes_rows(u, dp)  # cubic_spline_slopes(u, p) as rows (3, n)
     if end_tangents is not None:
         if continuity != "C2":
             raise PlannerError("end_tangents is for continuity='C2'; for C1 pass tangents=")
@@ -353,11 +352,14 @@ def fit_ph_spline(
         t0 = check_vector(end_tangents[0], "end_tangents[0]", nonzero=True)
         t1 = check_vector(end_tangents[1], "end_tangents[1]", nonzero=True)
         m = m.copy()
-        m[0] = t0 / np.linalg.norm(t0)
-        m[-1] = t1 / np.linalg.norm(t1)
-    A = batch_hermite(p[:-1], p[1:], h[:, None] * m[:-1], h[:, None] * m[1:], angles)
+        m[:, 0] = t0 / np.linalg.norm(t0)
+        m[:, -1] = t1 / np.linalg.norm(t1)
+    # segment k interpolates d0 = h_k m_k, d1 = h_k m_{k+1}: h_k times the interpolant of (dp / h_k, m_k, m_{k+1}),
+    # whose roots sqrt_rot(m) are shared by neighbouring segments
+    a, r = _sqrt_rot(m)
+    A = _hermite_rows(dp / h, m[:, :-1], m[:, 1:], a[:, :-1], a[:, 1:], r[:-1], r[1:], angles, np.sqrt(h))
     if continuity == "C1":
         return PHSpline(A, p[:-1], u, "C1", 0)
     sq = np.sqrt(h)[:, None, None]
-    A_u, iterations = solve_c2(_align_phases(A) / sq, p, h, m[0], m[-1])
+    A_u, iterations = solve_c2(_align_phases(A) / sq, p, h, m[:, 0], m[:, -1])
     return PHSpline(A_u * sq, p[:-1], u, "C2", iterations)
