@@ -118,6 +118,10 @@ class IOState:
         self._registers = [0] * (REGISTER_LAST - REGISTER_FIRST + 1)
         self._callbacks: list[Callback] = []
 
+    def locked(self) -> threading.RLock:
+        """The state lock, for a group of changes others must see at once: ``with io.locked(): ...``."""
+        return self._lock
+
     # -- change notification -------------------------------------------------------------------
     def subscribe(self, callback: Callback) -> None:
         """Call ``callback(name, value)`` after every change (names in the module docstring)."""
