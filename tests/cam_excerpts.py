@@ -1,110 +1,94 @@
-"""Verbatim excerpts of the real CAM files in shared/data, for the planner.cam tests (no file access).
+"""Verbatim excerpts of the three real CAM files of shared/data, kept in ``tests/data`` for the default suite.
 
-``NX_HEAD``: lines 1-100 of ``nx_clsf_variable_contour_ust_a2.cls`` (Siemens NX CLSF, see
-shared/data/SOURCES.md). Its first pass (lines 14-53) is a 90-degree linearised arc of radius 16 mm
-(13 chords, sagitta 0.029 mm), a straight run of 24 mm chords, and another 90-degree arc; RAPID
-records on lines 10, 13, 55 and 97 each make the next GOTO a rapid. Line 7 keeps its trailing space.
+Each excerpt is a few line ranges of one whole file, copied byte for byte and joined in file order (UTF-8 BOM,
+trailing spaces and LF line ends kept); ``tests/data/SOURCES.md`` lists the ranges, the sources and the licences.
+The ranges are cut so that the excerpt reads like the whole file at every line it keeps: each range after the
+first starts at a rapid (CLSF, APT: the ``RAPID`` record, or the operation's tool/frame records before it) or at
+an operation start that restates the machine state (G-code: ``G53`` retract, rotary angles, ``G234``/``G254``),
+and the modal tool axis and feed it inherits across the join are the ones it had in the whole file. So a reader
+gives each kept motion record the same point, tool axis, feed and rapid flag as in the whole file
+(``test_cam_excerpts.py`` checks this against shared/data when it is present, as a slow test).
+
+``NX_HEAD`` (lines 1-100 of the NX CLSF job, the first 100 lines of its excerpt): its first pass (lines 14-53) is
+a 90-degree linearised arc of radius 16 mm (13 chords, sagitta 0.029 mm), a straight run of 24 mm chords, and
+another 90-degree arc; RAPID records on lines 10, 13, 55 and 97 each make the next GOTO a rapid. Line 7 keeps its
+trailing space.
 """
 
-NX_HEAD = (
-    'TOOL PATH/VARIABLE_CONTOUR,TOOL,BPR-SNR-323S32\n'
-    'TLDATA/MILL,32.0000,5.0000,75.0000,0.0000,0.0000\n'
-    'MSYS/-120.2591,-1196.5000,142.5000,0.0000000,1.0000000,0.0000000,1.0000000,0.0000000,0.0000000\n'
-    '$$ centerline data\n'
-    'PAINT/PATH\n'
-    'PAINT/SPEED,10\n'
-    'LOAD/TOOL,2,ADJUST,2 \n'
-    'SELECT/TOOL,2\n'
-    'PAINT/COLOR,186\n'
-    'RAPID\n'
-    'GOTO/0.0000,222.6719,-177.5000,0.0000000,0.0000000,-1.0000000\n'
-    'PAINT/COLOR,211\n'
-    'RAPID\n'
-    'GOTO/0.0000,222.6719,-113.5000\n'
-    'PAINT/COLOR,42\n'
-    'FEDRAT/MMPM,250.0000\n'
-    'GOTO/0.0000,222.5552,-111.5714\n'
-    'GOTO/0.0000,222.2069,-109.6709\n'
-    'GOTO/0.0000,221.6321,-107.8263\n'
-    'GOTO/0.0000,220.8392,-106.0644\n'
-    'GOTO/0.0000,219.8396,-104.4110\n'
-    'GOTO/0.0000,218.6480,-102.8900\n'
-    'GOTO/0.0000,217.2818,-101.5238\n'
-    'GOTO/0.0000,215.7609,-100.3323\n'
-    'GOTO/0.0000,214.1074,-99.3327\n'
-    'GOTO/0.0000,212.3456,-98.5397\n'
-    'GOTO/0.0000,210.5009,-97.9649\n'
-    'GOTO/0.0000,208.6005,-97.6167\n'
-    'GOTO/0.0000,206.6719,-97.5000\n'
-    'PAINT/COLOR,31\n'
-    'GOTO/0.0000,192.0000,-97.5000\n'
-    'GOTO/0.0000,168.0000,-97.5000\n'
-    'GOTO/0.0000,144.0000,-97.5000\n'
-    'GOTO/0.0000,120.0000,-97.5000\n'
-    'GOTO/0.0000,96.0000,-97.5000\n'
-    'GOTO/0.0000,72.0000,-97.5000\n'
-    'GOTO/0.0000,48.0000,-97.5000\n'
-    'GOTO/0.0000,24.0000,-97.5000\n'
-    'GOTO/0.0000,2.7188,-97.5000\n'
-    'PAINT/COLOR,37\n'
-    'GOTO/0.0000,0.7902,-97.6167\n'
-    'GOTO/0.0000,-1.1103,-97.9649\n'
-    'GOTO/0.0000,-2.9549,-98.5397\n'
-    'GOTO/0.0000,-4.7168,-99.3327\n'
-    'GOTO/0.0000,-6.3703,-100.3323\n'
-    'GOTO/0.0000,-7.8912,-101.5238\n'
-    'GOTO/0.0000,-9.2574,-102.8900\n'
-    'GOTO/0.0000,-10.4490,-104.4110\n'
-    'GOTO/0.0000,-11.4485,-106.0644\n'
-    'GOTO/0.0000,-12.2415,-107.8263\n'
-    'GOTO/0.0000,-12.8163,-109.6709\n'
-    'GOTO/0.0000,-13.1646,-111.5714\n'
-    'GOTO/0.0000,-13.2813,-113.5000\n'
-    'PAINT/COLOR,211\n'
-    'RAPID\n'
-    'GOTO/1.9600,-13.7500,-113.5000\n'
-    'PAINT/COLOR,42\n'
-    'GOTO/1.9600,-13.6333,-111.5714\n'
-    'GOTO/1.9600,-13.2851,-109.6709\n'
-    'GOTO/1.9600,-12.7103,-107.8263\n'
-    'GOTO/1.9600,-11.9173,-106.0644\n'
-    'GOTO/1.9600,-10.9177,-104.4110\n'
-    'GOTO/1.9600,-9.7262,-102.8900\n'
-    'GOTO/1.9600,-8.3600,-101.5238\n'
-    'GOTO/1.9600,-6.8390,-100.3323\n'
-    'GOTO/1.9600,-5.1856,-99.3327\n'
-    'GOTO/1.9600,-3.4237,-98.5397\n'
-    'GOTO/1.9600,-1.5791,-97.9649\n'
-    'GOTO/1.9600,0.3214,-97.6167\n'
-    'GOTO/1.9600,2.2500,-97.5000\n'
-    'PAINT/COLOR,31\n'
-    'GOTO/1.9600,24.0000,-97.5000\n'
-    'GOTO/1.9600,48.0000,-97.5000\n'
-    'GOTO/1.9600,72.0000,-97.5000\n'
-    'GOTO/1.9600,96.0000,-97.5000\n'
-    'GOTO/1.9600,120.0000,-97.5000\n'
-    'GOTO/1.9600,144.0000,-97.5000\n'
-    'GOTO/1.9600,168.0000,-97.5000\n'
-    'GOTO/1.9600,192.0000,-97.5000\n'
-    'GOTO/1.9600,216.0000,-97.5000\n'
-    'GOTO/1.9600,231.8906,-97.5000\n'
-    'PAINT/COLOR,37\n'
-    'GOTO/1.9600,233.8192,-97.6167\n'
-    'GOTO/1.9600,235.7197,-97.9649\n'
-    'GOTO/1.9600,237.5643,-98.5397\n'
-    'GOTO/1.9600,239.3262,-99.3327\n'
-    'GOTO/1.9600,240.9797,-100.3323\n'
-    'GOTO/1.9600,242.5006,-101.5238\n'
-    'GOTO/1.9600,243.8668,-102.8900\n'
-    'GOTO/1.9600,245.0584,-104.4110\n'
-    'GOTO/1.9600,246.0579,-106.0644\n'
-    'GOTO/1.9600,246.8509,-107.8263\n'
-    'GOTO/1.9600,247.4257,-109.6709\n'
-    'GOTO/1.9600,247.7740,-111.5714\n'
-    'GOTO/1.9600,247.8906,-113.5000\n'
-    'PAINT/COLOR,211\n'
-    'RAPID\n'
-    'GOTO/3.9200,250.6562,-113.5000\n'
-    'PAINT/COLOR,42\n'
-    'GOTO/3.9200,250.5396,-111.5714\n'
+from __future__ import annotations
+
+from dataclasses import dataclass
+from functools import cached_property
+
+import numpy as np
+
+from tests.conftest import EXCERPT_DATA
+
+
+@dataclass(frozen=True)
+class Excerpt:
+    """``ranges`` (1-based, inclusive line numbers of ``source``, in file order) copied into ``tests/data/name``."""
+
+    name: str
+    source: str
+    ranges: tuple[tuple[int, int], ...]
+
+    @property
+    def path(self):
+        return EXCERPT_DATA / self.name
+
+    @cached_property
+    def original_lines(self) -> np.ndarray:
+        """(n,) int: the whole file's line number of each excerpt line (excerpt line k is entry k - 1)."""
+        return np.concatenate([np.arange(a, b + 1) for a, b in self.ranges])
+
+    def original_line(self, line):
+        """The whole file's line number(s) of excerpt line(s) ``line`` (1-based; int or int array)."""
+        return self.original_lines[np.asarray(line) - 1]
+
+    def lines(self) -> dict[int, str]:
+        """The excerpt's lines keyed by the whole file's line numbers (without line ends, BOM kept)."""
+        text = self._lines(keepends=False)
+        assert len(text) == len(self.original_lines), f"{self.path}: line count differs from its ranges"
+        return dict(zip(self.original_lines.tolist(), text, strict=True))
+
+    def head(self, n: int) -> str:
+        """The first ``n`` lines of the excerpt, verbatim (the whole file's lines 1..n when n <= ranges[0][1])."""
+        if self.ranges[0][0] != 1 or n > self.ranges[0][1]:
+            raise ValueError(f"{self.name}: lines 1-{n} are not one range of the excerpt")
+        return "".join(self._lines(keepends=True)[:n])
+
+    def _lines(self, keepends: bool) -> list[str]:
+        # split at LF only (str.splitlines would also split at form feeds and other separators)
+        text = self.path.read_text(encoding="utf-8")
+        lines = text.split("\n")
+        last = lines.pop()  # "" when the file ends with a line end
+        if keepends:
+            lines = [ln + "\n" for ln in lines]
+        return lines + ([last] if last else [])
+
+
+#: Siemens NX CLSF, variable-contour job (mm, modal tool axes, 1 FEDRAT, END-OF-PATH): the head with its first
+#: 7 passes; a pass whose rapid carries its axis; the pass of largest tilt (89.04 deg at line 7269); passes 225-226
+#: (line 7540); passes 757-768 (lines 20179-20416, a reconfiguration on a UR5e); the irregular end of the job
+#: (lines 20753-20823: rapids with axes, 0.02 mm steps); the last rapid and END-OF-PATH.
+NX = Excerpt(
+    "nx_clsf_ust_a2_excerpt.cls",
+    "nx_clsf_variable_contour_ust_a2.cls",
+    ((1, 305), (4792, 4851), (7247, 7307), (7538, 7653), (20179, 20416), (20753, 20823), (22237, 22242)),
 )
+#: SOLIDWORKS CAM APT, 3+2 job (mm, CIRCLE records, CUTCOM, CSYS frames, tool changes, FINI).
+SW = Excerpt(
+    "solidworks_cam_apt_boss_excerpt.apt",
+    "solidworks_cam_apt_boss_3plus2.apt",
+    ((1, 53), (3726, 3755), (4838, 4909), (5542, 5631), (12360, 12427)),
+)
+#: NX 2022 G-code for a Haas UMC-750 (inch, BOM and listing header, G02/G03, 3+2 under G254, 5-axis under G234).
+HAAS = Excerpt(
+    "nx2022_haas_umc750_excerpt.txt",
+    "nx2022_haas_umc750_5axis_gcode.txt",
+    ((1, 76), (1385, 1659), (15501, 15655), (15961, 16121)),
+)
+EXCERPTS = {e.name: e for e in (NX, SW, HAAS)}
+
+NX_HEAD = NX.head(100)

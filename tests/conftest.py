@@ -15,8 +15,12 @@ settings.register_profile("ci", derandomize=True, deadline=None)
 if os.environ.get("CI") or os.environ.get("HYPOTHESIS_PROFILE") == "ci":
     settings.load_profile("ci")
 
-#: The CAM files shipped beside the repository (shared/data), read by the io and pipeline tests.
+#: The whole real CAM files beside the repository (../shared/data), read only by the ``slow`` whole-file tests
+#: (skipped with a reason when the folder is absent, as on a clean clone).
 SHARED_DATA = Path(__file__).resolve().parents[2] / "shared" / "data"
+#: Verbatim excerpts of those files kept in the repository (tests/data, see SOURCES.md there), read by the
+#: default suite; tests.cam_excerpts maps their lines back to the whole files' line numbers.
+EXCERPT_DATA = Path(__file__).resolve().parent / "data"
 
 finite = st.floats(min_value=-3.0, max_value=3.0, allow_nan=False, allow_infinity=False)
 

@@ -1,6 +1,6 @@
-"""plan_cam_job on each whole real CAM file of shared/data (about 40 s in all: marked ``slow``).
-
-Deselect with ``-m "not slow"``. Skipped when shared/data is not next to the repository.
+"""plan_cam_job on each real CAM file: its verbatim excerpt in tests/data (default suite, under a second) and the
+whole file of ../shared/data (about 40 s in all: marked ``slow``; skipped with that reason when shared/data is not
+next to the repository, as on a clean clone).
 """
 
 from __future__ import annotations
@@ -13,9 +13,10 @@ import pytest
 
 from planner.cam import plan_cam_job
 from planner.io import read_toolpath
+from tests.cam_excerpts import EXCERPTS
 from tests.conftest import SHARED_DATA
 
-pytestmark = [
+WHOLE = [
     pytest.mark.slow,
     pytest.mark.skipif(not SHARED_DATA.is_dir(), reason=f"the shared CAM files are not at {SHARED_DATA}"),
 ]
@@ -27,17 +28,21 @@ FILES = {
 }
 
 
-@pytest.mark.parametrize("name", list(FILES))
-def test_whole_file_plans_within_tolerance(name):
-    path = SHARED_DATA / name
-    if not path.is_file():
-        pytest.skip(f"{name} not in {SHARED_DATA}")
+CASES = [pytest.param(e.path, FILES[e.source], 0, id=e.name) for e in EXCERPTS.values()] + [
+    pytest.param(SHARED_DATA / name, kw, 100, id=name, marks=WHOLE) for name, kw in FILES.items()
+]
+
+
+@pytest.mark.parametrize("path, kw, more_passes_than", CASES)
+def test_file_plans_within_tolerance(path, kw, more_passes_than):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
-        tp = read_toolpath(path, **FILES[name])
+        tp = read_toolpath(path, **kw)
     job = plan_cam_job(tp)
     s = job.summary()
-    assert s["passes"] > 100 and s["max_deviation_mm"] <= 0.01 and s["max_axis_error_deg"] < 0.05
+    assert s["passes"] > more_passes_than and s["max_deviation_mm"] <= 0.01 and s["max_axis_error_deg"] < 0.05
+    # at least one pass after every rapid that a cut follows (corners and axis jumps split more)
+    assert s["passes"] >= int((tp.rapid[:-1] & ~tp.rapid[1:]).sum())
     # every rapid record of the file is a rapid move (the first one only positions the tool)
     assert s["rapids"] + s["skipped"] + s["reorientations"] >= int(tp.rapid[1:].sum())
     assert s["corners"] == sum(p.start_reason == "corner" for p in job.passes)

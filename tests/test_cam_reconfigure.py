@@ -3,8 +3,8 @@ while it can make the passes, and changed by a joint move at the safe point of a
 that needs it, never during a cut; the joint stream, the move list, the reports and the exports all carry it.
 
 A constructed APT job shows the case from the start: pass 0 lies where only the branches with one wrist offset
-reach, pass 1 runs out to where only the others do. Excerpts of the real NX job (shared/data) show it on real
-data: an inherited configuration that runs out of reach in a rapid, and a first run that the configuration of
+reach, pass 1 runs out to where only the others do. Excerpts of the real NX job (its lines 20179-20416, kept
+verbatim in tests/data, see tests/data/SOURCES.md) show it on real data: an inherited configuration that runs out of reach in a rapid, and a first run that the configuration of
 least joint travel cannot make.
 """
 
@@ -22,10 +22,9 @@ from planner.cam.configure import groups
 from planner.cam.stream import track_joints
 from planner.cli import main
 from planner.kinematics import forward, forward_matrix, get_model
-from tests.conftest import SHARED_DATA
+from tests.cam_excerpts import NX
 from tests.test_cli_whole_job import parse_program
 
-NX_JOB = SHARED_DATA / "nx_clsf_variable_contour_ust_a2.cls"
 NX_PART = (0.4, 0.9965, -0.1, 0.0, 0.0, 0.0)
 
 
@@ -170,10 +169,15 @@ def test_whole_job_program_and_stream_carry_the_joint_move(two_reaches, tmp_path
 
 def _nx_excerpt(first: int, last: int) -> str:
     """Lines 1-9 (header, MSYS) and first..last of the real NX job, the lines between them as $$ comments (so the
-    source lines stay the file's), the modal tool axis and feed carried into the excerpt."""
-    lines = NX_JOB.read_text().splitlines()
+    source lines stay the file's), the modal tool axis and feed carried into the excerpt. The lines come from the
+    job's verbatim excerpt in tests/data, which reads like the whole job at every line it keeps (same modal axis and
+    feed), so the axis and feed carried are the whole job's."""
+    kept = NX.lines()  # the whole job's line number -> text
+    missing = [k for k in (*range(1, 10), *range(first, last + 1)) if k not in kept]
+    assert not missing, f"lines {missing[0]}.. of the NX job are not in {NX.path}"
+    lines = [kept.get(k, "$$") for k in range(1, last + 1)]
     axis = feed = None
-    for ln in lines[9 : first - 1]:
+    for ln in [kept[k] for k in sorted(kept) if 10 <= k < first]:
         if ln.startswith("GOTO/") and ln.count(",") == 5:
             axis = ln.split(",", 3)[3]
         elif ln.startswith("FEDRAT/"):
@@ -188,8 +192,6 @@ def _nx_excerpt(first: int, last: int) -> str:
 
 @pytest.fixture(scope="module")
 def nx_file(tmp_path_factory):
-    if not NX_JOB.is_file():
-        pytest.skip(f"{NX_JOB} not present")
     folder = tmp_path_factory.mktemp("nx")
 
     def write(first: int, last: int):
@@ -201,10 +203,10 @@ def nx_file(tmp_path_factory):
 
 
 def test_real_job_changes_configuration_at_the_rapid_the_inherited_one_cannot_make(nx_file):
-    """Real NX passes 758-768 (lines 20238-20418): the configuration they inherit runs out of reach in the rapid
+    """Real NX passes 758-768 (lines 20238-20416): the configuration they inherit runs out of reach in the rapid
     at line 20299 (the arm stretched out); the arm changes configuration at that rapid's start (the end of the
     pass before it, a safe point: no rapid comes earlier) and makes every move."""
-    src = nx_file(20238, 20418)
+    src = nx_file(20238, 20416)
     job = plan_cam_job(src, part_frame=NX_PART, robot="ur5e", feed=0.05)
     assert job.reachable and not job.problems
     (r,) = job.reconfigurations
@@ -231,7 +233,7 @@ def test_real_job_starts_on_the_configuration_its_first_run_needs(nx_file):
     """Real NX passes 766-768 (lines 20357-20416, joined at corners) alone: on the configuration of least joint
     travel the arm runs out of reach at line 20413 (the feed floor cannot help); the job starts on one that can
     make them, and the stream and the program start there."""
-    src = nx_file(20356, 20418)
+    src = nx_file(20356, 20416)
     job = plan_cam_job(src, part_frame=NX_PART, robot="ur5e", feed=0.05)
     assert job.reachable and not job.problems and not job.reconfigurations
     assert job.start_note.startswith("starts on the arm configuration that makes pass 0 (lines 20357-20416) "
