@@ -121,6 +121,9 @@ class _URMap:
         self.io = io
         self.tcp_pose = tcp_pose
         self.masks = {REG_SET_OUTPUTS: 0, REG_CLEAR_OUTPUTS: 0, REG_SET_CONF: 0, REG_CLEAR_CONF: 0}
+        self.writable = frozenset(_READ_WRITE) | frozenset(range(REGISTER_FIRST, REGISTER_LAST + 1))
+        pose = range(REG_TCP_POSE, REG_TCP_POSE + 6) if tcp_pose is not None else ()
+        self.readable = self.writable | frozenset(_READ_ONLY) | frozenset(pose)
 
     def device(self) -> SimDevice:
         """The SimDevice: four separate tables (coils, discrete inputs, holding, input registers)."""
@@ -148,7 +151,25 @@ class _URMap:
         """
         if function_code not in FUNCTION_CODES:
             return ExcCodes.ILLEGAL_FUNCTION
+        # the whole request is checked here, before anything is applied, whatever checks pymodbus makes
+        # around this call (they moved from after it to before it between pymodbus 3.15 and 3.16)
+        if function_code in _COIL_FC:
+            if set_values is not None and function_code in _WRITE_FC and \
+                    not COIL_OUTPUTS <= address <= address + len(set_values) <= COIL_COUNT:
+                return ExcCodes.ILLEGAL_ADDRESS
+        elif function_code != 2:
+            writing = set_values is not None and function_code in _WRITE_FC
+            n = len(set_values) if writing else count
+            allowed = self.writable if writing else self.readable
+            if not all(a in allowed for a in range(address, address + n)):
+                return ExcCodes.ILLEGAL_ADDRESS
         try:
+            # the pose first, outside the IOState's lock (tcp_pose may take the motion model's lock, and the
+            # motion model may read the IOState under it: never hold both in opposite orders)
+            pose = None
+            if self.tcp_pose is not None and function_code in (3, 4) and \
+                    address <= REG_TCP_POSE + 5 and REG_TCP_POSE < address + count:
+                pose = _pose_registers(self.tcp_pose())
             with self.io.locked():
                 if function_code in _COIL_FC:
                     if set_values is not None and function_code in _WRITE_FC:
@@ -161,7 +182,7 @@ class _URMap:
                     if set_values is not None and function_code in _WRITE_FC:
                         if (exc := self._write_registers(address, [int(v) for v in set_values])) is not None:
                             return exc
-                    self._refresh_registers(registers, start_address, address, count)
+                    self._refresh_registers(registers, start_address, address, count, pose)
         except Exception:  # a fault of ours or of tcp_pose(): answer "server device failure", keep serving
             log.exception("Modbus request fc=%d address=%d count=%d failed", function_code, address, count)
             return ExcCodes.DEVICE_FAILURE
@@ -171,7 +192,8 @@ class _URMap:
         registers[0 - start] = _to_ur_bits(self.io.digital_in)
         registers[1 - start] = _to_ur_bits(self.io.digital_out)
 
-    def _refresh_registers(self, registers: list[int], start: int, address: int, count: int) -> None:
+    def _refresh_registers(self, registers: list[int], start: int, address: int, count: int,
+                           pose: list[int] | None) -> None:
         end = address + count
 
         def wanted(first: int, last: int) -> bool:
@@ -196,13 +218,11 @@ class _URMap:
         if wanted(REGISTER_FIRST, REGISTER_LAST):
             n = REGISTER_LAST - REGISTER_FIRST + 1
             registers[REGISTER_FIRST - start : REGISTER_FIRST - start + n] = io.get_registers(REGISTER_FIRST, n)
-        if self.tcp_pose is not None and wanted(REG_TCP_POSE, REG_TCP_POSE + 5):
-            registers[REG_TCP_POSE - start : REG_TCP_POSE - start + 6] = _pose_registers(self.tcp_pose())
+        if pose is not None:
+            registers[REG_TCP_POSE - start : REG_TCP_POSE - start + 6] = pose
 
     def _write_coils(self, address: int, values: list[bool]) -> ExcCodes | None:
         """Coils ``address`` .. ``address + len(values) - 1`` (pymodbus checked the table's bounds)."""
-        if address < COIL_OUTPUTS:
-            return ExcCodes.ILLEGAL_ADDRESS  # the input bits are read-only
         mask = value = 0
         for i, bit in enumerate(values):
             ur_bit = address - COIL_OUTPUTS + i

@@ -6,6 +6,8 @@ from __future__ import annotations
 import asyncio
 import socket
 import struct
+import sys
+import threading
 
 import pytest
 from hypothesis import given, settings
@@ -380,3 +382,42 @@ def test_lifecycle_misuse():
     with srv:
         with pytest.raises(RuntimeError, match="already started"):
             srv.start()
+
+
+def test_pose_reads_never_deadlock_with_a_motion_thread():
+    """tcp_pose takes the motion model's lock; a motion thread writes the IOState while holding it. The server
+    must not hold the IOState's lock while asking for the pose (the opposite order would deadlock)."""
+    io = IOState()
+    motion_lock = threading.Lock()
+    stop = threading.Event()
+
+    def tcp_pose():
+        with motion_lock:
+            return [0.1, 0.2, 0.3, 0.0, 0.0, 0.0]
+
+    def motion():
+        i = 0
+        while not stop.is_set():
+            with motion_lock:
+                io.set_register(200, i & 0xFFFF)
+                i += 1
+
+    interval = sys.getswitchinterval()
+    sys.setswitchinterval(1e-6)
+    try:
+        with ModbusServerThread(io, HOST, 0, tcp_pose=tcp_pose) as srv:
+            t = threading.Thread(target=motion)
+            t.start()
+            try:
+                c = client(srv.port)
+                for _ in range(300):
+                    r = c.read_input_registers(400, count=6)
+                    assert not r.isError()
+                    assert r.registers[:3] == [1000, 2000, 3000]
+                    assert not c.read_holding_registers(200).isError()
+                c.close()
+            finally:
+                stop.set()
+                t.join(5)
+    finally:
+        sys.setswitchinterval(interval)
