@@ -32,17 +32,23 @@ address    R/W  content
                 as int16 two's complement in the uint16 register; only with ``tcp_pose=``
 =========  ===  ==============================================================================
 
-Coils (function codes 1, 5, 15) and discrete inputs (2, the same bit table, read-only), bit addresses as
-in UR's table: 0-15 the input bits of register 0 (read-only), 16-31 the output bits of register 1.
+Coils (function codes 1, 5, 15) and discrete inputs (2, the same bit table, read-only): 16-31 the output
+bits of register 1 (UR's table as quoted by a public client, libmodbus's ``tests/ur3e.c``: "16-31 Outputs,
+bits 0-15 [BBBBBBBBTTxxxxxx]"; coil 16 is digital output 0), 0-15 the input bits of register 0
+(read-only; by the same layout, not seen in the public excerpts of UR's table).
 
 Answers, as UR's server gives them: an address outside the table (or a gap in it, or a range running
 into one) -> exception 2 (illegal data address); a write to a read-only address -> exception 2; a value
-a register cannot hold (an undefined bit set, a tool voltage other than 0/12/24) -> exception 3
-(illegal data value); a quantity outside 1..2000 bits / 1..125 registers, or a coil value other than 0xFF00 / 0x0000
--> exception 3; any other function code pymodbus knows -> exception 1 (illegal function; a code
-pymodbus does not know at all gets pymodbus's own answer, exception 1 under function code 0x80). A refused request
-changes nothing (writes of several registers are checked before any is applied), and the server keeps
-serving. Reading a write-only mask register (2, 3, 32, 33) returns the mask last written there.
+a register cannot hold (an undefined bit set, a tool voltage other than 0/12/24), a quantity outside
+1..2000 bits / 1..125 registers, or a coil value other than 0xFF00 / 0x0000 -> exception 3 (illegal data
+value); any other function code pymodbus knows -> exception 1 (illegal function; a code pymodbus does
+not know at all gets pymodbus's own answer, exception 1 under function code 0x80); a failing
+``tcp_pose()`` -> exception 4 (server device failure). A refused request changes nothing (a write of
+several registers is checked whole before any is applied), and the server keeps serving. Reading a
+write-only mask register (2, 3, 32, 33) returns the mask last written there (so a write's echo is right).
+
+Threads: requests run in the server's thread, holding the IOState's lock while they read or write it
+(IOState callbacks therefore run in that thread too); ``tcp_pose()`` is called before that lock is taken.
 
 Not simulated: UR's analog registers (4-19), Euromap67 (24-29), the robot-state registers (256-399,
 410-...), and the configurable I/O as coils (UR's public table does not show their bit addresses).
