@@ -17,7 +17,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from planner.io.errors import InputFileError
-from planner.io.toolpath import Arc, Event, Toolpath
+from planner.io.toolpath import Arc, Event, Toolpath, vec3
 
 #: Metres per unit of length for the unit names the readers accept.
 LENGTH_UNITS = {"mm": 1e-3, "m": 1.0, "inch": 0.0254, "in": 0.0254, "cm": 1e-2}
@@ -88,7 +88,7 @@ def parse_number(token: str, source: str, line: int, field: str) -> float:
         try:
             v = float(t)
         except ValueError:
-            v = None
+            pass
         else:
             if math.isfinite(v):
                 return v
@@ -256,7 +256,7 @@ class PathCollector:
         events: list = list(self.events)
         for row, c, a in zip(arcs, centre, arc_axis, strict=True):
             k = int(row[1])
-            events.append(Arc(int(row[0]), k, k - 1, tuple(map(float, c)), tuple(map(float, a)), float(row[8])))
+            events.append(Arc(int(row[0]), k, k - 1, vec3(c), vec3(a), float(row[8])))
         # Events are appended in file order except arcs (their line precedes their end point); a
         # stable sort on the line restores file order.
         events.sort(key=lambda e: e.line)

@@ -53,6 +53,7 @@ The reader streams the file line by line; memory grows with the number of points
 from __future__ import annotations
 
 import math
+from typing import NoReturn
 
 import numpy as np
 
@@ -83,6 +84,8 @@ _MACHINE_WORDS = frozenset(
      "RETRCT", "PREFUN", "AUXFUN", "PITCH", "HEAD", "MODE", "SELCTL", "TOOLNO", "OPERATION"}
 )  # fmt: skip
 _NUMERIC_START = frozenset("0123456789+-.")
+#: A pending CIRCLE record: (line, centre, axis, radius), metres, CL frame.
+_Circle = tuple[int, tuple[float, float, float], tuple[float, float, float], float]
 
 
 class _Reader:
@@ -99,10 +102,10 @@ class _Reader:
         self.out = PathCollector(source)
         self.warn = WarningLimiter(source)
         self.rapid_next = False
-        self.circle = None  # pending CIRCLE: (line, centre, axis, radius) in metres, CL frame
+        self.circle: _Circle | None = None  # pending CIRCLE: (line, centre, axis, radius) in metres, CL frame
         self.world = False  # TRNTYP/WORLD in effect
         self.spindle_rps = math.nan  # rev/s, for per-revolution feeds
-        self.pieces = None  # physical lines of a continued record: [(line, text)]
+        self.pieces: list[tuple[int, str]] | None = None  # physical lines of a continued record: [(line, text)]
         self.finished = False
         self.handlers = {
             "GOTO": self.goto,
@@ -139,14 +142,17 @@ class _Reader:
         }
 
     # ------------------------------------------------------------------ helpers
-    def fail(self, line: int, field: str, problem: str, field_no: int | None = None):
+    def fail(self, line: int, field: str, problem: str, field_no: int | None = None) -> NoReturn:
         """Raise InputFileError; for a continued record, name the physical line holding the field."""
         if self.pieces and field_no is not None:
             line = self._line_of_field(field_no, line)
         raise InputFileError(self.source, line, field, problem)
 
     def _line_of_field(self, field_no: int, default: int) -> int:
-        text = "".join(p for _, p in self.pieces)
+        pieces = self.pieces or []
+        if not pieces:
+            return default
+        text = "".join(p for _, p in pieces)
         pos = text.find("/")
         if pos < 0:
             return default
@@ -155,11 +161,11 @@ class _Reader:
             if pos < 0:
                 return default
         acc = 0
-        for ln, piece in self.pieces:
+        for ln, piece in pieces:
             acc += len(piece)
-            if pos + 1 < acc or (pos + 1 == acc and ln == self.pieces[-1][0]):
+            if pos + 1 < acc or (pos + 1 == acc and ln == pieces[-1][0]):
                 return ln
-        return self.pieces[-1][0]
+        return pieces[-1][0]
 
     def numbers(self, line: int, major: str, body: str, counts=None, first: int = 1) -> list[float]:
         """All comma-separated fields of ``body`` as numbers (fields numbered from ``first``)."""
@@ -185,11 +191,11 @@ class _Reader:
             out.rapid_idx.append(k)
             self.rapid_next = False
         if self.circle is not None:
-            self.end_circle(k)
+            self.end_circle(k, self.circle)
         return k
 
-    def end_circle(self, k: int) -> None:
-        line, centre, axis, radius = self.circle
+    def end_circle(self, k: int, circle: _Circle) -> None:
+        line, centre, axis, radius = circle
         self.circle = None
         if k == 0:
             self.fail(line, "CIRCLE record", "has no start point (no motion before it)")
@@ -305,7 +311,7 @@ class _Reader:
             # modal tool axis.
             if self.frames == "auto":
                 self.out.set_frame(k, np.eye(3), np.zeros(3))
-            axis = tuple(float(c) for c in rot[:, 2])
+            axis = (float(rot[0, 2]), float(rot[1, 2]), float(rot[2, 2]))
         else:
             if self.frames == "auto":
                 self.out.set_frame(k, rot, org)

@@ -5,6 +5,7 @@ from __future__ import annotations
 import itertools
 import os
 import re
+from collections.abc import Callable
 from pathlib import Path
 
 from planner.io._collect import open_lines, source_name
@@ -15,7 +16,7 @@ from planner.io.gcode import read_gcode
 from planner.io.json_reader import read_json
 from planner.io.toolpath import Toolpath
 
-READERS = {"apt": read_apt, "gcode": read_gcode, "csv": read_csv, "json": read_json}
+READERS: dict[str, Callable[..., Toolpath]] = {"apt": read_apt, "gcode": read_gcode, "csv": read_csv, "json": read_json}
 
 #: File suffixes and the format they name (".txt" and unknown suffixes are sniffed).
 SUFFIXES = {

@@ -45,13 +45,14 @@ from __future__ import annotations
 import math
 import re
 from array import array
+from typing import NoReturn
 
 import numpy as np
 
 from planner.io._collect import PathCollector, check_arcs, open_lines, source_name, unit_scale
 from planner.io.errors import InputFileError, WarningLimiter
 from planner.io.machines import TableTableKinematics, machine_kinematics
-from planner.io.toolpath import Arc, Event, Toolpath, linearize_arcs
+from planner.io.toolpath import Arc, Event, Toolpath, linearize_arcs, vec3
 
 _TOKEN = re.compile(r"([A-Z])([^A-Z]*)")
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)\Z")
@@ -70,7 +71,7 @@ class _Reader:
         self.units, self.scale = unit_scale(units)
         self.default_units = self.units
         self.machine = machine
-        self.rot_words = machine.words if machine is not None else ()
+        self.rot_words: tuple[str, ...] = machine.words if machine is not None else ()
         self.out = PathCollector(source)
         self.warn = WarningLimiter(source)
         self.bc = array("d")  # commanded (tilt, rotary) angles per point, radians
@@ -90,11 +91,11 @@ class _Reader:
         self.cycle = False
         self.tool_next = math.nan
         self.pending_rapid = False
-        self.last_feed = None
+        self.last_feed: float | None = None
         self.started = False
         self.finished = False
 
-    def fail(self, line: int, word: str, problem: str):
+    def fail(self, line: int, word: str, problem: str) -> NoReturn:
         raise InputFileError(self.source, line, f"word {word}" if word else "block", problem)
 
     # ------------------------------------------------------------------ tokenising
@@ -453,7 +454,7 @@ class _Reader:
                     centre[sel] = m.part_points(centre[sel], bc[kk, 0], bc[kk, 1], name)
                     arc_axis[sel] = m.table_rotation(bc[kk, 0], bc[kk, 1]).inv().apply(arc_axis[sel])
             for e, c, a in zip(arcs, centre, arc_axis, strict=True):
-                events.append(Arc(e.line, e.index, e.start, tuple(map(float, c)), tuple(map(float, a)), e.radius))
+                events.append(Arc(e.line, e.index, e.start, vec3(c), vec3(a), e.radius))
             events.sort(key=lambda e: e.line)
         return Toolpath(
             points=pts,

@@ -50,7 +50,7 @@ _TOP = {"units", "feed_units", "points", "axes", "feeds", "rapid", "x", "y", "z"
 
 def _locate(text: str, path: list) -> int:
     """Character offset in ``text`` of the JSON value at ``path`` (keys and indices), best effort."""
-    scan = make_scanner(json.JSONDecoder())
+    scan = make_scanner(json.JSONDecoder())  # type: ignore[arg-type]  # typeshed: make_scanner(context) is a class
     ws = " \t\n\r"
     pos = 0
     while pos < len(text) and text[pos] in ws:
@@ -196,7 +196,7 @@ def read_json(
 
 def _element_lines(text: str, array_path: list, count: int) -> list[int]:
     """1-based line of each of the first ``count`` elements of the JSON array at ``array_path``."""
-    scan = make_scanner(json.JSONDecoder())
+    scan = make_scanner(json.JSONDecoder())  # type: ignore[arg-type]  # typeshed: make_scanner(context) is a class
     newlines = [m.start() for m in re.finditer("\n", text)]
     pos = _locate(text, array_path) + 1  # just inside "["
     starts = []

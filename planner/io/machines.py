@@ -61,7 +61,7 @@ def _unit(v, name: str) -> tuple[float, float, float]:
     n = float(np.linalg.norm(a))
     if abs(n - 1.0) > 1e-9:
         raise ValueError(f"{name} must be a unit vector, got {v!r} (length {n:.9g})")
-    return tuple(float(x) for x in a)
+    return (float(a[0]), float(a[1]), float(a[2]))
 
 
 @dataclass(frozen=True)

@@ -101,6 +101,11 @@ class Arc:
         return "arc"
 
 
+def vec3(v) -> tuple[float, float, float]:
+    """The first three entries of ``v`` as a tuple of Python floats (an :class:`Arc`'s centre or axis)."""
+    return (float(v[0]), float(v[1]), float(v[2]))
+
+
 def _readonly(a: np.ndarray) -> np.ndarray:
     a = np.ascontiguousarray(a)
     a.setflags(write=False)
@@ -335,7 +340,7 @@ def linearize_arcs(toolpath: Toolpath, tolerance: float = 1e-5) -> Toolpath:
         rotary = np.empty((total, 2))
         rotary[~ins] = tp.rotary
         rotary[ins] = np.concatenate(chunks_r)
-    events = []
+    events: list[Event | Arc] = []
     for e in tp.events:
         if isinstance(e, Arc):
             events.append(Arc(e.line, int(new_pos[e.index]), int(new_pos[e.start]), e.centre, e.axis, e.radius))
