@@ -6,7 +6,7 @@ joint vectors are ``q[base, shoulder, elbow, wrist 1, wrist 2, wrist 3]`` in rad
 
 from planner.kinematics.errors import UnreachableError
 from planner.kinematics.forward import forward, forward_matrix, link_frames, matrix_to_pose, pose_to_matrix
-from planner.kinematics.inverse import IKSolutions, inverse, inverse_batch, inverse_path, wrap_angle
+from planner.kinematics.inverse import IKSolutions, inverse, inverse_batch, inverse_nearest, inverse_path, wrap_angle
 from planner.kinematics.reachability import (
     ReachabilityReport,
     Violation,
@@ -36,6 +36,7 @@ __all__ = [
     "get_model",
     "inverse",
     "inverse_batch",
+    "inverse_nearest",
     "inverse_path",
     "joint_speeds",
     "link_frames",

@@ -30,3 +30,29 @@ def rows_of_six(value, name: str, *, allow_nan_rows: bool = False) -> tuple[np.n
         where = f"{name}[{col}]" if single else f"{name}[{row}, {col}] (row {row})"
         raise PlannerError(f"{where} is {arr[row, col]}; every value must be finite")
     return arr, single
+
+
+def six_floats(value, name: str) -> list[float] | None:
+    """One row of six finite numbers as Python floats, for the one-pose fast paths.
+
+    Returns None when ``value`` holds several rows (n, 6) (the caller decides whether that is an
+    error); anything else that is not six finite numbers raises the error of :func:`rows_of_six`.
+    A list, tuple or array of six numbers is converted without numpy's per-call overhead.
+    """
+    if type(value) is np.ndarray:
+        vals = value.tolist() if value.shape == (6,) else None
+    elif isinstance(value, (list, tuple)) and len(value) == 6:
+        vals = value
+    else:
+        vals = None
+    if vals is not None:
+        try:
+            out = [float(v) for v in vals]
+        except (TypeError, ValueError):
+            out = None
+        if out is not None:
+            total = sum(out)
+            if total - total == 0.0:  # every entry finite (inf - inf and nan give nan)
+                return out
+    arr, single = rows_of_six(value, name)
+    return arr[0].tolist() if single else None

@@ -10,10 +10,10 @@ class UnreachableError(NoSolutionError):
 
     Attributes
     ----------
-    index : int
-        Index of the first unreachable sample (0-based).
+    index : int or None
+        Index of the first unreachable sample (0-based); None for a single pose.
     """
 
-    def __init__(self, message: str, index: int):
+    def __init__(self, message: str, index: int | None = None):
         self.index = index
-        super().__init__(f"sample {index}: {message}")
+        super().__init__(message if index is None else f"sample {index}: {message}")

@@ -6,11 +6,13 @@ Poses follow the UR convention ``p[x, y, z, rx, ry, rz]``: position in metres an
 
 from __future__ import annotations
 
+from math import cos, sin
+
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from planner.errors import PlannerError
-from planner.kinematics._checks import rows_of_six
+from planner.kinematics._checks import rows_of_six, six_floats
+from planner.kinematics.rotvec import matrix_to_rotvec, matrix_to_rotvec_1, rotvec_to_matrix, rotvec_to_matrix_1
 from planner.kinematics.ur_models import DH_COS_ALPHA, DH_SIN_ALPHA, URModel, get_model
 
 __all__ = ["forward", "forward_matrix", "link_frames", "pose_to_matrix", "matrix_to_pose"]
@@ -45,7 +47,7 @@ def pose_to_matrix(pose) -> np.ndarray:
     """
     arr, single = rows_of_six(pose, "pose")
     T = np.zeros((len(arr), 4, 4))
-    T[:, :3, :3] = Rotation.from_rotvec(arr[:, 3:]).as_matrix()
+    T[:, :3, :3] = rotvec_to_matrix(arr[:, 3:])
     T[:, :3, 3] = arr[:, :3]
     T[:, 3, 3] = 1.0
     return T[0] if single else T
@@ -63,7 +65,7 @@ def matrix_to_pose(T) -> np.ndarray:
     T = T[None] if single else T
     pose = np.empty((len(T), 6))
     pose[:, :3] = T[:, :3, 3]
-    pose[:, 3:] = Rotation.from_matrix(T[:, :3, :3]).as_rotvec()
+    pose[:, 3:] = matrix_to_rotvec(np.ascontiguousarray(T[:, :3, :3]))
     return pose[0] if single else pose
 
 
@@ -130,21 +132,86 @@ def flange_rp(m: URModel, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     return R, p
 
 
-def _chain(m: URModel, q: np.ndarray) -> np.ndarray:
-    """Flange transforms (n, 4, 4) of validated joints q (n, 6)."""
-    R, p = flange_rp(m, q)
-    T = np.zeros((len(q), 4, 4))
-    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, p, 1.0
-    return T
+def flange_1(m: URModel, q) -> tuple[tuple[float, ...], tuple[float, float, float]]:
+    """:func:`flange_rp` of one joint vector q (6 floats), on Python floats with the same operations in
+    the same order (so the results are identical); returns the rotation's 9 entries row by row and
+    the origin."""
+    q1, q2, q3, q4, q5, q6 = q
+    c1, s1 = cos(q1), sin(q1)
+    q23 = q2 + q3
+    q234 = q23 + q4
+    c5, s5 = cos(q5), sin(q5)
+    c6, s6 = cos(q6), sin(q6)
+    c234, s234 = cos(q234), sin(q234)
+    d5, d6 = m.d5, m.d6
+    xx, xy, xz = c5 * c6 * c234 - s6 * s234, c5 * c6 * s234 + s6 * c234, s5 * c6
+    yx, yy, yz = -c5 * s6 * c234 - c6 * s234, -c5 * s6 * s234 + c6 * c234, -s5 * s6
+    zx, zy, zz = -s5 * c234, -s5 * s234, c5
+    ox = m.a2 * cos(q2) + m.a3 * cos(q23) - d6 * s5 * c234 + d5 * s234
+    oy = m.a2 * sin(q2) + m.a3 * sin(q23) - d6 * s5 * s234 - d5 * c234
+    oz = m.d4 + d6 * c5
+    R = (
+        c1 * xx + s1 * xz, c1 * yx + s1 * yz, c1 * zx + s1 * zz,
+        s1 * xx - c1 * xz, s1 * yx - c1 * yz, s1 * zx - c1 * zz,
+        xy, yy, zy,
+    )
+    return R, (c1 * ox + s1 * oz, s1 * ox - c1 * oz, oy + m.d1)
 
 
-def _tcp_matrix(tcp) -> np.ndarray | None:
+def compose(R: np.ndarray, p: np.ndarray, Rb, pb) -> tuple[np.ndarray, np.ndarray]:
+    """Rigid transforms (R, p) (n, 3, 3), (n, 3) followed by one transform (Rb 9 entries row by row,
+    pb 3): (R Rb, R pb + p), summed term by term in the order of :func:`compose_1` (identical results)."""
+    B = np.asarray(Rb, dtype=float).reshape(3, 3)
+    Rn = R[:, :, 0:1] * B[0] + R[:, :, 1:2] * B[1] + R[:, :, 2:3] * B[2]
+    pn = R[:, :, 0] * pb[0] + R[:, :, 1] * pb[1] + R[:, :, 2] * pb[2] + p
+    return Rn, pn
+
+
+def compose_1(Ra, pa, Rb, pb) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """:func:`compose` of one transform (9 + 3 floats) with another."""
+    R = tuple(
+        Ra[i] * Rb[j] + Ra[i + 1] * Rb[j + 3] + Ra[i + 2] * Rb[j + 6] for i in (0, 3, 6) for j in (0, 1, 2)
+    )
+    p = tuple(Ra[i] * pb[0] + Ra[i + 1] * pb[1] + Ra[i + 2] * pb[2] + pa[k] for k, i in enumerate((0, 3, 6)))
+    return R, p
+
+
+def invert_1(R, p) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """Inverse (R^T, -R^T p) of one rigid transform (9 + 3 floats)."""
+    Rt = (R[0], R[3], R[6], R[1], R[4], R[7], R[2], R[5], R[8])
+    return Rt, tuple(-(R[i] * p[0] + R[i + 3] * p[1] + R[i + 6] * p[2]) for i in (0, 1, 2))
+
+
+def pose_frame_1(pose) -> tuple[tuple[float, ...], tuple[float, ...]]:
+    """Rotation (9 entries row by row) and position of one validated pose (6 floats)."""
+    return rotvec_to_matrix_1(pose[3], pose[4], pose[5]), (pose[0], pose[1], pose[2])
+
+
+def tcp_frame(tcp) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
+    """The TCP offset (a pose in the flange frame) as (rotation entries, position), None for no offset."""
     if tcp is None:
         return None
-    arr, single = rows_of_six(tcp, "tcp")
-    if not single:
+    vals = six_floats(tcp, "tcp")
+    if vals is None:
         raise PlannerError(f"tcp: expected one pose of shape (6,), got shape {np.shape(tcp)}")
-    return pose_to_matrix(arr[0])
+    return pose_frame_1(vals)
+
+
+def frame_matrix(R, p) -> np.ndarray:
+    """Homogeneous transform (4, 4) of a rotation (9 entries row by row) and an origin (3)."""
+    return np.array([[R[0], R[1], R[2], p[0]], [R[3], R[4], R[5], p[1]], [R[6], R[7], R[8], p[2]], [0, 0, 0, 1.0]])
+
+
+def _tool_frames(m: URModel, q: np.ndarray, tcp) -> tuple[np.ndarray, np.ndarray]:
+    R, p = flange_rp(m, q)
+    frame = tcp_frame(tcp)
+    return (R, p) if frame is None else compose(R, p, *frame)
+
+
+def _tool_frame_1(m: URModel, q: list[float], tcp):
+    R, p = flange_1(m, q)
+    frame = tcp_frame(tcp)
+    return (R, p) if frame is None else compose_1(R, p, *frame)
 
 
 def forward_matrix(model: str | URModel, q, tcp=None) -> np.ndarray:
@@ -165,16 +232,21 @@ def forward_matrix(model: str | URModel, q, tcp=None) -> np.ndarray:
     ndarray, shape (4, 4) or (n, 4, 4)
     """
     m = get_model(model)
-    q, single = rows_of_six(q, "q")
-    T = _chain(m, q)
-    tcp_T = _tcp_matrix(tcp)
-    if tcp_T is not None:
-        T = T @ tcp_T
-    return T[0] if single else T
+    one = six_floats(q, "q")
+    if one is not None:  # one joint vector: Python floats (a few microseconds), the same results
+        return frame_matrix(*_tool_frame_1(m, one, tcp))
+    q, _ = rows_of_six(q, "q")
+    R, p = _tool_frames(m, q, tcp)
+    T = np.zeros((len(q), 4, 4))
+    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, p, 1.0
+    return T
 
 
 def forward(model: str | URModel, q, tcp=None) -> np.ndarray:
     """Tool pose(s) ``p[x, y, z, rx, ry, rz]`` (m, rotation vector) in the base frame.
+
+    One joint vector is computed on Python floats (:func:`flange_1`, :func:`matrix_to_rotvec_1`), many
+    at once with numpy; both give identical results.
 
     Parameters
     ----------
@@ -188,4 +260,14 @@ def forward(model: str | URModel, q, tcp=None) -> np.ndarray:
     -------
     ndarray, shape (6,) or (n, 6)
     """
-    return matrix_to_pose(forward_matrix(model, q, tcp))
+    m = get_model(model)
+    one = six_floats(q, "q")
+    if one is not None:
+        R, p = _tool_frame_1(m, one, tcp)
+        return np.array([p[0], p[1], p[2], *matrix_to_rotvec_1(*R)])
+    q, _ = rows_of_six(q, "q")
+    R, p = _tool_frames(m, q, tcp)
+    pose = np.empty((len(q), 6))
+    pose[:, :3] = p
+    pose[:, 3:] = matrix_to_rotvec(R)
+    return pose

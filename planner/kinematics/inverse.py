@@ -33,35 +33,43 @@ singularity are checked by forward kinematics and discarded unless they reproduc
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from planner.errors import PlannerError
-from planner.kinematics._checks import rows_of_six
+from planner.kinematics._checks import rows_of_six, six_floats
 from planner.kinematics.errors import UnreachableError
-from planner.kinematics.forward import _tcp_matrix, flange_rp, pose_to_matrix
+from planner.kinematics.forward import (
+    compose,
+    compose_1,
+    flange_rp,
+    frame_matrix,
+    invert_1,
+    pose_frame_1,
+    pose_to_matrix,
+    tcp_frame,
+)
+from planner.kinematics.inverse_one import solve_one
 from planner.kinematics.ur_models import URModel, get_model
 
-__all__ = ["IKSolutions", "inverse", "inverse_batch", "inverse_path", "wrap_angle"]
+__all__ = ["IKSolutions", "inverse", "inverse_batch", "inverse_nearest", "inverse_path", "wrap_angle"]
 
-# Acceptance of round-off at the workspace boundary: |d4 / r| and |cos q3| may exceed 1 by this much.
-_BOUNDARY_TOL = 1e-9
-# |sin q5| below _WRIST_SINGULAR is the wrist singularity (q6 then set to its reference value);
-# below _WRIST_NEAR, q234 and q6 are turned together where the elbow cannot reach otherwise.
-_WRIST_SINGULAR = 1e-12
-_WRIST_NEAR = 1e-6
-# A checked candidate is kept only if it reproduces the pose to these tolerances (m, rad).
-_POS_TOL = 1e-9
-_ROT_TOL = 1e-9
-# Joint-space distance below which two solutions of one pose count as the same one.
-_SAME_SOLUTION = 1e-9
+from planner.kinematics._tolerances import BOUNDARY_TOL as _BOUNDARY_TOL
+from planner.kinematics._tolerances import INV_TWO_PI as _INV_TWO_PI
+from planner.kinematics._tolerances import POS_TOL as _POS_TOL
+from planner.kinematics._tolerances import ROT_TOL as _ROT_TOL
+from planner.kinematics._tolerances import SAME_SOLUTION as _SAME_SOLUTION
+from planner.kinematics._tolerances import TWO_PI as _TWO_PI
+from planner.kinematics._tolerances import WRIST_NEAR as _WRIST_NEAR
+from planner.kinematics._tolerances import WRIST_SINGULAR as _WRIST_SINGULAR
+from planner.kinematics._tolerances import wrap_1
+
 # Samples per block: the solver's arrays and the branch comparisons of a block stay in cache.
 _BLOCK = 4096
 # Margin (rad) of the test that a branch's nearest successor is the same branch (see _next_branch).
 _SAME_BRANCH_MARGIN = 1e-12
-_TWO_PI = 2.0 * np.pi
-_INV_TWO_PI = 1.0 / _TWO_PI
 _SIGNS = np.array([1.0, -1.0])
 
 
@@ -102,21 +110,20 @@ class IKSolutions:
     singular: np.ndarray
 
 
-def _rigid_inverse(T: np.ndarray) -> np.ndarray:
-    R = np.swapaxes(T[..., :3, :3], -1, -2)
-    out = np.zeros_like(T)
-    out[..., :3, :3] = R
-    out[..., :3, 3] = -(R @ T[..., :3, 3, None])[..., 0]
-    out[..., 3, 3] = 1.0
-    return out
-
-
 def _flange_targets(m: URModel, poses: np.ndarray, tcp) -> np.ndarray:
+    """Flange transforms (n, 4, 4) of validated tool poses (n, 6): T_tool T_tcp^-1."""
     T = pose_to_matrix(poses)
-    tcp_T = _tcp_matrix(tcp)
-    if tcp_T is not None:
-        T = T @ _rigid_inverse(tcp_T)
+    frame = tcp_frame(tcp)
+    if frame is not None:
+        T[:, :3, :3], T[:, :3, 3] = compose(T[:, :3, :3], T[:, :3, 3], *invert_1(*frame))
     return T
+
+
+def _flange_target_1(pose: list[float], tcp):
+    """:func:`_flange_targets` of one validated pose (6 floats): rotation entries row by row, origin."""
+    R, p = pose_frame_1(pose)
+    frame = tcp_frame(tcp)
+    return (R, p) if frame is None else compose_1(R, p, *invert_1(*frame))
 
 
 @dataclass(frozen=True)
@@ -181,7 +188,7 @@ def _solve_block(m: URModel, T, q6_ref, q_out, valid_out, singular_out, clipped_
 
     # Shoulder: wrist centre p5 . z1 = d4 (Hawkins 2013, eq. for theta1).
     p5x, p5y = p[0] - m.d6 * z6[0], p[1] - m.d6 * z6[1]
-    r = np.hypot(p5x, p5y)
+    r = np.sqrt(p5x * p5x + p5y * p5y)  # not np.hypot: identical to the one-pose solver's sqrt
     psi = np.arctan2(p5y, p5x)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = m.d4 / r
@@ -338,16 +345,110 @@ def inverse_batch(model: str | URModel, poses, tcp=None, q6_ref=0.0) -> IKSoluti
     return _solve(m, _flange_targets(m, P, tcp), _q6_reference(q6_ref, len(P))).public(m)
 
 
-def _unique_rows(q: np.ndarray) -> np.ndarray:
-    keep: list[np.ndarray] = []
-    for row in q:  # at most 8 rows
-        if all(np.abs(wrap_angle(row - k)).max() > _SAME_SOLUTION for k in keep):
-            keep.append(row)
-    return np.array(keep).reshape(-1, 6)
+class _Limits:
+    """A model's joint limits as Python floats, for the one-pose functions (built once per model)."""
+
+    _cache: dict[int, tuple[URModel, _Limits]] = {}
+
+    def __init__(self, m: URModel):
+        self.lower, self.upper = list(m.q_min), list(m.q_max)
+        self.multiturn = [bool(t) for t in m.multiturn]
+        # wrapped angles lie in (-pi, pi]: inside such limits (as in _Branches.public)
+        self.wide = all(lo <= -np.pi for lo in self.lower) and all(hi >= np.pi for hi in self.upper)
+
+    @classmethod
+    def of(cls, m: URModel) -> _Limits:
+        hit = cls._cache.get(id(m))
+        if hit is None or hit[0] is not m:
+            if len(cls._cache) > 64:
+                cls._cache.clear()
+            hit = cls._cache[id(m)] = (m, cls(m))
+        return hit[1]
+
+    def within(self, q) -> bool:
+        """Wrapped joints q inside the limits."""
+        return self.wide or all(lo <= v <= hi for lo, v, hi in zip(self.lower, q, self.upper, strict=True))
+
+    def nearest(self, sols, q_near: list[float]) -> list[float] | None:
+        """Of the branches ``sols`` (wrapped joints or None), the one nearest to ``q_near`` in joint space,
+        each placed by whole turns on the multiturn joints as near to ``q_near`` as the limits allow
+        (one turn back towards the range where the nearest lies beyond a limit); None if no branch
+        fits the limits. Branches are pruned as soon as their partial distance exceeds the best."""
+        wrapped = [wrap_1(v) for v in q_near]
+        best, best_d = None, math.inf
+        for q in sols:
+            if q is None:
+                continue
+            d2 = 0.0
+            cand = []
+            for v, n, w, lo, hi, mt in zip(q, q_near, wrapped, self.lower, self.upper, self.multiturn, strict=True):
+                if mt:
+                    dv = v - w  # in (-2 pi, 2 pi): wrapped by one turn at most
+                    if dv > math.pi:
+                        dv -= _TWO_PI
+                    elif dv <= -math.pi:
+                        dv += _TWO_PI
+                    v = n + dv
+                    if v > hi:
+                        v -= _TWO_PI
+                    elif v < lo:
+                        v += _TWO_PI
+                if not lo <= v <= hi:
+                    break
+                dv = v - n
+                d2 += dv * dv
+                if d2 >= best_d:
+                    break
+                cand.append(v)
+            else:
+                best, best_d = cand, d2
+        return best
+
+
+def _same_solution(a, b) -> bool:
+    """Whether two wrapped solutions coincide (every |wrap(a_j - b_j)| <= _SAME_SOLUTION), testing first
+    the joints that tell branches apart (q1, q5, q3)."""
+    for j in (0, 4, 2, 1, 3, 5):
+        d = abs(a[j] - b[j])  # in [0, 2 pi): |wrap| is d or 2 pi - d
+        if _SAME_SOLUTION < d < _TWO_PI - _SAME_SOLUTION:
+            return False
+    return True
+
+
+def _q6_reference_1(q6_ref) -> float:
+    if type(q6_ref) in (float, int) and math.isfinite(q6_ref):
+        return float(q6_ref)
+    return float(_q6_reference(q6_ref, 1)[0])
+
+
+def _branches_one(m: URModel, pose: list[float], tcp, q6_ref: float):
+    """The 8 branches (tuples of 6 wrapped joints or None) of one validated pose, and its flange target.
+
+    :func:`inverse_one.solve_one` on Python floats; the block solver where that leaves the decision
+    to it (turned candidates next to the wrist singularity)."""
+    R, p = _flange_target_1(pose, tcp)
+    sols = solve_one(m, R, p, q6_ref)
+    if sols is None:
+        b = _solve(m, frame_matrix(R, p)[None], np.array([q6_ref]))
+        sols = [tuple(b.q[:, i, 0].tolist()) if b.valid[i, 0] else None for i in range(8)]
+    return sols, (R, p)
+
+
+def _one_pose(pose, function: str) -> list[float]:
+    vals = six_floats(pose, "pose")
+    if vals is None:
+        raise PlannerError(
+            f"pose: {function}() takes one pose of shape (6,), got {np.shape(pose)}; "
+            "use inverse_batch() or inverse_path() for many poses"
+        )
+    return vals
 
 
 def inverse(model: str | URModel, pose, tcp=None, q6_ref: float = 0.0) -> np.ndarray:
     """All closed-form inverse kinematics solutions of one pose.
+
+    Computed on Python floats (``inverse_one``, about 15 us a call) with the block solver's formulas,
+    branch order and singularity handling; it equals :func:`inverse_batch` to round-off.
 
     Parameters
     ----------
@@ -369,14 +470,57 @@ def inverse(model: str | URModel, pose, tcp=None, q6_ref: float = 0.0) -> np.nda
         returned once. An unreachable pose gives k = 0; no row ever contains NaN.
     """
     m = get_model(model)
-    P, single = rows_of_six(pose, "pose")
-    if not single:
-        raise PlannerError(
-            f"pose: inverse() takes one pose of shape (6,), got {np.shape(pose)}; "
-            "use inverse_batch() or inverse_path() for many poses"
-        )
-    sol = _solve(m, _flange_targets(m, P, tcp), _q6_reference(q6_ref, 1)).public(m)
-    return _unique_rows(sol.q[0][sol.within_limits[0]])
+    sols, _ = _branches_one(m, _one_pose(pose, "inverse"), tcp, _q6_reference_1(q6_ref))
+    limits = _Limits.of(m)
+    keep: list[tuple[float, ...]] = []
+    for q in sols:
+        if q is not None and limits.within(q) and not any(_same_solution(q, k) for k in keep):
+            keep.append(q)
+    return np.array(keep) if keep else np.empty((0, 6))
+
+
+def inverse_nearest(model: str | URModel, pose, q_near, tcp=None) -> np.ndarray:
+    """The inverse kinematics solution of one pose nearest to the joints ``q_near`` (a controller's
+    ``get_inverse_kin(pose, qnear)``).
+
+    Every valid branch is placed by whole turns on the multiturn joints (all six on the UR e-Series)
+    as near to ``q_near`` as the joint limits allow, as :func:`inverse_path` unwraps from its
+    ``q_start``; the one at the least Euclidean joint-space distance is returned (the first in branch
+    order on a tie). At a wrist singularity q6 is held at ``q_near``'s value. About 20 us a call.
+
+    Parameters
+    ----------
+    model : str or URModel
+    pose : array_like, shape (6,)
+        Tool pose ``[x, y, z, rx, ry, rz]`` (m, rotation vector) in the base frame.
+    q_near : array_like, shape (6,)
+        Joint positions (rad), e.g. the current ones; may lie outside (-pi, pi].
+    tcp : array_like, shape (6,), optional
+        Tool-centre-point offset in the flange frame.
+
+    Returns
+    -------
+    ndarray, shape (6,)
+        Joint positions in rad, within the model's joint limits.
+
+    Raises
+    ------
+    UnreachableError
+        The pose has no solution (the message says why), or every solution lies outside the joint
+        limits.
+    """
+    m = get_model(model)
+    vals = _one_pose(pose, "inverse_nearest")
+    qn = six_floats(q_near, "q_near")
+    if qn is None:
+        raise PlannerError(f"q_near: expected shape (6,), got {np.shape(q_near)}")
+    sols, (R, p) = _branches_one(m, vals, tcp, wrap_1(qn[5]))
+    best = _Limits.of(m).nearest(sols, qn)
+    if best is None:
+        if any(q is not None for q in sols):
+            raise UnreachableError(f"every inverse kinematics solution lies outside the joint limits of {m.name}")
+        raise UnreachableError(f"no inverse kinematics solution: {_why_unreachable(m, frame_matrix(R, p))}")
+    return np.array(best)
 
 
 def _why_unreachable(m: URModel, T: np.ndarray) -> str:

@@ -78,6 +78,7 @@ class Violation:
         where += ")"
         if self.kind == "unreachable":
             return f"{where}: pose has no inverse kinematics solution"
+        assert self.joint is not None, "every kind of violation but 'unreachable' names its joint"
         name = f"joint {self.joint} ({JOINT_NAMES[self.joint]})"
         if self.kind == "position":
             side = "above" if self.value > self.limit else "below"
@@ -296,21 +297,19 @@ def check_reachability(
     if candidates:
         i, k = min(candidates)
         kind = _KINDS[k]
-        extra = {
-            "arc_length": None if s is None else float(s[i]),
-            "span": None if sp is None else int(sp[i]),
-        }
+        at = None if s is None else float(s[i])
+        span = None if sp is None else int(sp[i])
         if kind == "unreachable":
-            first = Violation(kind, i, float(t[i]), None, float("nan"), float("nan"), **extra)
+            first = Violation(kind, i, float(t[i]), None, float("nan"), float("nan"), arc_length=at, span=span)
         elif kind == "position":
             excess = np.where(q[i] > hi, q[i] - hi, lo - q[i])
             j = int(np.argmax(np.where(pos_bad[i], excess, -np.inf)))
             limit = hi[j] if q[i, j] > hi[j] else lo[j]
-            first = Violation(kind, i, float(t[i]), j, float(q[i, j]), float(limit), **extra)
+            first = Violation(kind, i, float(t[i]), j, float(q[i, j]), float(limit), arc_length=at, span=span)
         else:
             j = int(np.argmax(ratio[i - 1]))
             speed = ratio[i - 1, j] * m.speed_limits[j]
-            first = Violation(kind, i, float(t[i]), j, float(speed), float(m.speed_limits[j]), **extra)
+            first = Violation(kind, i, float(t[i]), j, float(speed), float(m.speed_limits[j]), arc_length=at, span=span)
 
     peak = float(ratio.max(initial=0.0))
     margin = _margin(margin)
