@@ -114,6 +114,7 @@ def where_text(moves, group: Group, s: int) -> tuple[str, int]:
         if after is not None and after.kind == "rapid":
             return f"between the rapids at lines {before.line} and {after.line}", int(before.line)
         return f"at the end of the rapid at line {before.line}", int(before.line)
+    assert after is not None, "a gap boundary has a rapid on at least one side"
     return f"at the start of the rapid at line {after.line}", int(after.line)
 
 

@@ -146,8 +146,14 @@ class _Spans:
     A: np.ndarray | None = None
 
     def take(self, m: np.ndarray) -> _Spans:
-        return _Spans(*(getattr(self, f)[m] for f in ("p0", "p1", "t0", "t1", "chord", "key", "width")),
+        return _Spans(self.p0[m], self.p1[m], self.t0[m], self.t1[m], self.chord[m], self.key[m], self.width[m],
                       None if self.A is None else self.A[m])
+
+    @property
+    def hermite(self) -> np.ndarray:
+        """``A``, which every span set has once its Hermite coefficients are set."""
+        assert self.A is not None, "span coefficients not set"
+        return self.A
 
     @staticmethod
     def join(parts: list[_Spans]) -> _Spans:
@@ -246,7 +252,7 @@ def fit_passes(point_sets, tolerance: float = DEFAULT_TOLERANCE, *, line_tol: fl
     target = REFINE_MARGIN * tolerance
     for r in range(max_rounds + 1):
         cur = spans.take(todo)
-        dev, mono = span_deviation(cur.A, cur.p0, cur.chord, REFINE_SAMPLES)
+        dev, mono = span_deviation(cur.hermite, cur.p0, cur.chord, REFINE_SAMPLES)
         bad = ((dev > target) | ~mono) & (cur.width > 1e-9)
         done.append(cur.take(~bad))
         if not bad.any() or r == max_rounds:
@@ -266,7 +272,7 @@ def fit_passes(point_sets, tolerance: float = DEFAULT_TOLERANCE, *, line_tol: fl
     allspans = _Spans.join(done)
     order = np.argsort(allspans.key, kind="stable")
     allspans = allspans.take(order)
-    dev, _ = span_deviation(allspans.A, allspans.p0, allspans.chord, REPORT_SAMPLES)
+    dev, _ = span_deviation(allspans.hermite, allspans.p0, allspans.chord, REPORT_SAMPLES)
     cam_chord = np.floor(allspans.key).astype(int)  # global CAM chord index of every span
     # split per pass: global chord index j belongs to the pass whose points contain j
     pass_of_chord = np.repeat(np.arange(len(sets)), sizes)[cam_chord]
@@ -274,7 +280,7 @@ def fit_passes(point_sets, tolerance: float = DEFAULT_TOLERANCE, *, line_tol: fl
     out = []
     for k, p in enumerate(sets):
         a, b = bounds[k], bounds[k + 1]
-        A = allspans.A[a:b]
+        A = allspans.hermite[a:b]
         p0 = allspans.p0[a:b]
         h = np.linalg.norm(allspans.p1[a:b] - p0, axis=1)
         knots = np.concatenate(([0.0], np.cumsum(h)))

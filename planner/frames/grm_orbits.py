@@ -56,7 +56,8 @@ def g_power(A: np.ndarray) -> np.ndarray:
     side, degree 6) for quaternion Bernstein coefficients A (S, 3, 4)."""
     P = np.einsum("kj,sjc->skc", _M2, A)  # A(t) = sum_k P_k t^k
     dP = P[:, 1:] * np.array([1.0, 2.0])[None, :, None]
-    sig = sum(_conv(P[:, :, c], P[:, :, c]) for c in range(4))
+    sig = (_conv(P[:, :, 0], P[:, :, 0]) + _conv(P[:, :, 1], P[:, :, 1])
+           + _conv(P[:, :, 2], P[:, :, 2]) + _conv(P[:, :, 3], P[:, :, 3]))
     q = (_conv(P[:, :, 0], dP[:, :, 1]) - _conv(P[:, :, 1], dP[:, :, 0])
          - _conv(P[:, :, 2], dP[:, :, 3]) + _conv(P[:, :, 3], dP[:, :, 2]))
     return 2.0 * _conv(sig, q[:, :3])  # (A* A')_i has degree 2: its t^3 terms cancel

@@ -132,8 +132,10 @@ def ph_cubic_rmm(h0, h1, h2, start=None, *, sign_reference=None,
         raise FrameDataError(str(exc).split(": ", 1)[1], "h0, h1, h2") from None
     z0 = arcs.start[0]
     f0 = val.default_frame(z0, 0) if start is None else val.frame(start, "start", z0, 0)
-    return chain_arc_motion(arcs, start_frame=f0, axis_column=0, w0=w0, w1=w1, sign_reference=sign_reference,
-                            r2_weights=r2_weights).segment(0)
+    motion = chain_arc_motion(arcs, start_frame=f0, axis_column=0, w0=w0, w1=w1, sign_reference=sign_reference,
+                              r2_weights=r2_weights).segment(0)
+    assert isinstance(motion, RationalArcMotion)  # chain_arc_motion is rational unless told otherwise
+    return motion
 
 
 def ph_cubic_spline_rmm(hodographs, knots=None, start=None, *, sign_reference=None, rational: bool = True,

@@ -203,7 +203,7 @@ def cap_windows(caps: FeedCaps, reference: FeedProfile, span_bounds=None, floor:
     for a, b in zip(edges[::2], edges[1::2], strict=True):  # one per window (few)
         k = a + int(np.argmin(factor[a:b]))
         s0, s1 = float(pts[a]), float(pts[b])
-        spans = (None, None)
+        spans: tuple[int | None, int | None] = (None, None)
         if span_bounds is not None:
             sb = np.asarray(span_bounds, dtype=float)
             first = int(np.clip(np.searchsorted(sb, s0, side="right") - 1, 0, sb.size - 2))

@@ -126,7 +126,7 @@ def schedule_events(events, profile, rate: float, n_samples: int) -> tuple[Sched
     if not events:
         return ()
     t = profile.time_at(np.array([e.s for e in events])) - np.array([e.lead_time for e in events])
-    for i in np.flatnonzero(t < 0.0):
+    for i in np.flatnonzero(t < 0.0).tolist():
         e = events[i]
         warnings.warn(f"events[{i}] ({e.name or e.channel}): switching {e.lead_time} s before s = {e.s} m "
                       f"falls {-t[i]:.6g} s before the motion starts; it is issued at t = 0",
