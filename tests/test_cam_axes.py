@@ -10,7 +10,8 @@ from scipy.integrate import quad
 from scipy.interpolate import CubicSpline
 from scipy.spatial.transform import Rotation
 
-from planner.cam import axis_field, fit_pass, plan_cam_job
+from planner import PlanSettings, plan
+from planner.cam import axis_field, fit_pass
 from planner.cam.axes import arc_departure, axis_departure, spin_about_axis, transport, travel_frames, turn_axis
 from planner.frames import exact_spherical_rmm
 from planner.io import read_toolpath
@@ -28,8 +29,13 @@ GOTO/80,0,0
 """
 
 
+def cam_job(toolpath, **kw):
+    """The CAM polyline model, at the former CAM default feed of 10 mm/s."""
+    return plan(toolpath, PlanSettings(path="cam", feed=0.01, **kw))
+
+
 def modal_job():
-    return plan_cam_job(read_toolpath(io.StringIO(MODAL), format="apt"))
+    return cam_job(read_toolpath(io.StringIO(MODAL), format="apt"))
 
 
 def rotation_vectors(F: np.ndarray) -> np.ndarray:
@@ -130,14 +136,14 @@ GOTO/10,0,0
 GOTO/10,0,0,0.8660254,0,-0.5
 GOTO/20,0,0
 """
-    job = plan_cam_job(read_toolpath(io.StringIO(text), format="apt"), rate=500.0)
+    job = cam_job(read_toolpath(io.StringIO(text), format="apt"), rate=500.0)
     assert [m.kind for m in job.moves] == ["cut", "reorientation", "cut"]
     turn = job.moves[1]
     assert turn.item.line == 4 and turn.frames.angle == pytest.approx(np.radians(120.0), abs=1e-7)
-    stream = job.pose_stream()
-    on_turn = stream.move == 1
-    assert np.abs(stream.poses[on_turn, :3] - [0.01, 0.0, 0.0]).max() <= 1e-15  # in place
-    R = Rotation.from_rotvec(stream.poses[on_turn, 3:]).as_matrix()
+    (on_turn,) = [c for c in job.trajectory().chunks() if c.move == 1]
+    assert on_turn.kind == "reorientation" and len(on_turn) > 100
+    assert np.abs(on_turn.poses[:, :3] - [0.01, 0.0, 0.0]).max() <= 1e-15  # in place
+    R = Rotation.from_rotvec(on_turn.poses[:, 3:]).as_matrix()
     r = rotation_vectors(R)
     assert np.abs(np.einsum("ni,ni->n", r, np.tile([0.0, 0.0, 1.0], (len(r), 1)))).max() <= 1e-12
     # it ends exactly on the new axis, where the next pass starts

@@ -1,6 +1,6 @@
-"""plan_cam_job on each real CAM file: its verbatim excerpt in tests/data (default suite, under a second) and the
-whole file of ../shared/data (about 40 s in all: marked ``slow``; skipped with that reason when shared/data is not
-next to the repository, as on a clean clone).
+"""planner.plan on each real CAM file (the CAM polyline model, the default for APT/CLSF and G-code): its verbatim
+excerpt in tests/data (default suite, under a second) and the whole file of ../shared/data (about 40 s in all: marked
+``slow``; skipped with that reason when shared/data is not next to the repository, as on a clean clone).
 """
 
 from __future__ import annotations
@@ -11,7 +11,7 @@ import warnings
 import numpy as np
 import pytest
 
-from planner.cam import plan_cam_job
+from planner import PlanSettings, plan
 from planner.io import read_toolpath
 from tests.cam_excerpts import EXCERPTS
 from tests.conftest import SHARED_DATA
@@ -38,8 +38,9 @@ def test_file_plans_within_tolerance(path, kw, more_passes_than):
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")
         tp = read_toolpath(path, **kw)
-    job = plan_cam_job(tp)
+    job = plan(tp, PlanSettings(feed=0.01))  # the former CAM default feed, where the file gives none
     s = job.summary()
+    assert s["path_model"] == "cam" and s["axes"] == ("file" if tp.axes is not None else "fixed")
     assert s["passes"] > more_passes_than and s["max_deviation_mm"] <= 0.01 and s["max_axis_error_deg"] < 0.05
     # at least one pass after every rapid that a cut follows (corners and axis jumps split more)
     assert s["passes"] >= int((tp.rapid[:-1] & ~tp.rapid[1:]).sum())
@@ -53,7 +54,7 @@ def test_file_plans_within_tolerance(path, kw, more_passes_than):
         if m.kind == "cut":
             assert not job.toolpath.rapid[m.item.source_index[1:]].any()
     # the stream of the first moves is continuous and starts where the file starts
-    chunks = list(itertools.islice(job.iter_stream(), 6))
+    chunks = list(itertools.islice(job.trajectory().chunks(), 6))
     poses = np.concatenate([c.poses for c in chunks])
     assert np.abs(poses[0, :3] - job.toolpath.points[0]).max() <= 1e-12
     assert np.linalg.norm(np.diff(poses[:, :3], axis=0), axis=1).max() <= 0.25 / 500.0 * (1 + 1e-6)

@@ -17,15 +17,19 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from planner.cam import plan_cam_job
+from planner import PlanSettings, plan
 from planner.cam.configure import groups
-from planner.cam.stream import track_joints
 from planner.cli import main
 from planner.kinematics import forward, forward_matrix, get_model
 from tests.cam_excerpts import NX
-from tests.test_cli_whole_job import parse_program
+from tests.test_export_urscript import parse_program
 
 NX_PART = (0.4, 0.9965, -0.1, 0.0, 0.0, 0.0)
+
+
+def cam_job(source, **kw):
+    """The CAM polyline model; the feed where the file gives none 10 mm/s (the former CAM default) unless given."""
+    return plan(source, PlanSettings(**{"path": "cam", "feed": 0.01, **kw}))
 
 
 def _cam_axis(tilt_deg: float) -> tuple[float, float, float]:
@@ -57,7 +61,7 @@ TWO_REACHES = "\n".join([
 def two_reaches(tmp_path_factory):
     src = tmp_path_factory.mktemp("cam") / "two_reaches.apt"
     src.write_text(TWO_REACHES)
-    return src, plan_cam_job(src, robot="ur5e")
+    return src, cam_job(src, robot="ur5e")
 
 
 def test_inherited_configuration_is_changed_in_the_rapids_before_the_pass_that_needs_it(two_reaches):
@@ -95,9 +99,8 @@ def test_inherited_configuration_is_changed_in_the_rapids_before_the_pass_that_n
 @pytest.mark.parametrize("rate", [500.0, 125.0])
 def test_joint_stream_is_continuous_and_exact_across_the_change(two_reaches, rate):
     _, job = two_reaches
-    pairs = list(track_joints(job, job.iter_stream(rate)))
-    chunks = [c for c, _ in pairs]
-    q = np.concatenate([q for _, q in pairs])
+    chunks = list(job.trajectory(rate).chunks())  # with the robot's joints
+    q = np.concatenate([c.joints for c in chunks])
     poses = np.concatenate([c.poses for c in chunks])
     kind = np.concatenate([np.full(c.times.size, c.kind) for c in chunks])
     assert len(q) == job.n_samples(rate) and np.isfinite(q).all()
@@ -128,16 +131,18 @@ def test_joint_stream_is_continuous_and_exact_across_the_change(two_reaches, rat
     r = job.reconfigurations[0]
     np.testing.assert_array_equal(q[a], r.q_from)
     np.testing.assert_allclose(q[b], r.q_to, atol=1e-9)  # the rapid after it continues on the new branch
-    assert (chunks[0].joints is None) and next(c for c in chunks if c.kind == "reconfiguration").joints is not None
+    # without IK, only the joint move carries joints (its own, not solved)
+    bare = list(job.trajectory(rate).chunks(joints=False))
+    assert bare[0].joints is None and next(c for c in bare if c.kind == "reconfiguration").joints is not None
 
 
 def test_whole_job_program_and_stream_carry_the_joint_move(two_reaches, tmp_path, capsys):
     src, _ = two_reaches
-    job = plan_cam_job(src, tolerance=1e-5, part_frame=(0.0,) * 6, robot="ur5e", feed=0.05, rate=125.0)  # as the CLI
+    job = cam_job(src, tolerance=1e-5, part_frame=(0.0,) * 6, robot="ur5e", feed=0.05, rate=125.0)  # as the CLI
     script, stream = tmp_path / "job.script", tmp_path / "job.json"
     for out in (script, stream):
-        assert main(["plan", str(src), "--pass", "all", "--part-frame", "0,0,0,0,0,0", "--rate", "125",
-                     "-o", str(out)]) == 0
+        assert main(["plan", str(src), "--pass", "all", "--robot", "ur5e", "--part-frame", "0,0,0,0,0,0",
+                     "--rate", "125", "-o", str(out)]) == 0
     out = capsys.readouterr().out
     assert "1 change of the arm configuration" in out and "before pass 1 (lines 11-14)" in out
     stmts = parse_program(script.read_text())
@@ -207,7 +212,7 @@ def test_real_job_changes_configuration_at_the_rapid_the_inherited_one_cannot_ma
     at line 20299 (the arm stretched out); the arm changes configuration at that rapid's start (the end of the
     pass before it, a safe point: no rapid comes earlier) and makes every move."""
     src = nx_file(20238, 20416)
-    job = plan_cam_job(src, part_frame=NX_PART, robot="ur5e", feed=0.05)
+    job = cam_job(src, part_frame=NX_PART, robot="ur5e", feed=0.05)
     assert job.reachable and not job.problems
     (r,) = job.reconfigurations
     assert r.where == "at the start of the rapid at line 20299" and r.line == 20299
@@ -220,9 +225,9 @@ def test_real_job_changes_configuration_at_the_rapid_the_inherited_one_cannot_ma
     runs = [[job.moves[i].pass_index for i in g.run if job.moves[i].kind == "cut"] for g in groups(job.moves)]
     assert [p.index for p in job.passes] == [p for run in runs for p in run]
     assert any(len(run) == 3 for run in runs)  # e.g. passes 766-768 (lines 20357-20416), joined at two corners
-    pairs = list(track_joints(job, job.iter_stream(125.0)))
-    q = np.concatenate([q for _, q in pairs])
-    poses = np.concatenate([c.poses for c, _ in pairs])
+    chunks = list(job.trajectory(125.0).chunks())
+    q = np.concatenate([c.joints for c in chunks])
+    poses = np.concatenate([c.poses for c in chunks])
     T = forward_matrix("ur5e", q)
     np.testing.assert_allclose(T[:, :3, 3], poses[:, :3], atol=1e-9)
     np.testing.assert_allclose(T[:, :3, :3], Rotation.from_rotvec(poses[:, 3:]).as_matrix(), atol=1e-9)
@@ -234,14 +239,15 @@ def test_real_job_starts_on_the_configuration_its_first_run_needs(nx_file):
     travel the arm runs out of reach at line 20413 (the feed floor cannot help); the job starts on one that can
     make them, and the stream and the program start there."""
     src = nx_file(20356, 20416)
-    job = plan_cam_job(src, part_frame=NX_PART, robot="ur5e", feed=0.05)
+    job = cam_job(src, part_frame=NX_PART, robot="ur5e", feed=0.05)
     assert job.reachable and not job.problems and not job.reconfigurations
     assert job.start_note.startswith("starts on the arm configuration that makes pass 0 (lines 20357-20416) "
                                      "feasible; the configuration of least joint travel fails: ")
     assert "pass 2 (VARIABLE_CONTOUR) (lines 20376-20416), line 20413: joint" in job.start_note
     assert "stretched out" in job.start_note and job.summary()["start"] == job.start_note
     assert any(line.startswith("  arm       starts on the arm configuration") for line in job.describe())
-    (chunk, q), *_ = track_joints(job, job.iter_stream(125.0))
+    chunk = next(iter(job.trajectory(125.0).chunks()))
+    q = chunk.joints
     np.testing.assert_allclose(q[0], job.start_joints, atol=1e-9)
     T = forward_matrix("ur5e", q)
     np.testing.assert_allclose(T[:, :3, 3], chunk.poses[:, :3], atol=1e-9)

@@ -1,4 +1,6 @@
-"""URScript export parsed back: servoj stream (joints, timing, I/O) and movep targets, blends and I/O."""
+"""The URScript program of a planned job (planner.export.job_program) parsed back: the start movej on the planned
+joints, movep along every pass within the tolerance, the cut output switched around every pass, refusals named;
+movep targets, blends and I/O switches (plan_movep, movep_lines)."""
 
 from __future__ import annotations
 
@@ -6,9 +8,12 @@ import re
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
+from planner import PlanSettings, plan
 from planner.curves import fit_ph_spline
-from planner.export import ExportError, movep_program, plan_movep, servoj_program, write_script
+from planner.export import ExportError, job_program, plan_job_program, plan_movep, write_script
+from planner.export.urscript import movep_lines
 from planner.motion import (
     ConstantOrientation,
     IOEvent,
@@ -17,32 +22,36 @@ from planner.motion import (
     io_window,
     plan_feed,
     poses_at_length,
-    sample_poses,
 )
+from planner.trajectory import IO_BIT_OFFSET
 
 LIM = MotionLimits(speed=1.0, acceleration=2.0, jerk=30.0)
 DOWN = ConstantOrientation(np.diag([1.0, -1.0, -1.0]))  # tool z pointing down
+TCP = (0.0, 0.0, 0.12, 0.0, 0.0, 0.0)
+FEED = 0.15
 NUM = r"-?\d+\.\d+"
 VEC = rf"\[({NUM}(?:, {NUM})*)\]"
 
 
-def job(rate=500.0, events=()):
-    n = 30
+def helix(n: int = 30) -> np.ndarray:
+    """One turn of a helix (radius 80 mm, rise 20 mm) in front of a UR5e, m."""
     th = np.linspace(0, 2 * np.pi, n)
-    wp = np.column_stack((0.4 + 0.08 * np.cos(th), 0.1 + 0.08 * np.sin(th), 0.2 + 0.02 * th / (2 * np.pi)))
-    path = fit_ph_spline(wp)
-    prof = plan_feed(path, 0.15, LIM)
-    st = sample_poses(path, prof, DOWN, rate=rate, tcp=[0, 0, 0.12, 0, 0, 0], events=events)
-    return path, prof, st
+    return np.column_stack((0.4 + 0.08 * np.cos(th), 0.1 + 0.08 * np.sin(th), 0.2 + 0.02 * th / (2 * np.pi)))
 
 
-def fake_joints(st):
-    t = st.times[:, None]
-    return np.array([0.1, -1.2, 1.5, -1.9, -1.57, 0.3]) + 0.2 * np.sin(t * np.arange(1, 7))
+def planned(waypoints=None, **kw):
+    """The helix (or ``waypoints``) interpolated, tool straight down (CAM axis +Z), on a UR5e with a 120 mm TCP."""
+    wp = helix() if waypoints is None else waypoints
+    settings = PlanSettings(**{"path": "interpolate", "robot": "ur5e", "tcp": TCP, "feed": FEED, "limits": LIM, **kw})
+    return plan(wp, settings, axes=np.tile([0.0, 0.0, 1.0], (len(wp), 1)))
 
 
 def parse_program(text):
-    """Statements of a generated program: [(kind, args...)], checking every line is understood."""
+    """Statements of a generated program: [(kind, args...)], checking every line is understood.
+
+    ("comment", text), ("movep", pose, a, v, r), ("movel", pose, a, v, t or None, r), ("movej", q, a, v, t or None),
+    ("set_tcp", pose), ("io", kind, pin, value).
+    """
     lines = text.splitlines()
     assert lines[0] == "def planner_job():" and lines[-1] == "end"
     out = []
@@ -50,157 +59,166 @@ def parse_program(text):
         assert line.startswith("  "), line
         body = line.strip()
         if body.startswith("#"):
-            out.append(("comment", body))
-        elif m := re.fullmatch(rf"servoj\({VEC}, t=({NUM}), lookahead_time=({NUM}), gain=({NUM})\)", body):
-            out.append(("servoj", np.array(m[1].split(", "), float), float(m[2]), float(m[3]), float(m[4])))
+            out.append(("comment", body[1:].strip()))
         elif m := re.fullmatch(r"set_(standard|configurable|tool)_digital_out\((\d), (True|False)\)", body):
             out.append(("io", m[1], int(m[2]), m[3] == "True"))
         elif m := re.fullmatch(rf"movep\(p{VEC}, a=({NUM}), v=({NUM}), r=({NUM})\)", body):
             out.append(("movep", np.array(m[1].split(", "), float), float(m[2]), float(m[3]), float(m[4])))
-        elif m := re.fullmatch(rf"movej\((p?){VEC}, a=({NUM}), v=({NUM})\)", body):
-            out.append(("movej", m[1] == "p", np.array(m[2].split(", "), float)))
+        elif m := re.fullmatch(rf"movel\(p{VEC}, a=({NUM}), v=({NUM})(?:, t=({NUM}))?, r=({NUM})\)", body):
+            t = None if m[4] is None else float(m[4])
+            out.append(("movel", np.array(m[1].split(", "), float), float(m[2]), float(m[3]), t, float(m[5])))
+        elif m := re.fullmatch(rf"movej\({VEC}, a=({NUM}), v=({NUM})(?:, t=({NUM}))?\)", body):
+            t = None if m[4] is None else float(m[4])
+            out.append(("movej", np.array(m[1].split(", "), float), float(m[2]), float(m[3]), t))
         elif m := re.fullmatch(rf"set_tcp\(p{VEC}\)", body):
             out.append(("set_tcp", np.array(m[1].split(", "), float)))
-        elif m := re.fullmatch(rf"stopj\(({NUM})\)", body):
-            out.append(("stopj", float(m[1])))
         else:
             raise AssertionError(f"unexpected URScript line: {line!r}")
     return out
 
 
 @pytest.mark.parametrize("rate", [500.0, 125.0])
-def test_servoj_program_parses_back(tmp_path, rate):
-    events = [*io_window(0.1, 0.3, 2, lead_time=0.04, name="spray"), IOEvent(0.2, 1, True, output="tool")]
-    path, prof, st = job(rate, events)
-    q = fake_joints(st)
-    text = servoj_program(st, q, lookahead_time=0.05, gain=500)
+def test_program_parses_back_and_starts_on_the_planned_joints(tmp_path, rate):
+    job = planned(rate=rate)
+    assert job.reachable and len(job.passes) == 1
+    text = job_program(job)
     stmts = parse_program(text)
     comments = " ".join(s[1] for s in stmts if s[0] == "comment")
     assert "generated by ph-toolpath-planner" in comments and f"rate_hz: {rate}" in comments
-    assert "duration_s" in comments and "lookahead_time" in comments
+    assert "duration_s" in comments and "movep_targets" in comments
     kinds = [s[0] for s in stmts if s[0] != "comment"]
-    assert kinds[0] == "set_tcp" and kinds[-1] == "stopj"
-    np.testing.assert_allclose(next(s[1] for s in stmts if s[0] == "set_tcp"), [0, 0, 0.12, 0, 0, 0], atol=1e-12)
-    movej = next(s for s in stmts if s[0] == "movej")
-    assert not movej[1]
-    np.testing.assert_allclose(movej[2], q[0], atol=6e-13)
-    servo = [s for s in stmts if s[0] == "servoj"]
-    assert len(servo) == len(st)
-    np.testing.assert_allclose(np.array([s[1] for s in servo]), q, rtol=0, atol=6e-13)
-    assert all(s[2] == pytest.approx(1 / rate, abs=1e-12) and s[3] == 0.05 and s[4] == 500 for s in servo)
-    # timing: each servoj blocks for t, so a statement runs at (number of servoj before it) * t
-    clock, io_times, initial, started = 0.0, [], [], False
-    for s in stmts:
-        if s[0] == "movej":
-            started = True
-        elif s[0] == "servoj":
-            clock += s[2]
-        elif s[0] == "io":
-            (io_times if started else initial).append((clock, s[1], s[2], s[3]))
-    assert sorted(initial) == [(0.0, "standard", 2, False), (0.0, "tool", 1, False)]
-    assert len(io_times) == len(events)
-    for (when, out, pin, value), e in zip(io_times, st.events, strict=True):
-        assert (out, pin, value) == (e.event.output, e.event.pin, e.event.value)
-        # the switch goes with the first sample at or after t(s) - lead
-        t_switch = prof.time_at(e.event.s)[0] - e.event.lead_time
-        assert t_switch <= when + 1e-9 < t_switch + 1 / rate + 1e-9
+    assert kinds[:2] == ["set_tcp", "movej"] and set(kinds[2:]) == {"movep"}
+    np.testing.assert_allclose(next(s[1] for s in stmts if s[0] == "set_tcp"), TCP, atol=1e-12)
+    # the start: a joint move to the joints the trajectory starts on, which put the TCP on the first pose
+    _, q0, a, v, t = next(s for s in stmts if s[0] == "movej")
+    first = next(iter(job.trajectory().chunks()))
+    np.testing.assert_allclose(q0, first.joints[0], rtol=0, atol=6e-13)  # 12 decimals
+    np.testing.assert_allclose(q0, job.start_joints, rtol=0, atol=6e-13)
+    from planner.kinematics import forward
+
+    flange = forward("ur5e", q0[None])[0]  # the flange pose; the TCP is 0.12 m along the flange z
+    tip = flange[:3] + Rotation.from_rotvec(flange[3:]).apply([0.0, 0.0, 0.12])
+    np.testing.assert_allclose(tip, first.poses[0, :3], atol=1e-9)
+    np.testing.assert_allclose(forward("ur5e", q0[None], tcp=TCP)[0, :3], first.poses[0, :3], atol=1e-9)
+    assert (a, v, t) == (0.5, 0.25, None)  # approach_acceleration, approach_speed, untimed
     write_script(text, tmp_path / "job.script")
     assert (tmp_path / "job.script").read_text() == text
 
 
-def test_servoj_joints_from_the_robot_model():
-    _, _, st = job()
-    text = servoj_program(st, model="ur5e")
-    from planner.kinematics import forward
-
-    servo = np.array([s[1] for s in parse_program(text) if s[0] == "servoj"])
-    flange = forward("ur5e", servo)  # the flange pose; the TCP is 0.12 m along the flange z
-    tcp_z = np.array([0.0, 0.0, 0.12])
-    from scipy.spatial.transform import Rotation
-
-    tip = flange[:, :3] + Rotation.from_rotvec(flange[:, 3:]).apply(tcp_z)
-    np.testing.assert_allclose(tip, st.positions, atol=1e-9)
-
-
-def test_movep_program_follows_the_path_within_tolerance():
-    events = list(io_window(0.1, 0.3, 0, lead_time=0.05, name="spray"))
-    path, prof, _ = job()
+def test_movep_follows_the_planned_path_within_tolerance():
+    job = planned()
     tol = 2e-4
-    plan = plan_movep(path, DOWN, prof, tolerance=tol, events=events)
-    text = movep_program(plan, prof, tcp=[0, 0, 0.12, 0, 0, 0])
-    stmts = parse_program(text)
+    (pm,) = plan_job_program(job, tolerance=tol)
+    plan_ = pm.plan
+    stmts = parse_program(job_program(job, tolerance=tol))
     moves = [s for s in stmts if s[0] == "movep"]
-    assert len(moves) == plan.s.size - 1
-    np.testing.assert_allclose(np.array([m[1] for m in moves]), plan.poses[1:], atol=6e-13)
-    np.testing.assert_allclose([m[4] for m in moves], plan.radii[1:], atol=6e-13)
+    assert len(moves) == plan_.s.size - 1 > 10
+    np.testing.assert_allclose(np.array([m[1] for m in moves]), plan_.poses[1:], atol=6e-13)
+    np.testing.assert_allclose([m[4] for m in moves], plan_.radii[1:], atol=6e-13)
     assert moves[-1][4] == 0.0 and all(m[2] == LIM.acceleration for m in moves)
-    assert all(m[3] == pytest.approx(0.15, abs=1e-12) for m in moves)
-    movej = next(s for s in stmts if s[0] == "movej")
-    assert movej[1]
-    np.testing.assert_allclose(movej[2], plan.poses[0], atol=6e-13)
-    # independent check: dense points of the path against the polyline of targets
-    s = np.linspace(0, path.length, 20001)
-    p, _, _ = poses_at_length(path, DOWN, s)
-    seg = np.clip(np.searchsorted(plan.s, s, side="right") - 1, 0, plan.s.size - 2)
-    a, b = plan.poses[seg, :3], plan.poses[seg + 1, :3]
+    assert all(m[3] == pytest.approx(FEED, abs=1e-12) for m in moves)
+    # the program starts where the trajectory does (the movej's pose) and ends where it ends
+    poses = job.trajectory().collect(joints=False).poses
+    np.testing.assert_allclose(plan_.poses[0, :3], poses[0, :3], atol=1e-12)
+    np.testing.assert_allclose(moves[-1][1][:3], poses[-1, :3], atol=1e-12)
+    # independent check: dense points of the planned path against the polyline of targets
+    cut = job.moves[0]
+    from planner.motion import tool_orientation
+
+    orient = tool_orientation(cut.frames)
+    s = np.linspace(0, cut.path.length, 20001)
+    p, R, _ = poses_at_length(cut.path, orient, s)
+    seg = np.clip(np.searchsorted(plan_.s, s, side="right") - 1, 0, plan_.s.size - 2)
+    a, b = plan_.poses[seg, :3], plan_.poses[seg + 1, :3]
     lam = np.clip(np.einsum("ni,ni->n", p - a, b - a) / np.einsum("ni,ni->n", b - a, b - a), 0, 1)
     assert np.linalg.norm(p - a - lam[:, None] * (b - a), axis=1).max() <= 0.5 * tol * 1.05
+    # the tool stays straight down at every target (the file's axis +Z: tool z = -Z)
+    z = Rotation.from_rotvec(np.array([m[1][3:] for m in moves])).as_matrix()[:, :, 2]
+    np.testing.assert_allclose(z, np.tile([0.0, 0.0, -1.0], (len(moves), 1)), atol=1e-12)
     # blend radii: no overlap, corner cut within the tolerance
-    chord = np.diff(plan.poses[:, :3], axis=0)
+    chord = np.diff(plan_.poses[:, :3], axis=0)
     ell = np.linalg.norm(chord, axis=1)
-    r = plan.radii[1:-1]
+    r = plan_.radii[1:-1]
     assert np.all(r <= 0.5 * np.minimum(ell[:-1], ell[1:]) * (1 + 1e-12))
     cosang = np.einsum("ni,ni->n", chord[:-1], chord[1:]) / (ell[:-1] * ell[1:])
     assert np.all(r * np.sin(0.5 * np.arccos(np.clip(cosang, -1, 1))) <= tol * (1 + 1e-12))
-    # I/O after the move to the target where the tool is lead_time before s
-    order = [s for s in stmts if s[0] in ("movep", "io")]
-    first_move = next(i for i, s in enumerate(order) if s[0] == "movep")
-    ios = [(i, s) for i, s in enumerate(order) if s[0] == "io" and i > first_move]
-    assert len(ios) == 2
-    for (i, s), e in zip(ios, plan.events, strict=True):
-        target = order[i - 1]
+
+
+def l_shape() -> np.ndarray:
+    """Two straight 100 mm legs at a right angle: the corner (sharper than 60 deg) splits two passes."""
+    a = np.column_stack((np.linspace(0.35, 0.45, 6), np.full(6, 0.1), np.full(6, 0.2)))
+    b = np.column_stack((np.full(5, 0.45), np.linspace(0.12, 0.2, 5), np.full(5, 0.2)))
+    return np.vstack((a, b))
+
+
+@pytest.mark.parametrize("output", [("standard", 2), ("configurable", 7), ("tool", 1)])
+def test_cut_output_is_on_exactly_around_every_pass(output):
+    job = planned(l_shape(), cut_output=output)
+    assert [m.kind for m in job.moves] == ["cut", "cut"] and job.reachable
+    stmts = [s for s in parse_program(job_program(job)) if s[0] in ("io", "movep", "movej", "movel")]
+    kinds = [s[0] for s in stmts]
+    n0, n1 = (int(p.s.size - 1) for p in (m.plan for m in plan_job_program(job)))
+    assert kinds == ["movej", "io", *["movep"] * n0, "io", "io", *["movep"] * n1, "io"]
+    switches = [s[1:] for s in stmts if s[0] == "io"]
+    assert switches == [(*output, True), (*output, False)] * 2
+    # the trajectory carries the same output: its bit on during the cuts, off at their last sample (where the
+    # tool has stopped and the next move starts)
+    bit = 1 << (IO_BIT_OFFSET[output[0]] + output[1])
+    for c in job.trajectory().chunks(joints=False):
+        assert c.kind == "cut" and (c.io[:-1] == bit).all() and c.io[-1] == 0
+
+
+def test_io_switch_follows_the_move_to_its_target():
+    """plan_movep's I/O triggers: the switch goes after the move to the target where the tool is lead_time
+    before the trigger point, with a blend short enough to fire within 2 ms."""
+    events = list(io_window(0.1, 0.3, 0, lead_time=0.05, name="spray"))
+    path = fit_ph_spline(helix())
+    prof = plan_feed(path, FEED, LIM)
+    tol = 2e-4
+    plan_ = plan_movep(path, DOWN, prof, tolerance=tol, events=events)
+    stmts = parse_program("\n".join(["def planner_job():", *movep_lines(plan_, LIM.acceleration), "end"]))
+    assert [s[0] for s in stmts].count("movep") == plan_.s.size - 1
+    ios = [(i, s) for i, s in enumerate(stmts) if s[0] == "io"]
+    assert len(ios) == 2 and ios[0][0] > 0
+    for (i, s), e in zip(ios, plan_.events, strict=True):
+        target = stmts[i - 1]
         assert target[0] == "movep" and (s[1], s[2], s[3]) == ("standard", 0, e.event.value)
         s_trig = prof.s(np.array([prof.time_at(e.event.s)[0] - e.event.lead_time]))[0]
         np.testing.assert_allclose(target[1][:3], poses_at_length(path, DOWN, [s_trig])[0][0], atol=1e-12)
-        assert target[4] <= 0.15 * 0.002 + 1e-15  # short blend: the switch fires within 2 ms
+        assert target[4] <= FEED * 0.002 + 1e-15  # short blend: the switch fires within 2 ms
 
 
 @pytest.mark.parametrize(
     "kwargs, name",
     [
-        (dict(gain=50), "gain"),
-        (dict(gain=3000), "gain"),
-        (dict(lookahead_time=0.5), "lookahead_time"),
-        (dict(lookahead_time=-1), "lookahead_time"),
-        (dict(stop_acceleration=0), "stop_acceleration"),
         (dict(name="my job"), "name"),
         (dict(parameters={"rate_hz": 1}), "parameters"),
         (dict(parameters={"x": object()}), "parameters"),
+        (dict(approach_speed=0.0), "approach_speed"),
+        (dict(approach_acceleration=-1.0), "approach_acceleration"),
+        (dict(tolerance=0.0), "tolerance"),
+        (dict(tolerance=1e-4, angle_tolerance=-1.0), "angle_tolerance"),
     ],
 )
-def test_bad_servoj_parameters_are_named(kwargs, name):
-    _, _, st = job()
+def test_bad_program_parameters_are_named(kwargs, name):
+    job = planned()
     with pytest.raises((MotionInputError, ExportError), match=f"^{name}:"):
-        servoj_program(st, fake_joints(st), **kwargs)
+        job_program(job, **kwargs)
 
 
-def test_bad_joints_and_rates_are_named():
-    _, _, st = job()
-    q = fake_joints(st)
-    q[17, 3] = np.nan
-    with pytest.raises(ExportError, match=r"^joints\[17\]: sample 17"):
-        servoj_program(st, q)
-    with pytest.raises(ExportError, match=r"^joints: expected shape"):
-        servoj_program(st, q[:-1])
-    with pytest.raises(ExportError, match="^joints: give"):
-        servoj_program(st)
-    _, _, fast = job(rate=1000.0)
-    with pytest.raises(MotionInputError, match="^rate:"):
-        servoj_program(fast, fake_joints(fast))
+def test_no_program_without_a_robot_or_for_moves_it_cannot_make():
+    free = planned(robot=None)
+    with pytest.raises(ExportError, match="needs the robot"):
+        job_program(free)
+    far = planned(part_frame=(1.5, 0.0, 0.0, 0.0, 0.0, 0.0))  # 1.9 m out: beyond a UR5e's reach
+    assert far.reachable is False and far.problems
+    with pytest.raises(ExportError, match=r"^the robot cannot make the job: <waypoints> pass 0 \(lines 0-29\)"):
+        job_program(far)
 
 
 def test_bad_movep_parameters_are_named():
-    path, prof, _ = job()
+    path = fit_ph_spline(helix())
+    prof = plan_feed(path, FEED, LIM)
     for kwargs, name in [(dict(tolerance=0.0), "tolerance"), (dict(tolerance=1e-3, angle_tolerance=-1),
                                                                "angle_tolerance"),
                          (dict(tolerance=1e-3, events=[IOEvent(5.0, 0, True)]), r"events\[0\]\.s")]:

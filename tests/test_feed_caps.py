@@ -1,5 +1,5 @@
-"""Lowering the feed locally where robot joints would be too fast (planner.motion.caps, local_feed, plan_job,
-CAM jobs, `planner plan`)."""
+"""Lowering the feed locally where robot joints would be too fast (planner.motion.caps, local_feed; planner.plan on
+waypoints and CAM toolpaths; `planner plan`)."""
 
 from __future__ import annotations
 
@@ -183,12 +183,13 @@ def near_singular_pass(eps: float, n: int = 13):
     return points, axes
 
 
-def plan(points, axes, **kw):
-    from planner.job import JobSettings, plan_job
+def plan_pass(points, axes, **kw):
+    """One pass through the waypoints (the C2 spline through them), tool approach axes ``axes``, feed 50 mm/s."""
+    from planner import PlanSettings, plan
 
     with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        return plan_job(points, axes, JobSettings(feed=FEED, **kw))
+        warnings.simplefilter("ignore")  # the tool axis passes near the direction of travel: warned, expected
+        return plan(points, PlanSettings(**{"path": "interpolate", "axes": "approach", "feed": FEED, **kw}), axes=axes)
 
 
 def joint_ratios(model, q, t) -> np.ndarray:
@@ -197,81 +198,99 @@ def joint_ratios(model, q, t) -> np.ndarray:
     return np.abs(joint_speeds(q, t)) / get_model(model).speed_limits
 
 
-def test_plan_job_slows_only_the_stretch_near_the_wrist_singularity():
+def stream(job):
+    """(t, s, poses, joints) of a one-pass job's whole trajectory at its rate (s: arc length along the pass)."""
+    c = job.trajectory().collect()
+    return c.times, job.moves[0].profile.s(c.times), c.poses, c.joints
+
+
+def test_pass_slows_only_the_stretch_near_the_wrist_singularity():
     from planner.kinematics import inverse_path
 
     points, axes = near_singular_pass(0.02)
-    free = plan(points, axes, robot=None)  # the time law without the robot
-    ref = free.profile
-    q_ref = inverse_path("ur5e", free.stream.poses)
-    r_ref = joint_ratios("ur5e", q_ref, free.stream.times).max(axis=1)
-    too_fast = free.stream.s[1:][r_ref > 1.0]
-    assert r_ref.max() > 2.0 and np.ptp(too_fast) < 0.05 * free.path.length  # 2 x too fast, locally
+    free = plan_pass(points, axes)  # the time law without the robot
+    ref = free.moves[0].profile
+    t_ref, s_ref, poses_ref, _ = stream(free)
+    q_ref = inverse_path("ur5e", poses_ref)
+    r_ref = joint_ratios("ur5e", q_ref, t_ref).max(axis=1)
+    too_fast = s_ref[1:][r_ref > 1.0]
+    assert r_ref.max() > 2.0 and np.ptp(too_fast) < 0.05 * free.moves[0].path.length  # 2 x too fast, locally
 
-    job = plan(points, axes, robot="ur5e")
-    t, s = job.stream.times, job.stream.s
-    assert job.reachability.ok and joint_ratios("ur5e", job.joints, t).max() <= 1.0  # every sample within
-    (w,) = job.feed_caps
+    job = plan_pass(points, axes, robot="ur5e")
+    assert [m.kind for m in job.moves] == ["cut"] and job.passes[0].length == free.passes[0].length
+    t, s, _, q = stream(job)
+    assert job.reachable and joint_ratios("ur5e", q, t).max() <= 1.0  # every sample within
+    (w,) = job.passes[0].feed_caps
     assert w.start <= too_fast.min() - FEED / RATE and w.end >= too_fast.max()  # covers the violating stretch
-    assert w.length <= np.ptp(too_fast) + 2e-3 and w.tag == 5 and 0.3 < w.factor < 0.5
-    spans = np.searchsorted(span_bounds(job.path), too_fast, side="right") - 1
+    assert w.length <= np.ptp(too_fast) + 2e-3 and w.tag == 5 and 0.3 < w.factor < 0.5 and not w.floored
+    spans = np.searchsorted(span_bounds(job.moves[0].path), too_fast, side="right") - 1
     assert w.first_span == spans.min() and w.last_span == spans.max()
-    assert job.feed_scale == w.factor
-    v = job.profile.v(t)
+    profile = job.moves[0].profile
+    v = profile.v(t)
     d = scurve.distance(w.speed, FEED, LIMITS.acceleration, 5.0)
-    away = cruise_mask(job.profile, s, w.start - d, w.end + d)
+    away = cruise_mask(profile, s, w.start - d, w.end + d)
     assert away.sum() > 0.8 * t.size and np.abs(v[away] - FEED).max() <= 1e-12 * FEED
-    assert job.profile.duration - ref.duration < 0.05 * ref.duration  # not the whole pass at 43 %
-    r = job.summary()
-    (line,) = r["feed_lowered"]
-    assert re.fullmatch(rf"feed lowered to \d\d\.?\d* % over 1\d\.?\d* mm at span {w.first_span} "
+    assert profile.duration - ref.duration < 0.05 * ref.duration  # not the whole pass at 43 %
+    assert job.passes[0].duration == job.duration == profile.duration
+    (line,) = job.slowed  # waypoint arrays: the "line" of a record is the waypoint index
+    at = {w.first_span + 1, w.last_span + 1}
+    at = f"line {at.pop()}" if len(at) == 1 else f"lines {min(at)}-{max(at)}"
+    assert re.fullmatch(rf"<waypoints> pass 0 \(lines 0-12\): feed lowered to \d\d\.?\d* % over 1\d\.?\d* mm at {at} "
                         r"\(joint 5 \(wrist 3\) speed\)", line)
-    assert r["feed_caps"][0]["joint"] == 5 and r["feed_caps"][0]["spans"] == [w.first_span, w.last_span]
+    assert job.summary()["slowed_passes"] == [0] and job.summary()["slowed"] == [line]
 
 
-def test_plan_job_without_a_too_fast_joint_keeps_the_profile():
+def test_pass_without_a_too_fast_joint_keeps_the_profile():
     points, axes = near_singular_pass(0.25)  # the wrist stays 14 deg from its singularity
-    job, free = plan(points, axes, robot="ur5e"), plan(points, axes, robot=None)
-    assert job.reachability.ok and job.feed_caps == () and job.feed_scale == 1.0 and job.feed_rounds == 0
-    for a, b in ((job.profile.t, free.profile.t), (job.profile.v0, free.profile.v0), (job.stream.s, free.stream.s)):
-        assert np.array_equal(a, b)
-    assert job.summary()["feed_lowered"] == []
+    job, free = plan_pass(points, axes, robot="ur5e"), plan_pass(points, axes)
+    assert job.reachable and job.passes[0].feed_caps == () and job.slowed == ()
+    a, b = job.moves[0].profile, free.moves[0].profile
+    for x, y in ((a.t, b.t), (a.v0, b.v0)):
+        assert np.array_equal(x, y)
+    assert np.array_equal(job.trajectory().collect().poses, free.trajectory().collect().poses)
+    assert job.summary()["slowed"] == [] and job.summary()["slowed_passes"] == []
 
 
-def test_plan_job_reports_what_the_floor_cannot_fix():
+def test_pass_reports_what_the_floor_cannot_fix():
     points, axes = near_singular_pass(3e-4)
-    job = plan(points, axes, robot="ur5e", feed_floor=0.02)
-    assert not job.reachability.ok and job.reachability.first.kind == "speed"
-    (w,) = job.feed_caps
-    assert w.floored and w.factor == pytest.approx(0.02, rel=1e-9)
-    assert "feed lowered to 2 % (the floor)" in job.summary()["feed_lowered"][0]
+    job = plan_pass(points, axes, robot="ur5e", feed_floor=0.02)
+    assert job.reachable is False and job.passes[0].reachable is False
+    msg = job.passes[0].reach_message
+    assert msg.startswith("<waypoints> pass 0 (lines 0-12), line ") and "joint 5 (wrist 3) speed" in msg
+    assert "the feed is lowered to 2 % there" in msg and job.problems == (msg,)
+    caps = job.passes[0].feed_caps
+    (w,) = [c for c in caps if c.floored]  # the wrist 3 stretch, at the floor; others (if any) above it
+    assert w.tag == 5 and w.factor == pytest.approx(0.02, rel=1e-9)
+    assert min(c.factor for c in caps) == w.factor and sum(c.length for c in caps) < 0.02  # only near it
+    assert any(x.startswith("<waypoints> pass 0 (lines 0-12): feed lowered to 2 % (the floor) over ")
+               and x.endswith("(joint 5 (wrist 3) speed)") for x in job.slowed)
 
 
-def test_no_servoj_program_for_joints_too_fast_at_the_floor(tmp_path):
-    """The controller would stop on it: the .script export refuses, naming the joint; a pose stream is written."""
-    from pathlib import Path
-
-    from planner.cli import _export
+def test_no_program_for_joints_too_fast_at_the_floor(tmp_path):
+    """The controller would stop on it: the .script export refuses, naming the joint; a pose stream is written
+    (its joints as planned, the too-fast stretch included)."""
+    from planner.cli import export
     from planner.errors import PlannerError
 
     points, axes = near_singular_pass(3e-4)
-    job = plan(points, axes, robot="ur5e", feed_floor=0.02)
-    with pytest.raises(PlannerError, match=r"not writing pass\.script: .*speed"):
-        _export(job, tmp_path / "pass.script", Path("pass.csv"))
+    job = plan_pass(points, axes, robot="ur5e", feed_floor=0.02)
+    with pytest.raises(PlannerError, match=r"not writing pass\.script: .*joint 5 \(wrist 3\) speed"):
+        export(job, tmp_path / "pass.script", {"input": "pass.csv"})
     assert not (tmp_path / "pass.script").exists()
-    _export(job, tmp_path / "pass.csv", Path("pass.csv"))
-    assert (tmp_path / "pass.csv").stat().st_size > 0
+    assert export(job, tmp_path / "pass.csv", {"input": "pass.csv"}).endswith("poses, with joints")
+    rows = [ln for ln in (tmp_path / "pass.csv").read_text().splitlines() if not ln.startswith("#")]
+    assert rows[0].endswith(",q0,q1,q2,q3,q4,q5") and len(rows) - 1 == job.trajectory().n_samples
 
 
 def test_cam_job_lowers_the_feed_of_the_pass_locally():
-    from planner.cam import plan_cam_job
+    from planner import PlanSettings, plan
     from planner.io import Toolpath
 
     points, axes = near_singular_pass(0.02, n=26)
     n = len(points)
     tp = Toolpath(points=points, axes=-axes, axis_given=np.ones(n, bool), feeds=np.full(n, FEED),
                   rapid=np.zeros(n, bool), lines=np.arange(10, 10 + 2 * n, 2), source="wrist.apt")
-    free, job = plan_cam_job(tp), plan_cam_job(tp, robot="ur5e")
+    free, job = plan(tp, PlanSettings(path="cam")), plan(tp, PlanSettings(path="cam", robot="ur5e"))
     assert job.reachable and not job.problems
     (w,) = job.passes[0].feed_caps
     assert w.tag == 5 and 0.3 < w.factor < 0.5 and w.length < 0.03
@@ -284,10 +303,12 @@ def test_cam_job_lowers_the_feed_of_the_pass_locally():
                         rf"at {at} \(joint 5 \(wrist 3\) speed\)", msg)
     assert any("feed lowered for the joint speed limits on 1 stretch" in x for x in job.describe())
     assert job.summary()["slowed_passes"] == [0]
-    # the stream at the controller rate, whose joints the check sampled every 2 mm
+    # the trajectory at the controller rate, whose joints the check sampled every 2 mm: within the limits, both
+    # as tracked and solved afresh
     from planner.kinematics import inverse_path
 
-    st = job.pose_stream()
+    st = job.trajectory().collect()
+    assert joint_ratios("ur5e", st.joints, st.times).max() <= 1.0
     assert joint_ratios("ur5e", inverse_path("ur5e", st.poses), st.times).max() <= 1.0
 
 
@@ -296,25 +317,27 @@ def test_cli_plan_names_the_slowed_stretch(tmp_path, capsys):
 
     points, axes = near_singular_pass(0.02, n=26)
     src = tmp_path / "wrist.csv"
-    src.write_text("x,y,z,i,j,k\n" + "".join(",".join(f"{v:.12g}" for v in (*1e3 * p, *a)) + "\n"
+    # a file's tool axes point from the tool tip towards the spindle: the approach axes negated
+    src.write_text("x,y,z,i,j,k\n" + "".join(",".join(f"{v:.12g}" for v in (*1e3 * p, *-a)) + "\n"
                                              for p, a in zip(points, axes, strict=True)))
     assert main(["plan", str(src), "--robot", "ur5e", "--feed", "50"]) == 0
     out = capsys.readouterr().out
+    assert "path      interpolate:" in out and "the file's tool axes" in out
     assert "feed lowered for the joint speed limits on 1 stretch" in out
-    assert re.search(r"slowed +feed lowered to \d\d\.?\d* % over 1\d\.?\d* mm at spans? [\d-]+ "
-                     r"\(joint 5 \(wrist 3\) speed\), lines? \d+", out)
-    assert "all" in out and "within joint position and speed limits" in out
+    assert re.search(r"\n    wrist\.csv pass 0 \(lines 2-27\): feed lowered to \d\d\.?\d* % over 1\d\.?\d* mm at "
+                     r"lines? [\d-]+ \(joint 5 \(wrist 3\) speed\)\n", out)
+    assert "ur5e: every move reachable within joint limits" in out
 
 
 def test_cam_job_reports_what_the_floor_cannot_fix():
-    from planner.cam import plan_cam_job
+    from planner import PlanSettings, plan
     from planner.io import Toolpath
 
     points, axes = near_singular_pass(3e-4, n=26)
     n = len(points)
     tp = Toolpath(points=points, axes=-axes, axis_given=np.ones(n, bool), feeds=np.full(n, FEED),
                   rapid=np.zeros(n, bool), lines=np.arange(10, 10 + 2 * n, 2), source="wrist.apt")
-    job = plan_cam_job(tp, robot="ur5e")
+    job = plan(tp, PlanSettings(path="cam", robot="ur5e"))
     assert job.reachable is False and job.passes[0].reachable is False
     caps = job.passes[0].feed_caps
     assert any(w.floored for w in caps) and min(w.factor for w in caps) == pytest.approx(0.01, rel=1e-9)
