@@ -9,12 +9,12 @@ from __future__ import annotations
 import argparse
 import sys
 import time
-import warnings
 from pathlib import Path
 
 import numpy as np
 
-from planner.errors import PlannerError
+from planner.errors import NumericalError, PlannerError
+from planner.settings import AXIS_SOURCES, FRAME_METHODS, PATH_MODELS, PlanSettings
 
 #: The bundled example the demo runs on (first pass of a real Siemens NX toolpath).
 EXAMPLE_NAME = "nx_first_pass.csv"
@@ -90,219 +90,150 @@ def _pose(text: str | None, name: str):
     return tuple(v)
 
 
-def cmd_plan(args: argparse.Namespace) -> None:
-    from planner.io import detect_format, read_toolpath
-    from planner.job import JobSettings, plan_job
-
-    path_in = Path(args.input)
-    options = {}
-    if args.units:
-        options["units"] = args.units
-    if args.machine:
-        options["machine"] = args.machine
-    tp = read_toolpath(path_in, **options)
-    from planner.cam import CutPass, split_passes
-
-    passes = [m for m in split_passes(tp, corner_deg=args.corner).moves if isinstance(m, CutPass)]
-    if not passes:
-        raise PlannerError(f"{path_in.name}: no cutting motion with at least two points")
-    if args.pass_index == "all" or (args.pass_index is None and len(passes) > 1):
-        _plan_whole_job(args, path_in, tp, options)
-        return
-    if args.pass_index == "longest":
-        k = int(np.argmax([np.linalg.norm(np.diff(p.points, axis=0), axis=1).sum() for p in passes]))
-    else:
-        try:
-            k = int(args.pass_index or 0)
-        except ValueError:
-            raise PlannerError(f"--pass must be a pass number, 'longest' or 'all', got {args.pass_index!r}") from None
-    if not 0 <= k < len(passes):
-        raise PlannerError(f"--pass {k}: {path_in.name} has passes 0..{len(passes) - 1}")
-    cut = passes[k]
-    points = cut.points
-    axes = None
-    if cut.axes is not None and not args.ignore_axes:
-        # CAM tool vectors point from the tool tip to the spindle; the robot tool z approaches the part
-        cam_format = detect_format(path_in) in ("apt", "gcode")
-        axes = -cut.axes if (cam_format or args.axes == "normal") else cut.axes
-    feeds = np.asarray(cut.feeds, dtype=float)
-    span_feeds = feeds[1:] if np.isfinite(feeds[1:]).any() else None
-    settings = JobSettings(
-        frame=args.frame, feed=args.feed / 1e3, rate=args.rate,
-        robot=None if args.robot == "none" else args.robot,
-        base=_pose(args.part_frame, "--part-frame"), tcp=_pose(args.tcp, "--tcp"), tolerance=args.tolerance / 1e3,
-    )
-    first, last = int(cut.lines[0]), int(cut.lines[-1])
-    print(f"{path_in.name}: pass {k} of {len(passes)} (lines {first}-{last}, {len(points)} points"
-          f"{', tool axes from the file' if axes is not None else ''}); planning ...", flush=True)
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        job = plan_job(points, axes, settings, span_feeds=span_feeds)
-    for w in caught:  # the job's warnings name waypoints of the pass: say which file lines they are
-        print(f"  warning   {w.message} (pass {k} starts at line {first})")
-    r = job.summary()
-    print(f"  path      {r['segments']} PH segments, length {r['length_mm']:.3f} mm (exact), "
-          f"waypoint error {r['max_waypoint_error_mm']:.1e} mm"
-          + (f", largest deviation from the CAM polyline {r['max_deviation_mm']:.4f} mm" if "max_deviation_mm" in r
-             else ""))
-    print(f"  frames    {r['frame']}: max twist against the exact RMF {r['max_twist_vs_exact_rmf_deg']:.3g} deg")
-    n_slow = len(job.feed_caps)
-    print(f"  motion    {r['duration_s']:.3f} s, {r['samples']} poses at {settings.rate:g} Hz"
-          + (f"; feed lowered for the joint speed limits on {n_slow} stretch{'es' * (n_slow > 1)}" if n_slow else ""))
-    for w, text in list(zip(job.feed_caps, r["feed_lowered"], strict=True))[:10]:  # spans -> file lines
-        a, b = int(cut.lines[w.first_span + 1]), int(cut.lines[w.last_span + 1])
-        print(f"  slowed    {text}, {f'line {a}' if a == b else f'lines {a}-{b}'}")
-    if n_slow > 10:
-        print(f"  slowed    ... {n_slow - 10} more stretches")
-    if "reachable" in r:
-        print(f"  robot     {r['reachability']}")  # the message names the model
-    if args.output:
-        _export(job, Path(args.output), path_in)
-        print(f"  wrote     {args.output}")
-    if args.plot:
-        from planner.plot import plot_job
-
-        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
-        plot_job(job, args.plot, title=f"{path_in.name}, pass {k}: {r['length_mm']:.1f} mm, {r['duration_s']:.2f} s")
-        print(f"  wrote     {args.plot}")
+def _output(text: str | None):
+    """``--cut-output KIND:PIN`` -> (kind, pin)."""
+    if text is None:
+        return None
+    kind, _, pin = text.partition(":")
+    try:
+        return (kind, int(pin))
+    except ValueError:
+        raise PlannerError(f"--cut-output must be KIND:PIN (standard:0..7, configurable:0..7, tool:0..1), "
+                           f"got {text!r}") from None
 
 
-class _ProgressBar:
-    """A one-line text progress bar on stderr for long jobs (only when stderr is a terminal or forced)."""
+def settings_from_args(args: argparse.Namespace) -> PlanSettings:
+    """The PlanSettings of ``planner plan``'s options (mm and mm/s on the command line, SI in the settings)."""
+    d = PlanSettings()
+    return PlanSettings(
+        path=args.path, tolerance=args.tolerance / 1e3, corner_deg=args.corner, axis_jump_deg=args.axis_jump,
+        axes=args.axes, frame=args.frame, feed=args.feed / 1e3, feed_override=args.feed_override,
+        rapid_speed=args.rapid_speed / 1e3, rate=args.rate, robot=None if args.robot in (None, "none") else args.robot,
+        part_frame=_pose(args.part_frame, "--part-frame"), tcp=_pose(args.tcp, "--tcp"),
+        feed_floor=d.feed_floor, cut_output=_output(args.cut_output), passes=_passes(args.pass_index),
+    ).checked()
+
+
+def _passes(text: str | None):
+    if text is None or text == "all":
+        return None
+    if text == "longest":
+        return "longest"
+    try:
+        return tuple(int(x) for x in text.split(","))
+    except ValueError:
+        raise PlannerError(f"--pass must be pass numbers K[,K...], 'longest' or 'all', got {text!r}") from None
+
+
+#: Output types of ``-o``.
+OUTPUTS = (".csv", ".json", ".script", ".urscript", ".job")
+
+
+def _check_output(args, path_in: Path) -> Path | None:
+    """The ``-o`` file, checked before the (long) planning."""
+    if not args.output:
+        return None
+    from planner.export import check_output
+
+    out = check_output(args.output, path_in)
+    if out.suffix.lower() not in OUTPUTS:
+        raise PlannerError(f"-o {out.name}: unknown output type (use .csv or .json for the trajectory, .script for "
+                           "the URScript program, .job for the saved plan)")
+    if out.suffix.lower() in (".script", ".urscript") and args.robot in (None, "none"):
+        raise PlannerError(f"-o {out.name}: a URScript program starts on the robot's planned joint configuration "
+                           "and needs the reachability check: give --robot MODEL")
+    return out
+
+
+class _Progress:
+    """tqdm bars on stderr, one per stage (the callback the service uses too): (stage, done, total)."""
 
     def __init__(self, enabled: bool):
         self.enabled = enabled
-        self.last = ""
+        self.bars: dict = {}
 
     def __call__(self, stage: str, done: int, total: int) -> None:
         if not self.enabled:
             return
-        frac = done / total if total else 1.0
-        bar = "#" * int(30 * frac)
-        line = f"\r  {stage:<6} [{bar:<30}] {100 * frac:5.1f} % ({done}/{total})"
-        if line != self.last:
-            sys.stderr.write(line)
-            sys.stderr.flush()
-            self.last = line
+        from tqdm import tqdm
+
+        bar = self.bars.get(stage)
+        if bar is None:
+            bar = self.bars[stage] = tqdm(total=total, desc=f"  {stage}", unit=" poses" if stage == "samples" else "",
+                                          file=sys.stderr, leave=False, dynamic_ncols=True)
+        bar.total = total
+        bar.n = done
+        bar.refresh()
 
     def close(self) -> None:
-        if self.enabled and self.last:
-            sys.stderr.write("\n")
-            sys.stderr.flush()
-        self.last = ""
-
-
-#: Output types of a whole multi-pass job (``-o``).
-WHOLE_JOB_OUTPUTS = (".csv", ".json", ".script", ".urscript")
-
-
-def _whole_job_output(args) -> Path | None:
-    """The ``-o`` file of a whole job, checked before the (long) planning."""
-    if not args.output:
-        return None
-    out = Path(args.output)
-    if out.suffix.lower() not in WHOLE_JOB_OUTPUTS:
-        raise PlannerError(f"-o {out.name}: unknown output type for a whole job (use .csv or .json for the pose "
-                           "stream, .script for the URScript program)")
-    if out.suffix.lower() in (".script", ".urscript") and args.robot == "none":
-        raise PlannerError(f"-o {out.name}: a whole-job URScript program starts on the robot's planned joint "
-                           "branch and needs the reachability check: give --robot MODEL")
-    return out
-
-
-def _plan_whole_job(args, path_in: Path, tp, read_options: dict) -> None:
-    """Every pass, rapid and reorientation of a CAM file (planner.cam), with its figures and exports."""
-    from planner.cam import plan_cam_job
-
-    out = _whole_job_output(args)
-    print(f"{path_in.name}: {len(tp)} points; planning every pass (tolerance {args.tolerance:g} mm) ...", flush=True)
-    bar = _ProgressBar(args.progress or sys.stderr.isatty())
-    with warnings.catch_warnings(record=True) as caught:
-        warnings.simplefilter("always")
-        try:
-            job = plan_cam_job(
-                tp, tolerance=args.tolerance / 1e3, corner_deg=args.corner,
-                part_frame=_pose(args.part_frame, "--part-frame"), tcp=_pose(args.tcp, "--tcp"),
-                robot=None if args.robot == "none" else args.robot, feed=args.feed / 1e3, rate=args.rate,
-                progress=bar,
-            )
-        finally:
+        for bar in self.bars.values():
             bar.close()
+        self.bars.clear()
+
+
+def cmd_plan(args: argparse.Namespace) -> None:
+    """Plan a toolpath file (every pass, or those of --pass) and print its figures; export and plot it."""
+    from planner.plan import plan
+
+    path_in = Path(args.input)
+    settings = settings_from_args(args)
+    out = _check_output(args, path_in)
+    if args.plot:
+        from planner.plot import check_plot_target
+
+        check_plot_target(args.plot)
+    options = {k: v for k, v in (("units", args.units), ("machine", args.machine)) if v}
+    print(f"{path_in.name}: planning ...", flush=True)
+    bar = _Progress(args.progress or sys.stderr.isatty())
+    try:
+        job = plan(path_in, settings, read_options=options, progress=bar)
+    finally:
+        bar.close()
     for line in job.describe():
         print(line)
-    for w in caught[:10]:
-        print(f"  warning   {w.message}")
+    for w in job.warnings[:10]:
+        print(f"  warning   {w}")
+    if len(job.warnings) > 10:
+        print(f"  warning   ... {len(job.warnings) - 10} more")
     if args.plot:  # first: it shows where the robot has problems when the program is refused
-        from planner.plot_cam import plot_cam_job
+        from planner.plot import plot_job
 
-        Path(args.plot).parent.mkdir(parents=True, exist_ok=True)
         s = job.summary()
-        digest = plot_cam_job(job, args.plot, rate=args.rate, title=(
-            f"{path_in.name}: {s['passes']} passes, {s['cut_length_mm']:.0f} mm of cut, {s['duration_s']:.1f} s"))
-        print(f"  wrote     {args.plot} (speeds from all {digest.samples} poses, joints from 1 in {digest.step})")
+        dg = plot_job(job, args.plot, title=(f"{path_in.name}: {s['passes']} pass{'es' * (s['passes'] != 1)}, "
+                                             f"{s['cut_length_mm']:.0f} mm of cut, {s['duration_s']:.1f} s"))
+        print(f"  wrote     {args.plot} (speeds from all {dg.samples} poses, joints from 1 in {dg.step})")
     if out is not None:
-        out.parent.mkdir(parents=True, exist_ok=True)
         try:
-            print(f"  wrote     {out} ({_export_whole_job(job, out, path_in, args.rate, bar)})")
+            print(f"  wrote     {out} ({export(job, out, {'input': path_in.name}, bar)})")
         finally:
             bar.close()
 
 
-def _counted(chunks, total: int, bar: _ProgressBar):
-    """The chunks, reporting the poses passed on to ``bar``."""
-    done = 0
-    for item in chunks:
-        yield item
-        done += (item[0] if isinstance(item, tuple) else item).times.size
-        bar("write", done, total)
+def export(job, out: Path, parameters: dict, progress=None) -> str:
+    """Write a job to ``out`` by its suffix (.csv / .json trajectory, .script program, .job saved plan); what
+    was written, for a person."""
+    from planner.export import job_program, write_csv, write_json, write_script
 
-
-def _export_whole_job(job, out: Path, source: Path, rate: float, bar: _ProgressBar) -> str:
-    """Write a whole job to ``out`` (.csv / .json pose stream, .script program); what was written."""
-    from planner.export import job_program, write_job_csv, write_job_json, write_script
-
-    params = {"input": source.name}
     suffix = out.suffix.lower()
+    if suffix == ".job":
+        return f"{job.save(out)} bytes"
     if suffix in (".script", ".urscript"):
         try:
-            text = job_program(job, parameters=params, progress=bar)
+            text = job_program(job, parameters=parameters, progress=progress)
         except PlannerError as exc:
             raise PlannerError(f"not writing {out.name}: {exc}") from None
         write_script(text, out)
         counts = {cmd: text.count(f"\n  {cmd}(") for cmd in ("movep", "movel", "movej")}
         return ", ".join(f"{n} {cmd}" for cmd, n in counts.items() if n)
-    chunks = job.iter_stream(rate)
-    if job.settings.robot is not None and suffix == ".json":
-        from planner.cam.stream import track_joints
-
-        chunks = track_joints(job, chunks)
-        if job.problems:
-            print(f"  warning   {job.settings.robot}: {len(job.problems)} moves with problems; joints without an "
-                  "inverse kinematics solution are null", flush=True)
-    writer = write_job_json if suffix == ".json" else write_job_csv
-    n = writer(job, _counted(chunks, job.n_samples(rate), bar), out, rate=rate, parameters=params)
-    return f"{n} poses" + (", with joints" if job.settings.robot is not None and suffix == ".json" else "")
-
-
-def _export(job, out: Path, source: Path) -> None:
-    from planner.export import servoj_program, write_csv, write_json, write_script
-
-    out.parent.mkdir(parents=True, exist_ok=True)
-    params = {"input": source.name, "frame": job.settings.frame, "feed_m_per_s": job.settings.feed,
-              "feed_scale": job.feed_scale, "robot": job.settings.robot}
-    suffix = out.suffix.lower()
-    if suffix == ".csv":
-        write_csv(job.stream, out, joints=job.joints, parameters=params)
-    elif suffix == ".json":
-        write_json(job.stream, out, joints=job.joints, parameters=params)
-    elif suffix in (".script", ".urscript"):
-        if job.joints is None:
-            raise PlannerError("a servoj URScript program needs joint targets: give --robot MODEL")
-        if not job.reachability.ok:  # unreachable, outside joint limits, or too fast even at the feed floor
-            raise PlannerError(f"not writing {out.name}: {job.reachability.message}")
-        write_script(servoj_program(job.stream, job.joints, model=job.settings.robot, parameters=params), out)
-    else:
-        raise PlannerError(f"-o {out.name}: unknown output type (use .csv, .json or .script)")
+    if suffix not in (".csv", ".json"):
+        raise PlannerError(f"-o {out.name}: unknown output type (use .csv, .json, .script or .job)")
+    tr = job.trajectory()
+    if job.settings.robot is not None and job.problems:
+        print(f"  warning   {job.settings.robot}: {len(job.problems)} moves with problems; joints without an inverse "
+              "kinematics solution are left empty", flush=True)
+    writer = write_json if suffix == ".json" else write_csv
+    n = writer(tr, out, parameters=parameters, progress=progress)
+    return f"{n} poses" + (", with joints" if job.settings.robot is not None else "")
 
 
 def cmd_demo(args: argparse.Namespace) -> None:
@@ -315,10 +246,21 @@ def cmd_demo(args: argparse.Namespace) -> None:
     print("Demo 2/2: plan the same pass from the NX CL data file for a UR5e: tool frames about the NX tool")
     print("axes, jerk-limited feed along the exact arc length, 500 Hz poses, inverse kinematics, URScript")
     plan_args = build_parser().parse_args([
-        "plan", str(example_path(EXAMPLE_CLS)), "--pass", "longest", "--robot", "ur5e",
+        "plan", str(example_path(EXAMPLE_CLS)), "--robot", "ur5e",
         "--part-frame", DEMO_PART_FRAME, "-o", str(out / "demo.script"), "--plot", str(out / "demo.png"),
     ])
     cmd_plan(plan_args)
+
+
+def cmd_sim(args: argparse.Namespace) -> None:
+    """``planner sim ...``: the simulated UR controller of the ``sim`` package (a front end, like the CLI)."""
+    try:
+        from sim.__main__ import main as sim_main
+    except ImportError as exc:
+        raise PlannerError(f"the simulated controller is not available ({exc})") from None
+    code = sim_main(args.sim_args)
+    if code:
+        raise SystemExit(code)
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -331,31 +273,45 @@ def build_parser() -> argparse.ArgumentParser:
     f.add_argument("--units", choices=["mm", "m", "inch"], default=None,
                    help="units of a CSV/JSON file (default: mm)")
     f.set_defaults(func=cmd_fit)
-    p = sub.add_parser("plan", help="plan a toolpath file (every pass, or one with --pass): PH paths within "
-                       "tolerance, tool frames, timing, poses, robot check, export")
+    D = PlanSettings()
+    p = sub.add_parser("plan", help="plan a toolpath file: PH paths, tool frames, timing, robot check, export")
     p.add_argument("input", help="toolpath: APT/CL data, CSV, JSON or 5-axis G-code")
-    p.add_argument("--frame", choices=["rmf", "grm", "juttler", "er", "double-reflection"], default="rmf")
-    p.add_argument("--feed", type=float, default=50.0, help="TCP feed in mm/s where the file gives none (default 50)")
-    p.add_argument("--rate", type=float, default=500.0, help="controller rate in Hz (500 e-Series, 125 CB)")
-    p.add_argument("--robot", default="ur5e", help="ur3e, ur5e, ur10e, ur16e, ur20, or none")
+    p.add_argument("--path", choices=list(PATH_MODELS), default=D.path,
+                   help="path model: interpolate (C2 PH spline through the points), cam (within --tolerance of the "
+                        "polyline), auto (default: interpolate CSV/JSON, cam for APT/CLSF/G-code)")
+    p.add_argument("--axes", choices=list(AXIS_SOURCES), default=D.axes,
+                   help="tool axis: file (the file's CAM axes, tip to spindle), approach (the file's vectors are the "
+                        "approach axis), fixed (CAM default +Z), path (tool normal to the path, spin by --frame), "
+                        "auto (default: file if it has axes, else path for interpolate and fixed for cam)")
+    p.add_argument("--frame", choices=list(FRAME_METHODS), default=D.frame,
+                   help="spin method about the tool axis (methods other than rmf need --axes path)")
+    p.add_argument("--tolerance", type=float, default=D.tolerance * 1e3,
+                   help=f"cam model: largest distance from the polyline, mm (default {D.tolerance * 1e3:g})")
+    p.add_argument("--corner", type=float, default=D.corner_deg,
+                   help=f"corners sharper than this (deg) split passes (default {D.corner_deg:g})")
+    p.add_argument("--axis-jump", type=float, default=D.axis_jump_deg,
+                   help=f"tool-axis jumps larger than this (deg) turn in place (default {D.axis_jump_deg:g})")
+    p.add_argument("--feed", type=float, default=D.feed * 1e3,
+                   help=f"feed where the file gives none, mm/s (default {D.feed * 1e3:g})")
+    p.add_argument("--feed-override", type=float, default=D.feed_override, help="factor on every cutting feed")
+    p.add_argument("--rapid-speed", type=float, default=D.rapid_speed * 1e3,
+                   help=f"speed of rapid moves, mm/s (default {D.rapid_speed * 1e3:g})")
+    p.add_argument("--rate", type=float, default=D.rate, help="controller rate in Hz (500 e-Series, 125 CB)")
+    p.add_argument("--robot", default="none", help="ur3e, ur5e, ur10e, ur16e, ur20, or none (default)")
     p.add_argument("--part-frame", help="part frame in the robot base: x,y,z,rx,ry,rz (m, rad)")
     p.add_argument("--tcp", help="tool centre point in the flange frame: x,y,z,rx,ry,rz (m, rad)")
-    p.add_argument("--pass", dest="pass_index",
-                   help="plan only pass K (or 'longest'): servoj program, exact pose stream; 'all' plans the whole "
-                        "job even when the file has one pass (default with several)")
-    p.add_argument("--corner", type=float, default=60.0, help="corners sharper than this (deg) split passes")
-    p.add_argument("--tolerance", type=float, default=0.01,
-                   help="largest distance of the path from the CAM polyline, mm (whole jobs; default 0.01)")
+    p.add_argument("--cut-output", help="digital output on during every cut, KIND:PIN (standard:0, tool:1, ...)")
+    p.add_argument("--pass", dest="pass_index", help="plan only passes K[,K...] or 'longest' (default: all)")
     p.add_argument("--units", choices=["mm", "m", "inch"], help="units of a CSV/JSON file (default mm)")
     p.add_argument("--machine", help="machine kinematics for 5-axis G-code (e.g. haas-umc-750)")
-    p.add_argument("--axes", choices=["tool", "normal"], default="tool",
-                   help="CSV/JSON i,j,k: the tool approach axis (default) or the surface normal")
-    p.add_argument("--ignore-axes", action="store_true", help="ignore tool axes in the file")
-    p.add_argument("--progress", action="store_true", help="show the progress bar even when not on a terminal")
-    p.add_argument("-o", "--output", help="write the job: .csv / .json pose stream or .script URScript program "
-                   "(one pass: servoj stream; whole job: movep along the passes within --tolerance, movel between)")
-    p.add_argument("--plot", help="write a PNG: paths and tool axes, twist or spin, TCP speed, joints")
+    p.add_argument("--progress", action="store_true", help="show progress bars even when not on a terminal")
+    p.add_argument("-o", "--output", help="write the job: .csv / .json trajectory, .script URScript program "
+                   "(movep along the passes within --tolerance, movel between), .job saved plan")
+    p.add_argument("--plot", help="write a picture (.png, .svg, .pdf): paths and tool axes, frames, speed, joints, fit")
     p.set_defaults(func=cmd_plan)
+    sm = sub.add_parser("sim", help="run the simulated UR controller (see python -m sim --help)")
+    sm.add_argument("sim_args", nargs=argparse.REMAINDER, help="arguments of python -m sim")
+    sm.set_defaults(func=cmd_sim)
     d = sub.add_parser("demo", help="run the main job on the bundled example")
     d.add_argument("--out", default="out", help="folder for the program and the plot (default: out)")
     d.set_defaults(func=cmd_demo)
@@ -372,6 +328,9 @@ def main(argv: list[str] | None = None) -> int:
     except OSError as exc:
         print(f"planner: error: {exc}", file=sys.stderr)
         return 2
+    except NumericalError as exc:
+        print(f"planner: internal error: {exc}", file=sys.stderr)
+        return 3
     return 0
 
 

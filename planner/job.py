@@ -1,253 +1,443 @@
-"""One planning job, end to end: waypoints (and tool axes) in, a timed UR pose stream out.
+"""A planned job: every move with its path, tool frames and time law, the figures, and its trajectory.
 
-PH path -> tool frames (rotation-minimizing about the tool axis) -> jerk-limited feed along the exact arc
-length -> poses at the controller rate -> UR inverse kinematics and reachability. Where a joint would be
-faster than its speed limit the feed is lowered locally, only over the stretch that needs it
-(:func:`planner.motion.local_feed.lower_feed_locally`), and the job names every stretch slowed; what
-the floor of the feed cannot fix is reported, never streamed silently. Pure orchestration of the
-planner packages; no file I/O.
+:func:`planner.plan` returns a :class:`PlannedJob`. Its :meth:`~PlannedJob.trajectory` is the one stream
+that every consumer reads (exports, plot, drivers, simulator, service), produced lazily move by move; a job
+saves to a compact versioned file (:meth:`PlannedJob.save`) and loads back (:func:`load_job`) to the
+identical trajectory, so a service stores plans, not millions of poses.
 """
 
 from __future__ import annotations
 
-import time
+import gzip
+import io
+import math
+import os
+import pickle
 from dataclasses import dataclass, field
+from pathlib import Path as FilePath
+from typing import TYPE_CHECKING
 
 import numpy as np
 
-from planner.curves import fit_ph_cubic_spline, fit_ph_spline
+from planner.cam.fidelity import PassFit
+from planner.cam.passes import CutPass, Segmentation, Skipped
 from planner.errors import PlannerError
-from planner.frames import frame_field, max_twist_deg, tool_frames
-from planner.kinematics import check_reachability, inverse_path, speed_ratios
-from planner.kinematics.reachability import JOINT_SPEED_REASONS
-from planner.motion import MotionLimits, PoseStream, plan_feed, sample_poses, span_bounds, tool_orientation
-from planner.motion.caps import DEFAULT_FLOOR
-from planner.motion.local_feed import Measurement, lower_feed_locally
+from planner.motion.profile import FeedProfile
+from planner.protocols import FrameField, Path
+from planner.settings import PlanSettings
 
-FRAME_METHODS = ("rmf", "grm", "juttler", "er", "double-reflection")
+if TYPE_CHECKING:
+    from planner.trajectory import Trajectory
+
+#: Version of the saved-job format (:meth:`PlannedJob.save`); a file of another version is refused.
+JOB_FILE_VERSION = 1
+_MAGIC = b"planner-job\n"
 
 
 @dataclass(frozen=True)
-class JobSettings:
-    """What the user sets for a job (SI units: m, s, rad).
+class PassReport:
+    """Figures of one cutting pass (SI units, angles in degrees).
 
     Attributes
     ----------
-    frame : str
-        Frame method: "rmf" (exact), "grm", "juttler", "er" or "double-reflection". With tool axes in
-        the input, "juttler" selects Jüttler's rational RMM about them, anything else the exact one.
-    feed : float
-        TCP speed along the path, m/s (per-span feeds of the input take precedence where given).
-    acceleration, jerk : float
-        Limits of the feed, m/s^2 and m/s^3.
-    angular_speed : float or None
-        Limit of the tool's angular speed, rad/s.
-    rate : float
-        Controller rate, Hz (500 for e-Series, 125 for CB).
-    robot : str or None
-        UR model ("ur3e", "ur5e", "ur10e", "ur16e", "ur20") or None to plan without kinematics.
-    base : pose (6,) or None
-        The part frame in the robot base frame, p[x, y, z, rx, ry, rz].
-    tcp : pose (6,) or None
-        The tool centre point in the flange frame.
-    tolerance : float or None
-        Fit the path within this distance (m) of the waypoint polyline everywhere (straight runs kept
-        straight, knots added where needed; :func:`planner.cam.fit_pass`) instead of interpolating the
-        waypoints with a C2 spline (None).
-    feed_floor : float
-        With a robot: the lowest fraction (0..1] of the commanded feed to which the feed is lowered
-        where a joint would exceed its speed limit; if that is not slow enough the job reports it.
+    index : int
+        Pass number.
+    operation : str
+        CAM operation name ("" if none).
+    first_line, last_line : int
+        Source lines of the pass's first and last point.
+    points : int
+        CAM points (after merging duplicates).
+    length : float
+        Exact arc length of the fitted path, m.
+    max_deviation : float
+        Largest distance between the fitted path and the CAM polyline, m.
+    max_axis_error_deg : float
+        Largest angle between the planned tool axis and the CAM axis at the CAM points.
+    max_axis_departure_deg : float
+        Largest distance of the planned tool axis from the great-circle arcs between consecutive CAM
+        axes (the path a 5-axis machine takes), sampled between the CAM points.
+    knots_added : int
+        Knots inserted on CAM chords to meet the tolerance.
+    start_reason, end_reason : str
+        Why the pass starts and ends (rapid, corner, ...).
+    start_corner_deg : float
+        Turning angle of the corner the pass starts at (NaN if it does not start at a corner).
+    duration : float
+        Time of the pass, s.
+    spin_deg : float
+        Total spin of the planned tool frames about the tool axis.
+    slerp_spin_deg : float
+        Total spin when the CAM orientations (tool axis, x along the direction of travel) are
+        slerped point to point.
+    planning_time : float
+        Wall time spent on the pass (its share of the batched fit, its frames and its time law), s.
+    merged : int
+        Duplicate points merged.
+    reachable : bool or None
+        Whether the robot reaches the whole pass within its joint limits (None without a robot).
+    reach_message : str
+        The first problem, naming the pass and the source line ("" if none).
+    feed_caps : tuple of CapWindow
+        Stretches of the pass where the feed was lowered for the joint speed limits (spans of the
+        pass; tag = joint index); ``duration`` includes them.
+    max_twist_deg : float
+        With the tool normal to the path (``axes="path"``): the largest angle between the chosen frame
+        method's frames and the exact RMF about the tangent (same start frame), degrees; 0 for "rmf";
+        NaN with tool axes (their spin is the exact rotation-minimizing motion; see ``spin_deg``).
+    max_waypoint_error : float
+        Largest distance of the path from the pass's points, m (round-off for interpolated paths).
     """
 
-    frame: str = "rmf"
-    feed: float = 0.05
-    acceleration: float = 0.5
-    jerk: float = 5.0
-    angular_speed: float | None = 1.0
-    rate: float = 500.0
-    robot: str | None = "ur5e"
-    base: tuple | None = None
-    tcp: tuple | None = None
-    tolerance: float | None = None
-    feed_floor: float = DEFAULT_FLOOR
+    index: int
+    operation: str
+    first_line: int
+    last_line: int
+    points: int
+    length: float
+    max_deviation: float
+    max_axis_error_deg: float
+    max_axis_departure_deg: float
+    knots_added: int
+    start_reason: str
+    end_reason: str
+    start_corner_deg: float
+    duration: float
+    spin_deg: float
+    slerp_spin_deg: float
+    planning_time: float
+    merged: int = 0
+    reachable: bool | None = None
+    reach_message: str = ""
+    feed_caps: tuple = ()
+    max_twist_deg: float = math.nan
+    max_waypoint_error: float = 0.0
 
 
 @dataclass(frozen=True, eq=False)
-class Job:
-    """A planned job: the path, its tool frames and time law, the pose stream and its figures.
+class PlannedMove:
+    """One move of the job with its path, tool frames and time law.
 
-    ``feed_caps`` holds one :class:`planner.motion.caps.CapWindow` per stretch where the feed was
-    lowered for the joint speed limits (start and end arc length, lowest factor, spans, joint; tag =
-    joint index), in path order; ``feed_scale`` is the lowest factor (1 if the feed was not lowered).
+    Attributes
+    ----------
+    kind : str
+        "cut", "rapid", "reorientation", "reconfiguration" or "skipped".
+    item : CutPass, RapidMove, Reorientation, Reconfiguration or Skipped
+        What the file asks for (a Reconfiguration: what the planner adds to change the arm configuration).
+    path : PHSpline or None
+        The path in the part frame (None for moves in place).
+    frames : AxisField or TurningFrames or None
+        Tool frames: along the path (parameter u), or of the turn (parameter: angle turned); None for a
+        reconfiguration (its poses come from forward kinematics of its joints).
+    profile : FeedProfile or None
+        Time law: arc length (or angle, for a turn; fraction of the joint move, for a reconfiguration)
+        against time; None for skipped moves.
+    start_frame, end_frame : ndarray (3, 3)
+        Tool frame (part frame; column 2 the approach axis) at the start and end.
+    point : ndarray (3,)
+        Position at the start of the move.
+    pass_index : int
+        Pass number for cuts, -1 otherwise.
+    fit : PassFit or None
+        The fit of a cut.
     """
 
-    settings: JobSettings
-    waypoints: np.ndarray
-    path: object
-    frames: object
-    stream: PoseStream
-    profile: object
-    joints: np.ndarray | None
-    reachability: object | None
-    feed_caps: tuple
-    twist_deg: float
-    twist_s: np.ndarray
-    twist_curve_deg: np.ndarray
-    timings: dict = field(default_factory=dict)
-    max_deviation: float | None = None
-    feed_rounds: int = 0
+    kind: str
+    item: object
+    path: Path | None
+    frames: FrameField | None
+    profile: FeedProfile | None
+    start_frame: np.ndarray
+    end_frame: np.ndarray
+    point: np.ndarray
+    pass_index: int = -1
+    fit: PassFit | None = None
 
     @property
-    def feed_scale(self) -> float:
-        """Lowest fraction of the commanded feed anywhere on the path (1 where it was never lowered)."""
-        return min((w.factor for w in self.feed_caps), default=1.0)
+    def duration(self) -> float:
+        return 0.0 if self.profile is None else float(self.profile.duration)
 
-    def feed_cap_lines(self) -> list[str]:
-        """One line per stretch slowed for the joint speed limits, e.g. "feed lowered to 38 % over 41 mm
-        at spans 120-131 (joint 4 (wrist 2) speed)"."""
-        return [w.describe(JOINT_SPEED_REASONS) for w in self.feed_caps]
+    @property
+    def line(self) -> int:
+        """Source line of the move's first record."""
+        it = self.item
+        if isinstance(it, CutPass):
+            return it.first_line
+        if isinstance(it, Skipped):
+            return it.first_line
+        return int(it.line)
 
-    def summary(self) -> dict:
-        """The job's figures in human units (mm, s, deg); ``feed_caps`` lists the slowed stretches."""
-        out = {
-            "waypoints": int(len(self.waypoints)),
-            "segments": int(self.path.n_segments),
-            "length_mm": self.path.length * 1e3,
-            "duration_s": float(self.profile.duration),
-            "samples": int(self.stream.times.size),
-            "max_waypoint_error_mm": float(self.path.interpolation_errors(self.waypoints).max()) * 1e3,
-            "frame": self.settings.frame,
-            "max_twist_vs_exact_rmf_deg": self.twist_deg,
-            "feed_scale": self.feed_scale,
-            "feed_caps": [
-                {"start_mm": 1e3 * w.start, "end_mm": 1e3 * w.end, "percent": 100 * w.factor,
-                 "spans": [w.first_span, w.last_span], "joint": w.tag, "at_floor": w.floored}
-                for w in self.feed_caps
-            ],
-            "feed_lowered": self.feed_cap_lines(),
-        }
-        if self.max_deviation is not None:
-            out["max_deviation_mm"] = self.max_deviation * 1e3
-        if self.reachability is not None:
-            out["reachable"] = bool(self.reachability.ok)
-            out["reachability"] = self.reachability.message
+
+@dataclass(frozen=True, eq=False)
+class PlannedJob:
+    """A planned job (one pass or a whole CAM toolpath).
+
+    Attributes
+    ----------
+    source : str
+        Name of the file.
+    settings : PlanSettings
+        As planned: validated, ``path`` and ``axes`` resolved to the model and source used.
+    toolpath : Toolpath
+        The toolpath as planned (arcs linearised).
+    segmentation : Segmentation
+        The split into moves.
+    moves : tuple of PlannedMove
+        Every move in order (cuts, rapids, reorientations, skipped records).
+    passes : tuple of PassReport
+        Figures of every cutting pass.
+    timings : dict
+        Wall times, s: "parse" (if read here), "split", "fit", "frames", "time_law", "plan" (all of the
+        planning after parsing), "reach" (robot check).
+    problems : tuple of str
+        Reachability problems of the whole job (passes, rapids, turns), each naming its source line.
+    slowed : tuple of str
+        Stretches where the feed was lowered for the joint speed limits, each naming the pass (or move),
+        the source lines, the factor and the joint.
+    start_joints : ndarray (6,) or None
+        With a robot: the joints (rad) at the job's first pose, on the configuration the check followed
+        (the joint streams and the program start there).
+    start_note : str
+        Why the arm starts on another configuration than the one of least joint travel ("" if not).
+    warnings : tuple of str
+        What the reader and the planner warned about, one line each, naming the place.
+    """
+
+    source: str
+    settings: PlanSettings
+    toolpath: object
+    segmentation: Segmentation
+    moves: tuple
+    passes: tuple
+    timings: dict = field(default_factory=dict)
+    problems: tuple = ()
+    slowed: tuple = ()
+    start_joints: np.ndarray | None = None
+    start_note: str = ""
+    warnings: tuple = ()
+
+    # -- figures -------------------------------------------------------------------------------
+    @property
+    def duration(self) -> float:
+        """Total motion time (s), at rest between moves."""
+        return float(sum(m.duration for m in self.moves))
+
+    @property
+    def corners(self) -> int:
+        """Corners sharper than the threshold found (each one splits a pass)."""
+        return self.segmentation.corners
+
+    @property
+    def max_deviation(self) -> float:
+        """Largest distance between any fitted pass and its CAM polyline, m."""
+        return max((p.max_deviation for p in self.passes), default=0.0)
+
+    @property
+    def max_axis_error_deg(self) -> float:
+        """Largest tool-axis angle error at the CAM points, degrees."""
+        return max((p.max_axis_error_deg for p in self.passes), default=0.0)
+
+    @property
+    def max_axis_departure_deg(self) -> float:
+        """Largest distance of the planned axis from the CAM great-circle arcs between points, degrees."""
+        return max((p.max_axis_departure_deg for p in self.passes), default=0.0)
+
+    @property
+    def spin_deg(self) -> float:
+        """Total spin of the planned frames about the tool axis over all cuts, degrees."""
+        return float(sum(p.spin_deg for p in self.passes))
+
+    @property
+    def slerp_spin_deg(self) -> float:
+        """Total spin of the CAM orientations slerped point to point over all cuts, degrees."""
+        return float(sum(p.slerp_spin_deg for p in self.passes))
+
+    @property
+    def reachable(self) -> bool | None:
+        """Whether the robot can do the whole job (None without a robot)."""
+        return None if self.settings.robot is None else not self.problems
+
+    def count(self, kind: str) -> int:
+        """Number of moves of a kind ("cut", "rapid", "reorientation", "reconfiguration", "skipped")."""
+        return sum(1 for m in self.moves if m.kind == kind)
+
+    @property
+    def reconfigurations(self) -> tuple:
+        """The changes of the arm configuration (:class:`~planner.cam.moves.Reconfiguration`), in order."""
+        return tuple(m.item for m in self.moves if m.kind == "reconfiguration")
+
+    def reconfiguration_lines(self) -> list[str]:
+        """One line per change of the arm configuration, for a person: before which pass, where (source
+        line), what changes, how long, how far the tool swings, and what the former configuration could
+        not do."""
+        out = []
+        for m in self.moves:
+            if m.kind != "reconfiguration":
+                continue
+            r = m.item
+            cut = next(c for c in self.segmentation.passes if c.index == r.pass_index)
+            last = next(c for c in self.segmentation.passes if c.index == r.passes[-1])
+            run = f"pass {r.pass_index}" if len(r.passes) == 1 else f"passes {r.pass_index}-{r.passes[-1]}"
+            out.append(f"{self.source} before {run} (lines {cut.first_line}-{last.last_line}), {r.where}: "
+                       f"joint move of {m.duration:.2f} s ({r.change}; the tool swings up to "
+                       f"{1e3 * r.tcp_excursion:.0f} mm from the point); the former configuration: {r.reason}")
         return out
 
+    def n_samples(self, rate: float | None = None) -> int:
+        """Number of poses of the stream at ``rate`` (default the job's)."""
+        from planner.trajectory import sample_counts
 
-def _down_start(path):
-    """Start frame of a path frame field with column 2 (the tool z) as close to -Z as possible."""
-    t = path.tangent(path.knots[:1])[0]
-    z = np.array([0.0, 0.0, -1.0]) - (-t[2]) * t
-    if np.linalg.norm(z) < 1e-6:  # travelling vertically: point the tool along -X
-        z = np.array([-1.0, 0.0, 0.0]) - (-t[0]) * t
-    z /= np.linalg.norm(z)
-    return np.column_stack((t, np.cross(z, t), z))
+        return int(sample_counts(self.moves, rate or self.settings.rate).sum()) + 1
+
+    @property
+    def max_twist_deg(self) -> float:
+        """Largest angle between the chosen frames and the exact RMF over all cuts, degrees (NaN with tool axes)."""
+        v = [p.max_twist_deg for p in self.passes if not math.isnan(p.max_twist_deg)]
+        return max(v, default=math.nan)
+
+    @property
+    def max_waypoint_error(self) -> float:
+        """Largest distance of any cut's path from its points, m."""
+        return max((p.max_waypoint_error for p in self.passes), default=0.0)
+
+    def summary(self) -> dict:
+        """The job's figures in human units (mm, s, deg)."""
+        out = {
+            "source": self.source,
+            "path_model": self.settings.path,
+            "axes": self.settings.axes,
+            "frame": self.settings.frame,
+            "points": len(self.toolpath),
+            "passes": len(self.passes),
+            "rapids": self.count("rapid"),
+            "reorientations": self.count("reorientation"),
+            "skipped": self.count("skipped"),
+            "corners": self.corners,
+            "cut_length_mm": 1e3 * sum(p.length for p in self.passes),
+            "duration_s": self.duration,
+            "tolerance_mm": 1e3 * self.settings.tolerance,
+            "max_deviation_mm": 1e3 * self.max_deviation,
+            "max_waypoint_error_mm": 1e3 * self.max_waypoint_error,
+            "max_twist_vs_exact_rmf_deg": self.max_twist_deg,
+            "max_axis_error_deg": self.max_axis_error_deg,
+            "max_axis_departure_deg": self.max_axis_departure_deg,
+            "spin_deg": self.spin_deg,
+            "slerp_spin_deg": self.slerp_spin_deg,
+            "knots_added": int(sum(p.knots_added for p in self.passes)),
+            "planning_s": self.timings.get("plan", math.nan),
+            "warnings": list(self.warnings),
+        }
+        if self.settings.robot is not None:
+            out["robot"] = self.settings.robot
+            out["reachable"] = not self.problems
+            out["unreachable_passes"] = [p.index for p in self.passes if p.reachable is False]
+            out["slowed_passes"] = [p.index for p in self.passes if p.feed_caps]
+            out["slowed"] = list(self.slowed)
+            out["reconfigurations"] = self.reconfiguration_lines()
+            out["reconfigured_passes"] = [r.pass_index for r in self.reconfigurations]
+            if self.start_note:
+                out["start"] = self.start_note
+        return out
+
+    def _path_line(self, s: dict) -> str:
+        if self.settings.path == "interpolate":
+            return (f"  path      interpolate: C2 PH spline through the points, {s['cut_length_mm']:.1f} mm of cut, "
+                    f"waypoint error {s['max_waypoint_error_mm']:.1e} mm; it bows up to {s['max_deviation_mm']:.4f} "
+                    "mm from the chords")
+        return (f"  path      cam: {s['cut_length_mm']:.1f} mm of cut; largest deviation from the CAM polyline "
+                f"{s['max_deviation_mm']:.4f} mm (tolerance {s['tolerance_mm']:.4f} mm), "
+                f"{s['knots_added']} knots added")
+
+    def _axes_line(self, s: dict) -> str:
+        if self.settings.axes == "path":
+            return (f"  frames    {self.settings.frame} about the path tangent (tool z normal to the path, from -Z): "
+                    f"largest twist against the exact RMF {s['max_twist_vs_exact_rmf_deg']:.3g} deg")
+        source = {"file": "the file's tool axes", "approach": "the file's approach axes",
+                  "fixed": "the CAM default axis +Z"}[self.settings.axes]
+        return (f"  axes      {source}, interpolated on great circles (axis_field): largest error at the points "
+                f"{s['max_axis_error_deg']:.2e} deg, between them {s['max_axis_departure_deg']:.3g} deg from the "
+                f"great circles; spin about the tool axis {s['spin_deg']:.3g} deg (exact rotation-minimizing; "
+                f"slerping the orientations: {s['slerp_spin_deg']:.4g} deg)")
+
+    def describe(self, max_lines: int = 10) -> list[str]:
+        """Lines for a person: the job's figures, the worst passes, the robot's problems."""
+        s = self.summary()
+        worst = sorted(self.passes, key=lambda p: -p.max_deviation)[:3 if self.settings.path == "cam" else 0]
+        lines = [
+            f"{s['source']}: {s['points']} points -> {s['passes']} passes, {s['rapids']} rapids, "
+            f"{s['reorientations']} reorientations, {s['skipped']} skipped; {s['corners']} corners "
+            f"> {self.settings.corner_deg:g} deg",
+            self._path_line(s),
+            *["  worst     " + "; ".join(f"pass {p.index} (lines {p.first_line}-{p.last_line}) "
+                                         f"{1e3 * p.max_deviation:.4f} mm" for p in worst)] * bool(worst),
+            self._axes_line(s),
+            f"  motion    {s['duration_s']:.1f} s, planned in {s['planning_s']:.2f} s",
+        ]
+        if self.settings.robot is not None:
+            if self.slowed:
+                n = len(self.slowed)
+                lines.append(f"  slowed    feed lowered for the joint speed limits on {n} stretch{'es' * (n > 1)}")
+                lines += [f"    {p}" for p in self.slowed[:max_lines]]
+                if len(self.slowed) > max_lines:
+                    lines.append(f"    ... {len(self.slowed) - max_lines} more")
+            if self.start_note:
+                lines.append(f"  arm       {self.start_note}")
+            changes = s["reconfigurations"]
+            if changes:
+                n = len(changes)
+                lines.append(f"  arm       {n} change{'s' * (n > 1)} of the arm configuration (joint moves in rapids)")
+                lines += [f"    {p}" for p in changes[:max_lines]]
+                if n > max_lines:
+                    lines.append(f"    ... {n - max_lines} more")
+            if not self.problems:
+                lines.append(f"  robot     {self.settings.robot}: every move reachable within joint limits")
+            else:
+                lines.append(f"  robot     {self.settings.robot}: {len(self.problems)} moves with problems")
+                lines += [f"    {p}" for p in self.problems[:max_lines]]
+                if len(self.problems) > max_lines:
+                    lines.append(f"    ... {len(self.problems) - max_lines} more")
+        return lines
+
+    # -- trajectory, save and load ----------------------------------------------------------------
+    def trajectory(self, rate: float | None = None) -> Trajectory:
+        """The job's trajectory at ``rate`` (default the job's): :class:`planner.trajectory.Trajectory`."""
+        from planner.trajectory import Trajectory
+
+        return Trajectory(self, self.settings.rate if rate is None else rate)
+
+    def save(self, target) -> int:
+        """Write the planned job to ``target`` (a path; written atomically) and return its size in bytes.
+
+        The file is versioned (:data:`JOB_FILE_VERSION`) and holds the whole plan (paths, frames, time
+        laws, arm configurations), compressed: :func:`load_job` gives back a job whose trajectory and
+        exports are identical, byte for byte, without planning again. It is Python's pickle format: load
+        only files this service wrote (never a file from an untrusted source).
+        """
+        data = pickle.dumps(self, protocol=pickle.HIGHEST_PROTOCOL)
+        blob = _MAGIC + JOB_FILE_VERSION.to_bytes(2, "big") + gzip.compress(data, compresslevel=6, mtime=0)
+        from planner.export.files import write_bytes_atomic
+
+        write_bytes_atomic(FilePath(target), blob)
+        return len(blob)
 
 
-def plan_job(waypoints, axes=None, settings: JobSettings = JobSettings(), *, span_feeds=None) -> Job:
-    """Plan one pass: PH path through ``waypoints`` (N, 3) (m, part frame), tool frames, time law, poses.
+def load_job(source) -> PlannedJob:
+    """A job saved by :meth:`PlannedJob.save` (a path, or the file's bytes).
 
-    Parameters
-    ----------
-    waypoints : array_like (N, 3)
-    axes : array_like (N, 3), optional
-        Tool approach axis (tool z) at each waypoint. Without axes the tool z starts pointing down (-Z
-        of the part frame) and rides the path's frame field (``settings.frame``) without spin about
-        the tangent: it stays vertical on planar jobs.
-    settings : JobSettings
-    span_feeds : array_like (N - 1,), optional
-        Per-span feeds from the input, m/s (NaN: the job's feed).
-
-    Returns
-    -------
-    Job
-        With a robot, the feed is lowered wherever a joint would exceed its speed limit at the
-        controller rate, only there (``Job.feed_caps`` names every stretch), until every sample is
-        within the limits or the feed is at ``settings.feed_floor`` there (``Job.reachability`` then
-        names the samples still too fast).
+    Raises PlannerError when the file is not a saved job or is of another format version.
     """
-    s = settings
-    if s.frame not in FRAME_METHODS:
-        raise PlannerError(f"frame must be one of {FRAME_METHODS}, got {s.frame!r}")
-    if not (isinstance(s.feed_floor, int | float) and 0.0 < s.feed_floor <= 1.0):
-        raise PlannerError(f"feed_floor must be a fraction in (0, 1] of the commanded feed, got {s.feed_floor!r}")
-    timings = {}
-    tic = time.perf_counter()
-    wp = np.asarray(waypoints, dtype=float)
-    deviation = None
-    if s.frame == "juttler" and axes is None:
-        path = fit_ph_cubic_spline(wp)
-    elif s.tolerance is not None:
-        from planner.cam import fit_pass
-
-        fit = fit_pass(wp, s.tolerance)
-        path, deviation = fit.path, fit.max_deviation
-    else:
-        path = fit_ph_spline(wp)
-    timings["fit_s"] = time.perf_counter() - tic
-
-    tic = time.perf_counter()
-    if axes is not None:
-        method = "rational" if s.frame == "juttler" else "exact"
-        tool = tool_frames(path, axes, method)
-        exact = tool_frames(path, axes) if method != "exact" else tool
-        orientation = tool_orientation(tool, z_column=2)
-        field_used, reference = tool, exact
-    else:
-        start = _down_start(path)
-        field_used = frame_field(path, s.frame, start=start)
-        reference = field_used if s.frame == "rmf" else frame_field(path, "rmf", start=start)
-        orientation = tool_orientation(field_used, z_column=2)
-    sv = np.linspace(0.0, path.length, 2001)
-    F, R = field_used.at_length(sv), reference.at_length(sv)
-    # twist about the tool axis (axes given) or about the tangent (path frames), in degrees
-    if axes is not None:
-        ang = np.arctan2(np.einsum("ni,ni->n", np.cross(R[:, :, 0], F[:, :, 0]), R[:, :, 2]),
-                         np.einsum("ni,ni->n", R[:, :, 0], F[:, :, 0]))
-        twist_curve = np.degrees(ang)
-    else:
-        twist_curve = np.degrees(np.arctan2(np.einsum("ni,ni->n", F[:, :, 1], R[:, :, 2]),
-                                            np.einsum("ni,ni->n", F[:, :, 1], R[:, :, 1])))
-    twist = float(np.abs(twist_curve).max()) if axes is not None else max_twist_deg(F, R)
-    timings["frames_s"] = time.perf_counter() - tic
-
-    limits = MotionLimits(s.feed, s.acceleration, s.jerk, s.angular_speed)
-    tic = time.perf_counter()
-    reference = plan_feed(path, s.feed, limits, span_feeds=span_feeds,
-                          orientation=orientation if s.angular_speed else None)
-    timings["feed_s"] = time.perf_counter() - tic
-    if s.robot is None:
-        tic = time.perf_counter()
-        stream = sample_poses(path, reference, orientation, rate=s.rate, tcp=s.tcp, base=s.base)
-        timings["stream_s"] = time.perf_counter() - tic
-        return Job(s, wp, path, field_used, stream, reference, None, None, (), twist, sv, twist_curve, timings,
-                   deviation)
-
-    lowered = lower_feed_locally(reference, _joint_measure(path, orientation, s, timings),
-                                 span_bounds=span_bounds(path), floor=s.feed_floor)
-    stream, joints = lowered.measurement.data
-    tic = time.perf_counter()
-    report = check_reachability(s.robot, joints, stream.times, arc_length=stream.s, span=stream.span)
-    timings["kinematics_s"] += time.perf_counter() - tic
-    return Job(s, wp, path, field_used, stream, lowered.profile, joints, report, lowered.windows, twist, sv,
-               twist_curve, timings, deviation, lowered.rounds)
-
-
-def _joint_measure(path, orientation, s: JobSettings, timings: dict):
-    """The job's measurement for :func:`lower_feed_locally`: poses at the controller rate, inverse
-    kinematics, the joint speed ratio of every sample interval (data: the stream and its joints).
-    Adds the wall times of every round to ``timings`` ("stream_s", "kinematics_s")."""
-    timings["stream_s"] = timings["kinematics_s"] = 0.0
-
-    def measure(profile) -> Measurement:
-        tic = time.perf_counter()
-        stream = sample_poses(path, profile, orientation, rate=s.rate, tcp=s.tcp, base=s.base)
-        toc = time.perf_counter()
-        joints = inverse_path(s.robot, stream.flange_poses if s.tcp is not None else stream.poses,
-                              allow_unreachable=True)
-        ratio, joint = speed_ratios(s.robot, joints, stream.times)
-        timings["stream_s"] += toc - tic
-        timings["kinematics_s"] += time.perf_counter() - toc
-        return Measurement(stream.s, stream.times, ratio, joint, (stream, joints))
-
-    return measure
+    raw = isinstance(source, bytes | bytearray | memoryview)
+    blob = bytes(source) if raw else FilePath(os.fspath(source)).read_bytes()
+    name = "the data" if raw else str(source)
+    if not blob.startswith(_MAGIC) or len(blob) < len(_MAGIC) + 2:
+        raise PlannerError(f"{name}: not a saved planner job")
+    version = int.from_bytes(blob[len(_MAGIC):len(_MAGIC) + 2], "big")
+    if version != JOB_FILE_VERSION:
+        raise PlannerError(f"{name}: saved job format version {version}, this planner reads version {JOB_FILE_VERSION}")
+    try:
+        job = pickle.load(io.BytesIO(gzip.decompress(blob[len(_MAGIC) + 2:])))
+    except Exception as exc:  # a truncated or corrupted file
+        raise PlannerError(f"{name}: the saved job is damaged ({type(exc).__name__})") from None
+    if not isinstance(job, PlannedJob):
+        raise PlannerError(f"{name}: not a saved planner job")
+    return job

@@ -1,13 +1,39 @@
-"""One-page picture of a planned job (matplotlib, written to PNG): path and tool axes, twist of the
-chosen frame against the exact RMF, TCP speed, joint positions against their limits.
+"""One picture of a planned job for every mode (matplotlib, PNG): the paths and tool axes in 3D at equal
+scale, the tool frames' figure for the chosen options, the TCP speed envelope, the joints against their limits,
+and the fit of the path.
 
-The panel helpers (:func:`new_figure`, :func:`tool_axes`, :func:`label_path_axes`, :func:`joints_panel`,
-:func:`save`) also draw the whole-job picture (:mod:`planner.plot_cam`).
+The frame panel shows what the options make worth seeing: with the tool normal to the path and a method
+other than the exact RMF, its twist against the exact RMF along the cut; with tool axes, the spin about the
+tool axis per pass against slerping the orientations, and the axes' distance from the great circles between
+the given axes. The fit panel shows the distance from the polyline against the tolerance ("cam") or how far
+the interpolating spline bows from the chords ("interpolate").
+
+A whole job is millions of poses. The trajectory is read once, chunk by chunk (:func:`digest`): the speed
+panel keeps the lowest and highest TCP speed of each time bin, the joint panel every k-th sample (and each
+move's last), so memory stays bounded whatever the length of the job. The 3D panel draws the planned paths
+themselves (a few points per PH segment).
 """
 
 from __future__ import annotations
 
+import math
+import os
+from dataclasses import dataclass
+
 import numpy as np
+
+from planner.errors import PlannerError
+
+#: Image types the plot writes (by the target's suffix).
+PLOT_SUFFIXES = (".png", ".svg", ".pdf")
+
+
+def check_plot_target(target) -> None:
+    """PlannerError unless ``target`` names an image type the plot writes (checked before any work)."""
+    suffix = os.path.splitext(os.fspath(target))[1].lower()
+    if suffix not in PLOT_SUFFIXES:
+        raise PlannerError(f"--plot {os.fspath(target)}: unknown image type {suffix or '(none)'!r} "
+                           f"(use {', '.join(PLOT_SUFFIXES)})")
 
 
 def new_figure(title: str, size: tuple[float, float] = (13, 9.5)):
@@ -23,12 +49,18 @@ def new_figure(title: str, size: tuple[float, float] = (13, 9.5)):
 
 
 def save(fig, target, dpi: int = 110) -> None:
-    """Lay out, write the PNG and release the figure."""
+    """Lay out, write the picture atomically (its type from the suffix) and release the figure."""
+    import io
+
     import matplotlib.pyplot as plt
 
+    from planner.export.files import write_bytes_atomic
+
     fig.tight_layout()
-    fig.savefig(target, dpi=dpi)
+    buf = io.BytesIO()
+    fig.savefig(buf, dpi=dpi, format=os.path.splitext(os.fspath(target))[1].lower().lstrip(".") or "png")
     plt.close(fig)
+    write_bytes_atomic(target, buf.getvalue())
 
 
 def tool_axes(ax, points: np.ndarray, frames: np.ndarray, scale: float) -> None:
@@ -39,7 +71,14 @@ def tool_axes(ax, points: np.ndarray, frames: np.ndarray, scale: float) -> None:
 
 
 def label_path_axes(ax, title: str) -> None:
-    """Axis labels (mm), title and legend of a 3D path panel."""
+    """Axis labels (mm), plain tick labels (no offset notation), title and legend of a 3D path panel."""
+    from matplotlib.ticker import MaxNLocator, ScalarFormatter
+
+    for axis in (ax.xaxis, ax.yaxis, ax.zaxis):
+        fmt = ScalarFormatter(useOffset=False)
+        fmt.set_scientific(False)
+        axis.set_major_formatter(fmt)
+        axis.set_major_locator(MaxNLocator(5))
     ax.set_xlabel("x [mm]")
     ax.set_ylabel("y [mm]")
     ax.set_zlabel("z [mm]")
@@ -47,15 +86,8 @@ def label_path_axes(ax, title: str) -> None:
     ax.legend(loc="upper left", fontsize=8)
 
 
-def joints_panel(ax, t: np.ndarray, joints: np.ndarray | None, robot: str | None, ok: bool) -> None:
-    """Joint positions (n, 6) in degrees against time (n,), with the model's position limits.
-
-    Without joints the panel says the job was planned without robot kinematics.
-    """
-    if joints is None:
-        ax.text(0.5, 0.5, "planned without robot kinematics", ha="center", va="center")
-        ax.set_axis_off()
-        return
+def joints_panel(ax, t: np.ndarray, joints: np.ndarray, robot: str, ok: bool) -> None:
+    """Joint positions (n, 6) in degrees against time (n,), with the model's position limits."""
     from planner.kinematics import get_model
 
     m = get_model(robot)
@@ -71,40 +103,272 @@ def joints_panel(ax, t: np.ndarray, joints: np.ndarray | None, robot: str | None
     ax.grid(alpha=0.3)
 
 
-def plot_job(job, target, *, title: str | None = None, axes_shown: int = 40) -> None:
-    """Write a 2 x 2 figure of ``job`` (a :class:`planner.job.Job`) to ``target`` (PNG path)."""
-    stream = job.stream
-    fig = new_figure(title or "PH path job")
+@dataclass(frozen=True, eq=False)
+class StreamDigest:
+    """What the plot keeps of a job's pose stream.
 
-    ax = fig.add_subplot(2, 2, 1, projection="3d")
-    p = job.path.points(np.linspace(job.path.knots[0], job.path.knots[-1], 1500)) * 1e3
-    ax.plot(p[:, 0], p[:, 1], p[:, 2], color="tab:blue", lw=1.5, label="PH path")
-    w = job.waypoints * 1e3
-    ax.scatter(w[:, 0], w[:, 1], w[:, 2], s=8, color="k", label="waypoints")
-    s = np.linspace(0.0, job.path.length, axes_shown)
-    q = job.path.points(job.path.parameter_at_length(s)) * 1e3
-    tool_axes(ax, q, job.frames.at_length(s), 0.06 * max(np.ptp(p, axis=0).max(), 1e-9))
-    label_path_axes(ax, "path (part frame) and tool axes")
+    Attributes
+    ----------
+    edges : ndarray (B + 1,)
+        Time bins of the speed envelope, s.
+    speed : dict
+        "cut" and "other" (rapids, turns) -> (lowest, highest) TCP speed per bin (B,), m/s; NaN in
+        bins without samples of that kind.
+    times : ndarray (m,)
+        Times of the kept poses, s (every ``step``-th sample and each move's last).
+    poses : ndarray (m, 6)
+        The kept poses (base frame).
+    joints : ndarray (m, 6) or None
+        The robot's joint positions at the kept poses (rad), on one branch over the job.
+    step : int
+        Sample step of the kept poses.
+    samples : int
+        Poses in the whole stream.
+    """
 
-    ax = fig.add_subplot(2, 2, 2)
-    ax.plot(job.twist_s * 1e3, job.twist_curve_deg, color="tab:purple")
-    ax.set_xlabel("arc length [mm]")
-    ax.set_ylabel("twist [deg]")
-    ax.set_title(f"frame '{job.settings.frame}' against the exact RMF (max {job.twist_deg:.3g} deg)")
-    ax.grid(alpha=0.3)
+    edges: np.ndarray
+    speed: dict
+    times: np.ndarray
+    poses: np.ndarray
+    joints: np.ndarray | None
+    step: int
+    samples: int
 
-    ax = fig.add_subplot(2, 2, 3)
-    t = stream.times
-    ax.plot(t, job.profile.v(t) * 1e3, color="tab:blue", label="planned feed")
-    d = np.linalg.norm(np.diff(stream.positions, axis=0), axis=1) / np.diff(t)
-    ax.plot(0.5 * (t[1:] + t[:-1]), d * 1e3, color="tab:orange", lw=0.8, ls="--", label="sampled TCP speed")
+
+def _bin_extremes(b: np.ndarray, v: np.ndarray, lo: np.ndarray, hi: np.ndarray) -> None:
+    """Fold values v into per-bin minima lo and maxima hi (b sorted ascending, same length as v)."""
+    if v.size == 0:
+        return
+    starts = np.concatenate(([0], np.flatnonzero(np.diff(b)) + 1))
+    at = b[starts]
+    lo[at] = np.fmin(lo[at], np.minimum.reduceat(v, starts))
+    hi[at] = np.fmax(hi[at], np.maximum.reduceat(v, starts))
+
+
+def digest(trajectory, *, bins: int = 1500, max_points: int = 20_000) -> StreamDigest:
+    """Read a trajectory once: the TCP speed envelope in ``bins`` time bins and about ``max_points`` samples
+    (with the robot's joints when the job has a robot)."""
+    job, rate = trajectory.job, trajectory.rate
+    total = trajectory.n_samples
+    step = max(1, math.ceil(total / max_points))
+    edges = np.linspace(0.0, max(job.duration, 1.0 / rate), bins + 1)
+    speed = {k: (np.full(bins, np.nan), np.full(bins, np.nan)) for k in ("cut", "other")}
+    kept: list = []
+    offset, p_last = 0, None
+
+    def thinned():
+        nonlocal offset, p_last
+        for c in trajectory.chunks(joints=False):
+            p = c.poses[:, :3] if p_last is None else np.vstack((p_last, c.poses[:, :3]))
+            t = c.times if p_last is None else np.concatenate((c.times[:1] - 1.0 / rate, c.times))
+            v = np.linalg.norm(np.diff(p, axis=0), axis=1) * rate
+            b = np.clip(np.searchsorted(edges, 0.5 * (t[1:] + t[:-1]), side="right") - 1, 0, bins - 1)
+            _bin_extremes(b, v, *speed["cut" if c.kind == "cut" else "other"])
+            p_last = c.poses[-1, :3]
+            yield c.every(step, offset)
+            offset += c.times.size
+
+    if job.settings.robot is not None:
+        from planner.trajectory import track_joints
+
+        kept = [(c, c.joints) for c in track_joints(job, thinned())]
+    else:
+        kept = [(c, None) for c in thinned()]
+    times = np.concatenate([c.times for c, _ in kept]) if kept else np.zeros(0)
+    poses = np.concatenate([c.poses for c, _ in kept]) if kept else np.zeros((0, 6))
+    joints = np.concatenate([q for _, q in kept]) if kept and job.settings.robot is not None else None
+    return StreamDigest(edges, speed, times, poses, joints, step, total)
+
+
+def _path_lines(job, per_segment: int = 4):
+    """Polylines (part frame, mm) of every cut and of the rapids: (list of (n, 3) per pass, (m, 3) with
+    NaN rows between rapids)."""
+    cuts, rapids = [], []
+    for m in job.moves:
+        if m.path is None:
+            continue
+        k = np.asarray(m.path.knots, dtype=float)
+        u = np.append((k[:-1, None] + np.diff(k)[:, None] * np.arange(per_segment) / per_segment).ravel(), k[-1])
+        p = m.path.points(u) * 1e3
+        if m.kind == "cut":
+            cuts.append(p)
+        else:
+            rapids += [p[[0, -1]], np.full((1, 3), np.nan)]
+    return cuts, (np.vstack(rapids) if rapids else np.zeros((0, 3)))
+
+
+def _axis_stations(job, n: int):
+    """Points (n, 3) in mm and tool frames (n, 3, 3) evenly spaced along the total cut length (part frame)."""
+    from planner.motion import poses_at_length, tool_orientation
+
+    cuts = [m for m in job.moves if m.kind == "cut"]
+    if not cuts:
+        return np.zeros((0, 3)), np.zeros((0, 3, 3))
+    lengths = np.array([m.path.length for m in cuts])
+    cum = np.concatenate(([0.0], np.cumsum(lengths)))
+    g = np.linspace(0.0, cum[-1], n)
+    which = np.clip(np.searchsorted(cum, g, side="right") - 1, 0, len(cuts) - 1)
+    pts, frames = [], []
+    for i in np.unique(which):
+        m = cuts[i]
+        s = np.clip(g[which == i] - cum[i], 0.0, m.path.length)
+        p, R, _ = poses_at_length(m.path, tool_orientation(m.frames), s)
+        pts.append(p * 1e3)
+        frames.append(R)
+    return np.vstack(pts), np.concatenate(frames)
+
+
+def plot_job(job, target, *, rate: float | None = None, title: str | None = None, axes_shown: int = 60,
+             bins: int = 1500, max_points: int = 20_000) -> StreamDigest:
+    """Write the picture of a planned job (:class:`planner.PlannedJob`) to ``target`` (.png, .svg or .pdf).
+
+    Parameters
+    ----------
+    job : PlannedJob
+    target : path
+    rate : float, optional
+        Rate of the trajectory read for the speed and joint panels, Hz (default the job's).
+    title : str, optional
+    axes_shown : int
+        Tool frames drawn, evenly spaced along the total cut length.
+    bins, max_points : int
+        Time bins of the speed envelope and samples kept for the joint panel (:func:`digest`).
+
+    Returns
+    -------
+    StreamDigest
+        What was drawn from the trajectory.
+    """
+    import matplotlib
+    from mpl_toolkits.mplot3d.art3d import Line3DCollection
+
+    check_plot_target(target)
+    dg = digest(job.trajectory(rate), bins=bins, max_points=max_points)
+    rate = float(rate or job.settings.rate)
+    s = job.summary()
+    st = job.settings
+    fig = new_figure(title or f"{job.source}: {s['passes']} pass{'es' * (s['passes'] != 1)}", size=(17, 10))
+    grid = fig.add_gridspec(2, 3)
+
+    ax = fig.add_subplot(grid[0, 0:2], projection="3d")
+    cuts, rapids = _path_lines(job)
+    cmap = matplotlib.colormaps["viridis"]
+    if cuts:
+        colors = cmap(np.linspace(0.0, 1.0, len(cuts)))
+        ax.add_collection3d(Line3DCollection(cuts, colors=colors, linewidths=1.0))
+        ax.plot([], [], color=cmap(0.5), label=f"{len(cuts)} pass{'es' * (len(cuts) != 1)} (colour: order)")
+    if rapids.size:
+        ax.plot(rapids[:, 0], rapids[:, 1], rapids[:, 2], color="0.45", lw=0.7, ls="--", label="rapids")
+    allp = np.vstack([*cuts, rapids[np.isfinite(rapids).all(axis=1)]]) if cuts or rapids.size else np.zeros((1, 3))
+    q, F = _axis_stations(job, axes_shown)
+    scale = 0.05 * max(float(np.ptp(allp, axis=0).max()), 1e-6)
+    allp = np.vstack((allp, q + scale * F[:, :, 2]))  # room for the tool axes
+    lo, hi = allp.min(axis=0), allp.max(axis=0)
+    span = np.maximum(hi - lo, 0.3 * max(float((hi - lo).max()), 1e-6))  # equal scale, flat jobs thickened
+    mid = 0.5 * (lo + hi)
+    ax.set_xlim(mid[0] - 0.5 * span[0], mid[0] + 0.5 * span[0])
+    ax.set_ylim(mid[1] - 0.5 * span[1], mid[1] + 0.5 * span[1])
+    ax.set_zlim(mid[2] - 0.5 * span[2], mid[2] + 0.5 * span[2])
+    ax.set_box_aspect(span, zoom=1.15)
+    if len(q):
+        tool_axes(ax, q, F, scale)
+    label_path_axes(ax, f"paths (part frame, {st.path}): {s['cut_length_mm']:.0f} mm of cut, {s['rapids']} rapids, "
+                        f"{s['reorientations']} turns in place")
+
+    _frames_panel(fig.add_subplot(grid[0, 2]), job, s)
+
+    ax = fig.add_subplot(grid[1, 0] if st.robot is not None else grid[1, 0:2])  # no empty joint panel
+    t_mid = 0.5 * (dg.edges[1:] + dg.edges[:-1])
+    for kind, color, label in (("other", "0.5", "rapids"), ("cut", "tab:blue", "cuts")):
+        v_lo, v_hi = (1e3 * a for a in dg.speed[kind])
+        if np.isfinite(v_hi).any():
+            ax.fill_between(t_mid, np.where(v_lo > 0, v_lo, np.nan), v_hi, color=color, alpha=0.3, lw=0)
+            ax.plot(t_mid, v_hi, color=color, lw=0.8, label=f"{label}: highest speed per bin")
+    ax.set_yscale("log")
+    peaks = 1e3 * np.concatenate([v_hi for _, v_hi in dg.speed.values()])
+    peaks = peaks[np.isfinite(peaks) & (peaks > 0)]
+    if peaks.size:  # the lows reach 0 at every stop: show a decade below the usual speeds
+        ax.set_ylim(0.1 * float(np.percentile(peaks, 5)), 2.0 * float(peaks.max()))
     ax.set_xlabel("time [s]")
-    ax.set_ylabel("speed [mm/s]")
-    ax.set_title(f"TCP speed ({stream.times.size} poses at {job.settings.rate:g} Hz)")
+    ax.set_ylabel("TCP speed [mm/s]")
+    ax.set_title(f"TCP speed, {dg.samples} poses at {rate:g} Hz ({s['duration_s']:.1f} s)")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3, which="both")
+
+    if st.robot is not None:
+        ax = fig.add_subplot(grid[1, 1])
+        joints_panel(ax, dg.times, dg.joints, st.robot, not job.problems)
+        ax.set_title(f"{st.robot} joints, 1 pose in {dg.step} "
+                     f"({'within limits' if not job.problems else f'{len(job.problems)} move(s) with problems'})")
+
+    _fit_panel(fig.add_subplot(grid[1, 2]), job, s)
+    save(fig, target)
+    return dg
+
+
+def _frames_panel(ax, job, s: dict) -> None:
+    """The tool frames' figure for the chosen options (see the module doc)."""
+    idx = np.array([p.index for p in job.passes])
+    if job.settings.axes == "path":
+        if job.settings.frame == "rmf":
+            ax.text(0.5, 0.5, "exact RMF about the path tangent:\nno twist to show (0 by construction)",
+                    ha="center", va="center")
+            ax.set_axis_off()
+            return
+        offset = 0.0
+        for m in job.moves:
+            if m.kind != "cut":
+                continue
+            sv, ang = m.frames.twist_curve(401)
+            ax.plot(1e3 * (offset + sv), ang, lw=0.9, color="tab:purple")
+            offset += float(m.path.length)
+        ax.set_xlabel("arc length along the cuts [mm]")
+        ax.set_ylabel("twist against the exact RMF [deg]")
+        ax.set_title(f"{job.settings.frame}: largest twist {s['max_twist_vs_exact_rmf_deg']:.3g} deg")
+        ax.grid(alpha=0.3)
+        return
+    if max(max(abs(p.slerp_spin_deg), abs(p.spin_deg), abs(p.max_axis_departure_deg)) for p in job.passes) < 1e-9:
+        ax.text(0.5, 0.5, "the tool axis is constant along every pass:\nno spin about it, nothing to show",
+                ha="center", va="center")
+        ax.set_axis_off()
+        return
+    ax.plot(idx, [p.slerp_spin_deg for p in job.passes], ".", ms=4, color="tab:orange",
+            label=f"orientations slerped point to point (total {s['slerp_spin_deg']:.4g} deg)")
+    ax.plot(idx, [p.spin_deg for p in job.passes], ".", ms=4, color="tab:purple",
+            label=f"planned frames (total {s['spin_deg']:.3g} deg)")
+    ax.plot(idx, [p.max_axis_departure_deg for p in job.passes], "x", ms=4, color="tab:cyan",
+            label=f"axis distance from the great circles (largest {s['max_axis_departure_deg']:.3g} deg)")
+    ax.set_yscale("symlog", linthresh=1e-3)
+    ax.set_xlabel("pass")
+    ax.set_ylabel("[deg]")
+    ax.set_title("tool axes: spin about them and distance from their great circles")
     ax.legend(fontsize=8)
     ax.grid(alpha=0.3)
 
-    ax = fig.add_subplot(2, 2, 4)
-    ok = job.reachability.ok if job.reachability is not None else True
-    joints_panel(ax, t, job.joints, job.settings.robot, ok)
-    save(fig, target)
+
+def _fit_panel(ax, job, s: dict) -> None:
+    """Distance of the path from every chord of the polyline along the cut length (against the tolerance of
+    the "cam" model; how far the interpolating spline bows from the chords for "interpolate")."""
+    x0, xs, ds = 0.0, [], []
+    for m in job.moves:
+        if m.kind != "cut" or m.fit is None:
+            continue
+        chord = np.linalg.norm(np.diff(m.fit.points, axis=0), axis=1)
+        xs.append(1e3 * (x0 + np.cumsum(chord) - 0.5 * chord))
+        ds.append(1e3 * np.asarray(m.fit.span_deviation))
+        x0 += float(chord.sum())
+    x = np.concatenate(xs) if xs else np.zeros(0)
+    d = np.concatenate(ds) if ds else np.zeros(0)
+    if job.settings.path == "cam":
+        ax.plot(x, d, ".", ms=2, color="tab:green", label="largest distance of the PH path from each chord")
+        ax.axhline(s["tolerance_mm"], color="tab:red", ls="--", lw=0.8, label=f"tolerance {s['tolerance_mm']:g} mm")
+        ax.set_ylim(0.0, 1.15 * max(s["tolerance_mm"], s["max_deviation_mm"]))
+        ax.set_title(f"fit to the CAM polyline (largest {s['max_deviation_mm']:.4f} mm)")
+    else:
+        ax.plot(x, d, ".", ms=3, color="tab:green", label="largest distance of the spline from each chord")
+        ax.set_title(f"through every point ({s['max_waypoint_error_mm']:.0e} mm), bow up to "
+                     f"{s['max_deviation_mm']:.3f} mm")
+    ax.set_xlabel("polyline length along the cuts [mm]")
+    ax.set_ylabel("distance from the chord [mm]")
+    ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)

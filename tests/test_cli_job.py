@@ -1,4 +1,4 @@
-"""The offline job end to end: plan_job and the `planner` command line on real CAM data."""
+"""The offline job end to end: plan() on waypoints and the `planner` command line on real CAM data."""
 
 from __future__ import annotations
 
@@ -6,63 +6,74 @@ import re
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
-from planner.cli import DEMO_PART_FRAME, EXAMPLE_CLS, example_path, main
-from planner.job import JobSettings, plan_job
+from planner import PlanSettings, plan
+from planner.cli import DEMO_PART_FRAME, EXAMPLE_CLS, build_parser, example_path, main, settings_from_args
+from planner.motion import MotionLimits
 
 
-def test_plan_job_without_robot_keeps_a_planar_tool_vertical():
+def test_waypoints_without_robot_keep_a_planar_tool_vertical():
     th = np.linspace(0, np.pi, 15)
     wp = np.c_[0.2 * np.cos(th), 0.2 * np.sin(th), np.zeros_like(th)]
-    job = plan_job(wp, settings=JobSettings(robot=None, feed=0.1, angular_speed=None))
-    R = job.stream.rotations
-    # the RMF of a planar curve keeps the plane normal (the spatial PH fit leaves the plane by ~1e-10 m)
-    assert np.abs(job.stream.positions[:, 2]).max() < 1e-9
+    job = plan(wp, PlanSettings(feed=0.1, limits=MotionLimits(0.25, 0.5, 5.0, None)))
+    assert job.settings.path == "interpolate" and job.settings.axes == "path"
+    c = job.trajectory().collect()
+    R = Rotation.from_rotvec(c.poses[:, 3:]).as_matrix()
+    # the RMF of a planar curve keeps the plane normal (the planar PH fit stays in the plane)
+    assert np.abs(c.poses[:, 2]).max() < 1e-9
     assert np.abs(R[:, :, 2] - [0, 0, -1]).max() < 1e-8
-    assert job.joints is None and job.reachability is None
-    assert job.summary()["length_mm"] == pytest.approx(1e3 * job.path.length)
-    assert job.stream.s[-1] == pytest.approx(job.path.length, rel=1e-12)
-    assert job.profile.duration > job.path.length / 0.1  # ramps make it longer than at constant feed
+    assert c.joints is None and job.reachable is None
+    cut = job.moves[0]
+    assert job.summary()["cut_length_mm"] == pytest.approx(1e3 * cut.path.length)
+    assert job.duration > cut.path.length / 0.1  # ramps make it longer than at constant feed
 
 
-def test_plan_job_with_axes_and_robot_reports_reachability():
+def test_waypoints_with_approach_axes_and_robot_are_reachable():
     th = np.linspace(0, np.pi / 2, 12)
     wp = np.c_[0.1 * np.cos(th), 0.1 * np.sin(th), np.zeros_like(th)]
-    axes = np.c_[0.3 * np.cos(th), 0.3 * np.sin(th), -np.ones_like(th)]  # tilted outwards
-    s = JobSettings(robot="ur5e", base=(0.4, 0.0, 0.2, 0.0, 0.0, 0.0), feed=0.05)
-    job = plan_job(wp, axes, s)
-    assert job.reachability.ok
-    assert np.isfinite(job.joints).all() and job.joints.shape == (job.stream.times.size, 6)
+    axes = np.c_[0.3 * np.cos(th), 0.3 * np.sin(th), -np.ones_like(th)]  # approach axes, tilted outwards
+    s = PlanSettings(robot="ur5e", part_frame=(0.4, 0.0, 0.2, 0.0, 0.0, 0.0), feed=0.05, axes="approach")
+    job = plan(wp, s, axes=axes)
+    assert job.reachable and not job.problems
+    c = job.trajectory().collect()
+    assert np.isfinite(c.joints).all() and c.joints.shape == (job.n_samples(), 6)
     unit = axes / np.linalg.norm(axes, axis=1, keepdims=True)
-    z = job.frames.frames(job.path.waypoint_knots)[:, :, 2]
+    cut = job.moves[0]
+    z = cut.frames.frames(cut.path.waypoint_knots)[:, :, 2]
     assert np.abs(z - unit).max() < 1e-12
 
 
-def test_unreachable_job_is_reported_at_the_first_sample():
+def test_unreachable_waypoints_are_reported_at_the_first_one():
     wp = np.c_[np.linspace(0, 0.1, 5), np.zeros(5), np.zeros(5)]
-    job = plan_job(wp, settings=JobSettings(robot="ur5e", base=(3.0, 0.0, 0.0, 0.0, 0.0, 0.0)))
-    assert not job.reachability.ok
-    assert "sample 0" in job.reachability.message and "no inverse kinematics" in job.reachability.message
+    job = plan(wp, PlanSettings(robot="ur5e", part_frame=(3.0, 0.0, 0.0, 0.0, 0.0, 0.0)))
+    assert job.reachable is False
+    assert re.search(r"<waypoints> pass 0 \(lines 0-4\), line 0: pose has no inverse kinematics", job.problems[0])
+
+
+def test_cli_defaults_are_the_plan_settings_defaults():
+    args = build_parser().parse_args(["plan", "x.csv"])
+    assert settings_from_args(args) == PlanSettings().checked()
 
 
 def test_cli_plan_writes_program_and_plot(tmp_path, capsys):
     script, png = tmp_path / "job.script", tmp_path / "job.png"
-    code = main(["plan", str(example_path(EXAMPLE_CLS)), "--pass", "longest", "--part-frame", DEMO_PART_FRAME,
-                 "-o", str(script), "--plot", str(png)])
+    code = main(["plan", str(example_path(EXAMPLE_CLS)), "--pass", "longest", "--robot", "ur5e",
+                 "--part-frame", DEMO_PART_FRAME, "-o", str(script), "--plot", str(png)])
     out = capsys.readouterr().out
     assert code == 0
-    assert "all" in out and "reachable" in out and "length 254.2" in out
+    assert "every move reachable" in out and "254.2 mm of cut" in out
     assert float(re.search(r"from the CAM polyline ([0-9.]+) mm", out).group(1)) <= 0.01
-    text = script.read_text()
-    n = int(re.search(r"(\d+) poses at 500 Hz", out).group(1))
-    assert text.count("servoj(") == n
+    n = int(re.search(r"\((\d+) movep, 1 movej\)", out).group(1))  # the pass alone: no rapid before it
+    assert script.read_text().count("  movep(") == n > 10
     assert png.stat().st_size > 50_000
 
 
-def test_cli_plan_csv_pose_stream(tmp_path):
+def test_cli_plan_csv_trajectory(tmp_path):
     out = tmp_path / "job.csv"
-    assert main(["plan", str(example_path()), "--robot", "none", "--feed", "20", "-o", str(out)]) == 0
+    assert main(["plan", str(example_path()), "--feed", "20", "-o", str(out)]) == 0
     rows = [r for r in out.read_text().splitlines() if r and not r.startswith("#")]
+    assert rows[0] == "t,x,y,z,rx,ry,rz,move,pass,line"
     data = np.array([[float(x) for x in r.split(",")] for r in rows[1:]])
     assert data.shape[0] > 1000 and np.all(np.diff(data[:, 0]) > 0)
 
@@ -71,11 +82,14 @@ def test_cli_plan_csv_pose_stream(tmp_path):
     "argv, message",
     [
         (["plan", "missing.apt"], "missing.apt"),
-        (["plan", "EXAMPLE", "--pass", "7"], "--pass 7: nx_first_pass.cls has passes 0..0"),
-        (["plan", "EXAMPLE", "--pass", "x"], "--pass must be a pass number, 'longest' or 'all'"),
+        (["plan", "EXAMPLE", "--pass", "7"], "passes: nx_first_pass.cls has passes 0..0, not 7"),
+        (["plan", "EXAMPLE", "--pass", "x"], "--pass must be pass numbers K[,K...], 'longest' or 'all'"),
         (["plan", "EXAMPLE", "--part-frame", "1,2,3"], "--part-frame must be six"),
         (["plan", "EXAMPLE", "-o", "x.docx"], "unknown output type"),
-        (["plan", "EXAMPLE", "--robot", "none", "-o", "x.script"], "needs joint targets"),
+        (["plan", "EXAMPLE", "-o", "x.script"], "needs the reachability check: give --robot MODEL"),
+        (["plan", "EXAMPLE", "--feed", "nan"], "feed must be in"),
+        (["plan", "EXAMPLE", "--axes", "path", "--path", "cam", "--frame", "juttler"], "frame='juttler' needs"),
+        (["plan", "EXAMPLE", "--robot", "ur99"], "ur99"),
     ],
 )
 def test_cli_errors_are_one_line_with_exit_code_2(argv, message, capsys, tmp_path, monkeypatch):
@@ -92,15 +106,15 @@ def test_cli_plans_a_whole_multi_pass_file(tmp_path, capsys):
     src = tmp_path / "head.cls"
     src.write_text(NX_HEAD)
     out = tmp_path / "job.csv"
-    assert main(["plan", str(src), "--robot", "none", "-o", str(out), "--progress"]) == 0
+    assert main(["plan", str(src), "-o", str(out), "--progress"]) == 0
     captured = capsys.readouterr()
     text = captured.out
-    assert re.search(r"moves +\[#+ *\] +\d+\.\d %", captured.err)  # the progress bar
+    assert re.search(r"moves: +100%\|", captured.err) and re.search(r"samples: +100%\|", captured.err)  # tqdm
     assert re.search(r"-> \d+ passes, \d+ rapids", text) and "largest deviation from the CAM polyline" in text
     rows = [r for r in out.read_text().splitlines() if r and r[0] not in "#t"]
     data = np.array([[float(x) for x in r.split(",")] for r in rows])
     assert np.all(np.diff(data[:, 0]) > 0) and set(np.unique(data[:, 8])) >= {0.0, 1.0}
-    assert main(["plan", str(src), "--robot", "none", "-o", str(tmp_path / "job.script")]) == 2
+    assert main(["plan", str(src), "-o", str(tmp_path / "job.script")]) == 2
 
 
 def test_cli_fit_prints_figures(capsys):
@@ -121,8 +135,8 @@ def test_cli_plans_each_shared_cam_file(name, extra, capsys):
     from tests.conftest import SHARED_DATA
 
     if not (SHARED_DATA / name).is_file():
-        pytest.skip("shared/data not present")
-    assert main(["plan", str(SHARED_DATA / name), "--robot", "none", *extra]) == 0
+        pytest.skip(f"{name} is not in {SHARED_DATA} (the whole-file tests need ../shared/data)")
+    assert main(["plan", str(SHARED_DATA / name), *extra]) == 0
     out = capsys.readouterr().out
     assert re.search(r"-> \d+ passes", out)
     dev = float(re.search(r"largest deviation from the CAM polyline ([0-9.]+) mm", out).group(1))

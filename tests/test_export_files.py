@@ -1,4 +1,5 @@
-"""CSV and JSON pose streams: exact round trip, joints, tool I/O state, header, bad input."""
+"""The one trajectory's exports (CSV, JSON, URScript), atomic writes, and saved jobs that load back to the
+identical trajectory."""
 
 from __future__ import annotations
 
@@ -8,104 +9,99 @@ import json
 import numpy as np
 import pytest
 
-from planner.curves import fit_ph_spline
-from planner.export import ExportError, read_csv, read_json, write_csv, write_json
-from planner.motion import ConstantOrientation, IOEvent, MotionLimits, io_window, plan_feed, sample_poses
+from planner import PlannerError, PlanSettings, load_job, plan
+from planner.export import JSON_FORMAT, job_program, write_csv, write_json, write_script
+from planner.io import read_toolpath
+from tests.cam_excerpts import NX_HEAD
 
-LIM = MotionLimits(speed=1.0, acceleration=2.0, jerk=30.0)
+NX_PART = (0.4, 0.9965, -0.1, 0.0, 0.0, 0.0)
 
 
 @pytest.fixture(scope="module")
-def stream():
-    x = np.linspace(0, 0.3, 8)
-    path = fit_ph_spline(np.column_stack((x, 0.05 * np.sin(8 * x), 0.01 * x)))
-    prof = plan_feed(path, 0.2, LIM, span_feeds=[0.2, 0.1, np.nan, 0.3, 0.3, 0.15, 0.2])
-    R = np.diag([1.0, -1.0, -1.0])
-    events = [*io_window(0.05, 0.2, 4, lead_time=0.03, name="glue"), IOEvent(0.25, 0, True, output="tool")]
-    return sample_poses(path, prof, ConstantOrientation(R), rate=500.0, tcp=[0, 0, 0.1, 0, 0, 0],
-                        base=[0.4, 0.0, 0.1, 0, 0, 0.5], events=events)
+def job():
+    tp = read_toolpath(io.StringIO(NX_HEAD), format="apt")
+    return plan(tp, PlanSettings(path="cam", robot="ur5e", part_frame=NX_PART, cut_output=("standard", 2), rate=125.0))
 
 
-def joints_for(st):
-    return np.outer(np.sin(st.times), np.arange(1, 7)) * 0.1 + np.array([0, -1.5, 1.5, -1.5, -1.5, 0.0])
+def _read_csv(path):
+    header, rows = {}, []
+    with open(path, encoding="utf-8") as f:
+        for line in f:
+            if line.startswith("# "):
+                k, _, v = line[2:].partition(": ")
+                header[k] = json.loads(v)
+            else:
+                names = line.strip().split(",")
+                break
+        rows = np.loadtxt(f, delimiter=",", ndmin=2)
+    return header, names, rows
 
 
-@pytest.mark.parametrize("fmt", ["csv", "json"])
-@pytest.mark.parametrize("with_joints", [True, False])
-def test_round_trip_is_exact(tmp_path, stream, fmt, with_joints):
-    q = joints_for(stream) if with_joints else None
-    f = tmp_path / f"job.{fmt}"
-    extra = {"input": "part.apt", "frame": "rmf", "robot": "ur5e"}
-    (write_csv if fmt == "csv" else write_json)(stream, f, joints=q, parameters=extra)
-    rec = (read_csv if fmt == "csv" else read_json)(f)
-    np.testing.assert_array_equal(rec.times, stream.times)
-    np.testing.assert_array_equal(rec.s, stream.s)
-    np.testing.assert_array_equal(rec.poses, stream.poses)
-    if with_joints:
-        np.testing.assert_array_equal(rec.joints, q)
-    else:
-        assert rec.joints is None
-    states = stream.io_states()
-    assert set(rec.io) == {"standard_do4", "tool_do0"}
-    np.testing.assert_array_equal(rec.io["standard_do4"], states[("standard", 4)])
-    np.testing.assert_array_equal(rec.io["tool_do0"], states[("tool", 0)])
-    assert [e["index"] for e in rec.events] == [e.index for e in stream.events]
-    assert [e["time"] for e in rec.events] == [e.time for e in stream.events]
-    assert [e["name"] for e in rec.events] == ["glue on", "glue off", ""]
-    p = rec.parameters
-    assert p["generator"].startswith("ph-toolpath-planner") and p["rate_hz"] == 500.0
-    assert p["samples"] == len(stream) and p["input"] == "part.apt" and p["robot"] == "ur5e"
-    assert p["duration_s"] == stream.profile.duration and p["feed_min_m_s"] == 0.1
-    np.testing.assert_allclose(p["tcp_pose"], [0, 0, 0.1, 0, 0, 0], atol=1e-15)
-    np.testing.assert_allclose(p["base_transform"], stream.base, atol=0)
+def test_csv_and_json_hold_the_trajectory_to_their_precision(job, tmp_path):
+    tr = job.trajectory()
+    whole = tr.collect()
+    n_csv = write_csv(tr, tmp_path / "a.csv", parameters={"input": "head.cls"})
+    n_json = write_json(tr, tmp_path / "a.json", parameters={"input": "head.cls"})
+    assert n_csv == n_json == tr.n_samples == whole.times.size
+    header, names, rows = _read_csv(tmp_path / "a.csv")
+    assert names == ["t", "x", "y", "z", "rx", "ry", "rz", "move", "pass", "line", *[f"q{i}" for i in range(6)], "io"]
+    assert header["settings"]["robot"] == "ur5e" and header["settings"]["path"] == "cam"
+    assert header["samples"] == tr.n_samples and header["rate_hz"] == 125.0 and header["input"] == "head.cls"
+    assert np.abs(rows[:, 0] - whole.times).max() <= 5e-7
+    assert np.abs(rows[:, 1:7] - whole.poses).max() <= 5e-9 * max(1.0, np.abs(whole.poses).max())
+    assert np.abs(rows[:, 10:16] - whole.joints).max() <= 5e-8
+    assert np.array_equal(rows[:, 9].astype(int), whole.lines) and np.array_equal(rows[:, 16].astype(int), whole.io)
+    doc = json.loads((tmp_path / "a.json").read_text())
+    assert doc["format"] == JSON_FORMAT and list(doc)[:3] == ["format", "parameters", "moves"]
+    assert doc["columns"][:8] == ["t", "x", "y", "z", "rx", "ry", "rz", "kind"]
+    assert len(doc["samples"]) == tr.n_samples and len(doc["moves"]) == len(job.moves)
+    assert sum(m["samples"] for m in doc["moves"]) == tr.n_samples
+    s = np.array([r[:7] for r in doc["samples"]])
+    assert np.abs(s[:, 1:] - whole.poses).max() <= 5e-9 * max(1.0, np.abs(whole.poses).max())
+    # the cut output: on while cutting, off on the rapids
+    kinds = np.array([r[7] for r in doc["samples"]])
+    io_bits = np.array([r[-1] for r in doc["samples"]])
+    assert set(io_bits[kinds == "rapid"]) == {0} and (io_bits[kinds == "cut"] == 4).mean() > 0.99
 
 
-def test_io_state_columns_switch_at_the_event_samples(stream):
-    buf = io.StringIO()
-    write_csv(stream, buf)
-    rec = read_csv(io.StringIO(buf.getvalue()))
-    on, off, tool = stream.events
-    d4 = rec.io["standard_do4"]
-    assert not d4[on.index - 1] and d4[on.index] and d4[off.index - 1] and not d4[off.index]
-    assert rec.times[on.index] >= on.time > rec.times[on.index - 1]
-    assert rec.io["tool_do0"][tool.index:].all() and not rec.io["tool_do0"][: tool.index].any()
+def test_a_failed_export_leaves_no_file(job, tmp_path):
+    target = tmp_path / "out.json"
+    target.write_text("previous contents\n")
+
+    def fail(stage, done, total):
+        if done > 100:
+            raise RuntimeError("disk full")
+
+    with pytest.raises(RuntimeError, match="disk full"):
+        write_json(job.trajectory(), target, progress=fail)
+    assert target.read_text() == "previous contents\n"  # untouched
+    assert [p.name for p in tmp_path.iterdir()] == ["out.json"]  # no temporary file left behind
 
 
-def test_csv_layout(stream):
-    buf = io.StringIO()
-    write_csv(stream, buf, joints=joints_for(stream))
-    lines = buf.getvalue().splitlines()
-    assert lines[0].startswith("# generator: ")
-    header = next(line for line in lines if not line.startswith("#"))
-    assert header == "t,s,x,y,z,rx,ry,rz,q0,q1,q2,q3,q4,q5,standard_do4,tool_do0"
-    events = [json.loads(line[len("# event: "):]) for line in lines if line.startswith("# event: ")]
-    assert len(events) == 3 and events[0]["lead_time"] == 0.03
+def test_saved_job_loads_back_to_identical_exports(job, tmp_path):
+    size = job.save(tmp_path / "head.job")
+    assert size == (tmp_path / "head.job").stat().st_size and size < 2_000_000
+    back = load_job(tmp_path / "head.job")
+    for writer, name in ((write_csv, "x.csv"), (write_json, "x.json")):
+        writer(job.trajectory(), tmp_path / f"a_{name}")
+        writer(back.trajectory(), tmp_path / f"b_{name}")
+        assert (tmp_path / f"a_{name}").read_bytes() == (tmp_path / f"b_{name}").read_bytes()
+    write_script(job_program(job), tmp_path / "a.script")
+    write_script(job_program(back), tmp_path / "b.script")
+    assert (tmp_path / "a.script").read_bytes() == (tmp_path / "b.script").read_bytes()
+    assert back.describe() == job.describe()
 
 
-def test_bad_joints_are_named(stream):
-    q = joints_for(stream)
-    q[5] = np.inf
-    for writer in (write_csv, write_json):
-        with pytest.raises(ExportError, match=r"^joints\[5\]: sample 5 \(t = 0\.01 s\)"):
-            writer(stream, io.StringIO(), joints=q)
-        with pytest.raises(ExportError, match=r"^joints: expected shape"):
-            writer(stream, io.StringIO(), joints=q[:, :5])
-        with pytest.raises(ExportError, match=r"^parameters: key 'samples' is reserved"):
-            writer(stream, io.StringIO(), parameters={"samples": 3})
-
-
-def test_broken_files_name_the_place(tmp_path):
-    f = tmp_path / "bad.csv"
-    f.write_text("# rate_hz: 500\nt,s,x,y,z,rx,ry\n0,0,0,0,0,0,0\n")
-    with pytest.raises(ExportError, match="missing column 'rz'"):
-        read_csv(f)
-    f.write_text("# rate_hz: {oops\n")
-    with pytest.raises(ExportError, match="line 1"):
-        read_csv(f)
-    g = tmp_path / "bad.json"
-    g.write_text('{"t": [0.0],\n "s": [0.0]}')
-    with pytest.raises(ExportError, match="missing key 'pose'"):
-        read_json(g)
-    g.write_text('{"t": [0.0],\n "s": ')
-    with pytest.raises(ExportError, match="line 2"):
-        read_json(g)
+def test_damaged_or_foreign_job_files_are_refused(job, tmp_path):
+    f = tmp_path / "head.job"
+    job.save(f)
+    blob = f.read_bytes()
+    (tmp_path / "cut.job").write_bytes(blob[: len(blob) // 2])
+    with pytest.raises(PlannerError, match="cut.job: the saved job is damaged"):
+        load_job(tmp_path / "cut.job")
+    (tmp_path / "v9.job").write_bytes(blob[:12] + (9).to_bytes(2, "big") + blob[14:])
+    with pytest.raises(PlannerError, match="saved job format version 9, this planner reads version 1"):
+        load_job(tmp_path / "v9.job")
+    (tmp_path / "other.job").write_text("GOTO/1,2,3\n")
+    with pytest.raises(PlannerError, match="other.job: not a saved planner job"):
+        load_job(tmp_path / "other.job")

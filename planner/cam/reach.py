@@ -208,7 +208,7 @@ def _lower_feed(s, m, q: np.ndarray, x: np.ndarray, t: np.ndarray, Tb: np.ndarra
         return Measurement(xa, ta, ratio, joint, (xa, ta, qa))
 
     bounds = span_bounds(m.path) if m.kind in ("cut", "rapid") else None
-    return lower_feed_locally(m.profile, measure, span_bounds=bounds)
+    return lower_feed_locally(m.profile, measure, span_bounds=bounds, floor=s.feed_floor)
 
 
 @dataclass(frozen=True, eq=False)

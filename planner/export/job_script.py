@@ -35,12 +35,16 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.export.header import ExportError, cam_job_parameters
+from planner.export.header import ExportError, trajectory_parameters
 from planner.export.movep import MovePPlan, plan_movep
 from planner.export.script_text import check_name, comment, header, num, pose, vec
 from planner.export.urscript import movep_lines
 from planner.motion.limits import positive
 from planner.motion.stream import as_transform, transform_to_pose
+
+#: The URScript call that sets a digital output of each kind.
+_OUTPUT_CALL = {"standard": "set_standard_digital_out", "configurable": "set_configurable_digital_out",
+                "tool": "set_tool_digital_out"}
 
 #: Kinds of CAM records written as comments where they occur.
 NOTED_EVENTS = ("operation", "tool_change", "spindle", "coolant", "insert", "machine")
@@ -114,7 +118,7 @@ def plan_job_program(job, *, tolerance: float | None = None, angle_tolerance: fl
     progress : callable(stage, done, total), optional
         Called every 25 moves.
     """
-    from planner.cam.passes import CamInputError
+    from planner.errors import PlannerError
     from planner.motion import poses_at_length, tool_orientation
 
     tol = positive(job.settings.tolerance if tolerance is None else tolerance, "tolerance")
@@ -130,7 +134,7 @@ def plan_job_program(job, *, tolerance: float | None = None, angle_tolerance: fl
                 plan = plan_movep(m.path, tool_orientation(m.frames), m.profile, tolerance=tol,
                                   angle_tolerance=angle_tolerance, base=Tb)
             except ExportError as exc:
-                raise CamInputError(f"{job.source} pass {m.pass_index} (lines {m.item.first_line}-"
+                raise PlannerError(f"{job.source} pass {m.pass_index} (lines {m.item.first_line}-"
                                     f"{m.item.last_line}): {exc}") from None
             lines = m.item.lines
             out.append(ProgramMove(k, "cut", m.pass_index, int(lines[0]), int(lines[-1]), int(lines[1]), plan,
@@ -158,9 +162,8 @@ def plan_job_program(job, *, tolerance: float | None = None, angle_tolerance: fl
 
 def _start_joints(job) -> np.ndarray:
     """Joint positions (6,) at the job's first pose, on the branch the reachability check follows."""
-    from planner.cam.stream import iter_stream, track_joints
-
-    for _, q in track_joints(job, iter_stream(job, job.settings.rate)):
+    for chunk in job.trajectory().chunks(joints=True):
+        q = chunk.joints
         if not np.isfinite(q[0]).all():  # pragma: no cover - job.problems names it first
             raise ExportError(f"{job.source}: the job's first pose has no inverse kinematics solution")
         return q[0]
@@ -234,8 +237,7 @@ def job_program(
         "movej_reconfigurations": sum(1 for m in moves if m.kind == "reconfiguration"),
         "start_joints_rad": [float(x) for x in q0],
     }
-    extra = {"reconfigurations": job.reconfiguration_lines()} if job.reconfigurations else {}
-    params = cam_job_parameters(job, None, {**extra, **dict(parameters or {}), "program": stats})
+    params = trajectory_parameters(job.trajectory(), {**dict(parameters or {}), "program": stats})
     tcp_pose = transform_to_pose(as_transform(s.tcp, "tcp"))
     lines = [f"def {name}():"]
     lines += header("whole-job movep/movel", params, [])
@@ -243,7 +245,8 @@ def job_program(
         "  # movej/movel/movep semantics: UR Script Manual (e-Series), not covered by shared/UR-PROTOCOLS.md.",
         "  # Passes: movep within tolerance of the planned path, ending with r = 0 where the CAM system stops.",
         "  # Rapids and turns in place: movel (straight, orientation about one axis); t = planned time where",
-        "  # the tool turns. No outputs are switched: the CAM job carries no tool I/O.",
+        "  # the tool turns. " + ("No outputs are switched (no cut_output set)." if s.cut_output is None else
+                                f"The {s.cut_output[0]} digital output {s.cut_output[1]} is on during every pass."),
         "  # Changes of the arm configuration: movej at a rapid's safe point, t = planned time of the joint move.",
         f"  set_tcp({pose(tcp_pose)})",
     ]
@@ -263,7 +266,11 @@ def job_program(
             lines.append(comment(
                 f"pass {m.pass_index}{op}, lines {m.first_line}-{m.last_line}: {1e3 * m.plan.s[-1]:.3f} mm at up to "
                 f"{1e3 * m.speed:.3f} mm/s in movep moves: {m.plan.s.size - 1}, planned {m.duration:.3f} s"))
+            if s.cut_output is not None:
+                lines.append(f"  {_OUTPUT_CALL[s.cut_output[0]]}({s.cut_output[1]}, True)")
             lines += movep_lines(m.plan, a)
+            if s.cut_output is not None:
+                lines.append(f"  {_OUTPUT_CALL[s.cut_output[0]]}({s.cut_output[1]}, False)")
         elif m.kind == "reconfiguration":
             r = job.moves[m.move].item
             jl = s.joint_limits

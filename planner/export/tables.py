@@ -1,194 +1,120 @@
-"""Pose streams as CSV and JSON files: time, arc length, pose, joint solution, tool I/O state.
+"""A job's trajectory as CSV or JSON, written chunk by chunk in bounded memory (one layout each, every mode).
 
-Both carry the generator and the job's parameters, and the I/O events with their switching times and
-sample indices. Numbers are written with 17 significant digits, so reading a file back gives the
-written arrays exactly. Readers return a :class:`PoseRecord`.
+A whole NX job is millions of poses: both writers read the chunks of a :class:`planner.trajectory.Trajectory`
+(one move each) and write them as they come, to a temporary file that replaces the target only when
+complete. Numbers: times with 6 decimals (s), poses and joints with 9 significant digits (nm and 1e-8 rad at
+the scale of a robot cell); joints without an inverse-kinematics solution are empty (CSV) or ``null`` (JSON).
+
+CSV layout: ``# key: <json>`` header lines (:func:`~planner.export.header.trajectory_parameters`), then the
+column line and one row per sample::
+
+    t,x,y,z,rx,ry,rz,move,pass,line[,q0..q5][,io]
+
+JSON layout (one object; the keys come in this order, so a streaming parser meets the header first)::
+
+    {"format": "planner-trajectory/1",
+     "parameters": {...},                  # generator, settings and figures of the job
+     "moves": [{"move", "kind", "pass", "operation", "first_line", "last_line", "t_start", "duration_s",
+                "samples"(, "for_pass", "q_from", "q_to")}, ...],  # every move, skipped records included
+     "columns": ["t", "x", "y", "z", "rx", "ry", "rz", "kind", "move", "pass", "line"(, "q0".."q5")(, "io")],
+     "samples": [[t, x, y, z, rx, ry, rz, kind, move, pass, line(, q0..q5)(, io)], ...]}
+
+Poses are p[x, y, z, rx, ry, rz] of the TCP in the robot base frame (m, rotation vector, continuous over the
+job, so |r| may exceed pi); the joint columns come with a robot; ``io`` (the digital output bits, see
+:data:`planner.trajectory.IO_BIT_OFFSET`) when the job switches an output; ``pass`` is -1 on rapids, turns and
+changes of the arm configuration; ``line`` is the source line of the record the sample carries out (for
+waypoint arrays: the waypoint index).
 """
 
 from __future__ import annotations
 
-import csv
-import io
 import json
-import os
 from collections.abc import Mapping
-from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 
-from planner.export.header import (
-    ExportError,
-    check_joints,
-    event_dicts,
-    header_lines,
-    io_column,
-    job_parameters,
-    parse_header_line,
-)
+from planner.export.files import text_target
+from planner.export.header import ExportError, header_lines, trajectory_parameters
+from planner.protocols import TrajectoryLike
 
+#: The ``format`` value of a JSON trajectory.
+JSON_FORMAT = "planner-trajectory/1"
 POSE_COLUMNS = ("x", "y", "z", "rx", "ry", "rz")
 JOINT_COLUMNS = tuple(f"q{i}" for i in range(6))
 
 
-@dataclass(frozen=True, eq=False)
-class PoseRecord:
-    """A pose stream read back from a CSV or JSON export.
-
-    Attributes
-    ----------
-    times, s : ndarray (n,)
-        Sample times (s) and arc lengths (m).
-    poses : ndarray (n, 6)
-        TCP poses p[x, y, z, rx, ry, rz] in the base frame.
-    joints : ndarray (n, 6) or None
-        Joint solutions (rad), if the export had them.
-    io : dict
-        Column name (``standard_do0`` ...) -> state (n,) of bool.
-    events : list of dict
-        I/O events: time, index, s, output, pin, value, lead_time, name.
-    parameters : dict
-        The header: generator and job parameters.
-    """
-
-    times: np.ndarray
-    s: np.ndarray
-    poses: np.ndarray
-    joints: np.ndarray | None
-    io: dict = field(default_factory=dict)
-    events: list = field(default_factory=list)
-    parameters: dict = field(default_factory=dict)
+def columns(trajectory: TrajectoryLike, kind_column: bool = False) -> list[str]:
+    """The column names of a trajectory's table (``kind`` after the pose in JSON)."""
+    job = trajectory.job
+    return (["t", *POSE_COLUMNS] + (["kind"] if kind_column else []) + ["move", "pass", "line"]
+            + (list(JOINT_COLUMNS) if trajectory.robot is not None else [])
+            + (["io"] if job.settings.cut_output is not None else []))
 
 
-def _columns(stream, joints):
-    io_states = stream.io_states()
-    names = ["t", "s", *POSE_COLUMNS]
-    cols = [stream.times[:, None], stream.s[:, None], stream.poses]
-    if joints is not None:
-        names += JOINT_COLUMNS
-        cols.append(joints)
-    for ch, state in io_states.items():
-        names.append(io_column(ch))
-        cols.append(state.astype(float)[:, None])
-    return names, np.hstack(cols)
+def _rows(chunk, fixed: str, with_io: bool) -> tuple[str, list]:
+    q = chunk.joints
+    fmt = "%.6f" + ",%.9g" * 6 + fixed + ",%d" + (",%.9g" * 6 if q is not None else "") + (",%d" if with_io else "")
+    cols = [chunk.times[:, None], chunk.poses, chunk.lines[:, None]] + ([q] if q is not None else [])
+    if with_io:
+        cols.append(chunk.io[:, None])
+    return fmt, np.hstack(cols).tolist()
 
 
-def _open_text(target, mode: str):
-    if isinstance(target, str | os.PathLike):
-        return open(Path(target), mode, newline="", encoding="utf-8"), True
-    return target, False
-
-
-def write_csv(stream, target, *, joints=None, parameters: Mapping | None = None) -> None:
-    """Write a pose stream as CSV: ``#`` header lines, then ``t,s,x,y,z,rx,ry,rz[,q0..q5][,<io>]``.
+def write_csv(trajectory: TrajectoryLike, target, *, parameters: Mapping | None = None, progress=None) -> int:
+    """Write a trajectory as CSV (layout in the module doc); returns the number of samples written.
 
     Parameters
     ----------
-    stream : PoseStream
+    trajectory : Trajectory
+        ``job.trajectory(rate)``; with a robot the joint columns come too.
     target : path or text file
-    joints : array_like (n, 6), optional
-        Joint solution of every sample (rad), e.g. from ``planner.kinematics.inverse_path``.
+        A path is written atomically.
     parameters : mapping, optional
-        Extra job parameters for the header (JSON-serializable values).
-
-    The header has one ``# key: <json>`` line per parameter and one ``# event: <json>`` line per I/O
-    event; I/O state columns are 0/1.
+        Extra header entries (e.g. the input file name).
+    progress : callable (stage, done, total), optional
+        Called with the samples written.
     """
-    q = check_joints(joints, stream.times)
-    params = job_parameters(stream, parameters)
-    names, data = _columns(stream, q)
-    f, close = _open_text(target, "w")
-    try:
+    params = trajectory_parameters(trajectory, parameters)
+    with_io = trajectory.job.settings.cut_output is not None
+    n = 0
+    with text_target(target) as f:
         for line in header_lines(params):
             f.write(f"# {line}\n")
-        for e in event_dicts(stream):
-            f.write(f"# event: {json.dumps(e)}\n")
-        f.write(",".join(names) + "\n")
-        np.savetxt(f, data, delimiter=",", fmt="%.17g")
-    finally:
-        if close:
-            f.close()
+        f.write(",".join(columns(trajectory)) + "\n")
+        for chunk in trajectory.chunks(progress=progress):
+            fmt, rows = _rows(chunk, f",{chunk.move},{chunk.pass_index}", with_io)
+            text = "\n".join(fmt % tuple(r) for r in rows)
+            if chunk.joints is not None and not np.isfinite(chunk.joints).all():
+                text = text.replace("nan", "")
+            f.write(text + "\n")
+            n += chunk.times.size
+    return n
 
 
-def read_csv(source) -> PoseRecord:
-    """Read a CSV written by :func:`write_csv`; errors name the line."""
-    f, close = _open_text(source, "r")
-    try:
-        text = f.read()
-    finally:
-        if close:
-            f.close()
-    name = str(source) if isinstance(source, str | os.PathLike) else "<csv>"
-    params: dict = {}
-    events: list = []
-    lines = text.splitlines()
-    i = 0
-    while i < len(lines) and lines[i].startswith("#"):
-        try:
-            key, value = parse_header_line(lines[i][2:])
-        except ValueError as exc:
-            raise ExportError(f"{name}, line {i + 1}: bad header line ({exc})") from None
-        (events.append(value) if key == "event" else params.__setitem__(key, value))
-        i += 1
-    if i >= len(lines):
-        raise ExportError(f"{name}: no column line after the header")
-    names = next(csv.reader([lines[i]]))
-    for need in ("t", "s", *POSE_COLUMNS):
-        if need not in names:
-            raise ExportError(f"{name}, line {i + 1}: missing column {need!r}")
-    body = "\n".join(lines[i + 1:])
-    try:
-        data = np.loadtxt(io.StringIO(body), delimiter=",", ndmin=2) if body.strip() else np.zeros((0, len(names)))
-    except ValueError as exc:
-        raise ExportError(f"{name}: bad number in the data after line {i + 1} ({exc})") from None
-    if data.shape[1] != len(names):
-        raise ExportError(f"{name}: {data.shape[1]} values per row, {len(names)} columns named on line {i + 1}")
-    col = {n: data[:, j] for j, n in enumerate(names)}
-    joints = np.column_stack([col[c] for c in JOINT_COLUMNS]) if "q0" in col else None
-    io_cols = {n: col[n] != 0.0 for n in names if "_do" in n}
-    return PoseRecord(col["t"], col["s"], np.column_stack([col[c] for c in POSE_COLUMNS]), joints, io_cols,
-                      events, params)
+def write_json(trajectory: TrajectoryLike, target, *, parameters: Mapping | None = None, progress=None) -> int:
+    """Write a trajectory as one JSON object (layout in the module doc); returns the samples written.
 
-
-def write_json(stream, target, *, joints=None, parameters: Mapping | None = None, indent: int | None = None) -> None:
-    """Write a pose stream as one JSON object.
-
-    Keys: ``parameters`` (generator and job), ``events``, ``t``, ``s``, ``pose`` (n x 6), ``joints``
-    (n x 6 or null), ``io`` (column name -> list of 0/1).
+    Parameters are those of :func:`write_csv`. Memory stays bounded by one move's samples.
     """
-    q = check_joints(joints, stream.times)
-    doc = {
-        "parameters": job_parameters(stream, parameters),
-        "events": event_dicts(stream),
-        "t": stream.times.tolist(),
-        "s": stream.s.tolist(),
-        "pose": stream.poses.tolist(),
-        "joints": None if q is None else q.tolist(),
-        "io": {io_column(ch): state.astype(int).tolist() for ch, state in stream.io_states().items()},
-    }
-    f, close = _open_text(target, "w")
+    params = trajectory_parameters(trajectory, parameters)
     try:
-        json.dump(doc, f, indent=indent)  # floats as repr: exact round trip
-    finally:
-        if close:
-            f.close()
-
-
-def read_json(source) -> PoseRecord:
-    """Read a JSON file written by :func:`write_json`."""
-    f, close = _open_text(source, "r")
-    try:
-        doc = json.load(f)
-    except json.JSONDecodeError as exc:
-        raise ExportError(f"{source}: not JSON (line {exc.lineno}: {exc.msg})") from None
-    finally:
-        if close:
-            f.close()
-    for key in ("t", "s", "pose"):
-        if key not in doc:
-            raise ExportError(f"{source}: missing key {key!r}")
-    poses = np.asarray(doc["pose"], dtype=float).reshape(-1, 6)
-    joints = None if doc.get("joints") is None else np.asarray(doc["joints"], dtype=float).reshape(-1, 6)
-    io_cols = {k: np.asarray(v, dtype=int) != 0 for k, v in doc.get("io", {}).items()}
-    return PoseRecord(np.asarray(doc["t"], float), np.asarray(doc["s"], float), poses, joints, io_cols,
-                      list(doc.get("events", [])), dict(doc.get("parameters", {})))
+        head = json.dumps(params, allow_nan=False)
+        moves = json.dumps(trajectory.moves(), allow_nan=False)
+    except ValueError as exc:
+        raise ExportError(f"parameters: values must be finite numbers for JSON ({exc})") from None
+    with_io = trajectory.job.settings.cut_output is not None
+    n = 0
+    with text_target(target) as f:
+        f.write(f'{{"format": "{JSON_FORMAT}",\n "parameters": {head},\n "moves": {moves},\n')
+        f.write(f' "columns": {json.dumps(columns(trajectory, kind_column=True))},\n "samples": [\n')
+        first = True
+        for chunk in trajectory.chunks(progress=progress):
+            fmt, rows = _rows(chunk, f',"{chunk.kind}",{chunk.move},{chunk.pass_index}', with_io)
+            text = ",\n".join(f"[{fmt % tuple(r)}]" for r in rows)
+            if chunk.joints is not None and not np.isfinite(chunk.joints).all():
+                text = text.replace("nan", "null")
+            f.write(("" if first else ",\n") + text)
+            first = False
+            n += chunk.times.size
+        f.write("\n]}\n")
+    return n

@@ -1,0 +1,69 @@
+"""Atomic output files: written to a temporary file beside the target, then renamed over it.
+
+A failure in the middle of an export leaves no partial file at the target (and the temporary file is
+removed); an input is never overwritten: :func:`check_output` refuses a target that is the input file.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import tempfile
+from collections.abc import Iterator
+from pathlib import Path
+from typing import IO
+
+from planner.errors import PlannerError
+
+
+def check_output(target, *inputs) -> Path:
+    """``target`` as a Path, or PlannerError when it names one of the ``inputs`` (never overwrite an input)."""
+    out = Path(os.fspath(target))
+    for src in inputs:
+        if src is None:
+            continue
+        src = Path(os.fspath(src))
+        if out.exists() and src.exists() and out.resolve() == src.resolve():
+            raise PlannerError(f"{out}: is the input file; refusing to overwrite it")
+    return out
+
+
+@contextlib.contextmanager
+def atomic_text(target) -> Iterator[IO[str]]:
+    """A text file (UTF-8, "\\n" newlines) that appears at ``target`` only when the block completes."""
+    out = Path(os.fspath(target))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent)
+    try:
+        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
+            yield f
+        os.replace(tmp, out)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+def write_bytes_atomic(target, data: bytes) -> None:
+    """Write ``data`` to ``target`` atomically."""
+    out = Path(os.fspath(target))
+    out.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent)
+    try:
+        with os.fdopen(fd, "wb") as f:
+            f.write(data)
+        os.replace(tmp, out)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+
+
+@contextlib.contextmanager
+def text_target(target) -> Iterator[IO[str]]:
+    """An open text file for ``target``: the file object itself, or an atomic file at a path."""
+    if hasattr(target, "write"):
+        yield target
+        return
+    with atomic_text(target) as f:
+        yield f

@@ -1,0 +1,478 @@
+"""``plan(...)``: the one entry point of the planner, from a toolpath file or waypoints to a PlannedJob.
+
+A list of waypoints is a toolpath with one pass; a single pass is a job with one cut. For every input:
+
+1. read (a file, with :func:`planner.io.read_toolpath`) and resolve the settings (:class:`PlanSettings`):
+   the path model and the source of the tool axes (printed in the summary);
+2. arcs linearised to ``arc_tolerance`` (:func:`planner.io.linearize_arcs`);
+3. the split into cutting passes, rapid moves and reorientations at rapids, sharp corners and tool-axis
+   jumps (:mod:`planner.cam.passes`), in both path models;
+4. every pass's PH path: a C2 PH quintic spline through its points ("interpolate"; a G1 PH cubic spline for
+   Jüttler's frames) or a C1 PH quintic spline within ``tolerance`` of its polyline ("cam",
+   :mod:`planner.cam.fidelity`);
+5. the tool frames of every move, each starting from the previous move's end frame: about the tool axes
+   (the file's, or the CAM default +Z) interpolated on great circles without overshoot, spin exactly
+   rotation-minimizing (:func:`planner.cam.axis_field`); or, with the tool normal to the path, the frame
+   field of the chosen method (:func:`planner.frames.frame_field`), with its twist against the exact RMF;
+6. the jerk-limited time law of every move along the exact arc length (cuts at the input's feeds, rapids at
+   rapid speed, turns at the turning speed), starting and ending at rest;
+7. with a robot: inverse kinematics along every move, problems named by pass and source line, the feed
+   lowered locally where a joint would be too fast, and the arm configuration of every run of passes,
+   changed by a joint move in a rapid where needed (:mod:`planner.cam.reach`, :mod:`planner.cam.configure`).
+
+The trajectory at the controller rate is produced on demand, move by move
+(:meth:`PlannedJob.trajectory`, :mod:`planner.trajectory`).
+"""
+
+from __future__ import annotations
+
+import math
+import os
+import time
+import warnings
+from collections.abc import Callable
+from dataclasses import replace
+
+import numpy as np
+
+from planner.cam.axes import (
+    axis_departure,
+    axis_field,
+    frame_with_axis,
+    spin_about_axis,
+    transport,
+    travel_spin,
+)
+from planner.cam.fidelity import PassFit, fit_passes
+from planner.cam.moves import rapid_frames, straight_path, turn_frames, turn_profile
+from planner.cam.passes import CutPass, RapidMove, Reorientation, Segmentation, split_passes
+from planner.errors import PlannerError
+from planner.frames.tool_field import PathToolField, path_tool_field
+from planner.job import PassReport, PlannedJob, PlannedMove
+from planner.motion import MotionLimits, plan_feed, tool_orientation
+from planner.settings import PlanSettings
+
+#: The CAM default tool axis (APT: +Z, from the tip towards the spindle).
+CAM_DEFAULT_AXIS = np.array([0.0, 0.0, 1.0])
+#: Input formats whose points are CAD waypoints (interpolated by default); the others are CAM polylines.
+WAYPOINT_FORMATS = ("csv", "json", "waypoints")
+
+#: A progress callback: (stage, done, total), e.g. ("moves", 120, 457). The CLI draws it with tqdm.
+Progress = Callable[[str, int, int], None]
+
+
+def waypoints_toolpath(waypoints, axes=None, feeds=None, *, source: str = "<waypoints>"):
+    """A :class:`planner.io.Toolpath` of one pass from arrays (m, part frame).
+
+    Parameters
+    ----------
+    waypoints : array_like (N, 3)
+        Tool tip positions, m.
+    axes : array_like (N, 3), optional
+        Tool axes in the CAM convention (from the tool tip towards the spindle); see ``PlanSettings.axes``.
+    feeds : array_like (N,), optional
+        Feed into each waypoint, m/s (NaN: the job's feed; the first is unused).
+
+    The "source line" of waypoint i is i (its index), so every message names the waypoint.
+    """
+    from planner.io.toolpath import Toolpath
+    from planner.validation import check_waypoints
+
+    pts = check_waypoints(waypoints, min_count=2)
+    n = len(pts)
+    ax = given = None
+    if axes is not None:
+        ax = _finite_rows(axes, "axes", n)
+        bad = np.flatnonzero(np.linalg.norm(ax, axis=1) < 1e-12)
+        if bad.size:
+            raise PlannerError(f"axes[{int(bad[0])}]: the tool axis is zero (waypoint {int(bad[0])})")
+        ax = ax / np.linalg.norm(ax, axis=1, keepdims=True)
+        given = np.ones(n, bool)
+    f = np.full(n, np.nan)
+    if feeds is not None:
+        f = np.asarray(feeds, dtype=float).reshape(-1)
+        if f.shape != (n,):
+            raise PlannerError(f"feeds: expected one feed per waypoint, shape ({n},), got {f.shape}")
+        bad = np.flatnonzero(~np.isnan(f) & ~(np.isfinite(f) & (f > 0.0)))
+        if bad.size:
+            raise PlannerError(f"feeds[{int(bad[0])}]: a feed must be > 0 m/s (or NaN for the job's feed), "
+                               f"got {f[bad[0]]!r}")
+    return Toolpath(pts, ax, given, f, np.zeros(n, bool), np.arange(n, dtype=np.int64), (), "m", source)
+
+
+def _finite_rows(a, name: str, n: int) -> np.ndarray:
+    try:
+        arr = np.asarray(a, dtype=float)
+    except (TypeError, ValueError):
+        raise PlannerError(f"{name} must be numbers of shape ({n}, 3)") from None
+    if arr.shape != (n, 3):
+        raise PlannerError(f"{name}: expected shape ({n}, 3) (one per waypoint), got {arr.shape}")
+    bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
+    if bad.size:
+        raise PlannerError(f"{name}[{int(bad[0])}]: not a finite vector (waypoint {int(bad[0])})")
+    return arr
+
+
+def resolve(settings: PlanSettings, fmt: str, has_axes: bool) -> PlanSettings:
+    """``settings`` checked, with ``path`` and ``axes`` resolved for an input of format ``fmt``.
+
+    Raises PlannerError for combinations that do not apply (naming the option), never ignores one.
+    """
+    s = settings.checked()
+    path = s.path if s.path != "auto" else ("interpolate" if fmt in WAYPOINT_FORMATS else "cam")
+    axes = s.axes
+    if axes == "auto":
+        axes = "file" if has_axes else ("path" if path == "interpolate" else "fixed")
+    if axes in ("file", "approach") and not has_axes:
+        raise PlannerError(f"axes={axes!r}: the input has no tool axes (use axes='fixed' for the CAM default +Z "
+                           "or axes='path' for the tool normal to the path)")
+    if s.frame != "rmf" and axes != "path":
+        raise PlannerError(f"frame={s.frame!r} sets the spin about the path tangent and needs the tool normal to the "
+                           f"path (axes='path'); with tool axes ({axes}) the spin about them is the exact "
+                           "rotation-minimizing motion: frame='rmf'")
+    if s.frame == "juttler" and path != "interpolate":
+        raise PlannerError("frame='juttler' needs a G1 PH cubic spline through the points (path='interpolate'); "
+                           "a CAM polyline fit is a PH quintic spline")
+    return replace(s, path=path, axes=axes)
+
+
+def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None, read_options: dict | None = None,
+         progress: Progress | None = None) -> PlannedJob:
+    """Plan a toolpath file, a :class:`planner.io.Toolpath`, or waypoints: every pass, rapid and turn.
+
+    Parameters
+    ----------
+    source : str, os.PathLike, planner.io.Toolpath or array_like (N, 3)
+        A file to read (:func:`planner.io.read_toolpath`, with ``read_options`` such as
+        ``{"units": "mm"}`` or ``{"machine": "haas-umc-750"}``), a reader's output, or waypoints in
+        metres (a toolpath of one pass; with ``axes`` and ``feeds`` per waypoint, see
+        :func:`waypoints_toolpath`).
+    settings : PlanSettings, optional
+        Default ``PlanSettings()``.
+    progress : callable (stage, done, total), optional
+        Called as the work advances (stages "fit", "moves", "reach").
+
+    Returns
+    -------
+    PlannedJob
+        Its ``trajectory()`` streams the poses; ``summary()`` and ``describe()`` give the figures.
+
+    Raises
+    ------
+    PlannerError
+        Bad settings (naming the option), a file that cannot be read (naming file, line and field), a pass
+        that cannot be planned (naming the file's lines or the waypoints).
+    planner.errors.NumericalError
+        A numerical failure of the planner itself (not the input's fault).
+    """
+    from planner.io import Toolpath, detect_format, linearize_arcs, read_toolpath
+
+    settings = PlanSettings() if settings is None else settings
+    if not isinstance(settings, PlanSettings):
+        raise PlannerError(f"settings must be a PlanSettings, got {type(settings).__name__}")
+    timings: dict[str, float] = {}
+    caught: list[str] = []
+    if isinstance(source, str | os.PathLike):
+        if axes is not None or feeds is not None:
+            raise PlannerError("axes and feeds are for waypoint arrays; a file gives its own")
+        tic = time.perf_counter()
+        fmt = detect_format(source)
+        with warnings.catch_warnings(record=True) as w:
+            warnings.simplefilter("always")
+            toolpath = read_toolpath(source, format=fmt, **(read_options or {}))
+        caught += [str(x.message) for x in w]
+        timings["parse"] = time.perf_counter() - tic
+    else:
+        if read_options:
+            raise PlannerError("read_options are for a file name; the toolpath is already read")
+        if isinstance(source, Toolpath):
+            if axes is not None or feeds is not None:
+                raise PlannerError("axes and feeds are for waypoint arrays; a Toolpath carries its own")
+            toolpath = source
+            fmt = getattr(source, "format", "") or _format_of(source.source)
+        else:
+            toolpath, fmt = waypoints_toolpath(source, axes, feeds), "waypoints"
+    s = resolve(settings, fmt, toolpath.axes is not None)
+    t_plan = time.perf_counter()
+    tp = linearize_arcs(toolpath, s.arc_tolerance)
+    if s.axes in ("fixed", "path") and tp.axes is not None:
+        tp = replace(tp, axes=None, axis_given=None)  # the file's axes are not used: no reorientations either
+    tic = time.perf_counter()
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        seg = split_passes(tp, corner_deg=s.corner_deg, axis_jump_deg=s.axis_jump_deg)
+        if s.passes is not None:
+            tp = _select_passes(tp, seg, s.passes)
+            seg = split_passes(tp, corner_deg=s.corner_deg, axis_jump_deg=s.axis_jump_deg)
+        cuts = seg.passes
+        if not cuts:
+            raise PlannerError(f"{tp.source}: no cutting motion with at least two points")
+        timings["split"] = time.perf_counter() - tic
+        tic = time.perf_counter()
+        fits = _fit(tp.source, cuts, s)
+        fit_time = time.perf_counter() - tic
+        timings["fit"] = fit_time
+        if progress is not None:
+            progress("fit", len(cuts), len(cuts))
+        spans_total = max(sum(len(p) - 1 for p in cuts), 1)
+        moves, reports = _plan_moves(tp, seg, fits, s, fit_time / spans_total, timings, progress)
+    caught += [str(x.message) for x in w]
+    if progress is not None:
+        progress("moves", len(seg.moves), len(seg.moves))
+    timings["plan"] = time.perf_counter() - t_plan
+    job = PlannedJob(tp.source, s, tp, seg, tuple(moves), tuple(reports), timings, warnings=tuple(caught))
+    if s.robot is not None:
+        from planner.cam.reach import check_job
+
+        if progress is not None:
+            progress("reach", 0, 1)
+        tic = time.perf_counter()
+        reach = check_job(job)
+        timings["reach"] = time.perf_counter() - tic
+        # moves whose feed was lowered locally for the joint speed limits take their new time law
+        moves = [replace(m, profile=reach.profiles[k]) if k in reach.profiles else m for k, m in enumerate(moves)]
+        caps = {m.pass_index: reach.windows[k] for k, m in enumerate(moves) if m.kind == "cut" and k in reach.windows}
+        duration = {m.pass_index: m.duration for m in moves if m.kind == "cut"}
+        reports = [replace(r, reachable=reach.passes.get(r.index) is None, reach_message=reach.passes.get(r.index, ""),
+                           feed_caps=caps.get(r.index, ()), duration=duration[r.index]) for r in reports]
+        moves = _with_reconfigurations(moves, reach.reconfigurations, s)
+        job = PlannedJob(tp.source, s, tp, seg, tuple(moves), tuple(reports), timings, tuple(reach.problems),
+                         tuple(reach.slowed), reach.start_joints, reach.start_note, tuple(caught))
+        if progress is not None:
+            progress("reach", 1, 1)
+    return job
+
+
+def _select_passes(tp, seg: Segmentation, passes):
+    """The toolpath of the selected cutting passes only (each starting with a rapid after the first)."""
+    cuts = seg.passes
+    if not cuts:
+        raise PlannerError(f"{tp.source}: no cutting motion with at least two points")
+    if passes == "longest":
+        passes = (int(np.argmax([np.linalg.norm(np.diff(c.points, axis=0), axis=1).sum() for c in cuts])),)
+    bad = [k for k in passes if k >= len(cuts)]
+    if bad:
+        raise PlannerError(f"passes: {tp.source} has passes 0..{len(cuts) - 1}, not {bad[0]}")
+    rows = np.concatenate([np.arange(cuts[k].source_index[0], cuts[k].source_index[-1] + 1) for k in passes])
+    rapid = tp.rapid[rows].copy()
+    starts = np.cumsum([0] + [cuts[k].source_index[-1] - cuts[k].source_index[0] + 1 for k in passes])[:-1]
+    rapid[starts] = True
+    rapid[0] = False
+    def sub(a):
+        return (None if a is None else a[rows])
+    return type(tp)(tp.points[rows], sub(tp.axes), sub(tp.axis_given), tp.feeds[rows], rapid, tp.lines[rows],
+                    (), tp.units, tp.source, sub(tp.rotary))
+
+
+def _format_of(name: str) -> str:
+    from planner.io.dispatch import SUFFIXES
+
+    for suffix in reversed(os.path.splitext(name)[1:]):
+        if suffix.lower() in SUFFIXES:
+            return SUFFIXES[suffix.lower()]
+    return ""
+
+
+def _fit(source: str, cuts, s: PlanSettings) -> list[PassFit]:
+    """The PH path of every pass: within tolerance of the polyline ("cam") or through the points ("interpolate")."""
+    if s.path == "cam":
+        return fit_passes([p.points for p in cuts], s.tolerance)
+    from planner.curves import fit_ph_cubic_spline, fit_ph_spline
+
+    out = []
+    for p in cuts:
+        try:
+            path = fit_ph_cubic_spline(p.points) if s.frame == "juttler" else fit_ph_spline(p.points)
+        except PlannerError as exc:
+            raise PlannerError(f"{_where(source, p)}: {exc}") from exc
+        dev = _chord_deviation(path, p.points)
+        out.append(PassFit(path, p.points, float(dev.max()), dev, 0, 0, 0))
+    return out
+
+
+def _chord_deviation(path, points: np.ndarray, samples: int = 16) -> np.ndarray:
+    """Largest distance (m - 1,) of the path from each chord between consecutive points (sampled)."""
+    k = path.waypoint_knots
+    u = k[:-1, None] + np.diff(k)[:, None] * np.linspace(0.0, 1.0, samples + 1)[None, 1:-1]
+    P = path.points(u.ravel()).reshape(u.shape + (3,))
+    a, d = points[:-1, None, :], np.diff(points, axis=0)[:, None, :]
+    lam = np.clip(np.einsum("mki,mki->mk", P - a, d) / np.maximum(np.einsum("mki,mki->mk", d, d), 1e-300), 0.0, 1.0)
+    dist = np.linalg.norm(P - (a + lam[..., None] * d), axis=-1)
+    return dist.max(axis=1) if dist.shape[1] else np.zeros(len(points) - 1)
+
+
+def _tool_z(axes: np.ndarray | None, n: int, source: str) -> np.ndarray:
+    """Unit tool approach axes (tool z) (n, 3): the one owner of the tool-axis sign.
+
+    Files give CAM vectors (from the tip towards the spindle): tool z is their negative ("file"); with
+    ``axes="approach"`` the vectors are tool z already; without axes, the CAM default +Z (tool z = -Z).
+    """
+    if axes is None:
+        return np.broadcast_to(-CAM_DEFAULT_AXIS, (n, 3)).copy()
+    a = np.asarray(axes, dtype=float)
+    sign = 1.0 if source == "approach" else -1.0
+    return sign * a / np.linalg.norm(a, axis=-1, keepdims=True)  # files write 7 digits: |v| = 1 +- 1e-7
+
+
+def _where(source: str, item) -> str:
+    if isinstance(item, CutPass):
+        return f"{source} lines {item.first_line}-{item.last_line} ({item.describe()})"
+    if isinstance(item, RapidMove | Reorientation):
+        return f"{source} line {item.line} ({item.kind})"
+    return source
+
+
+def _with_reconfigurations(moves: list, changes: list, s: PlanSettings) -> list:
+    """The moves with a joint move inserted before move k for every (k, Reconfiguration) in ``changes``."""
+    from planner.cam.moves import joint_move_profile
+    from planner.kinematics import get_model
+
+    out = list(moves)
+    speeds = get_model(s.robot).speed_limits
+    for k, r in sorted(changes, key=lambda c: c[0], reverse=True):
+        F = moves[k].start_frame
+        profile = joint_move_profile(r.q_from, r.q_to, s.joint_limits, speeds)
+        out.insert(k, PlannedMove("reconfiguration", r, None, None, profile, F, F, r.point.copy()))
+    return out
+
+
+def _path_fields(seg: Segmentation, fits, s: PlanSettings) -> dict[int, PathToolField]:
+    """With the tool normal to the path: every pass's frame field (method ``s.frame``, starting nearest -Z)."""
+    if s.axes != "path":
+        return {}
+    return {c.index: path_tool_field(fits[c.index].path, s.frame) for c in seg.passes}
+
+
+def _next_cut_z(seg: Segmentation, k: int, fields: dict) -> np.ndarray | None:
+    """Tool z at the start of the first cut after move k (tool normal to the path), None if there is none."""
+    for item in seg.moves[k + 1:]:
+        if isinstance(item, CutPass):
+            return fields[item.index].start[:, 2]
+    return None
+
+
+def _plan_moves(tp, seg: Segmentation, fits, s: PlanSettings, fit_share: float, timings: dict, progress=None):
+    """Frames and time laws of every move, in order, each starting from the previous end frame."""
+    moves: list[PlannedMove] = []
+    reports: list[PassReport] = []
+    frame: np.ndarray | None = None  # tool frame at the end of the previous move
+    t_frames = t_law = 0.0
+    cut_limits = MotionLimits(s.limits.speed, s.limits.acceleration, s.limits.jerk)
+    tic = time.perf_counter()
+    fields = _path_fields(seg, fits, s)
+    t_frames += time.perf_counter() - tic
+    for n_done, item in enumerate(seg.moves):
+        if progress is not None and n_done % 25 == 0:
+            progress("moves", n_done, len(seg.moves))
+        try:
+            if isinstance(item, CutPass):
+                tic = time.perf_counter()
+                fit = fits[item.index]
+                if fields:
+                    field = fields[item.index]
+                    z = field.start[None, :, 2]
+                else:
+                    z = _tool_z(item.axes, len(item), s.axes)
+                    field = axis_field(fit.path, z, start=frame)
+                t1 = time.perf_counter()
+                feeds = item.feeds[1:] * s.feed_override
+                job_feed = s.feed * s.feed_override
+                capped = s.limits.angular_speed is not None and _turns_fast(field, feeds, job_feed, s.limits)
+                f = np.where(np.isnan(feeds), job_feed, feeds)
+                if not capped and (f == f[0]).all():  # one feed: plan on the bare length (same profile)
+                    profile = plan_feed(float(fit.path.length), float(f[0]), cut_limits)
+                else:
+                    profile = plan_feed(fit.path, job_feed, s.limits if capped else cut_limits,
+                                        span_feeds=None if np.isnan(feeds).all() else feeds,
+                                        orientation=tool_orientation(field) if capped else None)
+                t2 = time.perf_counter()
+                end = field.end
+                moves.append(PlannedMove("cut", item, fit.path, field, profile, field.start, end,
+                                         item.points[0], item.index, fit))
+                reports.append(_pass_report(item, fit, field, profile, t2 - tic + fit_share * (len(item) - 1)))
+                t_frames += t1 - tic
+                t_law += t2 - t1
+                frame = end
+            elif isinstance(item, RapidMove):
+                tic = time.perf_counter()
+                if fields:  # the tool keeps its axis, then turns onto the next pass's start axis
+                    z0 = frame[:, 2] if frame is not None else _tool_z(None, 1, s.axes)[0]
+                    z1 = _next_cut_z(seg, n_done, fields)
+                    z1 = z0 if z1 is None else z1
+                else:
+                    z0 = _tool_z(None if item.start_axis is None else item.start_axis[None], 1, s.axes)[0]
+                    z1 = _tool_z(None if item.end_axis is None else item.end_axis[None], 1, s.axes)[0]
+                start = frame_with_axis(z0, item.end - item.start) if frame is None else transport(frame, z0)
+                path = straight_path(item.start, item.end)
+                fr = rapid_frames(path, start, z1)
+                v = s.rapid_speed
+                if fr.angle > 0.0 and s.limits.angular_speed is not None:  # the axis turns at angle / L rad/m
+                    v = min(v, s.limits.angular_speed * path.length / fr.angle)
+                profile = plan_feed(float(path.length), v, MotionLimits(v, s.limits.acceleration, s.limits.jerk))
+                frame = transport(fr.end, z1)  # column 2 exactly z1 (the rotation leaves round-off)
+                moves.append(PlannedMove("rapid", item, path, fr, profile, start, frame, item.start.copy()))
+                t_law += time.perf_counter() - tic
+            elif isinstance(item, Reorientation):
+                z0, z1 = _tool_z(np.vstack((item.axis_from, item.axis_to)), 2, s.axes)
+                start = frame_with_axis(z0, np.array([1.0, 0.0, 0.0])) if frame is None else transport(frame, z0)
+                fr = turn_frames(start, z1)
+                profile = turn_profile(fr.angle, s.turn_limits) if fr.angle > 0.0 else None
+                frame = transport(fr.end, z1)
+                moves.append(PlannedMove("reorientation", item, None, fr, profile, start, frame, item.point.copy()))
+            else:  # Skipped: nothing moves
+                F = frame if frame is not None else frame_with_axis(-CAM_DEFAULT_AXIS, np.array([1.0, 0.0, 0.0]))
+                moves.append(PlannedMove("skipped", item, None, None, None, F, F, item.point.copy()))
+        except PlannerError as exc:
+            raise PlannerError(f"{_where(tp.source, item)}: {exc}") from exc
+    tic = time.perf_counter()
+    cut_items = [m.item for m in moves if m.kind == "cut"]
+    if fields:
+        slerp = np.full(len(cut_items), math.nan)
+    else:
+        slerp = np.degrees(travel_spin([c.points for c in cut_items],
+                                       [_tool_z(c.axes, len(c), s.axes) for c in cut_items]))
+    reports = [replace(r, slerp_spin_deg=float(v)) for r, v in zip(reports, slerp, strict=True)]
+    timings["frames"] = t_frames + time.perf_counter() - tic
+    timings["time_law"] = t_law
+    return moves, reports
+
+
+def _turns_fast(field, feeds: np.ndarray, job_feed: float, limits: MotionLimits) -> bool:
+    """Whether the angular speed limit can matter on a pass: the tool axis turns by |dz/ds| rad/m
+    (the rotation-minimizing frames turn only with the axis), sampled 8 times per span, times the
+    fastest feed exceeds half the limit (the margin covers peaks between samples). Frames about the
+    path tangent turn with its curvature: always capped."""
+    if isinstance(field, PathToolField):
+        return True
+    if field.motion is None:
+        return False
+    k = field.path.waypoint_knots
+    u = (k[:-1, None] + np.diff(k)[:, None] * np.linspace(0.0, 1.0, 9)).ravel()
+    rate = np.linalg.norm(field.motion.dz(u), axis=1) / field.path.speed(u)  # |dz/ds| = |dz/du| / |dr/du|
+    v = min(float(np.max(np.where(np.isnan(feeds), job_feed, feeds))), limits.speed)
+    return float(rate.max()) * v > 0.5 * limits.angular_speed
+
+
+def _pass_report(item: CutPass, fit: PassFit, field, profile, elapsed: float) -> PassReport:
+    path = fit.path
+    k = path.knots
+    u = np.append((k[:-1, None] + np.diff(k)[:, None] * np.linspace(0.0, 1.0, 5)[:-1]).ravel(), k[-1])
+    if isinstance(field, PathToolField):
+        spin = spin_about_axis(field.frames(u))
+        axis_error = departure = math.nan
+        twist = field.max_twist_deg()
+    else:
+        twist = math.nan
+        # frames at every knot and 4 points per segment, slerped between (the RMM's spin is 0)
+        spin = 0.0 if field.motion is None else spin_about_axis(field.frames(u))
+        axis_error = float(np.degrees(field.axis_errors().max()))
+        departure = float(np.degrees(axis_departure(field)))
+    return PassReport(
+        index=item.index, operation=item.operation, first_line=item.first_line, last_line=item.last_line,
+        points=len(item), length=path.length, max_deviation=fit.max_deviation,
+        max_axis_error_deg=axis_error, max_axis_departure_deg=departure, knots_added=fit.knots_added,
+        start_reason=item.start_reason, end_reason=item.end_reason, start_corner_deg=item.start_corner_deg,
+        duration=float(profile.duration), spin_deg=float(np.degrees(spin)), slerp_spin_deg=math.nan,
+        planning_time=elapsed, merged=item.merged, max_twist_deg=twist,
+        max_waypoint_error=float(path.interpolation_errors(item.points).max()),
+    )

@@ -1,0 +1,285 @@
+"""The trajectory of a planned job at the controller rate: the one stream every consumer reads.
+
+Exports (CSV, JSON, URScript), the plot, the drivers, the simulator and the service take a
+:class:`Trajectory` (``job.trajectory()``) and read it chunk by chunk: one :class:`Chunk` per moving move
+(cut, rapid, turn, change of arm configuration) with, per sample, the time, the TCP pose, the robot's joints
+(with a robot), the tool I/O state, and the move, pass and source line it carries out. Memory is bounded by
+one move's samples: a whole NX job is millions of poses.
+
+Every move starts and ends at rest. Move k is sampled at its local times 0, 1/rate, ...,
+(n_k - 1)/rate with n_k = ceil(duration_k * rate): the first sample at or after its end is the first
+sample of the next move (the same pose), so the tool rests less than one sample period at each move
+boundary and the job clock ticks uniformly. The rotation vectors are continuous over the whole job. The
+joints follow one inverse-kinematics branch from one change of the arm configuration to the next (the one
+the planner's reachability check chose); a change (a "reconfiguration" move, in a rapid) is a joint move: its
+chunk carries its joints, and its poses are their forward kinematics.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable, Iterator
+from dataclasses import dataclass, replace
+
+import numpy as np
+
+from planner.errors import PlannerError
+from planner.motion import sample_poses, tool_orientation
+from planner.motion.rotvec import continuous_rotvec
+from planner.motion.stream import as_transform
+from planner.rotations import rotvec_to_quaternion
+
+#: Digital output bit of each output kind in :attr:`Chunk.io` (the layout of RTDE's actual_digital_output_bits:
+#: standard 0-7, configurable 8-15, tool 16-17).
+IO_BIT_OFFSET = {"standard": 0, "configurable": 8, "tool": 16}
+
+
+@dataclass(frozen=True, eq=False)
+class Chunk:
+    """The samples of one move.
+
+    Attributes
+    ----------
+    move : int
+        Index of the move in ``PlannedJob.moves``.
+    kind : str
+        "cut", "rapid", "reorientation" or "reconfiguration".
+    pass_index : int
+        Pass number of a cut, -1 otherwise.
+    times : ndarray (k,)
+        Sample times on the job clock, s.
+    poses : ndarray (k, 6)
+        TCP poses p[x, y, z, rx, ry, rz] in the robot base frame (m, rotation vector, continuous).
+    lines : ndarray (k,) of int
+        Source line of the record each sample carries out (of a reconfiguration: its rapid's record; for
+        waypoint arrays: the waypoint index).
+    joints : ndarray (k, 6) or None
+        Joint positions (rad) with a robot (rows of NaN where a pose has no inverse-kinematics solution; the
+        job's ``problems`` name them); None without a robot or when not asked for.
+    io : ndarray (k,) of int64
+        Digital output bits set at each sample (:data:`IO_BIT_OFFSET`; ``PlanSettings.cut_output`` is on
+        during cuts), 0 when the job switches nothing.
+    """
+
+    move: int
+    kind: str
+    pass_index: int
+    times: np.ndarray
+    poses: np.ndarray
+    lines: np.ndarray
+    joints: np.ndarray | None = None
+    io: np.ndarray | None = None
+
+    def __len__(self) -> int:
+        return self.times.size
+
+    def every(self, step: int, offset: int = 0) -> Chunk:
+        """The samples whose job-wide number is a multiple of ``step``, and the chunk's last sample (for
+        plots of long jobs: every move keeps at least its last pose). ``offset``: the job-wide number of
+        the chunk's first sample."""
+        n = self.times.size
+        first = (-offset) % step
+        keep = np.union1d(np.arange(first, n, step), [n - 1]) if n else np.zeros(0, dtype=np.int64)
+        return replace(self, times=self.times[keep], poses=self.poses[keep], lines=self.lines[keep],
+                       joints=None if self.joints is None else self.joints[keep],
+                       io=None if self.io is None else self.io[keep])
+
+
+class Trajectory:
+    """A planned job sampled at a controller rate, produced lazily chunk by chunk (bounded memory).
+
+    Parameters
+    ----------
+    job : PlannedJob
+    rate : float
+        Samples per second, Hz (500 for UR e-Series, 125 for CB-Series).
+
+    Iterating gives the :class:`Chunk` s with joints (when the job has a robot); :meth:`chunks` chooses.
+    """
+
+    def __init__(self, job, rate: float):
+        try:
+            r = float(rate)
+        except (TypeError, ValueError):
+            raise PlannerError(f"rate must be a positive number of Hz, got {rate!r}") from None
+        if not (np.isfinite(r) and 0.0 < r <= 10_000.0):
+            raise PlannerError(f"rate must be in (0, 10000] Hz, got {rate!r}")
+        self.job = job
+        self.rate = r
+
+    @property
+    def robot(self) -> str | None:
+        """The UR model the job was planned for (None: no joints)."""
+        return self.job.settings.robot
+
+    @property
+    def n_samples(self) -> int:
+        """Number of samples (poses) of the whole trajectory."""
+        return int(sample_counts(self.job.moves, self.rate).sum()) + 1
+
+    @property
+    def duration(self) -> float:
+        """Total time, s."""
+        return self.job.duration
+
+    def __len__(self) -> int:
+        return self.n_samples
+
+    def __iter__(self) -> Iterator[Chunk]:
+        return self.chunks()
+
+    def chunks(self, *, joints: bool | None = None, progress: Callable[[str, int, int], None] | None = None,
+               ) -> Iterator[Chunk]:
+        """One :class:`Chunk` per moving move, in order.
+
+        ``joints``: add the robot's joints (default: when the job has a robot; True without a robot is an
+        error). ``progress(stage, done, total)`` is called with the samples produced ("samples").
+        """
+        want = self.robot is not None if joints is None else bool(joints)
+        if want and self.robot is None:
+            raise PlannerError("joint positions need a robot: the job was planned without one (robot=None)")
+        chunks = _pose_chunks(self.job, self.rate)
+        if want:
+            chunks = track_joints(self.job, chunks)
+        chunks = _with_io(self.job, chunks)
+        if progress is None:
+            return chunks
+        return _counted(chunks, self.n_samples, progress)
+
+    def collect(self, *, joints: bool | None = None, max_samples: int = 20_000_000) -> Chunk:
+        """The whole trajectory as one :class:`Chunk` (move, kind, pass_index of the first move; per-sample
+        ``move`` and ``pass`` in :meth:`sample_moves`). PlannerError beyond ``max_samples`` samples."""
+        n = self.n_samples
+        if n > max_samples:
+            raise PlannerError(f"the trajectory is {n} poses at {self.rate:g} Hz (more than max_samples = "
+                               f"{max_samples}); read it chunk by chunk with Trajectory.chunks()")
+        parts = list(self.chunks(joints=joints))
+        if not parts:
+            return Chunk(-1, "", -1, np.zeros(0), np.zeros((0, 6)), np.zeros(0, np.int64), None, np.zeros(0, np.int64))
+        q = None if parts[0].joints is None else np.concatenate([c.joints for c in parts])
+        return Chunk(parts[0].move, parts[0].kind, parts[0].pass_index, np.concatenate([c.times for c in parts]),
+                     np.concatenate([c.poses for c in parts]), np.concatenate([c.lines for c in parts]), q,
+                     np.concatenate([c.io for c in parts]))
+
+    def moves(self) -> list[dict]:
+        """One dict per move of the job: move, kind, pass, operation, first_line, last_line, t_start (s),
+        duration_s, samples (that the move starts in the trajectory; 0 for skipped records); a change of the
+        arm configuration adds for_pass (the first pass made on it) and q_from, q_to (rad)."""
+        job = self.job
+        counts = sample_counts(job.moves, self.rate)
+        starts = np.concatenate(([0], np.cumsum(counts)))[:-1] / self.rate
+        out = []
+        for k, m in enumerate(job.moves):
+            item = m.item
+            last = getattr(item, "last_line", None)
+            out.append({
+                "move": k, "kind": m.kind, "pass": int(m.pass_index), "operation": getattr(item, "operation", ""),
+                "first_line": int(m.line), "last_line": int(m.line if last is None else last),
+                "t_start": float(starts[k]), "duration_s": m.duration, "samples": int(counts[k]),
+            })
+            if m.kind == "reconfiguration":
+                out[-1].update({"for_pass": int(item.pass_index), "q_from": [float(x) for x in item.q_from],
+                                "q_to": [float(x) for x in item.q_to]})
+        if out and counts.any():
+            out[int(np.flatnonzero(counts)[-1])]["samples"] += 1  # the job's final pose
+        return out
+
+
+def _counted(chunks, total: int, progress):
+    done = 0
+    for c in chunks:
+        yield c
+        done += c.times.size
+        progress("samples", done, total)
+
+
+def _with_io(job, chunks):
+    """The chunks with their digital output bits (``cut_output`` on during cuts)."""
+    out = job.settings.cut_output
+    bit = 0 if out is None else 1 << (IO_BIT_OFFSET[out[0]] + out[1])
+    for c in chunks:
+        n = c.times.size
+        on = bit if c.kind == "cut" else 0
+        if on and c.times.size and c is not None:
+            io = np.full(n, on, dtype=np.int64)
+            io[-1] = 0  # the last sample of a cut is the first of the next move: the output is off there
+            yield replace(c, io=io)
+        else:
+            yield replace(c, io=np.zeros(n, dtype=np.int64))
+
+
+def sample_counts(moves, rate: float) -> np.ndarray:
+    """Sample intervals (n_k,) each move takes at ``rate``: ceil(duration * rate), 0 for no motion."""
+    d = np.array([m.duration for m in moves], dtype=float)
+    return np.where(d > 0.0, np.ceil(d * rate - 1e-9), 0.0).astype(np.int64)
+
+
+def _pose_chunks(job, rate: float):
+    """One :class:`Chunk` of poses (no joints, no I/O) per moving move of the job, in order."""
+    moves = job.moves
+    counts = sample_counts(moves, rate)
+    offsets = np.concatenate(([0], np.cumsum(counts)))
+    moving = np.flatnonzero(counts > 0)
+    final = int(moving[-1]) if moving.size else -1
+    Tb = as_transform(job.settings.part_frame, "part_frame")
+    Rb, pb = Tb[:3, :3], Tb[:3, 3]
+    r_prev = None
+    for k in moving:
+        m = moves[k]
+        n = int(counts[k]) + (1 if k == final else 0)
+        r = q = None
+        if m.kind == "reconfiguration":  # a joint move: its poses are the forward kinematics of its joints
+            from planner.kinematics import forward_matrix
+
+            q = m.item.joints(m.profile.s(np.arange(n) / rate))
+            T = forward_matrix(job.settings.robot, q, tcp=job.settings.tcp)
+            pos, R = T[:, :3, 3], T[:, :3, :3]
+            lines = np.full(n, m.item.line)
+        elif m.kind in ("cut", "rapid"):
+            ps = sample_poses(m.path, m.profile, tool_orientation(m.frames), rate=rate, base=Tb)
+            pos, R = ps.positions[:n], ps.rotations[:n]
+            r = ps.poses[:n, 3:]  # continuous within the move; checked against the previous move below
+            if m.kind == "cut":
+                lines = m.item.lines[np.minimum(ps.span[:n] + 1, len(m.item) - 1)]
+            else:
+                lines = np.full(n, m.item.line)
+        else:  # a turn in place
+            angle = m.profile.s(np.arange(n) / rate)
+            R = np.matmul(Rb, m.frames.frames(angle))
+            pos = np.broadcast_to(Rb @ m.point + pb, (n, 3))
+            lines = np.full(n, m.item.line)
+        if r is None or (r_prev is not None and np.abs(r[0] - r_prev).max() > 1e-6):
+            r, _ = continuous_rotvec(R, None if r_prev is None else rotvec_to_quaternion(r_prev), r_prev)
+        r_prev = r[-1]
+        yield Chunk(int(k), m.kind, m.pass_index, (offsets[k] + np.arange(n)) / rate,
+                    np.hstack((pos, r)), np.asarray(lines, dtype=np.int64), q)
+
+
+def track_joints(job, chunks, q_start=None):
+    """The chunks with the robot's joint positions (k, 6), rad, on one continuous inverse-kinematics branch
+    between the changes of the arm configuration (:func:`planner.kinematics.inverse_path`, the job's TCP).
+
+    Each chunk starts from the last reachable joint vector of the previous one (the first from the job's
+    ``start_joints``, the configuration its reachability check chose); a reconfiguration chunk carries its
+    joints. Poses without a solution are rows of NaN. Bounded memory: one chunk at a time.
+    """
+    from planner.kinematics import inverse_path
+
+    robot, tcp = job.settings.robot, job.settings.tcp
+    if q_start is None:
+        q_start = getattr(job, "start_joints", None)
+    q_prev = None if q_start is None else np.asarray(q_start, dtype=float)
+    for c in chunks:
+        if c.times.size == 0:
+            yield replace(c, joints=np.zeros((0, 6)))
+            continue
+        if c.joints is not None:  # a joint move: the configuration changes here
+            q_prev = c.joints[-1]
+            yield c
+            continue
+        q = inverse_path(robot, c.poses, q_prev, tcp=tcp, allow_unreachable=True)
+        ok = np.flatnonzero(np.isfinite(q).all(axis=1))
+        if ok.size:
+            q_prev = q[ok[-1]]
+        yield replace(c, joints=q)
+
+
