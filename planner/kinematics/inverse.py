@@ -29,6 +29,11 @@ a few microseconds per pose.
 Candidates computed from clipped round-off (workspace boundary) or turned next to the wrist
 singularity are checked by forward kinematics and discarded unless they reproduce the pose to 1e-9
 (m and rad); elsewhere the formulas are exact and FK(IK(p)) = p holds to round-off (~1e-15).
+
+One pose at a time (:func:`inverse`, :func:`inverse_nearest`: a controller loop), numpy's per-call
+overhead dominates; those run the same derivation on Python floats in ``inverse_one`` (the one
+documented exception to a single implementation, proven equal to the block solver by property tests)
+and hand it back to the block solver for the few candidates that turn next to the wrist singularity.
 """
 
 from __future__ import annotations
@@ -373,15 +378,30 @@ class _Limits:
         """Of the branches ``sols`` (wrapped joints or None), the one nearest to ``q_near`` in joint space,
         each placed by whole turns on the multiturn joints as near to ``q_near`` as the limits allow
         (one turn back towards the range where the nearest lies beyond a limit); None if no branch
-        fits the limits. Branches are pruned as soon as their partial distance exceeds the best."""
-        wrapped = [wrap_1(v) for v in q_near]
+        fits the limits. The first in branch order wins a tie.
+
+        A branch is dropped as soon as its partial distance reaches the best one; the joints that tell
+        branches apart (q1, q5, q3) are summed first and the shoulder solution nearer in q1 is tried
+        first, so most branches are dropped after a joint or two."""
+        joints = [
+            (j, q_near[j], wrap_1(q_near[j]), self.lower[j], self.upper[j], self.multiturn[j]) for j in _JOINT_ORDER
+        ]
+        first = sols[0] if sols[0] is not None else next((q for q in sols[:4] if q is not None), None)
+        order = range(8)
+        if first is not None and any(q is not None for q in sols[4:]):
+            other = next(q for q in sols[4:] if q is not None)
+            n1 = joints[0][2]
+            if abs(wrap_1(other[0] - n1)) < abs(wrap_1(first[0] - n1)):
+                order = (4, 5, 6, 7, 0, 1, 2, 3)
         best, best_d = None, math.inf
-        for q in sols:
+        for b in order:
+            q = sols[b]
             if q is None:
                 continue
             d2 = 0.0
-            cand = []
-            for v, n, w, lo, hi, mt in zip(q, q_near, wrapped, self.lower, self.upper, self.multiturn, strict=True):
+            cand = [0.0] * 6
+            for j, n, w, lo, hi, mt in joints:
+                v = q[j]
                 if mt:
                     dv = v - w  # in (-2 pi, 2 pi): wrapped by one turn at most
                     if dv > math.pi:
@@ -397,22 +417,31 @@ class _Limits:
                     break
                 dv = v - n
                 d2 += dv * dv
-                if d2 >= best_d:
+                if d2 > best_d or (d2 == best_d and b > best[0]):
                     break
-                cand.append(v)
+                cand[j] = v
             else:
-                best, best_d = cand, d2
-        return best
+                best, best_d = (b, cand), d2
+        return None if best is None else best[1]
+
+
+# Joints in the order that tells branches apart soonest: shoulder (q1), wrist (q5), elbow (q3) solution.
+_JOINT_ORDER = (0, 4, 2, 1, 3, 5)
 
 
 def _same_solution(a, b) -> bool:
     """Whether two wrapped solutions coincide (every |wrap(a_j - b_j)| <= _SAME_SOLUTION), testing first
-    the joints that tell branches apart (q1, q5, q3)."""
-    for j in (0, 4, 2, 1, 3, 5):
-        d = abs(a[j] - b[j])  # in [0, 2 pi): |wrap| is d or 2 pi - d
-        if _SAME_SOLUTION < d < _TWO_PI - _SAME_SOLUTION:
-            return False
-    return True
+    the joints that tell branches apart (q1, q5, q3). For a difference d of wrapped angles, |wrap(d)|
+    is |d| or 2 pi - |d|."""
+    lo, hi = _SAME_SOLUTION, _TWO_PI - _SAME_SOLUTION
+    return not (
+        lo < abs(a[0] - b[0]) < hi
+        or lo < abs(a[4] - b[4]) < hi
+        or lo < abs(a[2] - b[2]) < hi
+        or lo < abs(a[1] - b[1]) < hi
+        or lo < abs(a[3] - b[3]) < hi
+        or lo < abs(a[5] - b[5]) < hi
+    )
 
 
 def _q6_reference_1(q6_ref) -> float:
@@ -474,7 +503,12 @@ def inverse(model: str | URModel, pose, tcp=None, q6_ref: float = 0.0) -> np.nda
     limits = _Limits.of(m)
     keep: list[tuple[float, ...]] = []
     for q in sols:
-        if q is not None and limits.within(q) and not any(_same_solution(q, k) for k in keep):
+        if q is None or not limits.within(q):
+            continue
+        for k in keep:
+            if _same_solution(q, k):
+                break
+        else:
             keep.append(q)
     return np.array(keep) if keep else np.empty((0, 6))
 
