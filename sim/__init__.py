@@ -1,4 +1,10 @@
-"""Simulated Universal Robots controller on loopback, for tests and dry runs.
+"""Simulated Universal Robots e-Series controller on loopback, for tests and dry runs.
 
-Filled in by the simulator issue; the planning core never imports this package.
+`SimController` starts one in a child process; it serves the controller's real RTDE (30004),
+dashboard (29999), script (30001-30003) and Modbus protocols so the unmodified ur_rtde and pymodbus
+clients drive it. The planning core never imports this package.
 """
+
+from sim.controller import SimController, SimError
+
+__all__ = ["SimController", "SimError"]

@@ -1,0 +1,308 @@
+"""The simulated controller's state and its control period: modes, safety, programs, motion, registers.
+
+One :class:`Core` per simulated controller. Its :meth:`Core.tick` advances simulated time by one
+control period (2 ms): the running program's step, the motion model's integration, the watchdog, the
+recorder. Every server thread (RTDE, dashboard, script ports, Modbus) changes the core only while
+holding :attr:`Core.lock`; the tick thread holds it for the whole tick, so a program always sees a
+data package's inputs together.
+
+Modes and bits follow the RTDE guide and ur_rtde 1.6.5 (include/ur_rtde/rtde_control_interface.h):
+robot_mode 3 POWER_OFF, 5 IDLE, 7 RUNNING; safety_mode 1 NORMAL, 3 PROTECTIVE_STOP; runtime_state
+1 STOPPED, 2 PLAYING, 4 PAUSED; robot_status_bits bit 0 power on, bit 1 program running;
+safety_status_bits bit 0 normal mode, bit 2 protective stopped, bit 10 stopped due to safety.
+"""
+
+from __future__ import annotations
+
+import collections
+import threading
+
+import numpy as np
+
+from planner.kinematics import forward_matrix, link_frames, matrix_to_pose
+from sim.control_script import ControlScript
+from sim.motion import DT, MotionError, MotionModel, Segment
+from sim.programs import PathMove, ProgramError, parse_program
+from sim.rtde_fields import Registers
+
+ROBOT_POWER_OFF, ROBOT_IDLE, ROBOT_RUNNING = 3, 5, 7
+SAFETY_NORMAL, SAFETY_PROTECTIVE_STOP = 1, 3
+RUNTIME_STOPPED, RUNTIME_PLAYING, RUNTIME_PAUSED = 1, 2, 4
+JOINT_POWER_OFF, JOINT_RUNNING, JOINT_IDLE = 239, 253, 255
+#: Seconds (simulated) after a protective stop before it may be unlocked, as on the controller.
+UNLOCK_DELAY = 5.0
+MODE_NAMES = {3: "POWER_OFF", 5: "IDLE", 7: "RUNNING"}
+SAFETY_NAMES = {1: "NORMAL", 3: "PROTECTIVE_STOP"}
+RUNTIME_NAMES = {1: "STOPPED", 2: "PLAYING", 4: "PAUSED"}
+
+
+class Core:
+    """State of one simulated UR controller.
+
+    Parameters
+    ----------
+    model : str
+        UR model (``"ur5e"``, ...).
+    io : sim.io_state.IOState
+        The controller's I/O, shared with the Modbus server.
+    recorder : sim.recording.Recorder, optional
+        Receives every period's state and every safety / program event.
+    """
+
+    def __init__(self, model: str, io, recorder=None) -> None:
+        self.lock = threading.RLock()
+        self.model_name = model
+        self.motion = MotionModel(model)
+        self.registers = Registers()
+        self.io = io
+        self.recorder = recorder
+        self.time = 0.0
+        self.steps = 0
+        self.robot_mode = ROBOT_RUNNING
+        self.safety_mode = SAFETY_NORMAL
+        self.runtime_state = RUNTIME_STOPPED
+        self.program: ControlScript | None = None
+        self.program_name = "<unnamed>"
+        self.protective_stop_time = -1.0
+        self.payload_mass = 0.0
+        self.payload_cog = np.zeros(3)
+        self.payload_inertia = np.zeros(6)
+        self.execution_time_ms = 0.0
+        self.late_ticks = 0  # control-loop ticks skipped because the loop fell behind (wall clock)
+        self.packages_sent = 0  # RTDE data packages sent
+        self.log: collections.deque = collections.deque(maxlen=200)
+        self.outbox: list[tuple[str, str, int]] = []  # text messages for RTDE clients
+        self.input_time: dict[str, float] = {}
+        self.watchdog: tuple[str, float] | None = None
+        self._history = collections.deque(maxlen=1000)
+        self._tcp_cache: tuple[int, np.ndarray, np.ndarray] | None = None
+        self._prev_T: np.ndarray | None = None
+        self._speed = np.zeros(6)
+
+    # ---- reported state ----------------------------------------------------------------------
+    @property
+    def joint_mode(self) -> int:
+        return JOINT_POWER_OFF if self.robot_mode == ROBOT_POWER_OFF else (
+            JOINT_RUNNING if self.robot_mode == ROBOT_RUNNING else JOINT_IDLE)
+
+    @property
+    def robot_status_bits(self) -> int:
+        return (1 if self.robot_mode != ROBOT_POWER_OFF else 0) | (2 if self.runtime_state == RUNTIME_PLAYING else 0)
+
+    @property
+    def safety_status_bits(self) -> int:
+        if self.safety_mode == SAFETY_PROTECTIVE_STOP:
+            return (1 << 2) | (1 << 10)
+        return 1
+
+    @property
+    def speed_scaling(self) -> float:
+        return self.io.speed_slider if self.runtime_state == RUNTIME_PLAYING else 1.0
+
+    def _tcp_matrix(self) -> np.ndarray:
+        if self._tcp_cache is None or self._tcp_cache[0] != self.steps:
+            T = forward_matrix(self.motion.model, self.motion.q, self.motion.tcp)
+            self._tcp_cache = (self.steps, T, matrix_to_pose(T))
+        return self._tcp_cache[1]
+
+    def tcp_pose(self) -> np.ndarray:
+        """TCP pose p[x, y, z, rx, ry, rz] of the current joints (cached per period)."""
+        self._tcp_matrix()
+        return self._tcp_cache[2]
+
+    def tcp_speed(self) -> np.ndarray:
+        """TCP speed [v, omega] (base frame) over the last period."""
+        return self._speed
+
+    def tool_gravity(self) -> np.ndarray:
+        """Gravity (m/s^2) in the tool frame, what a tool accelerometer at rest reads."""
+        return self._tcp_matrix()[:3, :3].T @ np.array([0.0, 0.0, -9.81])
+
+    def elbow_position(self) -> np.ndarray:
+        return link_frames(self.motion.model, self.motion.q)[3][:3, 3]
+
+    def tcp_changed(self) -> None:
+        self._tcp_cache = None
+        self._prev_T = None
+
+    def q_history(self, steps: int) -> np.ndarray:
+        """Actual joints ``steps`` periods ago (0 = now)."""
+        steps = max(0, min(int(steps), len(self._history) - 1))
+        return self._history[-1 - steps] if self._history else self.motion.q
+
+    # ---- messages and events -----------------------------------------------------------------
+    def message(self, text: str, source: str = "Controller", level: int = 3) -> None:
+        """A text message: into the log and to every started RTDE client ('M' package)."""
+        self.log.append((self.time, source, text))
+        self.outbox.append((text, source, level))
+        if self.recorder is not None:
+            self.recorder.event(self.time, source, text)
+
+    # ---- safety ------------------------------------------------------------------------------
+    def protective_stop(self, reason: str) -> None:
+        """Enter the protective stop: the arm halts, the program stops, the safety bits say why."""
+        self.motion.halt()
+        self.motion.fault = None
+        if self.safety_mode != SAFETY_PROTECTIVE_STOP:
+            self.safety_mode = SAFETY_PROTECTIVE_STOP
+            self.protective_stop_time = self.time
+            self.message(f"Protective stop: {reason}", source="Safety", level=0)
+        self._end_program("program stopped by the protective stop")
+
+    def unlock_protective_stop(self) -> str | None:
+        """Leave the protective stop; None on success, else the controller's refusal text."""
+        if self.safety_mode != SAFETY_PROTECTIVE_STOP:
+            return None
+        if self.time - self.protective_stop_time < UNLOCK_DELAY:
+            return ("Cannot unlock protective stop until 5s after occurrence. "
+                    "Always inspect cause of protective stop before unlocking")
+        self.safety_mode = SAFETY_NORMAL
+        self.message("Protective stop released", source="Safety", level=3)
+        return None
+
+    def runtime_error(self, text: str) -> None:
+        """A program's runtime error: the program halts (the arm stops), with an exception message."""
+        self.motion.halt()
+        self.message(f"Runtime error: {text}", source="Program", level=0)
+        self._end_program("program halted by a runtime error")
+
+    def set_watchdog(self, field: str, min_frequency: float) -> None:
+        self.watchdog = (field, min_frequency) if min_frequency > 0 else None
+        self.input_time[field] = self.time
+
+    # ---- programs ----------------------------------------------------------------------------
+    def _end_program(self, why: str) -> None:
+        if self.program is not None or self.runtime_state != RUNTIME_STOPPED:
+            self.program = None
+            self.runtime_state = RUNTIME_STOPPED
+            self.watchdog = None
+            if self.recorder is not None:
+                self.recorder.event(self.time, "Program", why)
+
+    def stop_program(self) -> None:
+        """Stop the running program (dashboard ``stop``, a new program): the arm halts."""
+        if self.program is not None:
+            self.motion.halt()
+        self._end_program("program stopped")
+
+    def load_program(self, text: str) -> bool:
+        """A program arrives on a script port: it replaces the running one, or is refused whole."""
+        self.stop_program()
+        try:
+            prog = parse_program(text)
+        except ProgramError as exc:
+            self.message(f"Compile error: {exc}", source="Program", level=0)
+            return False
+        if self.robot_mode != ROBOT_RUNNING:
+            self.message(f"Program {prog.name} not started: robot is {MODE_NAMES.get(self.robot_mode)}",
+                         source="Program", level=1)
+            return False
+        if self.safety_mode != SAFETY_NORMAL:
+            self.message(f"Program {prog.name} not started: robot is in protective stop", source="Program", level=1)
+            return False
+        if not prog.is_control_script:
+            first = text.strip().split("\n", 1)[0][:80]
+            self.message(f"Compile error: the simulator cannot run {prog.name} ({first!r}); "
+                         "only ur_rtde's control script is supported", source="Program", level=0)
+            return False
+        self.program = ControlScript(self, prog)
+        self.program_name = prog.name
+        self.runtime_state = RUNTIME_PLAYING
+        if self.recorder is not None:
+            self.recorder.event(self.time, "Program", f"program {prog.name} started")
+        return True
+
+    def run_path(self, path: list[PathMove]) -> None:
+        """Start an injected path: consecutive moves of one kind are blended into one trajectory."""
+        groups: list[list[PathMove]] = []
+        for mv in path:
+            linear = mv.kind != "movej"
+            if groups and (groups[-1][0].kind != "movej") == linear:
+                groups[-1].append(mv)
+            else:
+                groups.append([mv])
+        if len(groups) > 1:
+            raise MotionError("paths mixing movej with movel/movep are not supported by the simulator")
+        segs = [Segment(np.array(mv.target), mv.v, mv.a, mv.r) for mv in groups[0]]
+        if groups[0][0].kind == "movej":
+            self.motion.plan_joint(segs)
+        else:
+            self.motion.plan_linear(segs)
+
+    # ---- the control period ------------------------------------------------------------------
+    def tick(self) -> None:
+        """Advance one control period of simulated time (caller holds :attr:`lock`)."""
+        if self.runtime_state == RUNTIME_PLAYING and self.program is not None:
+            self.program.step()
+            if self.program is not None and not self.program.keep_running:
+                self.message("RTDE Control Script Terminated", source="rtde_control", level=3)
+                self._end_program("program finished")
+        if self.runtime_state != RUNTIME_PAUSED:
+            self.motion.step(self.io.speed_slider)
+        if self.motion.fault:
+            self.protective_stop(self.motion.fault)
+        if self.watchdog is not None:
+            field, f = self.watchdog
+            if self.time - self.input_time.get(field, self.time) > 1.0 / f:
+                self.message(f"RTDE watchdog: no input on {field} for more than {1.0 / f:.3f} s", "RTDE", 0)
+                self.motion.halt()
+                self._end_program("program stopped by the RTDE watchdog")
+        self.time = round(self.time + DT, 9)
+        self.steps += 1
+        T = self._tcp_matrix()
+        if self._prev_T is not None:
+            v = (T[:3, 3] - self._prev_T[:3, 3]) / DT
+            W = (T[:3, :3] - self._prev_T[:3, :3]) @ T[:3, :3].T / DT
+            self._speed = np.array([v[0], v[1], v[2], W[2, 1], W[0, 2], W[1, 0]])
+        self._prev_T = T
+        self._history.append(self.motion.q.copy())
+        if self.recorder is not None:
+            self.recorder.sample(self)
+
+    # ---- dashboard actions -------------------------------------------------------------------
+    def power_off(self) -> None:
+        self.stop_program()
+        self.motion.halt()
+        self.robot_mode = ROBOT_POWER_OFF
+
+    def power_on(self) -> None:
+        if self.robot_mode == ROBOT_POWER_OFF:
+            self.robot_mode = ROBOT_IDLE
+
+    def brake_release(self) -> None:
+        if self.robot_mode == ROBOT_IDLE:
+            self.robot_mode = ROBOT_RUNNING
+
+    def pause(self) -> bool:
+        if self.runtime_state == RUNTIME_PLAYING:
+            self.runtime_state = RUNTIME_PAUSED
+            return True
+        return False
+
+    def resume(self) -> bool:
+        if self.runtime_state == RUNTIME_PAUSED:
+            self.runtime_state = RUNTIME_PLAYING
+            return True
+        return False
+
+    def state(self) -> dict:
+        """A JSON-able summary (for the parent process and people)."""
+        return {
+            "time": self.time,
+            "q": self.motion.q.tolist(),
+            "tcp_pose": self.tcp_pose().tolist(),
+            "robot_mode": MODE_NAMES.get(self.robot_mode),
+            "safety_mode": SAFETY_NAMES.get(self.safety_mode),
+            "runtime_state": RUNTIME_NAMES.get(self.runtime_state),
+            "program": self.program_name if self.program is not None else None,
+            "digital_out": self.io.digital_out,
+            "digital_in": self.io.digital_in,
+            "log": [list(x) for x in list(self.log)[-20:]],
+            "out_int": list(self.registers.out_int),
+            "out_double": list(self.registers.out_double),
+            "in_int": list(self.registers.in_int),
+            "in_double": list(self.registers.in_double),
+            "motion": self.motion.mode,
+            "late_ticks": self.late_ticks,
+            "packages_sent": self.packages_sent,
+        }

@@ -1,0 +1,162 @@
+"""Dashboard server (TCP 29999): line commands and the controller's reply strings (PolyScope 5.11).
+
+Replies follow Universal Robots' dashboard server documentation for e-Series as the clients check
+them (ur_rtde 1.6.5 src/dashboard_client.cpp compares ``Stopped``, ``Starting program``,
+``Pausing program``, ``Protective stop releasing``, ``Loading program:``; Universal Robots' client
+library lists the expected patterns of the rest). Commands are matched case-insensitively.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+
+from sim import core as c
+from sim.rtde_server import CONTROLLER_VERSION
+
+GREETING = "Connected: Universal Robots Dashboard Server"
+SERIAL_NUMBER = "20235500001"
+VERSION = ".".join(str(v) for v in CONTROLLER_VERSION)
+POLYSCOPE_VERSION = f"URSoftware {VERSION} (Jul 27 2021)"
+
+
+class DashboardServer:
+    """The dashboard listener of one simulated controller."""
+
+    def __init__(self, core, host: str, port: int = 29999) -> None:
+        self.core = core
+        self.sock = socket.create_server((host, port))
+        self.user_role = "PROGRAMMER"
+        self._thread = threading.Thread(target=self._accept, name="dashboard-accept", daemon=True)
+        self._clients: list[socket.socket] = []
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def close(self) -> None:
+        self.sock.close()
+        for s in list(self._clients):
+            try:
+                s.shutdown(socket.SHUT_RDWR)
+            except OSError:
+                pass
+            s.close()
+
+    def _accept(self) -> None:
+        while True:
+            try:
+                sock, _ = self.sock.accept()
+            except OSError:
+                return
+            self._clients.append(sock)
+            threading.Thread(target=self._serve, args=(sock,), name="dashboard", daemon=True).start()
+
+    def _serve(self, sock: socket.socket) -> None:
+        try:
+            sock.sendall((GREETING + "\n").encode())
+            buf = b""
+            while True:
+                chunk = sock.recv(4096)
+                if not chunk:
+                    return
+                buf += chunk
+                while b"\n" in buf:
+                    line, buf = buf.split(b"\n", 1)
+                    text = line.decode("utf-8", "replace").strip()
+                    if not text:
+                        continue
+                    reply, close = self.reply(text)
+                    sock.sendall((reply + "\n").encode())
+                    if close:
+                        return
+        except OSError:
+            return
+        finally:
+            if sock in self._clients:
+                self._clients.remove(sock)
+            sock.close()
+
+    def reply(self, text: str) -> tuple[str, bool]:  # noqa: C901 - one branch per command
+        """The controller's reply to one command line, and whether it closes the connection."""
+        core = self.core
+        cmd = text.lower()
+        arg = text.split(" ", 1)[1] if " " in text else ""
+        with core.lock:
+            if cmd == "quit":
+                return "Disconnected", True
+            if cmd == "shutdown":
+                core.power_off()
+                return "Shutting down", True
+            if cmd == "power on":
+                core.power_on()
+                return "Powering on", False
+            if cmd == "power off":
+                core.power_off()
+                return "Powering off", False
+            if cmd == "brake release":
+                core.brake_release()
+                return "Brake releasing", False
+            if cmd == "play":
+                if core.resume():
+                    return "Starting program", False
+                return "Failed to execute: play", False
+            if cmd == "stop":
+                core.stop_program()
+                return "Stopped", False
+            if cmd == "pause":
+                if core.pause():
+                    return "Pausing program", False
+                return "Failed to execute: pause", False
+            if cmd == "running":
+                return f"Program running: {'true' if core.runtime_state == c.RUNTIME_PLAYING else 'false'}", False
+            if cmd == "robotmode":
+                return f"Robotmode: {c.MODE_NAMES.get(core.robot_mode)}", False
+            if cmd == "safetymode":
+                return f"Safetymode: {c.SAFETY_NAMES.get(core.safety_mode)}", False
+            if cmd == "safetystatus":
+                return f"Safetystatus: {c.SAFETY_NAMES.get(core.safety_mode)}", False
+            if cmd == "programstate":
+                return f"{c.RUNTIME_NAMES.get(core.runtime_state)} {core.program_name}", False
+            if cmd == "unlock protective stop":
+                refusal = core.unlock_protective_stop()
+                return (refusal or "Protective stop releasing"), False
+            if cmd == "close safety popup":
+                return "closing safety popup", False
+            if cmd == "restart safety":
+                return "Restarting safety", False
+            if cmd == "close popup":
+                return "closing popup", False
+            if cmd.startswith("popup "):
+                return "showing popup", False
+            if cmd.startswith("addtolog"):
+                return ("Added log message" if arg else "No log message to add"), False
+            if cmd == "is in remote control":
+                return "true", False
+            if cmd == "polyscopeversion":
+                return POLYSCOPE_VERSION, False
+            if cmd == "version":
+                return VERSION, False
+            if cmd == "get serial number":
+                return SERIAL_NUMBER, False
+            if cmd == "get robot model":
+                return core.model_name.upper().rstrip("E"), False
+            if cmd == "get loaded program":
+                return "No program loaded", False
+            if cmd == "isprogramsaved":
+                return f"true {core.program_name}", False
+            if cmd.startswith("load installation "):
+                return f"File not found: {text[len('load installation '):]}", False
+            if cmd.startswith("load "):
+                return f"File not found: {arg}", False
+            if cmd == "getuserrole":
+                return self.user_role, False
+            if cmd.startswith("setuserrole "):
+                self.user_role = arg.upper()
+                return f"Setting user role: {arg}", False
+            if cmd == "get operational mode":
+                return "NONE", False
+            if cmd == "clear operational mode":
+                return "No longer controlling the operational mode. Current operational mode: 'NONE'.", False
+            if cmd.startswith("set operational mode "):
+                return f"Operational mode '{arg.split()[-1].lower()}' is set", False
+        return f"could not understand: '{text}'", False

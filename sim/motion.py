@@ -1,0 +1,488 @@
+"""The simulated arm's one motion model: joint state integrated every control period (2 ms).
+
+Every entry point (ur_rtde's control script, URScript programs) drives the arm through
+:class:`MotionModel`; kinematics come only from :mod:`planner.kinematics`.
+
+Modes
+-----
+trajectory
+    ``movej`` / ``movel`` / ``movep`` (single targets or blended paths) and ``stopj`` / ``stopl``:
+    a joint trajectory sampled at the control period, planned when the move starts. The time law is
+    the time-optimal profile along the path under the move's speed ``v`` and acceleration ``a``
+    (a trapezoid for a single move, continuous speed through blends). ``movej`` parameterizes the
+    joint-space path by its infinity-norm length, so ``v`` and ``a`` bound every joint (the leading
+    joint reaches them, as on the controller); ``movel`` by the tool's path length (rotation-only
+    moves by the rotation angle times `ROTATION_RADIUS`), so ``v`` is the tool speed.
+    Blends replace each corner by a quadratic Bezier arc from ``r`` before to ``r`` after the
+    waypoint (``r`` clipped to half the neighbouring segments). For ``movej`` the blend radius is
+    applied in joint space (rad), an approximation of the controller's tool-space radius.
+servo
+    ``servoj``: the commanded target passes a first-order lookahead filter (time constant
+    ``lookahead_time / 2``) and the joints follow the filtered target with a first-order tracking
+    loop of time constant ``SERVO_GAIN_TIME / gain``. For a target moving at most ``v`` rad/s the
+    following error is therefore at most ``v * (lookahead_time / 2 + SERVO_GAIN_TIME / gain)``
+    (:func:`servo_following_error`); joint speed and acceleration are clamped to the limits.
+speed
+    ``speedj`` / ``speedl``: joint (or tool) speeds ramped to the target at the given acceleration.
+
+Protective stop: the model sets :attr:`MotionModel.fault` (a message) and halts when a target is out
+of the joint position limits or unreachable, when a trajectory would exceed the joint speed limits,
+or when a servo / speed command asks for more than the joint speed limits. The controller core turns
+the fault into the protective-stop safety state.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation, Slerp
+
+from planner.kinematics import UnreachableError, forward, forward_matrix, get_model, inverse_path, wrap_angle
+
+DT = 0.002  # control period (s), 500 Hz
+#: Joint acceleration limit (rad/s^2) used where a command gives none (servo): ur_rtde's upper bound.
+JOINT_ACCEL_MAX = 40.0
+#: Tracking time constant scale of servoj: tau = SERVO_GAIN_TIME / gain (gain 300 -> 33 ms).
+SERVO_GAIN_TIME = 10.0
+#: Length (m) one radian of tool rotation counts for in a linear move's path length.
+ROTATION_RADIUS = 0.1
+#: Relative tolerance on the joint speed limits before a protective stop.
+SPEED_TOLERANCE = 1e-6
+#: Path grid spacing (m or rad) of the time law, and its sample bounds.
+GRID_STEP = 5e-4
+GRID_MIN, GRID_MAX = 16, 4000
+
+HOME = np.array([0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0])
+
+
+class MotionError(Exception):
+    """A motion command that cannot start (the message says why); the caller raises a protective stop."""
+
+
+def servo_following_error(speed: float, lookahead_time: float, gain: float) -> float:
+    """Bound on |actual - commanded| (rad) of servoj for a target moving at most ``speed`` rad/s."""
+    return speed * (0.5 * lookahead_time + SERVO_GAIN_TIME / gain)
+
+
+@dataclass
+class Segment:
+    """One move of a path: target (joints, or a tool pose for linear moves), speed, acceleration, blend."""
+
+    target: np.ndarray
+    v: float
+    a: float
+    r: float = 0.0
+
+
+@dataclass
+class Trajectory:
+    """A planned joint trajectory sampled every ``DT``.
+
+    Attributes
+    ----------
+    q : ndarray, shape (K, 6)
+        Joint positions (rad) at t = DT, 2 DT, ..., the last one the end of the move.
+    starts : list of int
+        Sample index at which each path entry starts (for async progress).
+    fault : str or None
+        If set, the arm stops with a protective stop after the last sample (a limit is exceeded or
+        the path leaves the workspace there).
+    """
+
+    q: np.ndarray
+    starts: list[int] = field(default_factory=list)
+    fault: str | None = None
+
+
+def _time_law(d: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
+    """Times (s) at the path grid ``d`` of the fastest rest-to-rest profile under vmax(d), amax(d)."""
+    n = len(d)
+    ds = np.diff(d)
+    v = vmax.astype(float).copy()
+    v[0] = 0.0
+    v[-1] = 0.0
+    two_a_ds = 2.0 * np.minimum(amax[:-1], amax[1:]) * ds
+    for i in range(n - 1):  # forward pass (acceleration)
+        lim = math.sqrt(v[i] * v[i] + two_a_ds[i])
+        if v[i + 1] > lim:
+            v[i + 1] = lim
+    for i in range(n - 2, -1, -1):  # backward pass (deceleration)
+        lim = math.sqrt(v[i + 1] * v[i + 1] + two_a_ds[i])
+        if v[i] > lim:
+            v[i] = lim
+    vs = v[:-1] + v[1:]
+    dt = np.divide(2.0 * ds, vs, out=np.zeros_like(ds), where=vs > 0)
+    return np.concatenate([[0.0], np.cumsum(dt)])
+
+
+def _blend_points(W: np.ndarray, radii: np.ndarray, lengths: np.ndarray, d: np.ndarray):
+    """Points of the polyline ``W`` (m+1, k) at polyline parameter ``d`` with corners blended.
+
+    ``lengths`` (m,) are the segment lengths in the parameter's norm; returns (points (n, k),
+    segment index (n,), fraction within the segment (n,)).
+    """
+    D = np.concatenate([[0.0], np.cumsum(lengths)])
+    seg = np.clip(np.searchsorted(D, d, side="right") - 1, 0, len(lengths) - 1)
+    frac = np.divide(d - D[seg], lengths[seg], out=np.ones_like(d), where=lengths[seg] > 0)
+    frac = np.clip(frac, 0.0, 1.0)
+    P = W[seg] + frac[:, None] * (W[seg + 1] - W[seg])
+    for i in range(1, len(W) - 1):  # interior corners
+        r = min(radii[i - 1], 0.5 * lengths[i - 1], 0.5 * lengths[i])
+        if r <= 0.0 or lengths[i - 1] <= 0 or lengths[i] <= 0:
+            continue
+        zone = (d >= D[i] - r) & (d <= D[i] + r)
+        if not zone.any():
+            continue
+        u0 = (W[i] - W[i - 1]) / lengths[i - 1]
+        u1 = (W[i + 1] - W[i]) / lengths[i]
+        A, B = W[i] - r * u0, W[i] + r * u1
+        w = ((d[zone] - (D[i] - r)) / (2.0 * r))[:, None]
+        P[zone] = (1 - w) ** 2 * A + 2 * w * (1 - w) * W[i] + w**2 * B
+    return P, seg, frac
+
+
+def _path_grid(lengths: np.ndarray, segs: list[Segment]):
+    """Parameter grid over the whole path, with per-sample speed and acceleration limits."""
+    total = float(lengths.sum())
+    n = int(min(GRID_MAX, max(GRID_MIN, math.ceil(total / GRID_STEP)))) + 1
+    d = np.linspace(0.0, total, n)
+    D = np.concatenate([[0.0], np.cumsum(lengths)])
+    seg = np.clip(np.searchsorted(D, d, side="right") - 1, 0, len(segs) - 1)
+    v = np.array([s.v for s in segs])[seg]
+    a = np.array([s.a for s in segs])[seg]
+    return d, v, a
+
+
+def _sample_times(t: np.ndarray, d: np.ndarray) -> np.ndarray:
+    """Path parameter at every control period DT, 2 DT, ..., ending exactly at the path's end."""
+    T = float(t[-1])
+    K = max(1, math.ceil(T / DT - 1e-9))
+    tk = np.minimum(np.arange(1, K + 1) * DT, T)
+    return np.interp(tk, t, d)
+
+
+def _starts(dk: np.ndarray, lengths: np.ndarray) -> list[int]:
+    D = np.concatenate([[0.0], np.cumsum(lengths)])
+    return [int(np.searchsorted(dk, D[i], side="right")) for i in range(len(lengths))]
+
+
+class MotionModel:
+    """Joint state of one simulated arm, advanced by :meth:`step` every ``DT`` of simulated time.
+
+    Parameters
+    ----------
+    model : str
+        UR model name (``"ur5e"``, ...), see :func:`planner.kinematics.get_model`.
+    q0 : array_like (6,), optional
+        Initial joint positions (rad); default `HOME`.
+    """
+
+    def __init__(self, model: str, q0=None) -> None:
+        self.model = get_model(model)
+        self.lower = self.model.lower
+        self.upper = self.model.upper
+        self.qd_max = self.model.speed_limits
+        self.q = np.array(HOME if q0 is None else q0, dtype=float)
+        self.qd = np.zeros(6)
+        self.qdd = np.zeros(6)
+        self.mode = "idle"
+        self.fault: str | None = None
+        self.traj: Trajectory | None = None
+        self.index = 0.0  # playback position in traj.q (float, speed-slider scaled)
+        # servo state
+        self.servo_target = self.q.copy()
+        self.servo_filtered = self.q.copy()
+        self.servo_lookahead = 0.1
+        self.servo_gain = 300.0
+        # speed state
+        self.speed_target = np.zeros(6)
+        self.speed_accel = 0.5
+        self.speed_linear = False
+        self.tcp = np.zeros(6)
+
+    # ---- state the controller reports ------------------------------------------------------
+    @property
+    def target_q(self) -> np.ndarray:
+        return self.q
+
+    @property
+    def target_qd(self) -> np.ndarray:
+        return self.qd
+
+    @property
+    def target_qdd(self) -> np.ndarray:
+        return self.qdd
+
+    @property
+    def commanded(self) -> np.ndarray:
+        """What the program commands now: the servo target in servo mode, else the planned joints."""
+        return self.servo_target if self.mode == "servo" else self.q
+
+    @property
+    def busy(self) -> bool:
+        """A trajectory (move or stop) is being executed."""
+        return self.mode == "trajectory"
+
+    def progress(self) -> int:
+        """Index of the path entry being executed (for async progress), -1 when idle."""
+        if self.traj is None or self.mode != "trajectory":
+            return -1
+        k = int(self.index)
+        return max(0, int(np.searchsorted(self.traj.starts, k, side="right")) - 1)
+
+    # ---- commands ----------------------------------------------------------------------------
+    def halt(self) -> None:
+        """Stop immediately (program stopped, protective stop): zero speed, no pending motion."""
+        self.mode = "idle"
+        self.traj = None
+        self.qd[:] = 0.0
+        self.qdd[:] = 0.0
+
+    def _check_q(self, q: np.ndarray, what: str) -> None:
+        if not np.isfinite(q).all():
+            raise MotionError(f"{what}: joint target is not finite")
+        bad = np.flatnonzero((q < self.lower - 1e-9) | (q > self.upper + 1e-9))
+        if len(bad):
+            j = int(bad[0])
+            raise MotionError(
+                f"{what}: joint {j} target {q[j]:.4f} rad outside its limits "
+                f"[{self.lower[j]:.4f}, {self.upper[j]:.4f}]"
+            )
+
+    def _check_speeds(self, q: np.ndarray) -> int:
+        """First sample index whose step from the previous exceeds the joint speed limits, or -1."""
+        prev = np.vstack([self.q, q[:-1]])
+        over = np.abs(q - prev) > self.qd_max * DT * (1.0 + SPEED_TOLERANCE)
+        bad = np.flatnonzero(over.any(axis=1))
+        return int(bad[0]) if len(bad) else -1
+
+    def _start(self, traj: Trajectory) -> Trajectory:
+        k = self._check_speeds(traj.q)
+        if k >= 0:
+            j = int(np.argmax(np.abs(traj.q[k] - (traj.q[k - 1] if k else self.q)) / self.qd_max))
+            traj.q = traj.q[:k]
+            traj.fault = traj.fault or f"joint {j} speed limit {self.qd_max[j]:.3f} rad/s exceeded"
+        if len(traj.q) == 0:
+            traj.q = self.q[None].copy()
+        self.traj = traj
+        self._origin = self.q.copy()
+        self.index = 0.0
+        self.mode = "trajectory"
+        return traj
+
+    def plan_joint(self, segs: list[Segment]) -> Trajectory:
+        """Plan and start a (blended) joint-space move through ``segs`` (targets are joints)."""
+        W = np.vstack([self.q] + [np.asarray(s.target, dtype=float) for s in segs])
+        for i, s in enumerate(segs):
+            self._check_q(W[i + 1], f"movej target {i}")
+            if not (s.v > 0 and s.a > 0):
+                raise MotionError(f"movej target {i}: speed and acceleration must be > 0")
+        lengths = np.abs(np.diff(W, axis=0)).max(axis=1)
+        if lengths.sum() <= 0.0:
+            return self._start(Trajectory(self.q[None].copy(), [0] * len(segs)))
+        d, v, a = _path_grid(lengths, segs)
+        t = _time_law(d, v, a)
+        dk = _sample_times(t, d)
+        q, _, _ = _blend_points(W, np.array([s.r for s in segs]), lengths, dk)
+        q[-1] = W[-1]
+        return self._start(Trajectory(q, _starts(dk, lengths)))
+
+    def plan_linear(self, segs: list[Segment]) -> Trajectory:
+        """Plan and start a (blended) linear tool move through ``segs`` (targets are TCP poses)."""
+        P0 = forward(self.model, self.q, self.tcp)
+        poses = np.vstack([P0] + [np.asarray(s.target, dtype=float) for s in segs])
+        for i, s in enumerate(segs):
+            if not np.isfinite(poses[i + 1]).all():
+                raise MotionError(f"movel target {i}: pose is not finite")
+            if not (s.v > 0 and s.a > 0):
+                raise MotionError(f"movel target {i}: speed and acceleration must be > 0")
+        rots = Rotation.from_rotvec(poses[:, 3:])
+        angles = (rots[:-1].inv() * rots[1:]).magnitude()
+        dist = np.linalg.norm(np.diff(poses[:, :3], axis=0), axis=1)
+        lengths = np.maximum(dist, angles * ROTATION_RADIUS)
+        # the target itself must be reachable before the arm moves
+        try:
+            q_end = inverse_path(self.model, poses[-1:], self.q, tcp=self.tcp)[0]
+        except UnreachableError:
+            raise MotionError("movel: target pose is not reachable (no inverse kinematics solution)") from None
+        if lengths.sum() <= 0.0:
+            return self._start(Trajectory(self.q[None].copy(), [0] * len(segs)))
+        d, v, a = _path_grid(lengths, segs)
+        t = _time_law(d, v, a)
+        dk = _sample_times(t, d)
+        pos, seg, frac = _blend_points(poses[:, :3], np.array([s.r for s in segs]), lengths, dk)
+        rot = np.empty((len(dk), 3))
+        for i in range(len(segs)):
+            sel = seg == i
+            if sel.any():
+                rot[sel] = Slerp([0.0, 1.0], rots[i : i + 2])(frac[sel]).as_rotvec()
+        samples = np.hstack([pos, rot])
+        samples[-1] = poses[-1]
+        q = inverse_path(self.model, samples, self.q, tcp=self.tcp, allow_unreachable=True)
+        fault = None
+        bad = np.flatnonzero(np.isnan(q).any(axis=1))
+        if len(bad):
+            q = q[: bad[0]]
+            fault = "movel: the path leaves the workspace (no inverse kinematics solution)"
+        if len(q) == 0:
+            raise MotionError(fault or "movel: empty path")
+        outside = np.flatnonzero(((q < self.lower) | (q > self.upper)).any(axis=1))
+        if len(outside):
+            q = q[: outside[0]]
+            fault = "movel: the path leaves the joint position limits"
+        if not fault:
+            # the last sample is the target: take the branch nearest the tracked path (exact pose)
+            q[-1] = q_end + 2 * np.pi * np.round((q[-1] - q_end) / (2 * np.pi))
+        traj = Trajectory(q if len(q) else self.q[None].copy(), _starts(dk, lengths), fault)
+        return self._start(traj)
+
+    def plan_stop(self, decel: float, linear: bool = False) -> Trajectory:
+        """Decelerate to rest (stopj / stopl): joint speeds scaled down together at ``decel``.
+
+        ``decel`` is rad/s^2 for the leading joint (stopj) or m/s^2 of the tool (stopl).
+        """
+        if decel <= 0 or not math.isfinite(decel):
+            raise MotionError(f"stop: deceleration must be > 0, got {decel}")
+        qd = self.qd.copy()
+        if linear:
+            J = self.jacobian()
+            speed = float(np.linalg.norm((J @ qd)[:3]))
+        else:
+            speed = float(np.abs(qd).max())
+        self.mode = "idle"
+        if speed <= 0.0:
+            return self._start(Trajectory(self.q[None].copy(), [0]))
+        T = speed / decel
+        K = max(1, math.ceil(T / DT - 1e-9))
+        tk = np.minimum(np.arange(1, K + 1) * DT, T)[:, None]
+        q = self.q + qd * tk - 0.5 * (qd / T) * tk**2
+        return self._start(Trajectory(q, [0]))
+
+    def servo(self, q_target, t: float, lookahead: float, gain: float) -> None:
+        """servoj: track ``q_target``; ``t`` is the client's command period (s)."""
+        q_target = np.asarray(q_target, dtype=float)
+        self._check_q(q_target, "servoj")
+        if self.mode != "servo":
+            self.servo_target = self.q.copy()
+            self.servo_filtered = self.q.copy()
+            self.mode = "servo"
+            self.traj = None
+        step = np.abs(q_target - self.servo_target) / max(t, DT)
+        over = np.flatnonzero(step > self.qd_max * (1.0 + SPEED_TOLERANCE) + 1e-9)
+        if len(over):
+            j = int(over[0])
+            raise MotionError(
+                f"servoj: joint {j} commanded at {step[j]:.3f} rad/s, over its limit {self.qd_max[j]:.3f} rad/s"
+            )
+        self.servo_target = q_target
+        self.servo_lookahead = min(max(lookahead, 0.03), 0.2)
+        self.servo_gain = min(max(gain, 100.0), 2000.0)
+
+    def speed(self, target, accel: float, linear: bool) -> None:
+        """speedj (joint speeds, rad/s) or speedl (tool speed [v, omega] in the base frame)."""
+        target = np.asarray(target, dtype=float)
+        if not np.isfinite(target).all() or accel <= 0:
+            raise MotionError("speed command: target not finite or acceleration <= 0")
+        if not linear:
+            over = np.flatnonzero(np.abs(target) > self.qd_max * (1.0 + SPEED_TOLERANCE))
+            if len(over):
+                j = int(over[0])
+                raise MotionError(f"speedj: joint {j} speed {target[j]:.3f} rad/s over its limit")
+        if self.mode != "speed":
+            self.traj = None
+            self.mode = "speed"
+            self._tool_speed = np.zeros(6)
+        self.speed_target = target
+        self.speed_accel = accel
+        self.speed_linear = linear
+
+    # ---- kinematics helpers ------------------------------------------------------------------
+    def jacobian(self, q=None) -> np.ndarray:
+        """Geometric Jacobian (6, 6) of the TCP (linear; angular velocity in the base frame)."""
+        q = self.q if q is None else np.asarray(q, dtype=float)
+        h = 1e-7
+        Q = np.vstack([q, q + h * np.eye(6)])
+        T = forward_matrix(self.model, Q, self.tcp)
+        dp = (T[1:, :3, 3] - T[0, :3, 3]) / h
+        dR = (T[1:, :3, :3] - T[0, :3, :3]) / h
+        W = dR @ T[0, :3, :3].T  # skew(omega) per joint
+        w = np.stack([W[:, 2, 1], W[:, 0, 2], W[:, 1, 0]], axis=1)
+        return np.vstack([dp.T, w.T])
+
+    # ---- integration -------------------------------------------------------------------------
+    def step(self, fraction: float = 1.0) -> None:
+        """Advance one control period (``fraction`` < 1: the speed slider slows trajectories)."""
+        q_old, qd_old = self.q, self.qd
+        if self.mode == "trajectory":
+            tr = self.traj
+            self.index = min(self.index + fraction, len(tr.q))
+            k = self.index - 1.0  # sample 0 is at t = DT
+            if k < 0:
+                q_new = self._origin + self.index * (tr.q[0] - self._origin)
+            else:
+                i = int(k)
+                if i >= len(tr.q) - 1:
+                    q_new = tr.q[-1].copy()
+                else:
+                    w = k - i
+                    q_new = tr.q[i] + w * (tr.q[i + 1] - tr.q[i])
+            self._set(q_new, q_old, qd_old)
+            if self.index >= len(tr.q):
+                self.mode = "idle"
+                self.qd = np.zeros(6)
+                if tr.fault:
+                    self.fault = tr.fault
+                    self.halt()
+        elif self.mode == "servo":
+            a_f = 1.0 - math.exp(-DT / (0.5 * self.servo_lookahead))
+            self.servo_filtered = self.servo_filtered + a_f * (self.servo_target - self.servo_filtered)
+            a_t = 1.0 - math.exp(-DT * self.servo_gain / SERVO_GAIN_TIME)
+            qd = a_t * (self.servo_filtered - q_old) / DT
+            qd = np.clip(qd, qd_old - JOINT_ACCEL_MAX * DT, qd_old + JOINT_ACCEL_MAX * DT)
+            qd = np.clip(qd, -self.qd_max, self.qd_max)
+            self._set(q_old + qd * DT, q_old, qd_old)
+        elif self.mode == "speed":
+            if self.speed_linear:
+                J = self.jacobian()
+                cur = self._tool_speed
+                dv = self.speed_target - cur
+                n = float(np.linalg.norm(dv[:3]))
+                lim = self.speed_accel * DT
+                cur = cur + (dv if n <= lim else dv * (lim / n))
+                self._tool_speed = cur
+                qd = np.linalg.lstsq(J, cur, rcond=None)[0]
+                over = np.flatnonzero(np.abs(qd) > self.qd_max * (1.0 + SPEED_TOLERANCE))
+                if len(over):
+                    self.fault = f"speedl: joint {int(over[0])} speed limit exceeded"
+                    self.halt()
+                    return
+            else:
+                lim = self.speed_accel * DT
+                qd = qd_old + np.clip(self.speed_target - qd_old, -lim, lim)
+            self._set(q_old + qd * DT, q_old, qd_old)
+        else:
+            self.qd = np.zeros(6)
+            self.qdd = np.zeros(6)
+            return
+        out = np.flatnonzero((self.q < self.lower) | (self.q > self.upper))
+        if len(out):
+            self.q = np.clip(self.q, self.lower, self.upper)
+            self.fault = f"joint {int(out[0])} position limit reached"
+            self.halt()
+
+    def _set(self, q_new: np.ndarray, q_old: np.ndarray, qd_old: np.ndarray) -> None:
+        self.q = q_new
+        self.qd = (q_new - q_old) / DT
+        self.qdd = (self.qd - qd_old) / DT
+
+    def tool_pose(self) -> np.ndarray:
+        """TCP pose p[x, y, z, rx, ry, rz] of the current joints."""
+        return forward(self.model, self.q, self.tcp)
+
+    def wrap_near(self, q: np.ndarray, near: np.ndarray) -> np.ndarray:
+        """``q`` shifted by whole turns per joint to lie nearest ``near``, within the joint limits."""
+        out = near + wrap_angle(q - near)
+        out = np.where(out > self.upper, out - 2 * np.pi, out)
+        return np.where(out < self.lower, out + 2 * np.pi, out)

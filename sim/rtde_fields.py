@@ -1,0 +1,219 @@
+"""RTDE variable names the simulated controller serves: their types and where their values come from.
+
+Names and types follow Universal Robots' RTDE guide (the table in Universal Robots' C++ client library,
+``src/rtde/data_package.cpp``, and ur_rtde 1.6.5's ``src/robot_state.cpp``) for a PolyScope 5.11
+controller. Variables the simulator has no physics for (currents, torques, forces, temperatures) are
+served with constant plausible values, listed in `CONSTANT_OUTPUTS`.
+
+Outputs read a :class:`Snapshot` of the controller taken once per data package; inputs are applied by
+the RTDE server (``sim.rtde_server``) through the controller's register file and I/O state.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+
+import numpy as np
+
+N_REGISTERS = 48  # int and double registers 0..47 (24..47 from PolyScope 5.3)
+BIT_REGISTERS = range(64, 128)  # general-purpose bit registers (the guide's X in [64..127])
+
+ZERO6 = (0.0,) * 6
+
+#: Outputs without a physics model here: constant values.
+CONSTANT_OUTPUTS: dict[str, tuple[str, object]] = {
+    "target_current": ("VECTOR6D", ZERO6),
+    "target_moment": ("VECTOR6D", ZERO6),
+    "actual_current": ("VECTOR6D", ZERO6),
+    "actual_current_window": ("VECTOR6D", ZERO6),
+    "joint_control_output": ("VECTOR6D", ZERO6),
+    "actual_TCP_force": ("VECTOR6D", ZERO6),
+    "joint_temperatures": ("VECTOR6D", (30.0,) * 6),
+    "actual_momentum": ("DOUBLE", 0.0),
+    "actual_main_voltage": ("DOUBLE", 48.0),
+    "actual_robot_voltage": ("DOUBLE", 48.0),
+    "actual_robot_current": ("DOUBLE", 0.0),
+    "actual_joint_voltage": ("VECTOR6D", (48.0,) * 6),
+    "io_current": ("DOUBLE", 0.0),
+    "euromap67_input_bits": ("UINT32", 0),
+    "euromap67_output_bits": ("UINT32", 0),
+    "euromap67_24V_voltage": ("DOUBLE", 0.0),
+    "euromap67_24V_current": ("DOUBLE", 0.0),
+    "tool_mode": ("UINT32", 0),
+    "tool_analog_input_types": ("UINT32", 0),
+    "tool_analog_input0": ("DOUBLE", 0.0),
+    "tool_analog_input1": ("DOUBLE", 0.0),
+    "tool_output_current": ("DOUBLE", 0.0),
+    "tool_temperature": ("DOUBLE", 30.0),
+    "tcp_force_scalar": ("DOUBLE", 0.0),
+    "tool_output_mode": ("UINT8", 0),
+    "tool_digital_output0_mode": ("UINT8", 1),
+    "tool_digital_output1_mode": ("UINT8", 1),
+    "script_control_line": ("UINT32", 0),
+    "ft_raw_wrench": ("VECTOR6D", ZERO6),
+    "joint_position_deviation_ratio": ("DOUBLE", 0.0),
+    "collision_detection_ratio": ("DOUBLE", 0.0),
+    "time_scale_source": ("INT32", 0),
+}
+
+
+def _vec(a) -> tuple:
+    return tuple(float(x) for x in a)
+
+
+#: Outputs computed from the controller state: name -> (type, getter(snapshot)).
+STATE_OUTPUTS: dict[str, tuple[str, Callable]] = {
+    "timestamp": ("DOUBLE", lambda s: s.core.time),
+    "target_q": ("VECTOR6D", lambda s: _vec(s.motion.target_q)),
+    "target_qd": ("VECTOR6D", lambda s: _vec(s.motion.target_qd)),
+    "target_qdd": ("VECTOR6D", lambda s: _vec(s.motion.target_qdd)),
+    "actual_q": ("VECTOR6D", lambda s: _vec(s.motion.q)),
+    "actual_qd": ("VECTOR6D", lambda s: _vec(s.motion.qd)),
+    "actual_TCP_pose": ("VECTOR6D", lambda s: _vec(s.actual_tcp_pose)),
+    "actual_TCP_speed": ("VECTOR6D", lambda s: _vec(s.actual_tcp_speed)),
+    "target_TCP_pose": ("VECTOR6D", lambda s: _vec(s.target_tcp_pose)),
+    "target_TCP_speed": ("VECTOR6D", lambda s: _vec(s.actual_tcp_speed)),
+    "actual_digital_input_bits": ("UINT64", lambda s: s.io["digital_in"]),
+    "actual_digital_output_bits": ("UINT64", lambda s: s.io["digital_out"]),
+    "actual_execution_time": ("DOUBLE", lambda s: s.core.execution_time_ms),
+    "robot_mode": ("INT32", lambda s: s.core.robot_mode),
+    "joint_mode": ("VECTOR6INT32", lambda s: (s.core.joint_mode,) * 6),
+    "safety_mode": ("INT32", lambda s: s.core.safety_mode),
+    "safety_status": ("INT32", lambda s: s.core.safety_mode),
+    "actual_tool_accelerometer": ("VECTOR3D", lambda s: _vec(s.tool_gravity)),
+    "speed_scaling": ("DOUBLE", lambda s: s.core.speed_scaling),
+    "target_speed_fraction": ("DOUBLE", lambda s: s.io["speed_slider"]),
+    "runtime_state": ("UINT32", lambda s: s.core.runtime_state),
+    "elbow_position": ("VECTOR3D", lambda s: _vec(s.elbow_position)),
+    "elbow_velocity": ("VECTOR3D", lambda s: (0.0, 0.0, 0.0)),
+    "robot_status_bits": ("UINT32", lambda s: s.core.robot_status_bits),
+    "safety_status_bits": ("UINT32", lambda s: s.core.safety_status_bits),
+    "analog_io_types": ("UINT32", lambda s: s.io["analog_io_types"]),
+    "standard_analog_input0": ("DOUBLE", lambda s: s.io["analog_in"][0]),
+    "standard_analog_input1": ("DOUBLE", lambda s: s.io["analog_in"][1]),
+    "standard_analog_output0": ("DOUBLE", lambda s: s.io["analog_out"][0]),
+    "standard_analog_output1": ("DOUBLE", lambda s: s.io["analog_out"][1]),
+    "tool_output_voltage": ("INT32", lambda s: s.io["tool_voltage"]),
+    "payload": ("DOUBLE", lambda s: s.core.payload_mass),
+    "payload_cog": ("VECTOR3D", lambda s: _vec(s.core.payload_cog)),
+    "payload_inertia": ("VECTOR6D", lambda s: _vec(s.core.payload_inertia)),
+    "output_bit_registers0_to_31": ("UINT32", lambda s: s.registers.out_bits & 0xFFFFFFFF),
+    "output_bit_registers32_to_63": ("UINT32", lambda s: (s.registers.out_bits >> 32) & 0xFFFFFFFF),
+    "input_bit_registers0_to_31": ("UINT32", lambda s: s.registers.in_bits & 0xFFFFFFFF),
+    "input_bit_registers32_to_63": ("UINT32", lambda s: (s.registers.in_bits >> 32) & 0xFFFFFFFF),
+}
+
+
+def _register_getters() -> dict[str, tuple[str, Callable]]:
+    out: dict[str, tuple[str, Callable]] = {}
+    for i in range(N_REGISTERS):
+        out[f"output_int_register_{i}"] = ("INT32", lambda s, i=i: s.registers.out_int[i])
+        out[f"output_double_register_{i}"] = ("DOUBLE", lambda s, i=i: s.registers.out_double[i])
+        out[f"input_int_register_{i}"] = ("INT32", lambda s, i=i: s.registers.in_int[i])
+        out[f"input_double_register_{i}"] = ("DOUBLE", lambda s, i=i: s.registers.in_double[i])
+    for i in BIT_REGISTERS:
+        out[f"output_bit_register_{i}"] = ("BOOL", lambda s, i=i: bool(s.registers.out_bits >> i & 1))
+        out[f"input_bit_register_{i}"] = ("BOOL", lambda s, i=i: bool(s.registers.in_bits >> i & 1))
+    return out
+
+
+OUTPUTS: dict[str, tuple[str, Callable]] = {
+    **{name: (t, (lambda s, v=v: v)) for name, (t, v) in CONSTANT_OUTPUTS.items()},
+    **STATE_OUTPUTS,
+    **_register_getters(),
+}
+
+
+def _input_fields() -> dict[str, str]:
+    out = {
+        "speed_slider_mask": "UINT32",
+        "speed_slider_fraction": "DOUBLE",
+        "standard_digital_output_mask": "UINT8",
+        "standard_digital_output": "UINT8",
+        "configurable_digital_output_mask": "UINT8",
+        "configurable_digital_output": "UINT8",
+        "tool_digital_output_mask": "UINT8",
+        "tool_digital_output": "UINT8",
+        "standard_analog_output_mask": "UINT8",
+        "standard_analog_output_type": "UINT8",
+        "standard_analog_output_0": "DOUBLE",
+        "standard_analog_output_1": "DOUBLE",
+        "input_bit_registers0_to_31": "UINT32",
+        "input_bit_registers32_to_63": "UINT32",
+        "external_force_torque": "VECTOR6D",
+    }
+    for i in range(N_REGISTERS):
+        out[f"input_int_register_{i}"] = "INT32"
+        out[f"input_double_register_{i}"] = "DOUBLE"
+    for i in BIT_REGISTERS:
+        out[f"input_bit_register_{i}"] = "BOOL"
+    return out
+
+
+#: Fields a client may write: name -> RTDE type.
+INPUTS: dict[str, str] = _input_fields()
+
+
+def output_type(name: str) -> str:
+    """The RTDE type of output ``name``, or ``NOT_FOUND``."""
+    entry = OUTPUTS.get(name)
+    return entry[0] if entry else "NOT_FOUND"
+
+
+def input_type(name: str) -> str:
+    """The RTDE type of input ``name``, or ``NOT_FOUND``."""
+    return INPUTS.get(name, "NOT_FOUND")
+
+
+class Registers:
+    """The controller's RTDE register file (general-purpose int, double and bit registers).
+
+    ``out_*`` are written by programs (``write_output_*_register``), ``in_*`` by RTDE clients.
+    Plain lists: the controller's tick thread and the RTDE readers each write whole values (atomic in
+    CPython), so no lock is needed for single registers.
+    """
+
+    def __init__(self) -> None:
+        self.out_int = [0] * N_REGISTERS
+        self.out_double = [0.0] * N_REGISTERS
+        self.in_int = [0] * N_REGISTERS
+        self.in_double = [0.0] * N_REGISTERS
+        self.out_bits = 0
+        self.in_bits = 0
+
+
+class Snapshot:
+    """The controller as one data package sees it; derived values computed on first use.
+
+    Parameters
+    ----------
+    core : sim.core.Core
+        The controller (time, modes, motion, TCP offset, payload, register file, I/O).
+    """
+
+    def __init__(self, core) -> None:
+        self.core = core
+        self.motion = core.motion
+        self.registers = core.registers
+        self.io = core.io.snapshot()
+        self._cache: dict[str, np.ndarray] = {}
+
+    @property
+    def actual_tcp_pose(self) -> np.ndarray:
+        return self.core.tcp_pose()
+
+    @property
+    def target_tcp_pose(self) -> np.ndarray:
+        return self.core.tcp_pose()
+
+    @property
+    def actual_tcp_speed(self) -> np.ndarray:
+        return self.core.tcp_speed()
+
+    @property
+    def tool_gravity(self) -> np.ndarray:
+        return self.core.tool_gravity()
+
+    @property
+    def elbow_position(self) -> np.ndarray:
+        return self.core.elbow_position()

@@ -1,0 +1,319 @@
+"""RTDE server (TCP 30004): protocol negotiation, recipes, start/pause, data packages, text messages.
+
+Behaviour as ur_rtde 1.6.5 needs it (src/rtde.cpp): every setup request gets exactly one reply
+package; output recipes answer ``NOT_FOUND`` for unknown names, input recipes ``IN_USE`` for fields
+another connection owns (recipe id 0 then); recipe ids count 1, 2, 3 ... per connection; data
+packages ('U') are accepted before 'S' (RTDEIOInterface never starts). Output packages go out at the
+recipe's frequency, on the controller's absolute 500 Hz schedule, only while the connection is started.
+
+Malformed input, answered as a controller does without disturbing other clients: a package shorter
+than its header or larger than its stream allows closes that connection; an unknown package type, a
+data package for an unknown recipe or one shorter than its recipe gets an error text message ('M')
+and is ignored; a data package longer than its recipe is applied (its recipe's fields) with a warning.
+"""
+
+from __future__ import annotations
+
+import socket
+import struct
+import threading
+
+from sim import rtde_protocol as rp
+from sim.rtde_fields import INPUTS, OUTPUTS, Snapshot, input_type, output_type
+
+CONTROLLER_VERSION = (5, 11, 6, 108949)
+MAX_FREQUENCY = 500.0
+#: Bytes a client may leave unread before the controller drops it (a vanished client).
+MAX_BACKLOG = 1 << 20
+
+
+class Connection:
+    """One RTDE client connection: its recipes, its started flag, its buffered output."""
+
+    def __init__(self, server: RTDEServer, sock: socket.socket, addr) -> None:
+        self.server = server
+        self.sock = sock
+        self.addr = addr
+        self.outputs: list[tuple[rp.Recipe, list, struct.Struct, float]] = []  # recipe, getters, layout, phase
+        self.inputs: dict[int, rp.Recipe] = {}
+        self.next_output_id = 1
+        self.next_input_id = 1
+        self.started = False
+        self.closed = False
+        self._out = bytearray()
+        self._lock = threading.Lock()
+
+    # ---- output ------------------------------------------------------------------------------
+    def write(self, data: bytes) -> None:
+        """Queue ``data`` and send as much as the socket takes without blocking."""
+        with self._lock:
+            if self.closed:
+                return
+            self._out += data
+            self._flush_locked()
+
+    def flush(self) -> None:
+        with self._lock:
+            if self._out and not self.closed:
+                self._flush_locked()
+
+    def _flush_locked(self) -> None:
+        try:
+            while self._out:
+                n = self.sock.send(self._out, socket.MSG_DONTWAIT)
+                del self._out[:n]
+        except (BlockingIOError, InterruptedError):
+            if len(self._out) > MAX_BACKLOG:
+                self._close_locked()
+        except OSError:
+            self._close_locked()
+
+    def close(self) -> None:
+        with self._lock:
+            self._close_locked()
+
+    def _close_locked(self) -> None:
+        if self.closed:
+            return
+        self.closed = True
+        try:
+            self.sock.shutdown(socket.SHUT_RDWR)
+        except OSError:
+            pass
+        self.sock.close()
+
+    # ---- input -------------------------------------------------------------------------------
+    def serve(self) -> None:
+        """Read packages until the client leaves (runs in its own thread)."""
+        buf = bytearray()
+        try:
+            while not self.closed:
+                try:
+                    chunk = self.sock.recv(65536)
+                except OSError:
+                    break
+                if not chunk:
+                    break
+                buf += chunk
+                while len(buf) >= rp.HEADER_SIZE:
+                    size, kind = rp.HEADER.unpack_from(buf)
+                    if size < rp.HEADER_SIZE:
+                        self.write(rp.text_message(f"malformed package: size {size} < header size 3", level=0))
+                        return
+                    if len(buf) < size:
+                        break
+                    payload = bytes(buf[rp.HEADER_SIZE : size])
+                    del buf[:size]
+                    self.handle(kind, payload)
+        finally:
+            self.server.drop(self)
+
+    def handle(self, kind: int, payload: bytes) -> None:
+        """Answer one package."""
+        if kind == rp.REQUEST_PROTOCOL_VERSION:
+            ok = len(payload) == 2 and struct.unpack(">H", payload)[0] in (1, 2)
+            self.write(rp.package(kind, bytes([1 if ok else 0])))
+        elif kind == rp.GET_URCONTROL_VERSION:
+            self.write(rp.package(kind, struct.pack(">IIII", *CONTROLLER_VERSION)))
+        elif kind == rp.SETUP_OUTPUTS:
+            self._setup_outputs(payload)
+        elif kind == rp.SETUP_INPUTS:
+            self._setup_inputs(payload)
+        elif kind == rp.START:
+            self.started = bool(self.outputs)
+            self.write(rp.package(kind, bytes([1 if self.started else 0])))
+        elif kind == rp.PAUSE:
+            self.started = False
+            self.write(rp.package(kind, bytes([1])))
+        elif kind == rp.DATA_PACKAGE:
+            self._data(payload)
+        elif kind == rp.TEXT_MESSAGE:
+            pass  # clients may log to the controller
+        else:
+            self.write(rp.text_message(f"unknown package type {kind}", level=rp.ERROR))
+
+    @staticmethod
+    def _names(text: bytes) -> tuple[str, ...]:
+        return tuple(n.strip() for n in text.decode("ascii", "replace").split(",") if n.strip())
+
+    def _setup_outputs(self, payload: bytes) -> None:
+        if len(payload) < 8:
+            self.write(rp.package(rp.SETUP_OUTPUTS, bytes([0])))
+            return
+        (freq,) = struct.unpack_from(">d", payload)
+        names = self._names(payload[8:])
+        types = tuple(output_type(n) for n in names)
+        ok = bool(names) and all(t != "NOT_FOUND" for t in types) and 0.0 < freq
+        rid = self.next_output_id if ok else 0
+        if ok:
+            self.next_output_id += 1
+            recipe = rp.Recipe(rid, names, types, min(freq, MAX_FREQUENCY))
+            self.outputs.append((recipe, [OUTPUTS[n][1] for n in names], struct.Struct(">B" + recipe.struct.format[1:]),
+                                 0.0))
+        self.write(rp.package(rp.SETUP_OUTPUTS, bytes([rid]) + ",".join(types).encode()))
+
+    def _setup_inputs(self, payload: bytes) -> None:
+        names = self._names(payload)
+        with self.server.owner_lock:
+            types = []
+            for n in names:
+                t = input_type(n)
+                owner = self.server.owners.get(n)
+                if t != "NOT_FOUND" and owner is not None and owner is not self:
+                    t = "IN_USE"
+                types.append(t)
+            ok = bool(names) and all(t in rp.TYPE_CODES for t in types)
+            rid = self.next_input_id if ok else 0
+            if ok:
+                self.next_input_id += 1
+                for n in names:
+                    self.server.owners[n] = self
+                self.inputs[rid] = rp.Recipe(rid, names, tuple(types))
+        self.write(rp.package(rp.SETUP_INPUTS, bytes([rid]) + ",".join(types).encode()))
+
+    def _data(self, payload: bytes) -> None:
+        if not payload:
+            self.write(rp.text_message("data package without recipe id", level=rp.ERROR))
+            return
+        rid = payload[0]
+        recipe = self.inputs.get(rid)
+        if recipe is None:
+            self.write(rp.text_message(f"data package for unknown input recipe id {rid}", level=rp.ERROR))
+            return
+        layout = recipe.struct
+        body = payload[1:]
+        if len(body) < layout.size:
+            self.write(rp.text_message(
+                f"data package for input recipe {rid} has {len(body)} bytes, the recipe needs {layout.size}",
+                level=rp.ERROR))
+            return
+        if len(body) > layout.size:
+            self.write(rp.text_message(
+                f"data package for input recipe {rid} has {len(body)} bytes, the recipe needs {layout.size}; "
+                "extra bytes ignored", level=rp.WARNING))
+        values = rp.unflatten(recipe.types, layout.unpack_from(body))
+        self.server.apply_inputs(dict(zip(recipe.names, values, strict=True)))
+
+
+class RTDEServer:
+    """The RTDE listener of one simulated controller.
+
+    Parameters
+    ----------
+    core : sim.core.Core
+    host : str
+        Address to bind (port 30004).
+    """
+
+    def __init__(self, core, host: str, port: int = 30004) -> None:
+        self.core = core
+        self.sock = socket.create_server((host, port), reuse_port=False)
+        self.conns: list[Connection] = []
+        self.owners: dict[str, Connection] = {}
+        self.owner_lock = threading.Lock()
+        self.ticks = 0
+        self._thread = threading.Thread(target=self._accept, name="rtde-accept", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def _accept(self) -> None:
+        while True:
+            try:
+                sock, addr = self.sock.accept()
+            except OSError:
+                return
+            sock.setsockopt(socket.IPPROTO_TCP, socket.TCP_NODELAY, 1)
+            conn = Connection(self, sock, addr)
+            with self.owner_lock:
+                self.conns.append(conn)
+            threading.Thread(target=conn.serve, name=f"rtde-{addr[1]}", daemon=True).start()
+
+    def drop(self, conn: Connection) -> None:
+        """A connection ended: release its inputs."""
+        conn.close()
+        with self.owner_lock:
+            if conn in self.conns:
+                self.conns.remove(conn)
+            for name in [n for n, c in self.owners.items() if c is conn]:
+                del self.owners[name]
+
+    def close(self) -> None:
+        self.sock.close()
+        for c in list(self.conns):
+            c.close()
+
+    # ---- inputs ------------------------------------------------------------------------------
+    def apply_inputs(self, fields: dict) -> None:
+        """One data package's fields into the controller (registers and I/O), atomically."""
+        core = self.core
+        regs = core.registers
+        io = core.io
+        with core.lock:
+            for name, value in fields.items():
+                core.input_time[name] = core.time
+                if name.startswith("input_int_register_"):
+                    regs.in_int[int(name[19:])] = value
+                elif name.startswith("input_double_register_"):
+                    regs.in_double[int(name[22:])] = value
+                elif name.startswith("input_bit_register_"):
+                    i = int(name[19:])
+                    regs.in_bits = (regs.in_bits & ~(1 << i)) | (int(bool(value)) << i)
+                elif name == "input_bit_registers0_to_31":
+                    regs.in_bits = (regs.in_bits & ~0xFFFFFFFF) | value
+                elif name == "input_bit_registers32_to_63":
+                    regs.in_bits = (regs.in_bits & ~(0xFFFFFFFF << 32)) | (value << 32)
+            try:
+                self._apply_io(fields, io)
+            except ValueError as exc:
+                core.message(f"RTDE input rejected: {exc}", source="RTDE", level=1)
+
+    @staticmethod
+    def _apply_io(f: dict, io) -> None:
+        if "standard_digital_output_mask" in f:
+            io.set_digital_out(f["standard_digital_output_mask"], f.get("standard_digital_output", 0))
+        if "configurable_digital_output_mask" in f:
+            io.set_digital_out(f["configurable_digital_output_mask"] << 8, f.get("configurable_digital_output", 0) << 8)
+        if "tool_digital_output_mask" in f:
+            io.set_digital_out((f["tool_digital_output_mask"] & 3) << 16, (f.get("tool_digital_output", 0) & 3) << 16)
+        if f.get("speed_slider_mask", 0) & 1:
+            io.set_speed_slider(min(max(f.get("speed_slider_fraction", 1.0), 0.0), 1.0))
+        mask = f.get("standard_analog_output_mask", 0)
+        for i in (0, 1):
+            if mask >> i & 1:
+                voltage = bool(f.get("standard_analog_output_type", 0) >> i & 1)
+                io.set_analog_domain(True, i, voltage)
+                ratio = min(max(f.get(f"standard_analog_output_{i}", 0.0), 0.0), 1.0)
+                io.set_analog_out(i, 10.0 * ratio if voltage else 0.004 + 0.016 * ratio)
+
+    # ---- outputs (tick thread) ---------------------------------------------------------------
+    def publish(self, ticks: int = 1) -> int:
+        """Send the data packages due after ``ticks`` more 500 Hz wall-clock ticks; returns how many."""
+        self.ticks += ticks
+        core = self.core
+        conns = self.conns
+        msgs = core.outbox
+        if msgs:
+            core.outbox = []
+        sent = 0
+        snap = None
+        for conn in list(conns):
+            if not conn.started or conn.closed:
+                continue
+            for text, source, level in msgs:
+                conn.write(rp.text_message(text, source, level))
+            for k, (recipe, getters, layout, phase) in enumerate(conn.outputs):
+                phase += ticks * recipe.frequency / MAX_FREQUENCY
+                if phase >= 1.0 - 1e-9:
+                    phase = min(phase - 1.0, 1.0)
+                    if snap is None:
+                        snap = Snapshot(core)
+                    vals = rp.flatten(recipe.types, [g(snap) for g in getters])
+                    body = layout.pack(recipe.recipe_id, *vals)
+                    conn.write(rp.package(rp.DATA_PACKAGE, body))
+                    sent += 1
+                conn.outputs[k] = (recipe, getters, layout, phase)
+        return sent
+
+
+__all__ = ["RTDEServer", "Connection", "INPUTS", "CONTROLLER_VERSION"]

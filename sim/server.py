@@ -1,0 +1,181 @@
+"""The simulated controller's process: every listener and the 500 Hz control loop.
+
+Run by :class:`sim.SimController` as ``python -m sim.server --host H --model M ...`` in a child
+process of its own (ur_rtde's constructors hold the GIL while they connect, so a server inside the
+client's process would deadlock). The child
+
+* binds RTDE 30004, dashboard 29999, script ports 30001-30003 and (if asked) Modbus on ``host`` only,
+  then prints one line ``READY {json}`` on stdout;
+* runs the control loop on an absolute schedule: tick k is due at ``start + k * 2 ms`` of wall time
+  (no drift); each tick advances ``speed`` control periods of simulated time (fractions carried over)
+  and sends the data packages due;
+* reads JSON commands, one per line, on stdin (``{"cmd": "state"}``, ``{"cmd": "set_digital_in",
+  "mask": m, "value": v}``, ``{"cmd": "stop"}``) and answers each with one JSON line on stdout;
+* exits when stdin closes (the parent is gone) or on SIGTERM, writing its recording first.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import signal
+import sys
+import threading
+import time
+
+from sim.core import Core
+from sim.dashboard import DashboardServer
+from sim.hosts import check_host
+from sim.motion import DT
+from sim.rtde_server import RTDEServer
+from sim.script_server import ScriptServer
+
+
+def set_realtime_priority(priority: int = 10) -> bool:
+    """Run the calling thread under SCHED_FIFO if the system allows it (a real controller's loop is
+    real-time); the loop sleeps most of each period, and the kernel's RT throttling bounds it anyway."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        return True
+    except (OSError, AttributeError):
+        return False
+
+
+class Loop:
+    """The control loop thread: ticks the core on an absolute wall-clock schedule."""
+
+    def __init__(self, core: Core, rtde: RTDEServer, speed: float) -> None:
+        self.core = core
+        self.rtde = rtde
+        self.speed = speed
+        self.stop = threading.Event()
+        self.late = 0  # ticks skipped because the loop fell more than one period behind
+        self.thread = threading.Thread(target=self.run, name="control-loop", daemon=True)
+
+    def run(self) -> None:
+        core, rtde = self.core, self.rtde
+        set_realtime_priority()
+        period = DT
+        t0 = time.perf_counter()
+        k = 0  # wall-clock ticks done
+        owed = 0.0
+        while not self.stop.is_set():
+            due = t0 + (k + 1) * period
+            now = time.perf_counter()
+            if due > now:
+                time.sleep(due - now)
+                now = time.perf_counter()
+            behind = int((now - t0) / period) - k  # ticks due by now (>= 1)
+            if behind > 1:
+                # the loop was held up: simulated time still follows the wall clock (the missed
+                # periods are integrated), their data packages are lost
+                self.late += behind - 1
+                core.late_ticks += behind - 1
+            k += max(behind, 1)
+            owed += self.speed * max(behind, 1)
+            n = int(owed + 1e-9)
+            owed -= n
+            start = time.perf_counter()
+            with core.lock:
+                for _ in range(n):
+                    core.tick()
+                core.packages_sent += rtde.publish(max(behind, 1))
+            core.execution_time_ms = (time.perf_counter() - start) * 1e3
+            for conn in list(rtde.conns):
+                conn.flush()
+
+
+def _commands(core: Core, io, stop: threading.Event) -> None:
+    """JSON commands from the parent on stdin; EOF means the parent is gone."""
+    for line in sys.stdin:
+        try:
+            req = json.loads(line)
+            cmd = req.get("cmd")
+            if cmd == "state":
+                with core.lock:
+                    reply = core.state()
+            elif cmd == "set_digital_in":
+                io.set_digital_in(int(req["mask"]), int(req["value"]))
+                reply = {"ok": True}
+            elif cmd == "stop":
+                reply = {"ok": True}
+                print(json.dumps(reply), flush=True)
+                break
+            else:
+                reply = {"error": f"unknown command {cmd!r}"}
+        except (ValueError, KeyError, TypeError) as exc:
+            reply = {"error": str(exc)}
+        print(json.dumps(reply), flush=True)
+    stop.set()
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(prog="python -m sim.server", description=__doc__.split("\n")[0])
+    ap.add_argument("--host", default="127.0.0.2")
+    ap.add_argument("--model", default="ur5e")
+    ap.add_argument("--modbus-port", type=int, default=None)
+    ap.add_argument("--speed", type=float, default=1.0)
+    ap.add_argument("--record", default=None)
+    ap.add_argument("--allow-remote", action="store_true")
+    args = ap.parse_args(argv)
+    host = check_host(args.host, args.allow_remote)
+    if not args.speed > 0:
+        raise SystemExit(f"--speed must be > 0, got {args.speed}")
+    sys.setswitchinterval(0.0005)  # bound the GIL hand-over latency seen by the control loop
+
+    from sim.io_state import IOState
+
+    io = IOState()
+    recorder = None
+    if args.record:
+        from sim.recording import Recorder
+
+        recorder = Recorder(args.record)
+    core = Core(args.model, io, recorder)
+    rtde = RTDEServer(core, host)
+    dash = DashboardServer(core, host)
+    script = ScriptServer(core, host)
+    modbus = None
+    if args.modbus_port is not None:
+        try:
+            from sim.modbus import ModbusServerThread
+        except ImportError:
+            ModbusServerThread = None
+        if ModbusServerThread is not None:
+            def pose():
+                with core.lock:
+                    return core.tcp_pose().tolist()
+
+            modbus = ModbusServerThread(io, host, args.modbus_port, tcp_pose=pose, allow_remote=args.allow_remote)
+            modbus.start()
+            modbus.wait_ready(10.0)
+    loop = Loop(core, rtde, args.speed)
+    stop = threading.Event()
+    signal.signal(signal.SIGTERM, lambda *_: stop.set())
+    signal.signal(signal.SIGINT, lambda *_: stop.set())
+    for srv in (rtde, dash, script):
+        srv.start()
+    loop.thread.start()
+    threading.Thread(target=_commands, args=(core, io, stop), name="commands", daemon=True).start()
+    ports = {"rtde": 30004, "dashboard": 29999, "script": [30001, 30002, 30003],
+             "modbus": modbus.port if modbus else None}
+    print("READY " + json.dumps({"host": host, "pid": os.getpid(), "ports": ports}), flush=True)
+    try:
+        while not stop.wait(0.2):
+            pass
+    finally:
+        loop.stop.set()
+        loop.thread.join(2.0)
+        for srv in (rtde, dash, script):
+            srv.close()
+        if modbus is not None:
+            modbus.stop()
+        if recorder is not None:
+            with core.lock:
+                recorder.save()
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
