@@ -1,10 +1,12 @@
-"""Benchmark: whole real CAM files planned with ``planner.cam.plan_cam_job`` (issue 6).
+"""Benchmark: whole real CAM files planned with ``planner.plan`` (the CAM polyline model; issues 6 and 11).
 
 For each file of ``shared/data`` (next to the repository; a missing file is skipped with a message):
 parse time, passes, corners found, planning time, largest deviation of the planned path from the CAM
 polyline (target <= 0.01 mm), largest tool-axis error at the CAM points (target < 0.05 deg), total
 tool spin about the axis against slerping the CAM orientations (tool axis, x along the direction of
-travel) point to point, and the time to produce the 500 Hz pose stream of the whole job.
+travel) point to point, and the time to produce the 500 Hz trajectory of the whole job (its chunks, no joints).
+The settings are the defaults (path "auto" = "cam" for these files) except the feed where a file gives none:
+10 mm/s, the former CAM default (PlanSettings' default is 50 mm/s), so the durations compare with earlier runs.
 
 Baselines measured in the same run, on the same passes:
 - "through pts": a PH quintic spline forced through the CAM points with the tangents of the C2
@@ -31,7 +33,7 @@ sys.path.insert(0, str(Path(__file__).resolve().parent))
 
 from _common import print_table  # noqa: E402
 
-from planner.cam import plan_cam_job  # noqa: E402
+from planner import PlanSettings, plan  # noqa: E402
 from planner.cam.axes import arc_departure  # noqa: E402
 from planner.cam.fidelity import span_deviation  # noqa: E402
 from planner.curves import fit_ph_spline  # noqa: E402
@@ -43,6 +45,8 @@ FILES = [
     ("nx2022_haas_umc750_5axis_gcode.txt", {"machine": "haas-umc-750"}),
     ("solidworks_cam_apt_boss_3plus2.apt", {}),
 ]
+#: The defaults, with the former CAM default feed (10 mm/s) where a file gives none.
+SETTINGS = PlanSettings(feed=0.01)
 
 
 def through_points_deviation(passes) -> float:
@@ -86,18 +90,18 @@ def main() -> None:
             tp = read_toolpath(path, **options)
             parse = time.perf_counter() - tic
         tic = time.perf_counter()
-        job = plan_cam_job(tp)
-        plan = time.perf_counter() - tic
+        job = plan(tp, SETTINGS)
+        plan_s = time.perf_counter() - tic
         tic = time.perf_counter()
         n = 0
-        for chunk in job.iter_stream(500.0):
+        for chunk in job.trajectory(500.0).chunks():
             n += chunk.times.size
         stream = time.perf_counter() - tic
         base_dev = through_points_deviation(job.segmentation.passes)
         base_axis = c2_axis_departure(job.moves)
         s = job.summary()
         rows_a.append([name, len(tp), f"{parse:.2f}", s["passes"], s["corners"], s["rapids"], s["reorientations"],
-                       s["skipped"], f"{plan:.2f}", f"{s['duration_s']:.0f}"])
+                       s["skipped"], f"{plan_s:.2f}", f"{s['duration_s']:.0f}"])
         rows_b.append([name, f"{s['max_deviation_mm']:.5f}", f"{1e3 * base_dev:.4f}", s["knots_added"],
                        f"{s['max_axis_error_deg']:.1e}", f"{s['max_axis_departure_deg']:.3f}", f"{base_axis:.2f}",
                        f"{s['spin_deg']:.3g}", f"{s['slerp_spin_deg']:.4g}"])
