@@ -118,8 +118,9 @@ class Trajectory:
 
     @property
     def duration(self) -> float:
-        """Total time, s."""
-        return self.job.duration
+        """Time of the last sample, s: (n_samples - 1) / rate. Each move is rounded up to the sample grid, so
+        this exceeds the job's planned motion time (``job.duration``) by less than one period per move."""
+        return (self.n_samples - 1) / self.rate
 
     def __len__(self) -> int:
         return self.n_samples
@@ -146,8 +147,8 @@ class Trajectory:
         return _counted(chunks, self.n_samples, progress)
 
     def collect(self, *, joints: bool | None = None, max_samples: int = 20_000_000) -> Chunk:
-        """The whole trajectory as one :class:`Chunk` (move, kind, pass_index of the first move; per-sample
-        ``move`` and ``pass`` in :meth:`sample_moves`). PlannerError beyond ``max_samples`` samples."""
+        """The whole trajectory as one :class:`Chunk` (its move, kind and pass_index are the first move's: read
+        :meth:`chunks` for them per move). PlannerError beyond ``max_samples`` samples."""
         n = self.n_samples
         if n > max_samples:
             raise PlannerError(f"the trajectory is {n} poses at {self.rate:g} Hz (more than max_samples = "
@@ -199,7 +200,7 @@ def _with_io(job, chunks):
     for c in chunks:
         n = c.times.size
         on = bit if c.kind == "cut" else 0
-        if on and c.times.size and c is not None:
+        if on and n:
             io = np.full(n, on, dtype=np.int64)
             io[-1] = 0  # the last sample of a cut is the first of the next move: the output is off there
             yield replace(c, io=io)

@@ -47,6 +47,8 @@ def test_csv_and_json_hold_the_trajectory_to_their_precision(job, tmp_path):
     assert names == ["t", "x", "y", "z", "rx", "ry", "rz", "move", "pass", "line", *[f"q{i}" for i in range(6)], "io"]
     assert header["settings"]["robot"] == "ur5e" and header["settings"]["path"] == "cam"
     assert header["samples"] == tr.n_samples and header["rate_hz"] == 125.0 and header["input"] == "head.cls"
+    assert header["duration_s"] == rows[-1, 0] == tr.duration  # the header and the stream agree exactly
+    assert 0.0 <= header["duration_s"] - header["motion_time_s"] < len(job.moves) / 125.0
     assert np.abs(rows[:, 0] - whole.times).max() <= 5e-7
     assert np.abs(rows[:, 1:7] - whole.poses).max() <= 5e-9 * max(1.0, np.abs(whole.poses).max())
     assert np.abs(rows[:, 10:16] - whole.joints).max() <= 5e-8

@@ -30,7 +30,7 @@ _EXCURSION_SAMPLES = 65
 
 @dataclass(frozen=True)
 class Group:
-    """The moves of a job between two runs, and the run after them (indices into ``CamJob.moves``).
+    """The moves of a job between two runs, and the run after them (indices into ``PlannedJob.moves``).
 
     Attributes
     ----------

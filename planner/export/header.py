@@ -54,7 +54,8 @@ def trajectory_parameters(trajectory, parameters: Mapping | None = None, max_pro
         "reorientations": job.count("reorientation"),
         "skipped": job.count("skipped"),
         "cut_length_m": float(sum(p.length for p in job.passes)),
-        "duration_s": job.duration,
+        "duration_s": trajectory.duration,
+        "motion_time_s": job.duration,
         "max_deviation_m": job.max_deviation,
         "rate_hz": float(trajectory.rate),
         "samples": trajectory.n_samples,
@@ -84,9 +85,3 @@ def header_lines(params: Mapping) -> list[str]:
         text = json.dumps(v, allow_nan=True) if not (isinstance(v, float) and math.isnan(v)) else "NaN"
         lines.append(f"{k}: {text}")
     return lines
-
-
-def parse_header_line(line: str) -> tuple[str, object]:
-    """Inverse of one :func:`header_lines` line."""
-    key, _, text = line.partition(": ")
-    return key, json.loads(text)

@@ -1,8 +1,7 @@
-"""A whole CAM job as one compact URScript program: ``movep`` along the passes, ``movel`` between them.
+"""A planned job as one compact URScript program: ``movep`` along the passes, ``movel`` between them.
 
-Millions of inline ``servoj`` targets are no program for a job of hours (the single-pass
-:func:`~planner.export.urscript.servoj_program` is). The whole-job program is one statement per
-``movep`` target, rapid and turn:
+Millions of inline ``servoj`` targets are no program for a job of hours (streaming them is the driver's
+work). The program is one statement per ``movep`` target, rapid and turn:
 
 - ``movej`` to the job's first pose, given as joint positions on the inverse-kinematics branch the
   job's reachability check followed: the Cartesian moves after it stay on that branch;
@@ -22,7 +21,8 @@ Millions of inline ``servoj`` targets are no program for a job of hours (the sin
   (movel's v is a tool speed in m/s, which a pure rotation does not have);
 - comments: what generated the program and the job's parameters, each pass, rapid and turn with
   its source lines, and the file's operation, tool-change, spindle, coolant, INSERT and machine
-  records where they occur. A CAM job carries no tool I/O, so the program switches no outputs.
+  records where they occur. With ``cut_output`` set, that output is switched on before and off after
+  every pass.
 
 movej/movel/movep semantics: UR Script Manual (e-Series); shared/UR-PROTOCOLS.md does not cover them.
 """
@@ -57,7 +57,7 @@ class ProgramMove:
     Attributes
     ----------
     move : int
-        Index of the move in ``CamJob.moves``.
+        Index of the move in ``PlannedJob.moves``.
     kind : str
         "cut", "rapid", "reorientation" or "reconfiguration".
     pass_index : int
@@ -109,7 +109,7 @@ def plan_job_program(job, *, tolerance: float | None = None, angle_tolerance: fl
 
     Parameters
     ----------
-    job : CamJob
+    job : PlannedJob
     tolerance : float, optional
         Largest distance of the programmed motion from the planned path, m (default: the job's
         tolerance, so the program stays within twice it of the CAM polyline).
@@ -191,7 +191,7 @@ def job_program(
 
     Parameters
     ----------
-    job : CamJob
+    job : PlannedJob
         Planned with a robot, every move reachable (``job.problems`` empty).
     moves : tuple of ProgramMove, optional
         From :func:`plan_job_program` (default: planned here with ``tolerance`` and ``angle_tolerance``).
@@ -237,6 +237,8 @@ def job_program(
         "movej_reconfigurations": sum(1 for m in moves if m.kind == "reconfiguration"),
         "start_joints_rad": [float(x) for x in q0],
     }
+    if parameters is not None and "program" in parameters:
+        raise ExportError("parameters: key 'program' is reserved (set by the exporter)")
     params = trajectory_parameters(job.trajectory(), {**dict(parameters or {}), "program": stats})
     tcp_pose = transform_to_pose(as_transform(s.tcp, "tcp"))
     lines = [f"def {name}():"]
