@@ -308,7 +308,9 @@ class _Checker:
         poses, t, arc, span, x = self.points(k)
         q = inverse_path(s.robot, poses, q_start, tcp=s.tcp, allow_unreachable=True)
         rep = check_reachability(s.robot, q, t, arc_length=arc, span=span)
-        profile, windows, slowed = None, (), ()
+        profile = None
+        windows: tuple = ()
+        slowed: tuple[str, ...] = ()
         if rep.n_speed and np.isfinite(q).all():
             low = _lower_feed(s, m, q, x, t, self.Tb)
             if low.windows:
@@ -320,6 +322,7 @@ class _Checker:
         if rep.ok:
             return MoveCheck(k, q, t, "", profile, windows, slowed)
         v = rep.first
+        assert v is not None  # a report that is not ok names its first problem
         where = _where(m, _line(m, v))
         what = v.describe().split(": ", 1)[-1]
         cause, text = _diagnosis(q, v.index) if v.kind == "speed" else ("", "")
@@ -383,9 +386,10 @@ def _choose(checker: _Checker, g, current: list[MoveCheck], q_before, at_start: 
     if at_start:
         s = 0
     else:
-        s = safe_point(moves, g, gap_fail[0] if gap_fail else len(g.gap))
-        if s is None:
+        safe = safe_point(moves, g, gap_fail[0] if gap_fail else len(g.gap))
+        if safe is None:
             return None, 0
+        s = safe
     before = [c for c in current if c.k in g.gap[:s]]
     q_from = None if at_start else _end(before, q_before)
     if not at_start and q_from is None:
