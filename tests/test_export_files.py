@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import json
+import os
 
 import numpy as np
 import pytest
@@ -78,6 +79,10 @@ def test_a_failed_export_leaves_no_file(job, tmp_path):
         write_json(job.trajectory(), target, progress=fail)
     assert target.read_text() == "previous contents\n"  # untouched
     assert [p.name for p in tmp_path.iterdir()] == ["out.json"]  # no temporary file left behind
+    write_json(job.trajectory(), target)
+    mask = os.umask(0)
+    os.umask(mask)
+    assert target.stat().st_mode & 0o777 == 0o666 & ~mask  # an ordinary file, not the temporary's 0600
 
 
 def test_saved_job_loads_back_to_identical_exports(job, tmp_path):

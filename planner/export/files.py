@@ -28,6 +28,13 @@ def check_output(target, *inputs) -> Path:
     return out
 
 
+def _umask_mode() -> int:
+    """The mode a new file gets from the process umask (mkstemp makes 0600 files)."""
+    mask = os.umask(0)
+    os.umask(mask)
+    return 0o666 & ~mask
+
+
 @contextlib.contextmanager
 def atomic_text(target) -> Iterator[IO[str]]:
     """A text file (UTF-8, "\\n" newlines) that appears at ``target`` only when the block completes."""
@@ -37,6 +44,7 @@ def atomic_text(target) -> Iterator[IO[str]]:
     try:
         with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
             yield f
+        os.chmod(tmp, _umask_mode())
         os.replace(tmp, out)
     except BaseException:
         with contextlib.suppress(OSError):
@@ -52,6 +60,7 @@ def write_bytes_atomic(target, data: bytes) -> None:
     try:
         with os.fdopen(fd, "wb") as f:
             f.write(data)
+        os.chmod(tmp, _umask_mode())
         os.replace(tmp, out)
     except BaseException:
         with contextlib.suppress(OSError):
