@@ -39,6 +39,7 @@ and hand it back to the block solver for the few candidates that turn next to th
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 
 import numpy as np
@@ -157,10 +158,11 @@ class _Branches:
 def _solve(m: URModel, T: np.ndarray, q6_ref: np.ndarray) -> _Branches:
     """All branches for flange transforms T (n, 4, 4); q6_ref (n,) used at wrist singularities."""
     n = len(T)
-    q = np.empty((6, 2, 2, 2, n))
-    valid = np.empty((2, 2, 2, n), dtype=bool)
-    singular = np.empty((2, 2, 2, n), dtype=bool)
-    clipped = np.empty((2, 2, 2, n), dtype=bool)
+    # declared as plain arrays: reshaped to (6, 8, n) and (8, n) below
+    q: np.ndarray = np.empty((6, 2, 2, 2, n))
+    valid: np.ndarray = np.empty((2, 2, 2, n), dtype=bool)
+    singular: np.ndarray = np.empty((2, 2, 2, n), dtype=bool)
+    clipped: np.ndarray = np.empty((2, 2, 2, n), dtype=bool)
     for a in range(0, n, _BLOCK):
         b = min(a + _BLOCK, n)
         _solve_block(m, T[a:b], q6_ref[a:b], q[..., a:b], valid[..., a:b], singular[..., a:b], clipped[..., a:b])
@@ -387,13 +389,14 @@ class _Limits:
             (j, q_near[j], wrap_1(q_near[j]), self.lower[j], self.upper[j], self.multiturn[j]) for j in _JOINT_ORDER
         ]
         first = sols[0] if sols[0] is not None else next((q for q in sols[:4] if q is not None), None)
-        order = range(8)
+        order: Sequence[int] = range(8)
         if first is not None and any(q is not None for q in sols[4:]):
             other = next(q for q in sols[4:] if q is not None)
             n1 = joints[0][2]
             if abs(wrap_1(other[0] - n1)) < abs(wrap_1(first[0] - n1)):
                 order = (4, 5, 6, 7, 0, 1, 2, 3)
-        best, best_d = None, math.inf
+        best: tuple[int, list[float]] | None = None
+        best_d = math.inf
         for b in order:
             q = sols[b]
             if q is None:
@@ -417,7 +420,7 @@ class _Limits:
                     break
                 dv = v - n
                 d2 += dv * dv
-                if d2 > best_d or (d2 == best_d and b > best[0]):
+                if d2 > best_d or (best is not None and d2 == best_d and b > best[0]):
                     break
                 cand[j] = v
             else:
@@ -687,7 +690,7 @@ def _track(m: URModel, sol: _Branches, q_start: np.ndarray | None) -> np.ndarray
     Q, V = sol.q, sol.valid
     multiturn = m.multiturn
     nxt, dist = _next_branch(Q, V, multiturn)
-    runs = _runs(V.any(axis=0))
+    runs = _runs(np.asarray(V.any(axis=0)))
     first = runs[0][0]
     if q_start is not None:
         starts = np.array([_nearest(Q[:, :, first].T, V[:, first], q_start, multiturn)])
