@@ -191,10 +191,8 @@ def cmd_plan(args: argparse.Namespace) -> None:
         bar.close()
     for line in job.describe():
         print(line)
-    for w in job.warnings[:10]:
-        print(f"  warning   {w}")
-    if len(job.warnings) > 10:
-        print(f"  warning   ... {len(job.warnings) - 10} more")
+    for line in warning_lines(job.warnings):
+        print(line)
     if args.plot:  # first: it shows where the robot has problems when the program is refused
         from planner.plot import plot_job
 
@@ -207,6 +205,17 @@ def cmd_plan(args: argparse.Namespace) -> None:
             print(f"  wrote     {out} ({export(job, out, {'input': path_in.name}, bar)})")
         finally:
             bar.close()
+
+
+def warning_lines(warnings: tuple, limit: int = 10) -> list[str]:
+    """One line per distinct warning (in order of first occurrence, with a count when it repeats)."""
+    counts: dict[str, int] = {}
+    for w in warnings:
+        counts[w] = counts.get(w, 0) + 1
+    out = [f"  warning   {w}" + (f" ({n} times)" if n > 1 else "") for w, n in list(counts.items())[:limit]]
+    if len(counts) > limit:
+        out.append(f"  warning   ... {len(counts) - limit} more kinds of warning")
+    return out
 
 
 def export(job, out: Path, parameters: dict, progress=None) -> str:

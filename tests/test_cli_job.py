@@ -141,3 +141,13 @@ def test_cli_plans_each_shared_cam_file(name, extra, capsys):
     assert re.search(r"-> \d+ passes", out)
     dev = float(re.search(r"largest deviation from the CAM polyline ([0-9.]+) mm", out).group(1))
     assert dev <= 0.01
+
+
+def test_unplaced_part_gets_a_hint_and_repeated_warnings_are_grouped(capsys, tmp_path):
+    from planner.cli import warning_lines
+
+    assert main(["plan", str(example_path(EXAMPLE_CLS)), "--robot", "ur5e"]) == 0
+    out = capsys.readouterr().out
+    assert "moves with problems" in out and "hint      no part frame given" in out
+    lines = warning_lines(("a.apt line 3: x", "a.apt line 3: x", "b"))
+    assert lines == ["  warning   a.apt line 3: x (2 times)", "  warning   b"]
