@@ -396,9 +396,9 @@ class PlannedJob:
                 lines += [f"    {p}" for p in self.problems[:max_lines]]
                 if len(self.problems) > max_lines:
                     lines.append(f"    ... {len(self.problems) - max_lines} more")
-                if self.problems and self.settings.part_frame is None:
-                    lines.append("  hint      no part frame given: the part's origin is the robot's base; place the part "
-                                 "with part_frame (--part-frame x,y,z,rx,ry,rz in m, rad)")
+                if self.settings.part_frame is None:
+                    lines.append("  hint      no part frame given: the part's origin is the robot's base; place "
+                                 "the part with part_frame (--part-frame x,y,z,rx,ry,rz in m, rad)")
         return lines
 
     # -- trajectory, save and load ----------------------------------------------------------------
