@@ -152,7 +152,7 @@ class ControlScript:
     def stop_async_move(self) -> None:
         if self.move_thread:
             self.move_thread = False
-            self.motion.halt()
+            self.motion.abandon()
             self.write_async_progress(-1)
 
     def _start_move(self, kind: str, target: np.ndarray, v: float, a: float, asynchronous: bool) -> None:
@@ -221,7 +221,9 @@ class ControlScript:
             self.core.runtime_error(str(exc))
             return False
         if cmd == STOP_SCRIPT or self.core.program is not self:
-            return False  # stopped, or halted by a protective stop / runtime error: no "done"
+            return False  # stop script, or halted by a runtime error
+        if self.core.safety_mode != 1:
+            return True  # a protective stop: no "done"; the controller ends the program shortly
         if self.blocked is None and cmd not in REALTIME:
             self.signal_done()
         return True

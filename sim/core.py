@@ -31,6 +31,8 @@ RUNTIME_STOPPED, RUNTIME_PLAYING, RUNTIME_PAUSED = 1, 2, 4
 JOINT_POWER_OFF, JOINT_RUNNING, JOINT_IDLE = 239, 253, 255
 #: Seconds (simulated) after a protective stop before it may be unlocked, as on the controller.
 UNLOCK_DELAY = 5.0
+#: Simulated seconds between a protective stop (safety bits set, arm halted) and the program's end.
+PROGRAM_STOP_DELAY = 0.1
 MODE_NAMES = {3: "POWER_OFF", 5: "IDLE", 7: "RUNNING"}
 SAFETY_NAMES = {1: "NORMAL", 3: "PROTECTIVE_STOP"}
 RUNTIME_NAMES = {1: "STOPPED", 2: "PLAYING", 4: "PAUSED"}
@@ -78,6 +80,7 @@ class Core:
         self._tcp_cache: tuple[int, np.ndarray, np.ndarray] | None = None
         self._prev_T: np.ndarray | None = None
         self._speed = np.zeros(6)
+        self._program_stop_at: float | None = None
 
     # ---- reported state ----------------------------------------------------------------------
     @property
@@ -147,7 +150,8 @@ class Core:
             self.safety_mode = SAFETY_PROTECTIVE_STOP
             self.protective_stop_time = self.time
             self.message(f"Protective stop: {reason}", source="Safety", level=0)
-        self._end_program("program stopped by the protective stop")
+        # the safety system stops the arm at once; the program is stopped a few periods later
+        self._program_stop_at = self.time + PROGRAM_STOP_DELAY
 
     def unlock_protective_stop(self) -> str | None:
         """Leave the protective stop; None on success, else the controller's refusal text."""
@@ -172,6 +176,7 @@ class Core:
 
     # ---- programs ----------------------------------------------------------------------------
     def _end_program(self, why: str) -> None:
+        self._program_stop_at = None
         if self.program is not None or self.runtime_state != RUNTIME_STOPPED:
             self.program = None
             self.runtime_state = RUNTIME_STOPPED
@@ -232,7 +237,10 @@ class Core:
     # ---- the control period ------------------------------------------------------------------
     def tick(self) -> None:
         """Advance one control period of simulated time (caller holds :attr:`lock`)."""
-        if self.runtime_state == RUNTIME_PLAYING and self.program is not None:
+        if self._program_stop_at is not None and self.time >= self._program_stop_at - 1e-9:
+            self._program_stop_at = None
+            self._end_program("program stopped by the protective stop")
+        if self.safety_mode == SAFETY_NORMAL and self.runtime_state == RUNTIME_PLAYING and self.program is not None:
             self.program.step()
             if self.program is not None and not self.program.keep_running:
                 self.message("RTDE Control Script Terminated", source="rtde_control", level=3)

@@ -240,6 +240,11 @@ class MotionModel:
         self.qd[:] = 0.0
         self.qdd[:] = 0.0
 
+    def abandon(self) -> None:
+        """Drop the current trajectory (a killed move thread) keeping the joint speeds for a stop."""
+        self.mode = "idle"
+        self.traj = None
+
     def _check_q(self, q: np.ndarray, what: str) -> None:
         if not np.isfinite(q).all():
             raise MotionError(f"{what}: joint target is not finite")

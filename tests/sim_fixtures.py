@@ -1,30 +1,54 @@
 """Fixtures that start simulated UR controllers (sim.SimController) for tests, one address each.
 
-Every controller gets its own loopback address (the UR ports are fixed): 127.0.<100 + xdist worker>.<n>,
-so tests run in parallel under pytest-xdist. Use ``make_sim(**kwargs)``; everything started is stopped
+Every controller gets its own loopback address (the UR ports are fixed), a random free one in
+127.100-250.x.x, so tests run in parallel under pytest-xdist and beside other sessions. Use ``make_sim(**kwargs)``; everything started is stopped
 after the test, pass or fail.
 """
 
 from __future__ import annotations
 
-import itertools
 import os
+import random
+import socket
+import time
 
 import pytest
 
-from sim import SimController
+from sim import SimController, SimError
 
-_counter = itertools.count(2)
+_rng = random.Random(os.getpid() ^ int(time.time() * 1e6))
+_PORTS = (30004, 29999, 30001, 30002, 30003)
+
+
+def _free(host: str) -> bool:
+    for port in _PORTS:
+        with socket.socket() as s:
+            try:
+                s.bind((host, port))
+            except OSError:
+                return False
+    return True
 
 
 def next_host() -> str:
-    """A loopback address no other simulator of this test session uses."""
-    worker = os.environ.get("PYTEST_XDIST_WORKER", "gw0")
-    idx = int(worker[2:]) if worker.startswith("gw") and worker[2:].isdigit() else 0
-    n = next(_counter)
-    if n > 254:
-        raise RuntimeError("more than 253 simulated controllers in one test worker")
-    return f"127.0.{100 + idx}.{n}"
+    """A loopback address on which nothing serves the UR ports (random: sessions run side by side)."""
+    for _ in range(200):
+        host = f"127.{_rng.randint(100, 250)}.{_rng.randint(0, 255)}.{_rng.randint(2, 254)}"
+        if _free(host):
+            return host
+    raise RuntimeError("no free loopback address for a simulated controller")
+
+
+def start_sim(**kwargs) -> SimController:
+    """A started SimController on a free address (retried if another session took it meanwhile)."""
+    kwargs.setdefault("modbus_port", None)
+    for attempt in range(3):
+        try:
+            return SimController(next_host(), **kwargs).start()
+        except SimError as exc:
+            if "Address already in use" not in str(exc) or attempt == 2:
+                raise
+    raise AssertionError("unreachable")
 
 
 @pytest.fixture
@@ -33,8 +57,7 @@ def make_sim():
     sims: list[SimController] = []
 
     def make(**kwargs) -> SimController:
-        kwargs.setdefault("modbus_port", None)
-        sim = SimController(next_host(), **kwargs).start()
+        sim = start_sim(**kwargs)
         sims.append(sim)
         return sim
 
@@ -46,13 +69,12 @@ def make_sim():
 @pytest.fixture(scope="module")
 def shared_sim():
     """One controller for a module's tests that leave it as they found it."""
-    sim = SimController(next_host(), modbus_port=None).start()
+    sim = start_sim()
     yield sim
     sim.stop()
 
 
 # ---- a raw RTDE client, for packages the real clients never send -------------------------------
-import socket  # noqa: E402
 import struct  # noqa: E402
 
 
