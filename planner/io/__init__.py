@@ -7,18 +7,21 @@ and events, and raises :class:`InputFileError` naming the file, line and field o
 
 from planner.io.apt import read_apt
 from planner.io.csv_reader import read_csv
+from planner.io.cycles import DrillCycle, hole_moves
 from planner.io.dispatch import detect_format, read_toolpath
 from planner.io.errors import InputFileError, InputFileWarning
 from planner.io.gcode import read_gcode
 from planner.io.json_reader import read_json
 from planner.io.machines import HAAS_UMC_750, MACHINES, TableTableKinematics, machine_kinematics
-from planner.io.toolpath import EVENT_KINDS, Arc, Event, Toolpath, arc_samples, linearize_arcs
+from planner.io.toolpath import EVENT_KINDS, Arc, Event, Nurbs, Toolpath, arc_samples, linearize_arcs
 
 __all__ = [
     "EVENT_KINDS",
     "HAAS_UMC_750",
     "MACHINES",
+    "Nurbs",
     "Arc",
+    "DrillCycle",
     "Event",
     "InputFileError",
     "InputFileWarning",
@@ -26,6 +29,7 @@ __all__ = [
     "Toolpath",
     "arc_samples",
     "detect_format",
+    "hole_moves",
     "linearize_arcs",
     "machine_kinematics",
     "read_apt",

@@ -17,7 +17,7 @@ from collections.abc import Iterator
 import numpy as np
 
 from planner.io.errors import InputFileError
-from planner.io.toolpath import Arc, Event, Toolpath, vec3
+from planner.io.toolpath import Arc, Event, Nurbs, Toolpath, vec3
 
 #: Metres per unit of length for the unit names the readers accept.
 LENGTH_UNITS = {"mm": 1e-3, "m": 1.0, "inch": 0.0254, "in": 0.0254, "cm": 1e-2}
@@ -145,6 +145,7 @@ class PathCollector:
         self.frames: list[tuple[int, np.ndarray, np.ndarray]] = []  # (from index, R, t in metres)
         self.events: list[Event] = []
         self.arcs: list[tuple] = []  # (line, end index, centre(3), axis(3), radius) in metres, CL frame
+        self.nurbs: list[tuple] = []  # (line, end index, degree, knots, control (m,3) m, weights, axes) CL frame
         self.axis_info = False  # the file said something about the tool axis
         self.units_seen: list[str] = []
 
@@ -173,6 +174,19 @@ class PathCollector:
 
     def add_arc(self, line: int, index: int, centre, axis, radius: float) -> None:
         self.arcs.append((line, index, *centre, *axis, radius))
+
+    def add_nurbs(self, line: int, index: int, degree: int, knots, control, weights, axes) -> None:
+        """A NURBS ending at point ``index`` (control points in metres, CL frame; axes None or (m, 3))."""
+        self.nurbs.append((line, index, degree, knots, control, weights, axes))
+
+    def add_point(self, line: int, x: float, y: float, z: float, rapid: bool = False) -> int:
+        """Append one point (metres, CL frame); returns its index."""
+        k = len(self.lines)
+        self.xyz.extend((x, y, z))
+        self.lines.append(line)
+        if rapid:
+            self.rapid_idx.append(k)
+        return k
 
     # ------------------------------------------------------------------ finishing
     def finish(
@@ -254,6 +268,14 @@ class PathCollector:
                 centre[sel] = centre[sel] @ rot.T + org
                 arc_axis[sel] = arc_axis[sel] @ rot.T
         events: list = list(self.events)
+        for line, k, degree, knots, ctrl, weights, nax in self.nurbs:
+            ctrl = np.asarray(ctrl, dtype=float)
+            for start, rot, org in reversed(self.frames):
+                if start <= k:
+                    ctrl = ctrl @ rot.T + org
+                    nax = None if nax is None else np.asarray(nax) @ rot.T
+                    break
+            events.append(Nurbs(line, k, k - 1, degree, knots, ctrl, weights, nax))
         for row, c, a in zip(arcs, centre, arc_axis, strict=True):
             k = int(row[1])
             events.append(Arc(int(row[0]), k, k - 1, vec3(c), vec3(a), float(row[8])))

@@ -26,13 +26,32 @@ Records and how they are read
 ``CIRCLE/xc,yc,zc,i,j,k[,r,...]``
     The following motion is an arc about the axis (right-hand rule) ending at the next GOTO; kept
     as an :class:`~planner.io.toolpath.Arc` (or linearised when ``arc_tolerance`` is given).
+``CYCLE/type,keyword,value,...`` ... ``CYCLE/OFF``
+    A canned cycle (types DRILL, DEEP, DEEP2, BRKCHP, TAP, BORE, REAM, qualified by DEEP, BRKCHP, DWELL,
+    DRAG): each GOTO that follows is a hole, expanded into its moves along the hole's tool axis by
+    :func:`planner.io.cycles.hole_moves`. ``RAPTO r`` clearance above the hole point (default 0),
+    ``FEDTO d`` depth below it (NX writes it as a negative offset, other systems as a positive depth:
+    both mean ``|d|`` into the part), ``RTRCTO h`` retract level (``AUTO``: back to the level the tool
+    came from; default the RAPTO level), ``STEP s`` (or ``INCR``) peck depth, ``DWELL t`` seconds at the
+    bottom (a ``dwell`` event after the bottom point), ``MMPM|IPM|MMPR|IPR|MMPS|IPS f`` the cycle's feed
+    (default the modal FEDRAT, which resumes after CYCLE/OFF). Lengths are in file units. DEEP/DEEP2
+    retract fully between pecks, BRKCHP backs off by ``peck_clearance``; TAP, BORE and REAM feed out,
+    DRILL and BORE,DRAG rapid out. BORE with BACK, MANUAL or NODRAG, an unknown type or keyword, and a
+    cycle without FEDTO are refused naming the line and the cycle. ``CYCLE/ON`` resumes the last cycle.
+``NURBS/`` with ``KNOT/k1,...`` and ``CNTRL/x,y,z[,i,j,k][,w]`` records (NX)
+    A NURBS move from the current point (its first control point, weight 1) through the CNTRL points
+    (optional tool axes and weights); the KNOT values are the interior knots and the end value (the
+    start value 0 and the clamped end multiplicities are implied), so the degree is the number of
+    control points minus the number of knot values. Kept as a :class:`~planner.io.toolpath.Nurbs`
+    event ending at a point at the last control point, sampled within the linearisation tolerance by
+    :func:`~planner.io.toolpath.linearize_arcs`.
 ``FROM/x,y,z`` (start point, read as a rapid point), ``GODLTA/dx,dy,dz`` or ``GODLTA/d`` (along
 the tool axis)
     Points relative to the current one.
 Events (kept, see :data:`~planner.io.toolpath.EVENT_KINDS`)
     ``TOOL PATH/`` (operation), ``END-OF-PATH``, ``LOAD/TOOL``, ``LOADTL``, ``SELECT/TOOL``,
     ``TLDATA``, ``CUTTER``, ``SPINDL``, ``COOLNT``, ``CUTCOM``, ``INSERT``, ``PPRINT``, ``PARTNO``,
-    ``MACHIN``, ``MULTAX``, ``TRNTYP``, ``CYCLE``, ``GOHOME``, ``CSI_SET_*`` and other ``CSI_*``
+    ``MACHIN``, ``MULTAX``, ``TRNTYP``, ``CYCLE`` (its holes expanded), ``GOHOME``, ``CSI_SET_*`` and other ``CSI_*``
     vendor records, ``STOP``, ``OPSTOP``, ``DELAY``, ``FINI`` (reading stops there).
 Ignored by design
     ``PAINT/`` (display only), ``$$`` comments (to the end of the line; a comment ending in ``$``
@@ -43,8 +62,7 @@ Continuation
     A record whose code ends with a single ``$`` continues on the next line.
 Anything else
     Skipped with an :class:`~planner.io.errors.InputFileWarning` naming the line (the first few of
-    each kind, then a count). ``NURBS/`` motion is refused with an error: it cannot be skipped
-    without losing the path.
+    each kind, then a count).
 
 Every malformed value raises :class:`~planner.io.errors.InputFileError` naming file, line and field.
 The reader streams the file line by line; memory grows with the number of points only.
@@ -66,6 +84,7 @@ from planner.io._collect import (
     source_name,
     unit_scale,
 )
+from planner.io.cycles import DEFAULT_PECK_CLEARANCE, DrillCycle, hole_moves
 from planner.io.errors import InputFileError, WarningLimiter
 from planner.io.toolpath import Event, Toolpath, linearize_arcs
 
@@ -84,6 +103,10 @@ _MACHINE_WORDS = frozenset(
      "RETRCT", "PREFUN", "AUXFUN", "PITCH", "HEAD", "MODE", "SELCTL", "TOOLNO", "OPERATION"}
 )  # fmt: skip
 _NUMERIC_START = frozenset("0123456789+-.")
+#: CYCLE types whose holes the reader expands (DEEP2: a second deep-drilling form, read like DEEP).
+_CYCLE_KINDS = frozenset({"DRILL", "DEEP", "DEEP2", "BRKCHP", "TAP", "BORE", "REAM"})
+#: Words that qualify a CYCLE type (BACK, MANUAL and NODRAG are refused by name).
+_CYCLE_MODIFIERS = frozenset({"DEEP", "DEEP2", "BRKCHP", "DRAG", "NODRAG", "BACK", "MANUAL"})
 #: A pending CIRCLE record: (line, centre, axis, radius), metres, CL frame.
 _Circle = tuple[int, tuple[float, float, float], tuple[float, float, float], float]
 
@@ -107,6 +130,11 @@ class _Reader:
         self.spindle_rps = math.nan  # rev/s, for per-revolution feeds
         self.pieces: list[tuple[int, str]] | None = None  # physical lines of a continued record: [(line, text)]
         self.finished = False
+        self.feed = math.nan  # modal FEDRAT, m/s (restored after a cycle)
+        self.drill: DrillCycle | None = None  # the canned cycle in effect (its GOTOs are holes)
+        self.last_drill: DrillCycle | None = None  # for CYCLE/ON
+        self.peck_clearance = DEFAULT_PECK_CLEARANCE
+        self.pending_nurbs: dict | None = None  # NURBS/ being read: line, knots, rows (+ line of each)
         self.handlers = {
             "GOTO": self.goto,
             "RAPID": self.rapid,
@@ -139,6 +167,8 @@ class _Reader:
             "GODLTA": self.godlta,
             "FINI": self.fini,
             "NURBS": self.nurbs,
+            "KNOT": self.knot,
+            "CNTRL": self.cntrl,
         }
 
     # ------------------------------------------------------------------ helpers
@@ -213,6 +243,9 @@ class _Reader:
         vals = self.numbers(line, "GOTO", body)
         if len(vals) not in (3, 6):
             self.fail(line, "GOTO record", f"has {len(vals)} values, expected 3 (x,y,z) or 6 (x,y,z,i,j,k)")
+        if self.drill is not None:
+            self.hole(line, vals)
+            return
         s = self.scale
         k = self.add_point(line, vals[0] * s, vals[1] * s, vals[2] * s)
         if len(vals) == 6:
@@ -262,6 +295,7 @@ class _Reader:
         else:
             feed = math.nan
             self.warn.warn("FEDRAT/INVERS", line, "inverse-time feed is not converted: feed unknown")
+        self.feed = feed
         self.out.set_feed(self.out.count, feed)
 
     def units_record(self, line: int, major: str, body: str) -> None:
@@ -324,6 +358,9 @@ class _Reader:
         self.out.event("frame", line, "TRNTYP/" + word, math.nan, f"TRNTYP/{body.strip()}")
 
     def circle_record(self, line: int, major: str, body: str) -> None:
+        if self.drill is not None:
+            self.fail(line, "CIRCLE record", f"circular motion inside {self.drill.name} (line {self.drill.line}); "
+                      "end the cycle with CYCLE/OFF first")  # fmt: skip
         v = self.numbers(line, "CIRCLE", body)
         if len(v) < 6:
             self.fail(line, "CIRCLE record", f"has {len(v)} values, expected at least 6 (xc,yc,zc,i,j,k)")
@@ -379,11 +416,134 @@ class _Reader:
         self.out.event("spindle", line, ",".join(words), speed, f"{major}/{body.strip()}")
 
     def cycle(self, line: int, major: str, body: str) -> None:
-        word = body.split(",")[0].strip().upper()
+        """CYCLE/...: a canned cycle whose GOTOs are holes (see :meth:`hole`); CYCLE/OFF ends it."""
+        parts = [p.strip() for p in body.split(",")]
+        word = parts[0].upper() if parts else ""
         self.out.event("cycle", line, word, math.nan, f"CYCLE/{body.strip()}")
-        if word != "OFF":
-            self.warn.warn("CYCLE", line, "canned cycle kept as an event: the GOTOs that follow are hole "
-                           "positions, not a path")  # fmt: skip
+        if word == "OFF":
+            if self.drill is not None:
+                self.drill = None
+                self.out.set_feed(self.out.count, self.feed)  # the modal FEDRAT resumes
+            return
+        if word == "ON" and len(parts) == 1:
+            if self.last_drill is None:
+                self.fail(line, "CYCLE/ON", "no earlier CYCLE to turn back on")
+            self.drill = self.last_drill
+            return
+        self.drill = self.last_drill = self.parse_cycle(line, parts)
+
+    def parse_cycle(self, line: int, parts: list[str]) -> DrillCycle:
+        """The DrillCycle of a CYCLE record's fields (keywords with their values, see the module notes)."""
+        name = "CYCLE/" + ",".join(p.upper() for p in parts if p and p[0] not in _NUMERIC_START)
+        kind = parts[0].upper()
+        if kind not in _CYCLE_KINDS:
+            self.fail(line, "field 1 of CYCLE", f"cycle {kind!r} ({name}) is not read: the readable cycles are "
+                      f"{', '.join(sorted(_CYCLE_KINDS))} (the holes cannot be planned as a path)", 1)  # fmt: skip
+        mods: set[str] = {kind}
+        values: dict[str, float] = {}
+        steps: list[float] = []
+        retract_auto = False
+        feed_unit = None
+        k = 1
+        while k < len(parts):
+            word = parts[k].upper()
+            if not word or word[0] in _NUMERIC_START:
+                self.fail(line, f"field {k + 1} of CYCLE", f"value {parts[k]!r} follows no keyword ({name}: "
+                          "write FEDTO, RAPTO, RTRCTO, STEP, DWELL and the feed unit before their values)", k + 1)
+            nums = []
+            j = k + 1
+            while j < len(parts) and parts[j] and parts[j][0] in _NUMERIC_START:
+                nums.append(self.numbers(line, "CYCLE", parts[j], first=j + 1)[0])
+                j += 1
+            if word in ("FEDTO", "RAPTO", "RTRCTO"):
+                if word == "RTRCTO" and not nums and j < len(parts) and parts[j].upper() == "AUTO":
+                    retract_auto = True
+                    j += 1
+                elif len(nums) != 1:
+                    self.fail(line, f"field {k + 1} of CYCLE", f"{word} needs one value ({name})", k + 1)
+                else:
+                    values[word] = nums[0] * self.scale
+            elif word in ("STEP", "INCR"):
+                if not nums:
+                    self.fail(line, f"field {k + 1} of CYCLE", f"{word} needs a peck depth ({name})", k + 1)
+                steps = [v * self.scale for v in nums]
+            elif word == "DWELL":
+                if len(nums) > 1:
+                    self.fail(line, f"field {k + 1} of CYCLE", f"DWELL takes one value in seconds ({name})", k + 1)
+                values["DWELL"] = nums[0] if nums else 0.0
+                mods.add("DWELL")
+            elif word in _FEED_UNITS:
+                if len(nums) != 1:
+                    self.fail(line, f"field {k + 1} of CYCLE", f"{word} needs one feed value ({name})", k + 1)
+                feed_unit, values["FEED"] = word, nums[0]
+            elif word in _CYCLE_MODIFIERS:
+                if nums:
+                    self.fail(line, f"field {k + 1} of CYCLE", f"{word} takes no value ({name})", k + 1)
+                mods.add(word)
+            else:
+                self.fail(line, f"field {k + 1} of CYCLE", f"{word!r} is not a CYCLE keyword the reader knows "
+                          f"({name}); the holes cannot be planned without it", k + 1)  # fmt: skip
+            k = j
+        refused = mods & {"BACK", "MANUAL", "NODRAG"}
+        if refused:
+            what = {"BACK": "back boring", "MANUAL": "manual retract", "NODRAG": "spindle orient and shift"}
+            w = sorted(refused)[0]
+            self.fail(line, "CYCLE record", f"{name}: {what[w]} ({w}) moves the tool in ways the file does not "
+                      "give; the cycle is not read")  # fmt: skip
+        if "FEDTO" not in values:
+            self.fail(line, "CYCLE record", f"{name} has no FEDTO depth: the holes cannot be expanded")
+        feed = self.feed
+        if feed_unit is not None:
+            unit, per = _FEED_UNITS[feed_unit]
+            f = values["FEED"] * _LENGTH[unit]
+            if not values["FEED"] > 0.0:
+                self.fail(line, "CYCLE record", f"{name}: feed must be positive, got {values['FEED']:g}")
+            feed = f / 60.0 if per == "min" else f if per == "s" else f * self.spindle_rps
+        peck_mode = "full" if mods & {"DEEP", "DEEP2"} else "chip" if "BRKCHP" in mods else ""
+        if peck_mode and not steps:
+            self.warn.warn("CYCLE without STEP", line, f"{name} gives no STEP: each hole is drilled in one feed")
+        clearance = values.get("RAPTO", 0.0)
+        retract = None if retract_auto else values.get("RTRCTO", clearance)
+        cyc = DrillCycle(
+            name=name, line=line, clearance=clearance, bottom=-abs(values["FEDTO"]), retract=retract, feed=feed,
+            peck=steps[0] if steps else 0.0, peck_mode=peck_mode, peck_clearance=self.peck_clearance,
+            dwell=values.get("DWELL", 0.0), feed_out=kind in ("TAP", "BORE", "REAM") and "DRAG" not in mods,
+        )  # fmt: skip
+        problem = cyc.problem()
+        if problem:
+            self.fail(line, "CYCLE record", f"{name}: {problem}")
+        return cyc
+
+    def hole(self, line: int, vals: list[float]) -> None:
+        """A GOTO under a CYCLE: the hole at that point (and axis), expanded into its moves."""
+        cyc = self.drill
+        assert cyc is not None
+        s = self.scale
+        p = np.array(vals[:3]) * s
+        given = len(vals) == 6
+        if given:
+            a = np.array(vals[3:6])
+            norm = float(np.linalg.norm(a))
+            if abs(norm - 1.0) > self.axis_tolerance:
+                self.fail(line, "fields 4-6 of GOTO", f"tool axis {tuple(vals[3:6])} is not a unit vector "
+                          f"(length {norm:.9g})", 4)  # fmt: skip
+            a = a / norm
+        else:
+            a = np.array(self.axis, dtype=float)
+            a = a / np.linalg.norm(a)
+        n = self.out.count
+        current = np.array(self.out.xyz[3 * n - 3 : 3 * n]) if n else None
+        self.rapid_next = False
+        moves, bottom = hole_moves(current, p, a, cyc)
+        out = self.out
+        for j, (q, rapid) in enumerate(moves):
+            k = out.add_point(line, float(q[0]), float(q[1]), float(q[2]), rapid)
+            if j == 0 and given:
+                out.set_axis(k, float(a[0]), float(a[1]), float(a[2]), given)
+            if not rapid:
+                out.set_feed(k, cyc.feed)
+            if j == bottom and cyc.dwell > 0.0:
+                out.event("dwell", line, cyc.name, cyc.dwell, f"DWELL {cyc.dwell:g} s at the bottom of the hole")
 
     def from_record(self, line: int, major: str, body: str) -> None:
         v = self.numbers(line, major, body)
@@ -395,6 +555,9 @@ class _Reader:
             self.out.set_axis(k, v[3], v[4], v[5], True)
 
     def godlta(self, line: int, major: str, body: str) -> None:
+        if self.drill is not None:
+            self.fail(line, "GODLTA record", f"GODLTA inside {self.drill.name} (line {self.drill.line}) is not read "
+                      "as a hole; end the cycle with CYCLE/OFF first")  # fmt: skip
         v = self.numbers(line, major, body, counts=(1, 3))
         x, y, z = self.last_point(line, major)
         s = self.scale
@@ -410,8 +573,103 @@ class _Reader:
         self.finished = True
 
     def nurbs(self, line: int, major: str, body: str) -> None:
-        self.fail(line, "NURBS record", "NURBS motion is not supported: post the operation with linear "
-                  "output (GOTO points) instead")  # fmt: skip
+        """NURBS/: a NURBS move from the current point; its KNOT/ and CNTRL/ records follow."""
+        if body.strip():
+            self.fail(line, "NURBS record", f"NURBS/{body.strip()}: arguments after NURBS/ are not supported "
+                      "(NX writes NURBS/ alone, then KNOT/ and CNTRL/ records)")  # fmt: skip
+        if self.drill is not None:
+            self.fail(line, "NURBS record", f"NURBS motion inside {self.drill.name} (line {self.drill.line})")
+        if self.out.count == 0:
+            self.fail(line, "NURBS record", "has no start point (no motion before it)")
+        self.pending_nurbs = {"line": line, "knots": [], "rows": [], "width": 0, "last": line}
+
+    def knot(self, line: int, major: str, body: str) -> None:
+        rec = self.pending_nurbs
+        if rec is None:
+            self.fail(line, "KNOT record", "outside a NURBS/ record")
+        if rec["rows"]:
+            self.fail(line, "KNOT record", f"after the CNTRL records of the NURBS at line {rec['line']}")
+        rec["knots"].extend(self.numbers(line, "KNOT", body))
+        rec["last"] = line
+
+    def cntrl(self, line: int, major: str, body: str) -> None:
+        rec = self.pending_nurbs
+        if rec is None:
+            self.fail(line, "CNTRL record", "outside a NURBS/ record")
+        v = self.numbers(line, "CNTRL", body)
+        if len(v) not in (3, 4, 6, 7):
+            self.fail(line, "CNTRL record", f"has {len(v)} values, expected 3 (x,y,z), 4 (x,y,z,w), 6 (x,y,z,i,j,k) "
+                      "or 7 (x,y,z,i,j,k,w)")  # fmt: skip
+        if rec["rows"] and len(v) != rec["width"]:
+            self.fail(line, "CNTRL record", f"has {len(v)} values, the earlier CNTRL records of this NURBS "
+                      f"{rec['width']}")  # fmt: skip
+        if len(v) in (4, 7) and not v[-1] > 0.0:
+            self.fail(line, f"field {len(v)} of CNTRL", f"weight must be positive, got {v[-1]:g}", len(v))
+        if len(v) in (6, 7):
+            norm = math.sqrt(v[3] ** 2 + v[4] ** 2 + v[5] ** 2)
+            if abs(norm - 1.0) > self.axis_tolerance:
+                self.fail(line, "fields 4-6 of CNTRL", f"tool axis {tuple(v[3:6])} is not a unit vector "
+                          f"(length {norm:.9g})", 4)  # fmt: skip
+        rec["width"] = len(v)
+        rec["rows"].append(v)
+        rec["last"] = line
+
+    def finish_nurbs(self) -> None:
+        """The pending NURBS as a curve from the current point to its last control point.
+
+        NX lists the knots after the start (the interior knots, then the end value; the start value 0
+        and the end multiplicity are implied) and the control points after the start point, which is
+        the current position: with ``C`` control points in all and ``K`` knot values, the degree is
+        ``C - K``.
+        """
+        rec = self.pending_nurbs
+        self.pending_nurbs = None
+        assert rec is not None
+        line = rec["line"]
+        knots, rows = rec["knots"], rec["rows"]
+        if not rows or not knots:
+            self.fail(line, "NURBS record", f"has {len(knots)} KNOT values and {len(rows)} CNTRL points: a curve "
+                      "needs both")  # fmt: skip
+        width = rec["width"]
+        n = self.out.count
+        start = np.array(self.out.xyz[3 * n - 3 : 3 * n])
+        s = self.scale
+        ctrl = np.vstack([start[None], np.array([r[:3] for r in rows]) * s])
+        c = ctrl.shape[0]
+        degree = c - len(knots)
+        end = knots[-1]
+        interior = knots[:-1]
+        bad = ""
+        if not 1 <= degree <= 15:
+            bad = f"degree {degree} (control points {c} including the start point, knot values {len(knots)})"
+        elif not end > 0.0 or any(b < a for a, b in zip([0.0, *interior], [*interior, end], strict=True)):
+            bad = "the knot values must increase from 0 (the implied start) to the last value"
+        elif interior and (interior[0] <= 0.0 or interior[-1] >= end):
+            bad = "an interior knot at the start or end value (the end multiplicities are implied)"
+        else:
+            run, longest = 1, 1
+            for a, b in zip(interior, interior[1:], strict=False):
+                run = run + 1 if a == b else 1
+                longest = max(longest, run)
+            if interior and longest > degree:
+                bad = f"a knot repeated {longest} times (more than the degree {degree})"
+        if bad:
+            self.fail(line, "NURBS record", f"KNOT/CNTRL do not make a clamped B-spline: {bad}")
+        full = np.array([0.0] * (degree + 1) + list(interior) + [end] * (degree + 1))
+        weights = np.ones(c)
+        if width in (4, 7):
+            weights[1:] = [r[-1] for r in rows]
+        axes = None
+        if width in (6, 7):
+            a = np.array([r[3:6] for r in rows], dtype=float)
+            a /= np.linalg.norm(a, axis=1, keepdims=True)
+            a0 = np.array(self.axis, dtype=float)
+            axes = np.vstack([a0 / np.linalg.norm(a0), a])
+        end_pt = ctrl[-1]
+        k = self.add_point(line, float(end_pt[0]), float(end_pt[1]), float(end_pt[2]))
+        if axes is not None:
+            self.out.set_axis(k, *axes[-1], True)
+        self.out.add_nurbs(line, k, degree, full, ctrl, weights, axes)
 
     def other(self, line: int, major: str, body: str) -> None:
         b = body.strip()
@@ -432,6 +690,8 @@ class _Reader:
             return
         if not sep:
             body = ""
+        if self.pending_nurbs is not None and major not in ("KNOT", "CNTRL"):
+            self.finish_nurbs()
         handler = self.handlers.get(major, self.other)
         if handler is not None:
             handler(line, major, body)
@@ -498,7 +758,7 @@ class _Reader:
                     continue
                 if cut >= 0 and not code.strip() and pending is None:
                     comment_cont = text.rstrip().endswith("$")
-                    simple = not (comment_cont or self.rapid_next or self.circle is not None)
+                    simple = not (comment_cont or self.rapid_next or self.circle is not None or self.busy)
                     continue
                 text = code
             if pending is not None:
@@ -519,11 +779,18 @@ class _Reader:
                 self.after_fini(it)
                 break
             s = self.scale
-            simple = not (comment_cont or self.rapid_next or self.circle is not None)
+            simple = not (comment_cont or self.rapid_next or self.circle is not None or self.busy)
         if pending is not None:
             self.fail(pending[0][0], "record", "continuation ('$') at the end of the file: record incomplete")
+        if self.pending_nurbs is not None:
+            self.finish_nurbs()
         if self.circle is not None:
             self.fail(self.circle[0], "CIRCLE record", "has no end point (no GOTO follows it)")
+
+    @property
+    def busy(self) -> bool:
+        """A cycle or a NURBS is being read: every GOTO goes through the handlers."""
+        return self.drill is not None or self.pending_nurbs is not None
 
     def skip_listing_header(self, it, first: str) -> None:
         """Skip an NX 'Information listing' header: its lines up to the first blank line."""

@@ -31,9 +31,18 @@ What is read
   never tilts has ``axes`` None.
 * Events: ``M06`` tool change (``T`` alone is a pre-selection), ``M03/M04/M05`` spindle,
   ``M07/M08/M09`` coolant, ``G40/G41/G42`` cutter compensation, ``G234/G49``, ``G254/G255`` and
-  ``G54..G59``/``G154`` frames, ``G04`` dwell, ``M00/M01`` stops, ``M02/M30`` end, other M codes as
-  ``machine`` events, canned cycles ``G81..G89`` as ``cycle`` events (their positions are holes, not
-  path points; a warning says so).
+  ``G54..G59``/``G154`` frames, ``G04`` dwell (a ``dwell`` event in seconds: ``P`` with a decimal
+  point in seconds, without in milliseconds, or ``X``), ``M00/M01`` stops, ``M02/M30`` end, other M
+  codes as ``machine`` events.
+* Canned cycles ``G73 G74 G81 G82 G83 G84 G84.2 G84.3 G85 G86 G89`` (a ``cycle`` event, ``G80`` ends
+  them, as does ``G00..G03``): every block that names a position (X, Y, the drilling-axis word or R)
+  is a hole, expanded into its moves along the drilling axis (Z for G17, Y for G18, X for G19) by
+  :func:`planner.io.cycles.hole_moves`: ``R`` clearance level (G91: from the initial level), ``Z`` the
+  bottom (G91: from R), ``Q`` peck depth (G83 full retract, G73 chip break by ``peck_clearance``),
+  ``P`` dwell at the bottom (G82, G89, tapping; the same seconds/milliseconds rule as G04; a ``dwell``
+  event), ``L``/``K`` repeats (G91 repeats the X/Y increment), ``G98`` retract to the initial level
+  (the tool's level when the cycle started), ``G99`` to R. Plunges are fed at the modal F; G74/G84/
+  G85/G89 feed out, the others rapid out. ``G70 G71 G72 G76 G77 G87 G88`` are refused naming the line.
 
 Anything else (an unknown G code, a word the reader does not know) is skipped with an
 :class:`~planner.io.errors.InputFileWarning`; a malformed number raises
@@ -50,6 +59,7 @@ from typing import NoReturn
 import numpy as np
 
 from planner.io._collect import PathCollector, check_arcs, open_lines, source_name, unit_scale
+from planner.io.cycles import DEFAULT_PECK_CLEARANCE, DrillCycle, hole_moves
 from planner.io.errors import InputFileError, WarningLimiter
 from planner.io.machines import TableTableKinematics, machine_kinematics
 from planner.io.toolpath import Arc, Event, Toolpath, linearize_arcs, vec3
@@ -60,8 +70,34 @@ _BLOCK = re.compile(r"(?:[A-Z][-+]?(?:\d+\.?\d*|\.\d+))+\Z")
 _OPER = re.compile(r"^\s*OPER\s*:\s*(.*?)\s*$", re.IGNORECASE)
 _PLANE_NORMAL = {17: (0.0, 0.0, 1.0), 18: (0.0, 1.0, 0.0), 19: (1.0, 0.0, 0.0)}
 _PLANE_WORDS = {17: ("I", "J"), 18: ("I", "K"), 19: ("J", "K")}
-_IGNORED_G = frozenset({43.0, 44.0, 98.0, 99.0, 61.0, 64.0, 187.0, 69.0, 15.0, 80.0, 90.1, 91.1, 50.0})
-_IGNORED_WORDS = frozenset("NHDPLQE")
+_IGNORED_G = frozenset({43.0, 44.0, 61.0, 64.0, 187.0, 69.0, 15.0, 90.1, 91.1, 50.0})
+_IGNORED_WORDS = frozenset("NHDE")
+#: Canned cycles expanded into moves: code -> (peck mode, tool leaves at the feed, dwell read from P).
+_CYCLES = {
+    73.0: ("chip", False, False),  # high-speed peck drilling
+    81.0: ("", False, False),  # drilling
+    82.0: ("", False, True),  # spot drilling / counterboring with dwell
+    83.0: ("full", False, False),  # deep-hole peck drilling
+    74.0: ("", True, True),  # left-hand tapping
+    84.0: ("", True, True),  # tapping
+    84.2: ("", True, True),  # rigid tapping
+    84.3: ("", True, True),  # rigid tapping, left-hand
+    85.0: ("", True, False),  # boring, feed out
+    86.0: ("", False, False),  # boring, spindle stop, rapid out
+    89.0: ("", True, True),  # boring with dwell, feed out
+}
+#: Canned cycles and hole patterns refused by name: they move in ways the block does not give.
+_REFUSED_CYCLES = {
+    76.0: "fine boring (spindle orient and shift)",
+    87.0: "back boring",
+    88.0: "boring with manual retract",
+    70.0: "bolt hole circle",
+    71.0: "bolt hole arc",
+    72.0: "bolt holes along an angle",
+    77.0: "back bore / special cycle",
+}
+#: The drilling axis word and its index for the planes G17, G18, G19.
+_DRILL_WORD = {17: ("Z", 2), 18: ("Y", 1), 19: ("X", 0)}
 _MODE = {"tcpc": 0, "dwo": 1, "machine": 2}
 
 
@@ -88,7 +124,15 @@ class _Reader:
         self.rpm = math.nan
         self.tcpc = False
         self.dwo = False
-        self.cycle = False
+        self.cycle: float | None = None  # canned cycle code in effect (G73, G81, ...)
+        self.cycle_line = 0
+        self.cycle_r = math.nan  # R level (drilling coordinate, metres)
+        self.cycle_z = math.nan  # hole bottom (drilling coordinate, metres)
+        self.cycle_q = 0.0  # peck depth, metres
+        self.cycle_p = 0.0  # dwell, seconds
+        self.initial_level = math.nan  # drilling coordinate of the tool when the cycle started (G98)
+        self.retract_r = False  # G99: retract to R; G98 (default): to the initial level
+        self.peck_clearance = DEFAULT_PECK_CLEARANCE
         self.tool_next = math.nan
         self.pending_rapid = False
         self.last_feed: float | None = None
@@ -159,6 +203,7 @@ class _Reader:
         ms: list[float] | None = None
         axes: dict[str, tuple[float, str]] = {}
         other: dict[str, float] = {}
+        raws: dict[str, str] = {}
         rot_words = self.rot_words
         for letter, raw in _TOKEN.findall(code):
             if letter in "XYZ" or letter in rot_words or letter in "ABC":
@@ -175,8 +220,9 @@ class _Reader:
                 if ms is None:
                     ms = []
                 ms.append(float(raw))
-            elif letter in "IJKRFST":
+            elif letter in "IJKRFSTPQL":
                 other[letter] = float(raw)
+                raws[letter] = raw
             elif letter in _IGNORED_WORDS:
                 continue
             else:
@@ -201,6 +247,9 @@ class _Reader:
                 self.m_code(line, m, text)
         if gs is not None or other:
             self.update_feed()
+        if self.cycle is not None and home is None:
+            self.cycle_block(line, axes, other, raws, gs, text)
+            return
         if axes:
             self.move(line, axes, other, home, text)
 
@@ -208,7 +257,7 @@ class _Reader:
         out = self.out
         if g in (0.0, 1.0, 2.0, 3.0):
             self.motion = int(g)
-            self.cycle = False
+            self.cycle = None
         elif g in (17.0, 18.0, 19.0):
             self.plane = int(g)
         elif g in (20.0, 21.0):
@@ -241,20 +290,122 @@ class _Reader:
         elif g in (28.0, 53.0, 30.0):
             return int(g)
         elif g == 4.0:
-            out.event("machine", line, "dwell", math.nan, text.strip())
-        elif 81.0 <= g <= 89.0 or g == 73.0 or g == 74.0:
-            self.cycle = True
+            out.event("dwell", line, "G04", self.dwell_seconds(line, text), text.strip())
+        elif g in _CYCLES:
+            if self.cycle is None:
+                k = _DRILL_WORD[self.plane][1]
+                self.initial_level = self.pos[k]
+            self.cycle = g
+            self.cycle_line = line
             out.event("cycle", line, f"G{raw}", math.nan, text.strip())
-            self.warn.warn("canned cycles", line, "canned cycle kept as an event: its positions are holes, "
-                           "not path points")  # fmt: skip
+        elif g in _REFUSED_CYCLES:
+            self.fail(line, "G", f"G{raw} ({_REFUSED_CYCLES[g]}) is a canned cycle the reader does not expand: "
+                      "its holes cannot be planned")  # fmt: skip
+        elif g == 80.0:
+            if self.cycle is not None:
+                out.event("cycle", line, "G80", math.nan, text.strip())
+            self.cycle = None
+            self.cycle_r = self.cycle_z = math.nan
+            self.cycle_q = self.cycle_p = 0.0
+        elif g in (98.0, 99.0):
+            self.retract_r = g == 99.0
         elif g in _IGNORED_G:
-            if g == 80.0:
-                self.cycle = False
+            pass
         elif g == 68.0 or g == 68.2:
             self.fail(line, "G", f"G{raw} (coordinate rotation) is not supported: post without it")
         else:
             self.warn.warn(f"G{raw}", line, f"G{raw} not understood, ignored")
         return None
+
+    def dwell_seconds(self, line: int, text: str) -> float:
+        """Seconds of a G04 block: P with a decimal point in seconds, without in milliseconds; or X seconds."""
+        code = text.upper().replace(" ", "")
+        for letter in ("P", "X", "U"):
+            for m in re.finditer(letter + r"([-+]?(?:\d+\.?\d*|\.\d+))", code):
+                raw = m.group(1)
+                v = float(raw)
+                return v if (letter != "P" or "." in raw) else v / 1000.0
+        return math.nan
+
+    def cycle_block(self, line: int, axes: dict, other: dict, raws: dict, gs, text: str) -> None:
+        """A block in canned-cycle mode: new cycle values and, when it names a position, the holes."""
+        word, k = _DRILL_WORD[self.plane]
+        s = self.scale
+        for w, (v, _) in axes.items():
+            if w in "XYZ":
+                continue
+            same = w in self.rot_words and abs(math.radians(v) - self.angles[self.rot_words.index(w)]) < 1e-12
+            if not (same or (w not in self.rot_words and v == 0.0)):
+                self.fail(line, w, f"rotary word {w} turns the part inside canned cycle G{self.cycle:g} (line "
+                          f"{self.cycle_line}); end the cycle with G80 first")  # fmt: skip
+        if "R" in other:
+            r = other["R"] * s
+            base = self.initial_level if not self.absolute else 0.0
+            self.cycle_r = r + (base if base == base else 0.0)
+        if word in axes:
+            z = axes[word][0] * s
+            self.cycle_z = z if self.absolute else self.cycle_r + z
+        if "Q" in other:
+            self.cycle_q = abs(other["Q"]) * s
+        if "P" in other:
+            self.cycle_p = other["P"] if "." in raws["P"] else other["P"] / 1000.0
+        repeats = int(other.get("L", other.get("K", 1.0)))
+        defining = gs is not None and any(g in _CYCLES for g, _ in gs)
+        in_plane = [(i, w) for i, w in enumerate("XYZ") if i != k]
+        if not (defining or any(w in axes for _, w in in_plane) or word in axes or "R" in other):
+            return
+        code = self.cycle
+        assert code is not None
+        name = f"G{code:g}"
+        for what, v in (("Z" if word == "Z" else word, self.cycle_z), ("R", self.cycle_r)):
+            if v != v:
+                self.fail(line, "", f"canned cycle {name} (line {self.cycle_line}) has no {what} level yet")
+        peck_mode, feed_out, dwell = _CYCLES[code]
+        if peck_mode and not self.cycle_q > 0.0:
+            self.fail(line, "Q", f"{name} needs a peck depth Q > 0")
+        retract = self.cycle_r if self.retract_r else self.initial_level
+        if retract != retract:
+            retract = self.cycle_r
+        cyc = DrillCycle(name=name, line=line, clearance=self.cycle_r, bottom=self.cycle_z, retract=retract,
+                         peck=self.cycle_q if peck_mode else 0.0, peck_mode=peck_mode,
+                         peck_clearance=self.peck_clearance, dwell=self.cycle_p if dwell else 0.0, feed_out=feed_out)
+        problem = cyc.problem()
+        if problem:
+            self.fail(line, "", f"{name}: {problem}")
+        normal = np.zeros(3)
+        normal[k] = 1.0
+        for rep in range(max(repeats, 0)):
+            current = None if self.pos[k] != self.pos[k] else np.array(self.pos, dtype=float)
+            for i, w in in_plane:
+                if w in axes and (rep == 0 or not self.absolute):
+                    v = axes[w][0] * s
+                    self.pos[i] = v if self.absolute else self.pos[i] + v
+            if any(self.pos[i] != self.pos[i] for i, _ in in_plane):
+                self.fail(line, "", f"{name}: the hole position is not known (after G28/G53 give X and Y)")
+            hole = np.array(self.pos, dtype=float)
+            hole[k] = 0.0
+            if current is not None and not np.isfinite(current).all():
+                current = None
+            moves, bottom = hole_moves(current, hole, normal, cyc)
+            for j, (q, rapid) in enumerate(moves):
+                self.emit(line, q, rapid)
+                if j == bottom and cyc.dwell > 0.0:
+                    self.out.event("dwell", line, name, cyc.dwell, text.strip())
+            if moves:
+                self.pos[:] = [float(v) for v in moves[-1][0]]
+
+    def emit(self, line: int, xyz, rapid: bool, rot_given: bool = False) -> None:
+        """Append one point (program frame, metres) with the modal rotary state."""
+        out = self.out
+        k = len(out.lines)
+        out.xyz.extend((float(xyz[0]), float(xyz[1]), float(xyz[2])))
+        out.lines.append(line)
+        if rapid or self.pending_rapid:
+            out.rapid_idx.append(k)
+            self.pending_rapid = False
+        self.bc.extend(self.angles)
+        self.mode.append(0 if self.tcpc else 1 if self.dwo else 2)
+        self.given.append(1 if rot_given else 0)
 
     def m_code(self, line: int, m: float, text: str) -> None:
         out = self.out
@@ -324,8 +475,6 @@ class _Reader:
             if w in axes:
                 v = axes[w][0] * s
                 pos[k] = v if absolute else pos[k] + v
-        if self.cycle:
-            return
         x, y, z = pos
         if x != x or y != y or z != z:  # NaN: not all known yet (after G28/G53)
             self.pending_rapid = self.pending_rapid or self.motion == 0

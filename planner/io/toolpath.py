@@ -8,9 +8,10 @@ Units are SI: metres, metres per second, radians.
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
+from scipy.interpolate import BSpline
 
 #: Kinds of :class:`Event` the readers emit (an :class:`Arc` has kind ``"arc"``).
 EVENT_KINDS = (
@@ -25,7 +26,9 @@ EVENT_KINDS = (
     "frame",  # MSYS, CSYS, TRNTYP; G234/G49 (TCPC), G254/G255 (DWO), G54.. (work offsets)
     "units",  # UNITS/UNIT, G20/G21; name = MM/INCH
     "multax",  # MULTAX
-    "cycle",  # CYCLE (APT), G81..G89 (G-code): the following points are hole positions
+    "cycle",  # CYCLE (APT), G73/G81..G89 (G-code): a canned cycle starts (its holes are expanded into moves)
+    "dwell",  # the tool waits in place: value = seconds (cycle DWELL / P at a hole bottom, G04)
+    "setting",  # a controller setting that does not move the tool (Sinumerik CYCLE832 tolerance, G64, ...)
     "home",  # GOHOME, G28, G53: a move to a machine position outside the part frame
     "insert",  # INSERT, PPRINT: free text for the post-processor or operator
     "partno",  # PARTNO, O program name
@@ -99,6 +102,116 @@ class Arc:
     def kind(self) -> str:
         """Always ``"arc"`` (lets events and arcs be filtered alike)."""
         return "arc"
+
+
+@dataclass(frozen=True, eq=False)
+class Nurbs:
+    """A NURBS move (NX ``NURBS/`` with ``KNOT/`` and ``CNTRL/``): the exact curve from ``points[start]``
+    to ``points[index]``.
+
+    The curve is ``C(u) = sum_i N_i,p(u) w_i P_i / sum_i N_i,p(u) w_i`` on the clamped knot vector
+    ``knots`` (``N_i,p`` the B-spline basis of degree ``p``), evaluated with :class:`scipy.interpolate.BSpline`
+    on homogeneous coordinates ``(w x, w y, w z, w)``. The readers set ``start = index - 1`` (the tool's
+    position before the record is the first control point, the last control point is the end point);
+    :func:`linearize_arcs` samples the curve within its tolerance and widens the range to the samples.
+
+    Attributes
+    ----------
+    line : int
+        1-based line of the ``NURBS/`` record.
+    index, start : int
+        Indices of the curve's end and start points in the toolpath.
+    degree : int
+        Polynomial degree ``p`` (order ``p + 1``).
+    knots : ndarray, shape (m + p + 1,)
+        Clamped knot vector (first and last values repeated ``p + 1`` times).
+    control : ndarray, shape (m, 3)
+        Control points in the part frame, metres.
+    weights : ndarray, shape (m,)
+        Positive weights (all 1 for a non-rational B-spline).
+    axes : ndarray, shape (m, 3), or None
+        Tool axes given with the control points (tip towards spindle, part frame); the tool axis along
+        the curve is the same rational blend of them, normalised. None when the record gives none.
+    """
+
+    line: int
+    index: int
+    start: int
+    degree: int
+    knots: np.ndarray
+    control: np.ndarray
+    weights: np.ndarray
+    axes: np.ndarray | None = None
+
+    def __post_init__(self):
+        t = np.asarray(self.knots, dtype=float)
+        c = np.asarray(self.control, dtype=float).reshape(-1, 3)
+        w = np.asarray(self.weights, dtype=float).reshape(-1)
+        p = int(self.degree)
+        if c.shape[0] != w.shape[0] or t.shape[0] != c.shape[0] + p + 1 or p < 1:
+            raise ValueError(f"Nurbs: {c.shape[0]} control points, {w.shape[0]} weights and {t.shape[0]} knots do "
+                             f"not make a B-spline of degree {p}")
+        object.__setattr__(self, "knots", _readonly(t))
+        object.__setattr__(self, "control", _readonly(c))
+        object.__setattr__(self, "weights", _readonly(w))
+        if self.axes is not None:
+            object.__setattr__(self, "axes", _readonly(np.asarray(self.axes, dtype=float).reshape(-1, 3)))
+
+    @property
+    def kind(self) -> str:
+        """Always ``"nurbs"``."""
+        return "nurbs"
+
+    @property
+    def domain(self) -> tuple[float, float]:
+        """Parameter interval ``(u0, u1)`` of the curve."""
+        p = self.degree
+        return float(self.knots[p]), float(self.knots[-p - 1])
+
+    def _blend(self, values: np.ndarray, u) -> np.ndarray:
+        hom = np.column_stack((values * self.weights[:, None], self.weights))
+        u0, u1 = self.domain
+        h = BSpline(self.knots, hom, self.degree, extrapolate=False)(np.clip(np.asarray(u, dtype=float), u0, u1))
+        return h[..., :-1] / h[..., -1:]
+
+    def evaluate(self, u) -> np.ndarray:
+        """Points ``C(u)`` (shape ``u.shape + (3,)``, metres) of the exact curve; ``u`` clipped to the domain."""
+        return self._blend(self.control, u)
+
+    def axis_at(self, u) -> np.ndarray | None:
+        """Unit tool axes along the curve (shape ``u.shape + (3,)``), or None when the record gives none."""
+        if self.axes is None:
+            return None
+        a = self._blend(self.axes, u)
+        return a / np.linalg.norm(a, axis=-1, keepdims=True)
+
+    def sample_parameters(self, tolerance: float) -> np.ndarray:
+        """Parameters ``u0 < ... < u1`` whose chords stay within ``tolerance`` (metres) of the curve.
+
+        Starts from the distinct knots with 4 steps per knot span and halves every interval whose
+        curve points at 1/4, 1/2 and 3/4 lie farther than ``tolerance`` from its chord, until none does.
+        """
+        if not tolerance > 0.0:
+            raise ValueError(f"tolerance must be positive, got {tolerance!r}")
+        u0, u1 = self.domain
+        k = np.unique(self.knots[(self.knots >= u0) & (self.knots <= u1)])
+        u = np.unique(np.concatenate([k[:-1, None] + np.diff(k)[:, None] * np.arange(4)[None, :] / 4.0,
+                                      k[-1:, None]], axis=None))
+        frac = np.array([0.25, 0.5, 0.75])
+        for _ in range(40):
+            a, b = u[:-1], u[1:]
+            pa, pb = self.evaluate(a), self.evaluate(b)
+            mid = a[:, None] + (b - a)[:, None] * frac[None, :]
+            pm = self.evaluate(mid)  # (n, 3, 3)
+            d = (pb - pa)[:, None, :]
+            dd = np.maximum(np.einsum("nki,nki->nk", d, d), 1e-300)
+            lam = np.clip(np.einsum("nki,nki->nk", pm - pa[:, None, :], d) / dd, 0.0, 1.0)
+            dev = np.linalg.norm(pm - (pa[:, None, :] + lam[..., None] * d), axis=-1).max(axis=1)
+            bad = (dev > tolerance) & ((b - a) > 1e-15 * max(1.0, abs(u1)))
+            if not bad.any():
+                break
+            u = np.sort(np.concatenate((u, 0.5 * (a[bad] + b[bad]))))
+        return u
 
 
 def vec3(v) -> tuple[float, float, float]:
@@ -203,6 +316,11 @@ class Toolpath:
         """The :class:`Arc` events, in file order."""
         return tuple(e for e in self.events if isinstance(e, Arc))
 
+    @property
+    def nurbs(self) -> tuple[Nurbs, ...]:
+        """The :class:`Nurbs` events, in file order."""
+        return tuple(e for e in self.events if isinstance(e, Nurbs))
+
 
 def arc_samples(
     start: np.ndarray, end: np.ndarray, centre: np.ndarray, axis: np.ndarray, tolerance: float
@@ -267,43 +385,54 @@ def _slerp_rows(a0: np.ndarray, a1: np.ndarray, s: np.ndarray) -> np.ndarray:
 
 
 def linearize_arcs(toolpath: Toolpath, tolerance: float = 1e-5) -> Toolpath:
-    """Insert points along every :class:`Arc` so that chords stay within ``tolerance`` of the circle.
+    """Insert points along every :class:`Arc` and :class:`Nurbs` so that chords stay within ``tolerance``.
 
     Parameters
     ----------
     toolpath : Toolpath
         A reader's output.
     tolerance : float, default 1e-5
-        Largest sagitta, metres (0.01 mm, the default planning tolerance of the project).
+        Largest distance, metres, between a chord and the circle (sagitta) or the NURBS curve (0.01 mm,
+        the default planning tolerance of the project).
 
     Returns
     -------
     Toolpath
-        The same toolpath with interior arc points inserted. Inserted points carry the arc's feed,
-        rapid flag and source line, tool axes slerped between the arc's end axes (``axis_given``
-        False) and rotary angles interpolated linearly. Every event keeps its place; each
-        :class:`Arc` now spans ``points[start..index]`` including the inserted points.
+        The same toolpath with interior curve points inserted. Inserted points carry the curve's feed,
+        rapid flag and source line; tool axes are slerped between the arc's end axes (``axis_given``
+        False), or blended along a NURBS that gives axes; rotary angles are interpolated linearly.
+        Every event keeps its place; each :class:`Arc` and :class:`Nurbs` now spans
+        ``points[start..index]`` including the inserted points.
     """
     if not tolerance > 0.0:
         raise ValueError(f"tolerance must be positive, got {tolerance!r}")
     tp = toolpath
-    arcs = [e for e in tp.events if isinstance(e, Arc)]
-    if not arcs:
+    curves = [e for e in tp.events if isinstance(e, Arc | Nurbs)]
+    if not curves:
         return tp
     chunks_p, chunks_a, chunks_r = [], [], []
     owner = []  # for each inserted chunk: index of the point it is inserted before
-    for arc in arcs:
+    for arc in curves:
         if arc.index != arc.start + 1:
             continue  # already linearised
         p0, p1 = tp.points[arc.start], tp.points[arc.index]
-        pts = arc_samples(p0, p1, np.asarray(arc.centre), np.asarray(arc.axis), tolerance)
+        nurbs_axes = None
+        if isinstance(arc, Nurbs):
+            u = arc.sample_parameters(tolerance)[1:-1]
+            pts = arc.evaluate(u)
+            nurbs_axes = arc.axis_at(u)
+        else:
+            pts = arc_samples(p0, p1, np.asarray(arc.centre), np.asarray(arc.axis), tolerance)
         if pts.shape[0] == 0:
             continue
         m = pts.shape[0]
         s = np.arange(1, m + 1) / (m + 1)
         chunks_p.append(pts)
         if tp.axes is not None:
-            chunks_a.append(_slerp_rows(tp.axes[arc.start], tp.axes[arc.index], s))
+            if nurbs_axes is not None:
+                chunks_a.append(nurbs_axes)
+            else:
+                chunks_a.append(_slerp_rows(tp.axes[arc.start], tp.axes[arc.index], s))
         if tp.rotary is not None:
             r0, r1 = tp.rotary[arc.start], tp.rotary[arc.index]
             chunks_r.append(r0 + s[:, None] * (r1 - r0))
@@ -340,10 +469,12 @@ def linearize_arcs(toolpath: Toolpath, tolerance: float = 1e-5) -> Toolpath:
         rotary = np.empty((total, 2))
         rotary[~ins] = tp.rotary
         rotary[ins] = np.concatenate(chunks_r)
-    events: list[Event | Arc] = []
+    events: list[Event | Arc | Nurbs] = []
     for e in tp.events:
         if isinstance(e, Arc):
             events.append(Arc(e.line, int(new_pos[e.index]), int(new_pos[e.start]), e.centre, e.axis, e.radius))
+        elif isinstance(e, Nurbs):
+            events.append(replace(e, index=int(new_pos[e.index]), start=int(new_pos[e.start])))
         else:  # an event before the motion into point k stays before the chord points of that motion
             k = int(new_pos[e.index - 1]) + 1 if e.index > 0 else 0
             events.append(Event(e.kind, e.line, k, e.name, e.value, e.text))
