@@ -58,9 +58,13 @@ def save(fig, target, dpi: int = 110) -> None:
 
     fig.tight_layout()
     buf = io.BytesIO()
-    fig.savefig(buf, dpi=dpi, format=os.path.splitext(os.fspath(target))[1].lower().lstrip(".") or "png")
+    stream = hasattr(target, "write")
+    fig.savefig(buf, dpi=dpi, format="png" if stream else os.path.splitext(os.fspath(target))[1].lower().lstrip("."))
     plt.close(fig)
-    write_bytes_atomic(target, buf.getvalue())
+    if stream:  # a binary file object (e.g. an HTTP response body): PNG
+        target.write(buf.getvalue())
+    else:
+        write_bytes_atomic(target, buf.getvalue())
 
 
 def tool_axes(ax, points: np.ndarray, frames: np.ndarray, scale: float) -> None:
@@ -220,7 +224,8 @@ def _axis_stations(job, n: int):
 
 def plot_job(job, target, *, rate: float | None = None, title: str | None = None, axes_shown: int = 60,
              bins: int = 1500, max_points: int = 20_000) -> StreamDigest:
-    """Write the picture of a planned job (:class:`planner.PlannedJob`) to ``target`` (.png, .svg or .pdf).
+    """Write the picture of a planned job (:class:`planner.PlannedJob`) to ``target`` (a path ending in .png,
+    .svg or .pdf, written atomically; or a binary file object, which gets a PNG).
 
     Parameters
     ----------
@@ -242,7 +247,8 @@ def plot_job(job, target, *, rate: float | None = None, title: str | None = None
     import matplotlib
     from mpl_toolkits.mplot3d.art3d import Line3DCollection
 
-    check_plot_target(target)
+    if not hasattr(target, "write"):
+        check_plot_target(target)
     dg = digest(job.trajectory(rate), bins=bins, max_points=max_points)
     rate = float(rate or job.settings.rate)
     s = job.summary()

@@ -9,7 +9,7 @@ from planner.export.files import atomic_text, check_output, write_bytes_atomic
 from planner.export.header import ExportError, generator, trajectory_parameters
 from planner.export.job_script import ProgramMove, job_program, plan_job_program
 from planner.export.movep import MovePPlan, plan_movep
-from planner.export.tables import JSON_FORMAT, write_csv, write_json
+from planner.export.tables import JSON_FORMAT, csv_text, json_text, write_csv, write_json
 from planner.export.urscript import write_script
 
 __all__ = [
@@ -19,8 +19,10 @@ __all__ = [
     "ProgramMove",
     "atomic_text",
     "check_output",
+    "csv_text",
     "generator",
     "job_program",
+    "json_text",
     "plan_job_program",
     "plan_movep",
     "trajectory_parameters",

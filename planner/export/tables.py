@@ -29,7 +29,7 @@ waypoint arrays: the waypoint index).
 from __future__ import annotations
 
 import json
-from collections.abc import Mapping
+from collections.abc import Iterator, Mapping
 
 import numpy as np
 
@@ -60,6 +60,54 @@ def _rows(chunk, fixed: str, with_io: bool) -> tuple[str, list]:
     return fmt, np.hstack(cols).tolist()
 
 
+def csv_text(trajectory: TrajectoryLike, *, parameters: Mapping | None = None, progress=None) -> Iterator[str]:
+    """The CSV text of a trajectory (layout in the module doc) in pieces, one move at a time: for streaming
+    (e.g. an HTTP response) in bounded memory. ``parameters`` and ``progress`` as in :func:`write_csv`."""
+    params = trajectory_parameters(trajectory, parameters)
+    with_io = trajectory.job.settings.cut_output is not None
+    yield "".join(f"# {line}\n" for line in header_lines(params)) + ",".join(columns(trajectory)) + "\n"
+    for chunk in trajectory.chunks(progress=progress):
+        fmt, rows = _rows(chunk, f",{chunk.move},{chunk.pass_index}", with_io)
+        text = "\n".join(fmt % tuple(r) for r in rows)
+        if chunk.joints is not None and not np.isfinite(chunk.joints).all():
+            text = text.replace("nan", "")
+        yield text + "\n"
+
+
+def json_text(trajectory: TrajectoryLike, *, parameters: Mapping | None = None, progress=None) -> Iterator[str]:
+    """The JSON text of a trajectory (layout in the module doc) in pieces, one move at a time (see
+    :func:`csv_text`). The header is checked before the first piece: a bad parameter raises ExportError."""
+    params = trajectory_parameters(trajectory, parameters)
+    try:
+        head = json.dumps(params, allow_nan=False)
+        moves = json.dumps(trajectory.moves(), allow_nan=False)
+    except ValueError as exc:
+        raise ExportError(f"parameters: values must be finite numbers for JSON ({exc})") from None
+    return _json_pieces(trajectory, head, moves, progress)
+
+
+def _json_pieces(trajectory: TrajectoryLike, head: str, moves: str, progress) -> Iterator[str]:
+    with_io = trajectory.job.settings.cut_output is not None
+    yield (f'{{"format": "{JSON_FORMAT}",\n "parameters": {head},\n "moves": {moves},\n'
+           f' "columns": {json.dumps(columns(trajectory, kind_column=True))},\n "samples": [\n')
+    first = True
+    for chunk in trajectory.chunks(progress=progress):
+        fmt, rows = _rows(chunk, f',"{chunk.kind}",{chunk.move},{chunk.pass_index}', with_io)
+        text = ",\n".join(f"[{fmt % tuple(r)}]" for r in rows)
+        if chunk.joints is not None and not np.isfinite(chunk.joints).all():
+            text = text.replace("nan", "null")
+        yield ("" if first else ",\n") + text
+        first = False
+    yield "\n]}\n"
+
+
+def _write(pieces: Iterator[str], target, trajectory: TrajectoryLike) -> int:
+    with text_target(target) as f:
+        for piece in pieces:
+            f.write(piece)
+    return trajectory.n_samples
+
+
 def write_csv(trajectory: TrajectoryLike, target, *, parameters: Mapping | None = None, progress=None) -> int:
     """Write a trajectory as CSV (layout in the module doc); returns the number of samples written.
 
@@ -74,21 +122,7 @@ def write_csv(trajectory: TrajectoryLike, target, *, parameters: Mapping | None 
     progress : callable (stage, done, total), optional
         Called with the samples written.
     """
-    params = trajectory_parameters(trajectory, parameters)
-    with_io = trajectory.job.settings.cut_output is not None
-    n = 0
-    with text_target(target) as f:
-        for line in header_lines(params):
-            f.write(f"# {line}\n")
-        f.write(",".join(columns(trajectory)) + "\n")
-        for chunk in trajectory.chunks(progress=progress):
-            fmt, rows = _rows(chunk, f",{chunk.move},{chunk.pass_index}", with_io)
-            text = "\n".join(fmt % tuple(r) for r in rows)
-            if chunk.joints is not None and not np.isfinite(chunk.joints).all():
-                text = text.replace("nan", "")
-            f.write(text + "\n")
-            n += chunk.times.size
-    return n
+    return _write(csv_text(trajectory, parameters=parameters, progress=progress), target, trajectory)
 
 
 def write_json(trajectory: TrajectoryLike, target, *, parameters: Mapping | None = None, progress=None) -> int:
@@ -96,25 +130,4 @@ def write_json(trajectory: TrajectoryLike, target, *, parameters: Mapping | None
 
     Parameters are those of :func:`write_csv`. Memory stays bounded by one move's samples.
     """
-    params = trajectory_parameters(trajectory, parameters)
-    try:
-        head = json.dumps(params, allow_nan=False)
-        moves = json.dumps(trajectory.moves(), allow_nan=False)
-    except ValueError as exc:
-        raise ExportError(f"parameters: values must be finite numbers for JSON ({exc})") from None
-    with_io = trajectory.job.settings.cut_output is not None
-    n = 0
-    with text_target(target) as f:
-        f.write(f'{{"format": "{JSON_FORMAT}",\n "parameters": {head},\n "moves": {moves},\n')
-        f.write(f' "columns": {json.dumps(columns(trajectory, kind_column=True))},\n "samples": [\n')
-        first = True
-        for chunk in trajectory.chunks(progress=progress):
-            fmt, rows = _rows(chunk, f',"{chunk.kind}",{chunk.move},{chunk.pass_index}', with_io)
-            text = ",\n".join(f"[{fmt % tuple(r)}]" for r in rows)
-            if chunk.joints is not None and not np.isfinite(chunk.joints).all():
-                text = text.replace("nan", "null")
-            f.write(("" if first else ",\n") + text)
-            first = False
-            n += chunk.times.size
-        f.write("\n]}\n")
-    return n
+    return _write(json_text(trajectory, parameters=parameters, progress=progress), target, trajectory)
