@@ -22,8 +22,8 @@ def basis(n: int, t: np.ndarray) -> np.ndarray:
     """Bernstein basis B_{n,k}(t), shape t.shape + (n + 1,)."""
     t = np.asarray(t, dtype=float)[..., None]
     reps = t.shape[:-1] + (n + 1,)
-    tp = np.ones(reps)
-    sp = np.ones(reps)
+    tp: np.ndarray = np.ones(reps)
+    sp: np.ndarray = np.ones(reps)
     if n > 0:
         tp[..., 1:] = t
         sp[..., 1:] = 1.0 - t

@@ -128,6 +128,10 @@ class _CCMeasure:
     mb = (Sc.base, Ss.base), l = 10 (Sc.e, Ss.e) - 2 mb (the "linear forms" Lc, Ls of ``_cc_eval``).
     """
 
+    P: np.ndarray
+    G: np.ndarray
+    H: np.ndarray
+
     @classmethod
     def from_forms(cls, Lc, Ls, P0, G0, K0):
         """The measure from the forms of _cc_eval: (10 sigma, 20 mb, l) as rows Lc (cos parts), Ls (sin parts)."""
@@ -480,8 +484,9 @@ class PHQuintic(PHSegment):
         d0 = check_vector(d0, "d0", nonzero=True)
         d1 = check_vector(d1, "d1", nonzero=True)
         if angles is not None:
-            angles = tuple(float(a) for a in angles)
-            if len(angles) != 2 or not np.isfinite(angles).all():
-                raise PlannerError(f"angles must be two finite numbers (phi0, phi2), got {angles}")
+            values = tuple(float(a) for a in angles)
+            if len(values) != 2 or not np.isfinite(values).all():
+                raise PlannerError(f"angles must be two finite numbers (phi0, phi2), got {values}")
+            angles = (values[0], values[1])
         A = batch_hermite(p0[None], p1[None], d0[None], d1[None], angles)[0]
         return cls(A, p0)

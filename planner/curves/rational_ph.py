@@ -229,7 +229,7 @@ def poly_gcd(polys, rtol: float = GCD_RTOL) -> tuple[np.ndarray, list[np.ndarray
             y = deconvolve(polys[i], g)
             sc = np.abs(polys[i]).max()  # scale first: the norm of tiny coefficients underflows
             res = np.linalg.norm(P.polysub(P.polymul(g, y), polys[i]) / sc) / np.linalg.norm(polys[i] / sc)
-            ok &= res <= GCD_ACCEPT
+            ok &= bool(res <= GCD_ACCEPT)
             quot[i] = y
         if ok:
             return g, quot
@@ -468,8 +468,8 @@ class RationalPH:
         const = float(g[-1] ** 4 * lam[-1] ** 3)  # leading coefficient of den
         if sum(m * (q.size - 1) for q, m in table) != degree(den):  # clustering failed: keep it whole
             table = [(den / const, 1)]
-        num, table = _cancel(num, table)
-        return cls(A, f, g, R, h, rho, v, theta, v_R, lam, L, vtrim(Pw), num / const, table)
+        num, factors = _cancel(num, table)
+        return cls(A, f, g, R, h, rho, v, theta, v_R, lam, L, vtrim(Pw), num / const, factors)
 
     # -- degrees ---------------------------------------------------------------------------------
     @property
@@ -512,7 +512,7 @@ class RationalPH:
     @property
     def psi_den(self) -> np.ndarray:
         """Monic denominator of psi in lowest terms, expanded (power basis)."""
-        out = np.ones(1)
+        out: np.ndarray = np.ones(1)
         for q, m in self.psi_den_factors:
             out = P.polymul(out, P.polypow(q, m))
         return out

@@ -95,7 +95,7 @@ class PHSpline:
         return self.A.shape[0]
 
     @cached_property
-    def segments(self) -> list[PHQuintic]:
+    def segments(self) -> list[PHQuintic | PHCubic]:
         """The segments as :class:`PHQuintic` objects (local parameter t in [0, 1])."""
         cls = PHQuintic if self.degree == 5 else PHCubic
         return [cls(a, p) for a, p in zip(self.A, self.starts, strict=True)]

@@ -369,7 +369,7 @@ def _search(p: _Problem, x0: np.ndarray, size: float, grid: int) -> np.ndarray |
     best = None
     for widen in (1.0, 4.0, 16.0):
         offs = np.linspace(-2.0, 2.0, grid) * size * widen
-        X = np.full((grid, grid, 9), np.nan)
+        X: np.ndarray = np.full((grid, grid, 9), np.nan)  # reshaped to (grid * grid, 9) below
         # sweep b(1) across the grid for all rows of b(0) at once, each point started from its solved
         # neighbour (continuation), then sweep back to fill the points the first sweep missed
         for order in (range(grid), range(grid - 1, -1, -1)):

@@ -55,9 +55,14 @@ def _horner(c: np.ndarray, x: np.ndarray) -> np.ndarray:
     return r
 
 
-def batch_rate(A: np.ndarray, nodes: np.ndarray, coeffs=None) -> np.ndarray:
-    """psi'(t) at nodes (n, q) of segments with coefficients A (n, m, 4) (one segment per row)."""
-    q, sig = rate_coefficients(A) if coeffs is None else coeffs
+def batch_rate(A: np.ndarray | None, nodes: np.ndarray, coeffs=None) -> np.ndarray:
+    """psi'(t) at nodes (n, q) of segments with coefficients A (n, m, 4) (one segment per row); A may be None
+    when ``coeffs`` (from :func:`rate_coefficients`) are given."""
+    if coeffs is None:
+        if A is None:
+            raise TypeError("batch_rate needs the coefficients A or their rate_coefficients")
+        coeffs = rate_coefficients(A)
+    q, sig = coeffs
     return -2.0 * _horner(q, nodes) / _horner(sig, nodes)
 
 
