@@ -111,6 +111,7 @@ def settings_from_args(args: argparse.Namespace) -> PlanSettings:
         rapid_speed=args.rapid_speed / 1e3, rate=args.rate, robot=None if args.robot in (None, "none") else args.robot,
         part_frame=_pose(args.part_frame, "--part-frame"), tcp=_pose(args.tcp, "--tcp"),
         feed_floor=d.feed_floor, cut_output=_output(args.cut_output), passes=_passes(args.pass_index),
+        max_poses=args.max_poses,
     ).checked()
 
 
@@ -311,6 +312,8 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--tcp", help="tool centre point in the flange frame: x,y,z,rx,ry,rz (m, rad)")
     p.add_argument("--cut-output", help="digital output on during every cut, KIND:PIN (standard:0, tool:1, ...)")
     p.add_argument("--pass", dest="pass_index", help="plan only passes K[,K...] or 'longest' (default: all)")
+    p.add_argument("--max-poses", type=float, default=D.max_poses,
+                   help=f"refuse jobs whose trajectory would exceed this many poses (default {D.max_poses:g})")
     p.add_argument("--units", choices=["mm", "m", "inch"], help="units of a CSV/JSON file (default mm)")
     p.add_argument("--machine", help="machine kinematics for 5-axis G-code (e.g. haas-umc-750)")
     p.add_argument("--progress", action="store_true", help="show progress bars even when not on a terminal")

@@ -193,6 +193,9 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
         else:
             toolpath, fmt = waypoints_toolpath(source, axes, feeds), "waypoints"
     s = resolve(settings, fmt, toolpath.axes is not None)
+    from planner.budget import check_budget
+
+    check_budget(toolpath, s)  # before any fitting or sampling: refuses absurd work in well under a second
     t_plan = time.perf_counter()
     tp = linearize_arcs(toolpath, s.arc_tolerance)
     if s.axes in ("fixed", "path") and tp.axes is not None:

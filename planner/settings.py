@@ -105,6 +105,11 @@ class PlanSettings:
     passes : tuple of int, "longest" or None
         Plan only these cutting passes of the input (numbers as the whole input splits them), or the longest
         one; None (default) plans all. The selected passes keep their source lines; rapids join them.
+    max_poses : float
+        Work budget: the largest trajectory (poses at ``rate``) a job may have, estimated from the toolpath
+        before planning (:mod:`planner.budget`); default 2e8 (111 h at 500 Hz).
+    max_points : float
+        Work budget: the most points the fit may see after arcs are linearised; default 2e7.
     cut_output : tuple (kind, pin) or None
         A digital output that is on exactly during every cut (spray valve, glue gun, torch): ``("standard",
         0..7)``, ``("configurable", 0..7)`` or ``("tool", 0..1)``; None (default) switches nothing.
@@ -131,6 +136,8 @@ class PlanSettings:
     reach_step: float = 2e-3
     cut_output: tuple | None = None
     passes: tuple | str | None = None
+    max_poses: float = 2e8
+    max_points: float = 2e7
 
     def checked(self) -> PlanSettings:
         """These settings validated and normalized (poses as 6 floats, ``arc_tolerance`` filled in).
@@ -149,6 +156,8 @@ class PlanSettings:
                          ("reach_step", 1.0)):
             _number(getattr(s, name), name, 0.0, hi)
         _number(s.feed_floor, "feed_floor", 0.0, 1.0)
+        _number(s.max_poses, "max_poses", 0.0, 1e12)
+        _number(s.max_points, "max_points", 0.0, 1e10)
         for name in ("limits", "turn_limits", "joint_limits"):
             if not isinstance(getattr(s, name), MotionLimits):
                 kind = type(getattr(s, name)).__name__

@@ -1,0 +1,161 @@
+"""The work budget of a job, computed from the toolpath before any fitting or sampling.
+
+A mistyped feed (``FEDRAT/1e-300``), a unit mistake (a file in mm read as m, coordinates scaled by 1e6) or
+an absurd rate would otherwise go straight into sampling and die minutes later in an allocation of
+terabytes. :func:`check_budget` estimates, from the polyline lengths, the feeds, the rate and the arcs still
+to be linearised, the number of poses of the trajectory and the points the fit will see, and refuses the
+job in well under a second with one line naming the cause and its place (file line) when it exceeds the
+limits of the settings (``max_poses``, ``max_points``) or leaves the range of any real robot cell
+(:data:`MAX_COORDINATE`, :data:`MIN_FEED`, :data:`MAX_FEED`).
+
+The estimate is a lower bound of the work: every span at its feed (capped by the speed limit), without the
+acceleration phases; the real count is at most a few samples per move longer.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from planner.errors import PlannerError
+
+#: Coordinates beyond this distance from the part origin (m) are no robot cell: a unit mistake.
+MAX_COORDINATE = 5_000.0
+#: Feeds below this (m/s: one micrometre per second) are refused: a typing or unit mistake.
+MIN_FEED = 1e-6
+#: Feeds above this (m/s) are refused: no tool path is cut at 10 m/s.
+MAX_FEED = 10.0
+#: Bytes per pose of the CSV trajectory with joints (for the figure shown to the user).
+CSV_BYTES_PER_POSE = 180
+
+
+class BudgetError(PlannerError):
+    """The job would exceed its work budget or leaves the range of a robot cell (the message says where)."""
+
+
+@dataclass(frozen=True)
+class Budget:
+    """What a job will cost, estimated before planning.
+
+    Attributes
+    ----------
+    length : float
+        Length of the polyline (cuts and rapids), m.
+    seconds : float
+        Motion time at the feeds (lower bound: no acceleration phases), s.
+    poses : float
+        Poses of the trajectory at the settings' rate.
+    points : int
+        Points the fit will see after the arcs are linearised (estimate).
+    """
+
+    length: float
+    seconds: float
+    poses: float
+    points: int
+
+    @property
+    def csv_bytes(self) -> float:
+        """Approximate size of the CSV trajectory with joints, bytes."""
+        return self.poses * CSV_BYTES_PER_POSE
+
+
+def _where(toolpath, i: int) -> str:
+    return f"{toolpath.source} line {int(toolpath.lines[i])}"
+
+
+def _arc_points(toolpath, tolerance: float) -> int:
+    """Points the arcs of the toolpath will add when linearised within ``tolerance`` (estimate)."""
+    from planner.io.toolpath import Arc
+
+    total = 0.0
+    p = toolpath.points
+    for arc in toolpath.events:
+        if not isinstance(arc, Arc):
+            continue
+        c, n = np.asarray(arc.centre, float), np.asarray(arc.axis, float)
+        v0, v1 = p[arc.start] - c, p[arc.index] - c
+        v0, v1 = v0 - (v0 @ n) * n, v1 - (v1 @ n) * n
+        r = max(float(np.linalg.norm(v0)), float(np.linalg.norm(v1)))
+        if not (math.isfinite(r) and r > 0.0):
+            continue
+        ang = math.atan2(float(np.cross(v0, v1) @ n), float(v0 @ v1)) % (2.0 * math.pi) or 2.0 * math.pi
+        step = 2.0 * math.acos(max(-1.0, 1.0 - min(tolerance / r, 2.0)))
+        total += ang / max(step, 1e-300)
+    return int(min(total, 1e18))
+
+
+def estimate(toolpath, settings) -> Budget:
+    """The :class:`Budget` of a toolpath under checked, resolved settings (see :func:`check_budget`)."""
+    p = toolpath.points
+    seg = np.linalg.norm(np.diff(p, axis=0), axis=1) if len(p) > 1 else np.zeros(0)
+    rapid = toolpath.rapid[1:]
+    f = toolpath.feeds[1:] * settings.feed_override
+    f = np.where(np.isnan(f), settings.feed * settings.feed_override, f)
+    v = np.where(rapid, settings.rapid_speed, np.minimum(f, settings.limits.speed))
+    with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
+        t = seg / v
+    seconds = float(np.sum(t)) if t.size else 0.0
+    points = len(p) + _arc_points(toolpath, settings.arc_tolerance)
+    return Budget(float(seg.sum()) if seg.size else 0.0, seconds, seconds * settings.rate, points)
+
+
+def check_budget(toolpath, settings) -> Budget:
+    """Refuse a job that leaves the range of a robot cell or exceeds the settings' work limits.
+
+    Parameters
+    ----------
+    toolpath : planner.io.Toolpath
+        As read (arcs not yet linearised).
+    settings : PlanSettings
+        Checked and resolved (``max_poses``, ``max_points``, feeds, rate, arc tolerance).
+
+    Returns
+    -------
+    Budget
+
+    Raises
+    ------
+    BudgetError
+        Naming the cause and its place, e.g. ``part.apt line 24: feed 1.7e-305 m/s is below 1 um/s`` or
+        ``the path is 1.2e+06 m long ...: are the units right? (the file says mm)``.
+    """
+    p = toolpath.points
+    if len(p):
+        far = np.abs(p).max(axis=1)
+        i = int(np.argmax(far))
+        if far[i] > MAX_COORDINATE:
+            raise BudgetError(f"{_where(toolpath, i)}: coordinate {far[i]:.3g} m is beyond any robot cell "
+                              f"({MAX_COORDINATE:g} m from the part origin): are the units right? "
+                              f"(the file says {toolpath.units})")
+    f = toolpath.feeds[1:]
+    cut = ~toolpath.rapid[1:] & np.isfinite(f)
+    for bad, what in ((cut & (f * settings.feed_override < MIN_FEED), f"below {MIN_FEED * 1e6:g} um/s"),
+                      (cut & (f * settings.feed_override > MAX_FEED), f"above {MAX_FEED:g} m/s")):
+        if bad.any():
+            i = int(np.argmax(bad)) + 1
+            raise BudgetError(f"{_where(toolpath, i)}: feed {f[i - 1] * settings.feed_override:.3g} m/s is {what}: "
+                              f"no robot cell cuts at that feed (are the feed units right?)")
+    b = estimate(toolpath, settings)
+    if b.points > settings.max_points:
+        raise BudgetError(f"{toolpath.source}: the arcs would be linearised into about {b.points:.3g} points "
+                          f"(more than max_points = {settings.max_points:g}): is arc_tolerance "
+                          f"({settings.arc_tolerance:.3g} m) right?")
+    if b.poses > settings.max_poses:
+        seg = np.linalg.norm(np.diff(p, axis=0), axis=1)
+        cut_v = np.where(np.isnan(f), settings.feed, f) * settings.feed_override
+        v = np.where(toolpath.rapid[1:], settings.rapid_speed, np.minimum(cut_v, settings.limits.speed))
+        i = int(np.argmax(seg / v)) + 1
+        share = seg[i - 1] / v[i - 1] * settings.rate
+        if share >= 0.5 * b.poses:
+            cause = f"{_where(toolpath, i)}: {seg[i - 1]:.3g} m at {v[i - 1]:.3g} m/s would need {share:.3g} poses"
+        elif b.length > 100.0:
+            cause = f"the path is {b.length:.3g} m long: are the units right? (the file says {toolpath.units})"
+        else:
+            cause = f"{b.length:.3g} m of path at the feeds is {b.seconds:.3g} s of motion"
+        raise BudgetError(f"{cause}; the job would be about {b.poses:.3g} poses at {settings.rate:g} Hz "
+                          f"({b.seconds / 3600:.3g} h, about {b.csv_bytes / 1e9:.3g} GB of CSV), more than "
+                          f"max_poses = {settings.max_poses:g}")
+    return b
