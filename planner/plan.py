@@ -177,6 +177,7 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
             raise PlannerError("axes and feeds are for waypoint arrays; a file gives its own")
         tic = time.perf_counter()
         fmt = detect_format(source)
+        check_read_options(fmt, read_options or {})
         with warnings.catch_warnings(record=True) as w:
             warnings.simplefilter("always")
             toolpath = read_toolpath(source, format=fmt, **(read_options or {}))
@@ -265,6 +266,20 @@ def _select_passes(tp, seg: Segmentation, passes):
         return (None if a is None else a[rows])
     return type(tp)(tp.points[rows], sub(tp.axes), sub(tp.axis_given), tp.feeds[rows], rapid, tp.lines[rows],
                     (), tp.units, tp.source, sub(tp.rotary))
+
+
+def check_read_options(fmt: str, options: dict) -> None:
+    """PlannerError naming every reader option that does not apply to files of format ``fmt``."""
+    import inspect
+
+    from planner.io.dispatch import READERS
+
+    accepted = {name: {p for p in list(inspect.signature(r).parameters)[1:]} for name, r in READERS.items()}
+    for key in options:
+        if key not in accepted[fmt]:
+            where = sorted(f for f, keys in accepted.items() if key in keys)
+            raise PlannerError(f"option {key!r} does not apply to {fmt} files"
+                               + (f" (it is for {', '.join(where)} files)" if where else ""))
 
 
 def _format_of(name: str) -> str:

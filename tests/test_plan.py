@@ -295,3 +295,12 @@ def test_settings_round_trip_through_plain_values():
     assert back.checked() == s.checked()
     with pytest.raises(PlannerError, match="unknown setting feedrate"):
         PlanSettings.from_dict({"feedrate": 1.0})
+
+
+def test_reader_options_that_do_not_apply_are_refused_by_name(tmp_path):
+    f = tmp_path / "head.cls"
+    f.write_text(NX_HEAD)
+    with pytest.raises(PlannerError, match="option 'machine' does not apply to apt files \\(it is for gcode files\\)"):
+        plan(f, read_options={"machine": "haas-umc-750"})
+    with pytest.raises(PlannerError, match="option 'colour' does not apply to apt files$"):
+        plan(f, read_options={"colour": "red"})
