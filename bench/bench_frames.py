@@ -9,11 +9,17 @@ twist (degrees) against the exact RMF from the same start frame:
 Table 2: the GRM seed example (Peng, Pang, Pan 2023; A0=(0,1,0,2), A1=(0,2,1,-1), A2=(0,3,-2,-1)): every
 weight side by side with the paper's printed solutions: objective, residual of eq. (24), max twist.
 
+Table 3: the rotation conversions of planner.rotations at 10^5 random rotations, against the route they
+replace or the one they avoid, timed in the same run (best of 5): scipy-based functions against the
+hand-written formulas the planner had before (Shepperd's method, the unit-quaternion matrix), and the
+two documented hand-written exceptions (quaternion -> UR rotation vector keeping the sign, angle between
+rotations) against the scipy route with its largest difference.
+
 Targets (issue 3): exact RMF at 10^5 samples within 2x of double reflection's time; GRM median under
 10 ms per segment; GRM on the seed example satisfies (24) below 1e-9 with a twist no worse than the
 paper's.
 
-Run: python bench/bench_frames.py [--waypoints 1000] [--samples 100000]
+Run: python bench/bench_frames.py [--waypoints 1000] [--samples 100000] [--rotations-only]
 """
 
 from __future__ import annotations
@@ -26,9 +32,11 @@ from pathlib import Path
 import numpy as np
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
-from _common import print_table  # noqa: E402
+from _common import best_time, print_table  # noqa: E402
 from bench_paths import waypoints  # noqa: E402
+from scipy.spatial.transform import Rotation  # noqa: E402
 
+from planner import rotations  # noqa: E402
 from planner.curves import PHQuintic, fit_ph_cubic_spline, fit_ph_spline  # noqa: E402
 from planner.frames import (  # noqa: E402
     double_reflection_frames,
@@ -130,11 +138,81 @@ def seed_table() -> None:
     print_table(["solution", "objective", "residual of (24)", "max twist deg", "ms"], rows)
 
 
+def _shepperd(R: np.ndarray) -> np.ndarray:
+    """The hand-written matrix -> quaternion the planner used before planner.rotations (baseline)."""
+    r00, r01, r02 = R[:, 0, 0], R[:, 0, 1], R[:, 0, 2]
+    r10, r11, r12 = R[:, 1, 0], R[:, 1, 1], R[:, 1, 2]
+    r20, r21, r22 = R[:, 2, 0], R[:, 2, 1], R[:, 2, 2]
+    tr = r00 + r11 + r22
+    case = np.argmax(np.stack((tr, r00, r11, r22), axis=1), axis=1)
+    d21, d02, d10 = r21 - r12, r02 - r20, r10 - r01
+    s01, s02, s12 = r01 + r10, r02 + r20, r12 + r21
+    c0, c1, c2 = case == 0, case == 1, case == 2
+    q = np.empty((R.shape[0], 4))
+    q[:, 0] = np.where(c0, 1.0 + tr, np.where(c1, d21, np.where(c2, d02, d10)))
+    q[:, 1] = np.where(c0, d21, np.where(c1, 1.0 + r00 - r11 - r22, np.where(c2, s01, s02)))
+    q[:, 2] = np.where(c0, d02, np.where(c1, s01, np.where(c2, 1.0 - r00 + r11 - r22, s12)))
+    q[:, 3] = np.where(c0, d10, np.where(c1, s02, np.where(c2, s12, 1.0 - r00 - r11 + r22)))
+    return q / np.sqrt(np.einsum("ni,ni->n", q, q))[:, None]
+
+
+def _unit_quaternion_matrix(q: np.ndarray) -> np.ndarray:
+    """The hand-written unit quaternion -> matrix the planner used before planner.rotations (baseline)."""
+    w, x, y, z = q[:, 0], q[:, 1], q[:, 2], q[:, 3]
+    R = np.empty((q.shape[0], 3, 3))
+    R[:, 0, 0] = 1.0 - 2.0 * (y * y + z * z)
+    R[:, 0, 1] = 2.0 * (x * y - w * z)
+    R[:, 0, 2] = 2.0 * (x * z + w * y)
+    R[:, 1, 0] = 2.0 * (x * y + w * z)
+    R[:, 1, 1] = 1.0 - 2.0 * (x * x + z * z)
+    R[:, 1, 2] = 2.0 * (y * z - w * x)
+    R[:, 2, 0] = 2.0 * (x * z - w * y)
+    R[:, 2, 1] = 2.0 * (y * z + w * x)
+    R[:, 2, 2] = 1.0 - 2.0 * (x * x + y * y)
+    return R
+
+
+def rotations_table(n: int) -> None:
+    R1 = Rotation.random(n, random_state=1).as_matrix()
+    R2 = Rotation.random(n, random_state=2).as_matrix()
+    q = Rotation.random(n, random_state=3).as_quat(scalar_first=True)  # either sign of w
+    rows = []
+
+    def row(what, ours, base, base_name, diff):
+        t_ours, t_base = best_time(ours), best_time(base)
+        rows.append([what, f"{t_ours * 1e3:.2f}", base_name, f"{t_base * 1e3:.2f}", f"{t_base / t_ours:.2f}",
+                     f"{diff:.1e}"])
+
+    canon = np.sign(_shepperd(R1)[:, :1])
+    row("matrix -> quaternion (scipy)", lambda: rotations.matrix_to_quaternion(R1), lambda: _shepperd(R1),
+        "hand-written Shepperd", np.abs(rotations.matrix_to_quaternion(R1) - canon * _shepperd(R1)).max())
+    row("quaternion -> matrix (scipy)", lambda: rotations.quaternion_to_matrix(q), lambda: _unit_quaternion_matrix(q),
+        "hand-written unit formula", np.abs(rotations.quaternion_to_matrix(q) - _unit_quaternion_matrix(q)).max())
+    qc = q * np.sign(q[:, :1])
+    row("quaternion -> rotvec, sign kept (hand-written)", lambda: rotations.quaternion_to_rotvec(q),
+        lambda: Rotation.from_quat(q, scalar_first=True).as_rotvec(), "scipy as_rotvec (w >= 0 only)",
+        np.abs(rotations.quaternion_to_rotvec(qc) - Rotation.from_quat(qc, scalar_first=True).as_rotvec()).max())
+    away = Rotation.from_matrix(np.einsum("nji,njk->nik", R1, R2)).magnitude() < np.pi - 1e-3
+    row("angle between rotations (hand-written)", lambda: rotations.rotation_angle(R1, R2),
+        lambda: Rotation.from_matrix(np.einsum("nji,njk->nik", R1, R2), assume_valid=True).magnitude(),
+        "scipy magnitude of R1^T R2",
+        np.abs(rotations.rotation_angle(R1, R2) - Rotation.from_matrix(np.einsum("nji,njk->nik", R1, R2))
+               .magnitude())[away].max())
+    print(f"Rotation conversions of planner.rotations, {n} rotations (ratio = other / ours; difference up to "
+          "pi - 1e-3 for the angle)")
+    print_table(["planner.rotations", "ms", "other route", "other ms", "ratio", "max |difference|"], rows)
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--waypoints", type=int, default=1000)
     ap.add_argument("--samples", type=int, default=100_000)
+    ap.add_argument("--rotations-only", action="store_true", help="print table 3 only")
     args = ap.parse_args()
+    rotations_table(args.samples)
+    print()
+    if args.rotations_only:
+        return
     seed_table()
     print()
     path_table(args.waypoints, args.samples)

@@ -12,6 +12,8 @@ from math import comb
 
 import numpy as np
 
+from planner import quaternion as quat
+
 
 @lru_cache(maxsize=64)
 def _binomials(n: int) -> np.ndarray:
@@ -54,27 +56,22 @@ def antiderivative(coeffs: np.ndarray, c0: np.ndarray | float = 0.0) -> np.ndarr
     return np.asarray(c0, dtype=float) + np.concatenate((zero, np.cumsum(coeffs, axis=0) / (n + 1)))
 
 
-def product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Bernstein coefficients of the product of scalar polynomials a (m+1,) and b (n+1,), (m+n+1,)."""
+def quaternion_product(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """Bernstein coefficients of the quaternion polynomial product a(t) b(t) (Hamilton product).
+
+    Unlike the rest of this module the degree runs along axis -2: a (..., m+1, 4) and b (..., n+1, 4)
+    (leading axes broadcast) give (..., m+n+1, 4), with the Bernstein product rule
+    c_k = sum_{i+j=k} C(m, i) C(n, j) / C(m+n, k) a_i b_j.
+    """
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
-    m, n = a.shape[0] - 1, b.shape[0] - 1
-    out = np.zeros(m + n + 1)
-    for i in range(m + 1):
+    m, n = a.shape[-2] - 1, b.shape[-2] - 1
+    out = np.zeros(np.broadcast_shapes(a.shape[:-2], b.shape[:-2]) + (m + n + 1, 4))
+    for i in range(m + 1):  # (m + 1) (n + 1) products of whole coefficient arrays: degrees are small
         for j in range(n + 1):
-            out[i + j] += comb(m, i) * comb(n, j) / comb(m + n, i + j) * a[i] * b[j]
+            c = comb(m, i) * comb(n, j) / comb(m + n, i + j)
+            out[..., i + j, :] += c * quat.mul(a[..., i, :], b[..., j, :])
     return out
-
-
-def elevate(coeffs: np.ndarray, r: int = 1) -> np.ndarray:
-    """Degree elevation by r of Bernstein coefficients (n+1, ...) -> (n+r+1, ...)."""
-    c = np.asarray(coeffs, dtype=float)
-    for _ in range(r):
-        n = c.shape[0] - 1
-        k = np.arange(1, n + 1).reshape((-1,) + (1,) * (c.ndim - 1)) / (n + 1)
-        mid = k * c[:-1] + (1 - k) * c[1:]
-        c = np.concatenate((c[:1], mid, c[-1:]))
-    return c
 
 
 def to_power(coeffs: np.ndarray) -> np.ndarray:

@@ -1,4 +1,13 @@
-"""Errors raised on bad user data: every one is a ``ValueError`` that says what and where."""
+"""The planner's two kinds of error: the user's mistakes and our own numerical failures.
+
+- :class:`PlannerError` (a ``ValueError``) and its subclasses: the input is unusable (bad data, an
+  option out of range, a toolpath the robot cannot follow). The message says what and where. The CLI
+  exits with code 2, the REST service answers 4xx.
+- :class:`NumericalError` (a ``RuntimeError``, deliberately *not* a ``ValueError``, so that no
+  ``except ValueError`` / ``except PlannerError`` turns it into the user's fault) and its subclasses: an
+  algorithm of ours failed on input that is valid (a solver did not converge). The CLI reports
+  "internal error, please report" with exit code 3, the REST service answers 5xx.
+"""
 
 from __future__ import annotations
 
@@ -27,5 +36,30 @@ class NoSolutionError(PlannerError):
     """The data admits no curve of the requested kind (e.g. no PH cubic through given G1 data)."""
 
 
-class ConvergenceError(PlannerError):
-    """An iterative solve (e.g. the C2 PH spline Newton solve) did not converge."""
+class NumericalError(RuntimeError):
+    """Base class of the planner's own numerical failures: not a ``ValueError``, not the user's fault.
+
+    Raised when an algorithm fails on input that passed validation. The message starts with what failed
+    and where, and ends by saying that this is a numerical failure of the planner, not a problem with the
+    input. Front ends map it to an internal error: the service to HTTP 5xx, the CLI to
+    "internal error, please report" with exit code 3.
+
+    Attributes
+    ----------
+    detail : str
+        The message without the closing sentence.
+    """
+
+    #: Appended to every message.
+    NOTE = "this is a numerical failure of the planner, not a problem with the input; please report it"
+
+    def __init__(self, detail: str):
+        self.detail = detail
+        super().__init__(f"{detail} ({self.NOTE})")
+
+    def __reduce__(self):  # pickled (e.g. by a worker pool) and rebuilt with the same message
+        return type(self), (self.detail,)
+
+
+class ConvergenceError(NumericalError):
+    """An iterative solve (e.g. the C2 PH spline Newton solve) or an adaptive refinement did not converge."""

@@ -1,8 +1,9 @@
 """Vectorized quaternion algebra on arrays of shape (..., 4), laid out as (scalar, i, j, k).
 
 These are the few operations the PH curve and frame formulas are written in. For rotations as such
-(conversion to matrices, rotation vectors, slerp) the planner uses ``scipy.spatial.transform``;
-these helpers exist because PH hodographs need the *unnormalized* products ``A u A*``.
+(conversion to matrices, rotation vectors, slerp) the planner uses :mod:`planner.rotations` (on
+``scipy.spatial.transform``, same layout); these helpers exist because PH hodographs need the
+*unnormalized* products ``A u A*``.
 """
 
 from __future__ import annotations
@@ -102,30 +103,3 @@ def exp_i(phi: np.ndarray) -> np.ndarray:
     phi = np.asarray(phi, dtype=float)
     z = np.zeros_like(phi)
     return np.stack((np.cos(phi), np.sin(phi), z, z), axis=-1)
-
-
-def from_vector(v: np.ndarray) -> np.ndarray:
-    """Pure quaternion (0, v) from vectors of shape (..., 3)."""
-    v = np.asarray(v, dtype=float)
-    return np.concatenate((np.zeros(v.shape[:-1] + (1,)), v), axis=-1)
-
-
-def to_matrix(q: np.ndarray) -> np.ndarray:
-    """Rotation matrices (..., 3, 3) of quaternions q, not necessarily unit: q v q* / |q|^2."""
-    q = np.asarray(q, dtype=float)
-    w, x, y, z = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    ww, xx, yy, zz = w * w, x * x, y * y, z * z
-    inv = 1.0 / (ww + xx + yy + zz)
-    two = 2.0 * inv
-    xy, xz, yz, wx, wy, wz = x * y, x * z, y * z, w * x, w * y, w * z
-    m = np.empty(q.shape[:-1] + (3, 3))
-    m[..., 0, 0] = (ww + xx - yy - zz) * inv
-    m[..., 0, 1] = (xy - wz) * two
-    m[..., 0, 2] = (xz + wy) * two
-    m[..., 1, 0] = (xy + wz) * two
-    m[..., 1, 1] = (ww - xx + yy - zz) * inv
-    m[..., 1, 2] = (yz - wx) * two
-    m[..., 2, 0] = (xz - wy) * two
-    m[..., 2, 1] = (yz + wx) * two
-    m[..., 2, 2] = (ww - xx - yy + zz) * inv
-    return m

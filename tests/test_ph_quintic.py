@@ -299,11 +299,11 @@ def test_alpha_start_is_the_global_minimum_of_the_alpha_criterion(seed):
     """The trust-region start min |Sc cos + Ss sin - w|^2 against a dense grid: exact where the minimum is flat
     (w near the tip of the ellipse S, where Newton in delta would be slow), near the global minimizer elsewhere
     (the root of the secular equation from a lower bound of it; Newton on the CC measure follows)."""
-    from planner.curves.ph_quintic import _PRODUCTS, _alpha_start, _sqrt_rot
+    from planner.curves.ph_quintic import _PRODUCTS, _alpha_start, sqrt_rot
 
     rng = np.random.default_rng(seed)
     n = 400
-    a0, a2 = (_sqrt_rot(rng.normal(size=(3, n)))[0] for _ in range(2))
+    a0, a2 = (sqrt_rot(rng.normal(size=(3, n)))[0] for _ in range(2))
     R = _PRODUCTS @ (a0[:, None] * a2[None]).reshape(16, n)
     Sc, Ss = R[:3], R[4:7]
     w = rng.normal(size=(3, n)) * rng.uniform(0, 2, size=n)

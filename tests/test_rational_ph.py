@@ -354,7 +354,7 @@ def test_rotation_R_rotates_the_curve():
 def test_lemma2_constant_quaternion_rotates_and_scales():
     """A -> Q A gives r_Q = R(Q) r / |Q|^4 (Lemma 2)."""
     from planner.curves.rational_ph import qpoly_mul
-    from planner.quaternion import to_matrix
+    from planner.rotations import quaternion_to_matrix
 
     A = np.array([[0.3, -0.2, 1.0, 0.4], [0.5, 1.0, -0.3, 0.2], [1, 0, 0, 0]])
     Q = np.array([0.7, -0.4, 1.2, 0.5])
@@ -362,7 +362,7 @@ def test_lemma2_constant_quaternion_rotates_and_scales():
     ts = np.linspace(-1, 1, 9)
     a = RationalPH.from_dual(A, f)
     b = RationalPH.from_dual(qpoly_mul(Q[None, :], A), f)
-    expected = a.points(ts) @ to_matrix(Q).T / np.dot(Q, Q) ** 2
+    expected = a.points(ts) @ quaternion_to_matrix(Q).T / np.dot(Q, Q) ** 2
     np.testing.assert_allclose(b.points(ts), expected, rtol=1e-9, atol=1e-12)
 
 

@@ -29,8 +29,8 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from planner import quaternion as qt
-from planner.frames.spherical_rmm import _reference, _spin_rate, base_starts  # the same RMM (seed eq. 3)
-from planner.motion.rotvec import matrix_to_quaternion
+from planner.frames.spherical_rmm import base_starts, shortest_arc_quaternions, spin_rate  # the same RMM (seed eq. 3)
+from planner.rotations import matrix_to_quaternion, matrix_to_rotvec, quaternion_to_matrix, rotate_vectors
 
 #: Accuracy (rad) asked of each spin panel (its Chebyshev series' last two terms).
 PANEL_TOL = 1e-13
@@ -74,13 +74,6 @@ def turn_axis(F: np.ndarray, z_new: np.ndarray) -> tuple[np.ndarray, float]:
     return n, ang
 
 
-def rotation_matrices(n: np.ndarray, angles: np.ndarray) -> np.ndarray:
-    """Rotations (m, 3, 3) about the unit axis n (3,) by ``angles`` (m,) (Rodrigues' formula)."""
-    K = np.array([[0.0, -n[2], n[1]], [n[2], 0.0, -n[0]], [-n[1], n[0], 0.0]])
-    s, c = np.sin(angles)[:, None, None], np.cos(angles)[:, None, None]
-    return np.eye(3) + s * K + (1.0 - c) * (K @ K)  # Rodrigues' rotation formula
-
-
 def transport(F: np.ndarray, z_new: np.ndarray) -> np.ndarray:
     """Frame F turned without spin so that its column 2 becomes ``z_new`` (3, 3), exactly.
 
@@ -90,7 +83,7 @@ def transport(F: np.ndarray, z_new: np.ndarray) -> np.ndarray:
     if np.array_equal(F[:, 2], z_new):
         return F
     n, ang = turn_axis(F, z_new)
-    x = rotation_matrices(n, np.array([ang]))[0] @ F[:, 0]
+    x = rotate_vectors(ang * n, F[:, 0])
     return frame_with_axis(np.asarray(z_new, dtype=float), x)
 
 
@@ -140,7 +133,7 @@ class AxisField:
         u = np.atleast_1d(np.asarray(u, dtype=float))
         if self.motion is None:
             return np.broadcast_to(self.start, (u.size, 3, 3)).copy()
-        return qt.to_matrix(self.motion.quaternion(u))
+        return quaternion_to_matrix(self.motion.quaternion(u))
 
     def at_length(self, s) -> np.ndarray:
         """Tool frames at arc lengths s (n,) from the start of the pass (metres)."""
@@ -223,7 +216,8 @@ class SpinTable:
         half = 0.5 * theta
         spin = np.zeros((u.size, 4))
         spin[:, 0], spin[:, 3] = np.cos(half), np.sin(half)
-        return qt.mul(qt.mul(_reference(self.bases[piece], self.z(u)), self.base_quaternions[piece]), spin)
+        ref = shortest_arc_quaternions(self.bases[piece], self.z(u))
+        return qt.mul(qt.mul(ref, self.base_quaternions[piece]), spin)
 
 
 #: Chebyshev points per spin panel.
@@ -241,7 +235,7 @@ def _panel_series(z, dz, bases, a, b, own) -> tuple[np.ndarray, np.ndarray]:
     """
     half = 0.5 * (b - a)
     u = ((a + half)[:, None] + half[:, None] * _CHEB_X).ravel()
-    f = _spin_rate(np.repeat(bases[own], CHEB_N, axis=0), z(u), dz(u)).reshape(a.size, CHEB_N)
+    f = spin_rate(np.repeat(bases[own], CHEB_N, axis=0), z(u), dz(u)).reshape(a.size, CHEB_N)
     c = f @ _CHEB_M.T
     C = np.polynomial.chebyshev.chebint(c, m=1, lbnd=-1.0, axis=1) * half[:, None]
     return c, C
@@ -286,7 +280,7 @@ def _rmm(z, dz, knots: np.ndarray, F0: np.ndarray) -> SpinTable:
         last = first_panel[p] - 1
         theta = float(spin_start[last] + total[last])
         spin = np.array([np.cos(theta / 2), 0.0, 0.0, np.sin(theta / 2)])
-        ref = _reference(bases[p - 1][None], bases[p][None])[0]
+        ref = shortest_arc_quaternions(bases[p - 1][None], bases[p][None])[0]
         base_q[p] = qt.mul(qt.mul(ref, base_q[p - 1]), spin)
     return SpinTable(z, dz, pieces, bases, base_q, np.append(pa, pb[-1]), po, spin_start, C)
 
@@ -323,18 +317,28 @@ def axis_field(path, axes, start=None) -> AxisField:
     c = PchipInterpolator(u, a, axis=0)
     dc = c.derivative()
 
-    def z(x):
-        return _unit(c(np.asarray(x, dtype=float)))
+    z = UnitAxis(c, dc)
+    return AxisField(path, a, c, _rmm(z, z.dz, u, F0), F0)
 
-    def dz(x):
+
+@dataclass(frozen=True, eq=False)
+class UnitAxis:
+    """The unit tool axis z(u) = c(u) / |c(u)| of an interpolant c and its derivative dz/du (a module-level
+    callable, so that planned jobs pickle)."""
+
+    c: object
+    dc: object
+
+    def __call__(self, x) -> np.ndarray:
+        return _unit(self.c(np.asarray(x, dtype=float)))
+
+    def dz(self, x) -> np.ndarray:
         x = np.asarray(x, dtype=float)
-        v = c(x)
+        v = self.c(x)
         n = np.linalg.norm(v, axis=1, keepdims=True)
         zz = v / n
-        d = dc(x)
+        d = self.dc(x)
         return (d - np.sum(d * zz, axis=1, keepdims=True) * zz) / n
-
-    return AxisField(path, a, c, _rmm(z, dz, u, F0), F0)
 
 
 def arc_departure(z: np.ndarray, a0: np.ndarray, a1: np.ndarray) -> np.ndarray:
@@ -372,13 +376,9 @@ def _relative_spin(F0: np.ndarray, F1: np.ndarray) -> np.ndarray:
     """Spin (n,) about the tool axis of the slerps from frames F0 to F1 (n, 3, 3), radians.
 
     A slerp turns with constant body angular velocity, whose component along the tool axis (body z)
-    is the z component of the rotation vector of F0^T F1.
+    is the z component of the rotation vector of F0^T F1 (its size is returned).
     """
-    q = matrix_to_quaternion(np.matmul(np.swapaxes(F0, 1, 2), F1))
-    q = q * np.where(q[:, :1] < 0.0, -1.0, 1.0)
-    vn = np.linalg.norm(q[:, 1:], axis=1)
-    angle = 2.0 * np.arctan2(vn, q[:, 0])
-    return np.where(vn > 0.0, angle * np.abs(q[:, 3]) / np.where(vn > 0.0, vn, 1.0), 0.0)
+    return np.abs(matrix_to_rotvec(np.matmul(np.swapaxes(F0, 1, 2), F1))[:, 2])
 
 
 def spin_about_axis(frames: np.ndarray) -> float:

@@ -15,11 +15,11 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner import quaternion as qt
-from planner.cam.axes import rotation_matrices, turn_axis
+from planner.cam.axes import turn_axis
 from planner.curves.spline import PHSpline
 from planner.errors import PlannerError
 from planner.motion import MotionLimits, plan_feed
-from planner.motion.rotvec import matrix_to_quaternion
+from planner.rotations import matrix_to_quaternion, rotvec_to_matrix, rotvec_to_quaternion
 
 
 def straight_path(p0: np.ndarray, p1: np.ndarray) -> PHSpline:
@@ -53,13 +53,13 @@ class TurningFrames:
         x = np.atleast_1d(np.asarray(x, dtype=float))
         if self.angle == 0.0:
             return np.broadcast_to(self.start, (x.size, 3, 3)).copy()
-        return rotation_matrices(self.n, self.angle * np.clip(x / self.span, 0.0, 1.0)) @ self.start
+        turned = (self.angle * np.clip(x / self.span, 0.0, 1.0))[:, None] * self.n
+        return rotvec_to_matrix(turned) @ self.start
 
     def quaternions(self, x) -> np.ndarray:
         x = np.atleast_1d(np.asarray(x, dtype=float))
         q0 = matrix_to_quaternion(self.start[None])[0]
-        half = 0.5 * self.angle * np.clip(x / self.span, 0.0, 1.0)
-        r = np.concatenate((np.cos(half)[:, None], np.sin(half)[:, None] * self.n), axis=1)
+        r = rotvec_to_quaternion((self.angle * np.clip(x / self.span, 0.0, 1.0))[:, None] * self.n)
         return qt.mul(r, np.broadcast_to(q0, r.shape))  # the turn about n applied after the start frame
 
     def at_length(self, s) -> np.ndarray:

@@ -65,7 +65,7 @@ _PRODUCTS = _products_matrix()
 # every arithmetic operation runs on a contiguous row of N segments (the fitters call it for thousands).
 
 
-def _sqrt_rot(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+def sqrt_rot(v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Rows (4, N) of a quaternion A with A i A* = v, for vector rows v (3, N), and |v| = |A|^2 (N,).
 
     A = (r + |l|, 0, -n, m) / sqrt(2 (r + |l|)) for l >= 0 and (-n, m, r + |l|, 0) / sqrt(2 (r + |l|)) for
@@ -361,8 +361,8 @@ def _cc_member(base, e, w, a0, a2, r0, r1):
     return c, s, Sc * c + Ss * s
 
 
-def _hermite_rows(dp, d0, d1, a0, a2, r0, r1, angles=None, root_scale=None) -> np.ndarray:
-    """batch_hermite on component rows: dp = p1 - p0, d0, d1 (3, N), a0, a2 = _sqrt_rot(d0), _sqrt_rot(d1)
+def hermite_rows(dp, d0, d1, a0, a2, r0, r1, angles=None, root_scale=None) -> np.ndarray:
+    """batch_hermite on component rows: dp = p1 - p0, d0, d1 (3, N), a0, a2 = sqrt_rot(d0), sqrt_rot(d1)
     (4, N) and r0, r1 = |d0|, |d1|; returns A (N, 3, 4), multiplied by ``root_scale`` (N,) if given (the
     interpolant of data scaled by h is h times the curve, sqrt(h) times A, with the same free angles)."""
     n = dp.shape[1]
@@ -376,7 +376,7 @@ def _hermite_rows(dp, d0, d1, a0, a2, r0, r1, angles=None, root_scale=None) -> n
         delta = np.broadcast_to(np.asarray(angles[1], dtype=float), (n,)) - phi0
         a2d = _times_e_i(a2, np.cos(delta), np.sin(delta))
         S = _i_product(a0, a2d)
-    Q = _sqrt_rot(base + 10.0 * S)[0]  # Farouki: (3A0+4A1+3A2) i (..)* = alpha
+    Q = sqrt_rot(base + 10.0 * S)[0]  # Farouki: (3A0+4A1+3A2) i (..)* = alpha
     if angles is None:  # A0 + A2 = (a0 + a2d) e^{i phi0}; phi0 maximizes <(a0 + a2d) e^{i phi0}, Q>
         B = a0 + a2d
         x, y = _dot(B, Q), _dot(B[_IPERM], Q * _ISIGN)  # <B, Q>, <B i, Q>
@@ -435,8 +435,8 @@ def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
     rows = np.empty((3, 3, n))  # p1 - p0, d0, d1 on contiguous rows
     np.subtract(p1.T, p0.T, out=rows[0])
     rows[1], rows[2] = d0.T, d1.T
-    a, r = _sqrt_rot(rows[1:].transpose(1, 0, 2).reshape(3, 2 * n))
-    return _hermite_rows(rows[0], rows[1], rows[2], a[:, :n], a[:, n:], r[:n], r[n:], angles)
+    a, r = sqrt_rot(rows[1:].transpose(1, 0, 2).reshape(3, 2 * n))
+    return hermite_rows(rows[0], rows[1], rows[2], a[:, :n], a[:, n:], r[:n], r[n:], angles)
 
 
 # ---------------------------------------------------------------------------------------------

@@ -138,5 +138,5 @@ def solve_c2(
     worst = int(np.argmax(np.abs(F[: 3 * (points.shape[0] - 1)]).reshape(-1, 3).max(axis=1)))
     raise ConvergenceError(
         f"C2 PH spline did not converge (residual {norm:.3g} at the span from waypoint {worst} to "
-        f"{worst + 1}); use continuity='C1' or add waypoints there"
+        f"{worst + 1}; continuity='C1' or more waypoints there avoid it)"
     )

@@ -99,11 +99,6 @@ def vder(V, m: int = 1) -> np.ndarray:
     return P.polyder(V, m, axis=1)
 
 
-def vmul(s, V) -> np.ndarray:
-    """Scalar polynomial s times every row of V."""
-    return stack([P.polymul(s, row) for row in np.atleast_2d(V)])
-
-
 def vdot(U, V) -> np.ndarray:
     """sum_i U_i V_i for polynomial vectors U, V."""
     out = np.zeros(1)

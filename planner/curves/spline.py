@@ -23,7 +23,7 @@ from planner.curves.ph_core import (
     curvature_torsion,
 )
 from planner.curves.ph_cubic import PHCubic
-from planner.curves.ph_quintic import PHQuintic, _hermite_rows, _sqrt_rot
+from planner.curves.ph_quintic import PHQuintic, hermite_rows, sqrt_rot
 from planner.curves.ph_spline_c2 import solve_c2
 from planner.curves.tangents import slopes_rows
 from planner.errors import PlannerError
@@ -148,9 +148,9 @@ class PHSpline:
     def quaternion(self, u) -> np.ndarray:
         """The quaternion polynomial A(t) (n, 4) of each sample's segment (r' = A i A* per unit t)."""
         k, t = self.locate(u)
-        return self._quaternion_t(k, t)
+        return self.quaternion_at_segment(k, t)
 
-    def _quaternion_rows(self, k, t) -> list[np.ndarray]:
+    def quaternion_rows(self, k, t) -> list[np.ndarray]:
         """Components (w, x, y, z), each (n,), of A(t) of segments k (n,) at local parameters t (n,)."""
         P = self._A_rows
         out = []
@@ -163,8 +163,9 @@ class PHSpline:
             out.append(r)
         return out
 
-    def _quaternion_t(self, k, t) -> np.ndarray:
-        return np.stack(self._quaternion_rows(k, np.asarray(t, dtype=float)), axis=1)
+    def quaternion_at_segment(self, k, t) -> np.ndarray:
+        """A(t) (n, 4) of segments k (n,) at local parameters t (n,) in [0, 1] (no search for the segment)."""
+        return np.stack(self.quaternion_rows(k, np.asarray(t, dtype=float)), axis=1)
 
     def _derivative_t(self, k, t, order):
         """d^order r / dt^order of segments k (n,) at local parameters t (n,), by Horner's rule."""
@@ -356,8 +357,8 @@ def fit_ph_spline(
         m[:, -1] = t1 / np.linalg.norm(t1)
     # segment k interpolates d0 = h_k m_k, d1 = h_k m_{k+1}: h_k times the interpolant of (dp / h_k, m_k, m_{k+1}),
     # whose roots sqrt_rot(m) are shared by neighbouring segments
-    a, r = _sqrt_rot(m)
-    A = _hermite_rows(dp / h, m[:, :-1], m[:, 1:], a[:, :-1], a[:, 1:], r[:-1], r[1:], angles, np.sqrt(h))
+    a, r = sqrt_rot(m)
+    A = hermite_rows(dp / h, m[:, :-1], m[:, 1:], a[:, :-1], a[:, 1:], r[:-1], r[1:], angles, np.sqrt(h))
     if continuity == "C1":
         return PHSpline(A, p[:-1], u, "C1", 0)
     sq = np.sqrt(h)[:, None, None]

@@ -29,19 +29,15 @@ def _cross(a: np.ndarray, b: np.ndarray) -> np.ndarray:
     return np.stack((a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]))
 
 
-def reflection_rotations(points: np.ndarray, tangents: np.ndarray) -> np.ndarray:
-    """Unit quaternions q_i (n - 1, 4) of H2 H1 for each step (Wang et al. 2008, Alg. 1).
-
-    ``tangents`` must be unit vectors. Where x_i+1 = x_i the first reflection uses v1 = t_i (the limit
-    of the chord direction along a smooth curve), which makes q_i the shortest-arc rotation t_i -> t_i+1.
-    Raises FrameDataError naming the step when t_i+1 equals the reflected tangent t_i^L up to
-    ``MIN_REFLECTION`` (the tangents reverse against the chord).
-    """
-    return _rotations(np.ascontiguousarray(points.T), np.ascontiguousarray(tangents.T)).T
-
-
 def _rotations(x: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """reflection_rotations on component rows: x, t (3, n) -> q (4, n - 1)."""
+    """Unit quaternions q_i (4, n - 1) of H2 H1 for each step (Wang et al. 2008, Alg. 1), on component rows:
+    points x and unit tangents t (3, n).
+
+    Where x_i+1 = x_i the first reflection uses v1 = t_i (the limit of the chord direction along a smooth
+    curve), which makes q_i the shortest-arc rotation t_i -> t_i+1. Raises FrameDataError naming the step
+    when t_i+1 equals the reflected tangent t_i^L up to ``MIN_REFLECTION`` (the tangents reverse against
+    the chord).
+    """
     v1 = x[:, 1:] - x[:, :-1]
     n1 = np.sqrt(v1[0] ** 2 + v1[1] ** 2 + v1[2] ** 2)
     scale = max(float(n1.max(initial=0.0)), np.finfo(float).tiny)

@@ -10,7 +10,7 @@ from __future__ import annotations
 import numpy as np
 
 from planner import bernstein
-from planner import quaternion as qt
+from planner.rotations import quaternion_to_matrix
 
 
 def quaternion_values(A: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -27,4 +27,4 @@ def er_frames(curve, t) -> np.ndarray:
         Columns: unit tangent A i A* / |A|^2, then A j A* / |A|^2 and A k A* / |A|^2 spanning the normal
         plane; right-handed and orthonormal to round-off.
     """
-    return qt.to_matrix(quaternion_values(curve.A, t))
+    return quaternion_to_matrix(quaternion_values(curve.A, t))

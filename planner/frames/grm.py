@@ -105,11 +105,6 @@ def _sigma2_batch(A: np.ndarray, t: np.ndarray) -> np.ndarray:
     return 2.0 * s * s
 
 
-def g_values_batch(A: np.ndarray, t: np.ndarray) -> np.ndarray:
-    """:func:`g_poly_values` for stacked curves A (S, 3, 4): (S, n), from the power coefficients of g."""
-    return g_power(A) @ np.vander(np.asarray(t, dtype=float), 7, increasing=True).T
-
-
 def sigma_values(A: np.ndarray, t: np.ndarray) -> np.ndarray:
     """sigma(t) = |A(t)|^2 at parameters t (n,)."""
     return qt.norm2(bernstein.evaluate(A, t))

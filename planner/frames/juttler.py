@@ -26,7 +26,6 @@ frame by frame.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from math import comb
 
 import numpy as np
 
@@ -34,6 +33,7 @@ from planner import bernstein
 from planner import quaternion as quat
 from planner.frames import validation as val
 from planner.frames.validation import FrameDataError
+from planner.rotations import matrix_to_quaternion, quaternion_to_matrix
 
 _ONE = np.array([1.0, 0.0, 0.0, 0.0])
 
@@ -41,7 +41,7 @@ _ONE = np.array([1.0, 0.0, 0.0, 0.0])
 # --------------------------------------------------------------------------------------------------
 # Closed forms in standard position
 # --------------------------------------------------------------------------------------------------
-def _q1(alpha: np.ndarray, psi: np.ndarray) -> np.ndarray:
+def arc_q1(alpha: np.ndarray, psi: np.ndarray) -> np.ndarray:
     """Q1 of seed eq. (10) with t phi replaced by the turned angle alpha, shape (..., 4)."""
     ca, sa = np.cos(alpha / 2), np.sin(alpha / 2)
     cp, sp = np.cos(psi / 2), np.sin(psi / 2)
@@ -108,7 +108,7 @@ def rational_coefficients(phi, psi, w0=1.0, w1=1.0, rho=0.0,
     phi, psi, w0, w1, rho = np.broadcast_arrays(*args)
     theta = phi * np.cos(psi)
     zero = np.zeros_like(phi)
-    r1 = np.stack((w0[..., None] * _q1(zero, psi), w1[..., None] * _q1(phi, psi)), axis=-2)  # seed eq. (13)
+    r1 = np.stack((w0[..., None] * arc_q1(zero, psi), w1[..., None] * arc_q1(phi, psi)), axis=-2)  # seed eq. (13)
     ratio = 0.5 * np.sinc(phi / (2 * np.pi)) / np.sinc(theta / (2 * np.pi))
     if r2_weights == "paper":
         v0, v1, v01 = w0, w1, 1.0
@@ -122,17 +122,6 @@ def rational_coefficients(phi, psi, w0=1.0, w1=1.0, rho=0.0,
     r2 = np.stack((b20, b21, b22), axis=-2)
     r2 = quat.mul(r2, _rz(-rho)[..., None, :])  # seed footnote 2
     return r1, r2
-
-
-def _bernstein_qproduct(a: np.ndarray, b: np.ndarray) -> np.ndarray:
-    """Bernstein coefficients of a(t) b(t): (..., m+1, 4), (..., n+1, 4) -> (..., m+n+1, 4)."""
-    m, n = a.shape[-2] - 1, b.shape[-2] - 1
-    out = np.zeros(np.broadcast_shapes(a.shape[:-2], b.shape[:-2]) + (m + n + 1, 4))
-    for i in range(m + 1):
-        for j in range(n + 1):
-            c = comb(m, i) * comb(n, j) / comb(m + n, i + j)
-            out[..., i + j, :] += c * quat.mul(a[..., i, :], b[..., j, :])
-    return out
 
 
 def place_arcs(start: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -152,7 +141,7 @@ def place_arcs(start: np.ndarray, axis: np.ndarray) -> tuple[np.ndarray, np.ndar
     ex = np.where((nx < 1e-12)[:, None], np.cross(u, other), ex)
     ex /= np.linalg.norm(ex, axis=1, keepdims=True)
     g = np.stack((ex, np.cross(u, ex), u), axis=-1)
-    return psi, val.matrix_to_quaternion(g)
+    return psi, matrix_to_quaternion(g)
 
 
 def arc_transport(phi: np.ndarray, psi: np.ndarray, left: np.ndarray) -> np.ndarray:
@@ -162,8 +151,8 @@ def arc_transport(phi: np.ndarray, psi: np.ndarray, left: np.ndarray) -> np.ndar
     and its sign follows the continuous quaternion path of the motion.
     """
     zero = np.zeros_like(phi)
-    q_end = quat.mul(left, quat.mul(_q1(phi, psi), _q2(phi, psi, zero)))
-    q_start = quat.mul(left, _q1(zero, psi))
+    q_end = quat.mul(left, quat.mul(arc_q1(phi, psi), _q2(phi, psi, zero)))
+    q_start = quat.mul(left, arc_q1(zero, psi))
     return quat.mul(q_end, quat.conj(q_start))
 
 
@@ -174,7 +163,7 @@ def spin_for_start(f0: np.ndarray, psi: np.ndarray, left: np.ndarray, right: np.
     Q1(0)* left* f0 right* = (cos rho/2, 0, 0, -sin rho/2).
     """
     zero = np.zeros_like(psi)
-    m = quat.mul(quat.mul(quat.conj(_q1(zero, psi)), quat.mul(quat.conj(left), f0)), quat.conj(right))
+    m = quat.mul(quat.mul(quat.conj(arc_q1(zero, psi)), quat.mul(quat.conj(left), f0)), quat.conj(right))
     return -2.0 * np.arctan2(m[..., 3], m[..., 0])
 
 
@@ -223,11 +212,11 @@ class ExactArcMotion:
         phi, psi, rho = st["phi"][idx], st["psi"][idx], st["rho"][idx]
         alpha, rate = _turned_angle(t, phi, st["w0"][idx], st["w1"][idx], st["uniform"][idx] > 0)
         left = st["left"][idx]
-        q = quat.mul(quat.mul(left, quat.mul(_q1(alpha, psi), _q2(alpha, psi, rho))), st["right"][idx])
+        q = quat.mul(quat.mul(left, quat.mul(arc_q1(alpha, psi), _q2(alpha, psi, rho))), st["right"][idx])
         sp, cp = np.sin(psi), np.cos(psi)
         # seed eq. (11) with phi -> alpha': omega = alpha' (e3 - cos psi c), c = Q1 e3 Q1*
         w_std = rate[:, None] * np.stack((-np.cos(alpha) * sp * cp, -np.sin(alpha) * sp * cp, sp * sp), -1)
-        omega = np.einsum("nij,nj->ni", quat.to_matrix(left), w_std)
+        omega = np.einsum("nij,nj->ni", quaternion_to_matrix(left), w_std)
         return q, omega
 
     def quaternion(self, t) -> np.ndarray:
@@ -237,7 +226,7 @@ class ExactArcMotion:
 
     def frames(self, t) -> np.ndarray:
         """Frames (n, 3, 3) at t (n,); column ``axis_column`` is the moving axis."""
-        return quat.to_matrix(self.quaternion(t))
+        return quaternion_to_matrix(self.quaternion(t))
 
     def angular_velocity(self, t) -> np.ndarray:
         """Angular velocity (n, 3) (rad per unit t) at t (n,), seed eq. (11); equals c x c'."""
@@ -309,14 +298,9 @@ class RationalArcMotion:
         """The polynomial quaternion R(t) (n, 4) (not normalized; |R(0)| = w0^2, |R(1)| = w1^2)."""
         return bernstein.evaluate(self.coeffs, np.atleast_1d(np.asarray(t, dtype=float)))
 
-    def unit_quaternion(self, t) -> np.ndarray:
-        """R(t) / |R(t)| (n, 4), the unit quaternion of the frame (eq. 12)."""
-        r = self.quaternion(t)
-        return r / np.sqrt(quat.norm2(r))[:, None]
-
     def frames(self, t) -> np.ndarray:
         """Frames (n, 3, 3) at t (n,); column ``axis_column`` is the moving axis (on the arc)."""
-        return quat.to_matrix(self.quaternion(t))
+        return quaternion_to_matrix(self.quaternion(t))
 
     def angular_velocity(self, t) -> np.ndarray:
         """Angular velocity (n, 3) (rad per unit t): 2 vec(R' R*) / |R|^2 (seed eq. 7)."""
@@ -352,7 +336,7 @@ def _check_arc(phi, psi, w0, w1, rho):
 def _rational(phi, psi, w0, w1, rho, left=_ONE, right=_ONE, axis_column=2,
               r2_weights="paper") -> RationalArcMotion:
     r1, r2 = rational_coefficients(phi, psi, w0, w1, rho, r2_weights)
-    coeffs = quat.mul(quat.mul(left, _bernstein_qproduct(r1, r2)), right)  # R = R1 * R2 (seed sec. 6)
+    coeffs = quat.mul(quat.mul(left, bernstein.quaternion_product(r1, r2)), right)  # R = R1 * R2 (seed sec. 6)
     return RationalArcMotion(phi, psi, w0, w1, rho, np.array(left, float), np.array(right, float),
                              axis_column, r1, r2, coeffs, r2_weights)
 
@@ -430,13 +414,13 @@ def arc_motion(start, axis, angle, *, start_frame=None, axis_column: int = 2, w0
     a = val.unit_vectors(np.reshape(start, (1, 3)), "start")[0]
     u = val.unit_vectors(np.reshape(axis, (1, 3)), "axis")[0]
     phi = val.finite_scalar(angle, "angle")
-    right = val.matrix_to_quaternion(val.cyclic_permutation(axis_column))
+    right = matrix_to_quaternion(val.cyclic_permutation(axis_column))
     psi, left = place_arcs(a[None], u[None])
     psi, left = float(psi[0]), left[0]
     if start_frame is None:
-        f0 = quat.mul(quat.mul(left, _q1(np.float64(0.0), np.float64(psi))), right)
+        f0 = quat.mul(quat.mul(left, arc_q1(np.float64(0.0), np.float64(psi))), right)
     else:
-        f0 = val.matrix_to_quaternion(val.frame(start_frame, "start_frame", a, axis_column))
+        f0 = matrix_to_quaternion(val.frame(start_frame, "start_frame", a, axis_column))
     if sign_reference is not None and quat.dot(f0, sign_reference) < 0:
         f0 = -f0
     rho = float(spin_for_start(f0, np.float64(psi), left, right))

@@ -7,7 +7,8 @@ The twist of a frame field against the exact RMF is the figure every method repo
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+
+from planner.rotations import slerp_matrices
 
 
 def twist_angles(frames: np.ndarray, reference: np.ndarray) -> np.ndarray:
@@ -51,4 +52,4 @@ def frenet_frames(d1: np.ndarray, d2: np.ndarray) -> np.ndarray:
 def slerp_frames(f0: np.ndarray, f1: np.ndarray, s: np.ndarray) -> np.ndarray:
     """Frames (n, 3, 3) slerped from f0 to f1 (3, 3) at fractions s (n,) in [0, 1]: what common
     toolboxes do between taught orientations (ignores the path's tangent)."""
-    return Slerp([0.0, 1.0], Rotation.from_matrix(np.stack((f0, f1))))(np.asarray(s, float)).as_matrix()
+    return slerp_matrices(f0, f1, np.asarray(s, dtype=float))

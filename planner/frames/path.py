@@ -23,26 +23,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner import quaternion as qt
 from planner.errors import PlannerError
 from planner.frames.double_reflection import double_reflection_frames
 from planner.frames.grm import grm_many
 from planner.frames.ph_cubic_rmm import ph_cubic_spline_rmm
 from planner.frames.rmf import check_start_frame
 from planner.frames.rmf_batch import PathRMFAngles
+from planner.rotations import quaternion_to_matrix
 
 METHODS = ("rmf", "grm", "er", "juttler", "double-reflection")
 
 
 def _er_at(path, k: np.ndarray, t: np.ndarray) -> np.ndarray:
     """ER frames (n, 3, 3) of segments k at local parameters t."""
-    return qt.to_matrix(path._quaternion_t(k, t))
+    return quaternion_to_matrix(path.quaternion_at_segment(k, t))
 
 
 def _turned_quaternions(path, k, t, angle, unit: bool = True) -> np.ndarray:
     """Quaternions (n, 4) of the ER frames turned by ``angle`` about the tangent: A e^{i angle/2}
     (normalized when ``unit``)."""
-    a0, a1, a2, a3 = path._quaternion_rows(k, t)
+    a0, a1, a2, a3 = path.quaternion_rows(k, t)
     c, s = np.cos(0.5 * angle), np.sin(0.5 * angle)
     if unit:  # |A e^{i angle/2}| = |A|
         inv = 1.0 / np.sqrt(a0 * a0 + a1 * a1 + a2 * a2 + a3 * a3)
@@ -120,7 +120,7 @@ class PathFrames:
     def frames(self, u) -> np.ndarray:
         """Frames (n, 3, 3) at global parameters u (n,): column 0 the unit tangent, columns 1, 2 the
         normal-plane vectors; orthonormal, right-handed, continuous along the path."""
-        return qt.to_matrix(self.quaternions(u, unit=False))
+        return quaternion_to_matrix(self.quaternions(u, unit=False))
 
     def at_length(self, s) -> np.ndarray:
         """Frames at arc lengths s (n,) from the start (metres)."""

@@ -16,14 +16,14 @@ from functools import cached_property
 
 import numpy as np
 
+from planner import bernstein
 from planner import quaternion as quat
 from planner.frames import validation as val
 from planner.frames.juttler import (
     R2_WEIGHTS,
     ExactArcMotion,
     RationalArcMotion,
-    _bernstein_qproduct,
-    _q1,
+    arc_q1,
     arc_transport,
     place_arcs,
     rational_coefficients,
@@ -32,6 +32,7 @@ from planner.frames.juttler import (
 from planner.frames.quaternion_scan import cumulative_left_product
 from planner.frames.spherical_arc import SphericalArcs
 from planner.frames.validation import FrameDataError
+from planner.rotations import matrix_to_quaternion, quaternion_to_matrix
 
 #: Largest gap (rad) accepted between the end of one arc and the start of the next.
 JOINT_TOL = 1e-9
@@ -78,7 +79,7 @@ class PiecewiseArcMotion:
     def coeffs(self) -> np.ndarray:
         """Bernstein coefficients (m, 4, 4) of the cubic quaternion polynomials R_k(u) (seed sec. 6)."""
         r1, r2 = rational_coefficients(self.phi, self.psi, self.w0, self.w1, self.rho, self.r2_weights)
-        return quat.mul(quat.mul(self.left[:, None, :], _bernstein_qproduct(r1, r2)), self.right)
+        return quat.mul(quat.mul(self.left[:, None, :], bernstein.quaternion_product(r1, r2)), self.right)
 
     @cached_property
     def _stack(self) -> dict:
@@ -129,7 +130,7 @@ class PiecewiseArcMotion:
 
     def frames(self, t) -> np.ndarray:
         """Frames (n, 3, 3) at t (n,); column ``axis_column`` is the moving axis."""
-        return quat.to_matrix(self._eval(t)[0])
+        return quaternion_to_matrix(self._eval(t)[0])
 
     def angular_velocity(self, t) -> np.ndarray:
         """Angular velocity (n, 3) in rad per unit of t (one-sided at the joints: the right segment)."""
@@ -200,12 +201,12 @@ def chain_arc_motion(arcs: SphericalArcs, knots=None, *, start_frame=None, axis_
         k = int(np.argmax(bad))
         raise FrameDataError(f"needs |angle| < 2 pi and finite weights > 0, got angle {phi[k]!r}, "
                              f"w0 {w0[k]!r}, w1 {w1[k]!r}", "arcs", k)
-    right = val.matrix_to_quaternion(val.cyclic_permutation(axis_column))
+    right = matrix_to_quaternion(val.cyclic_permutation(axis_column))
     psi, left = place_arcs(start, axis)
     if start_frame is None:
-        f0 = quat.mul(quat.mul(left[0], _q1(np.float64(0.0), psi[0])), right)
+        f0 = quat.mul(quat.mul(left[0], arc_q1(np.float64(0.0), psi[0])), right)
     else:
-        f0 = val.matrix_to_quaternion(val.frame(start_frame, "start_frame", start[0], axis_column))
+        f0 = matrix_to_quaternion(val.frame(start_frame, "start_frame", start[0], axis_column))
     if sign_reference is not None and quat.dot(f0, sign_reference) < 0:
         f0 = -f0
     f = cumulative_left_product(arc_transport(phi[:-1], psi[:-1], left[:-1]), f0)  # frames at the joints

@@ -110,12 +110,6 @@ def panel_angles(A: np.ndarray, panels: np.ndarray) -> tuple[np.ndarray, np.ndar
     return cum, offsets
 
 
-def batch_totals(A: np.ndarray, panels: np.ndarray) -> np.ndarray:
-    """psi(1) - psi(0) of every segment (N,), exact to round-off."""
-    cum, offsets = panel_angles(A, panels)
-    return cum[offsets[1:] - 1]
-
-
 class PathRMFAngles:
     """psi(t) - psi(0) of every segment of a path, evaluable at any (segment, t) samples at once."""
 

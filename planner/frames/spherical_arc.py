@@ -11,6 +11,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.rotations import rotate_vectors
+
 _TWO_PI = 2.0 * np.pi
 _FIELDS = ("start", "axis", "angle", "psi")
 
@@ -25,11 +27,8 @@ def geodesic_distance(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 def rotate(axis: np.ndarray, angle: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Rodrigues rotation of v (..., 3) about the unit axis (..., 3) by angle (...) (rad)."""
-    c = np.cos(angle)[..., None]
-    s = np.sin(angle)[..., None]
-    k = np.einsum("...i,...i->...", axis, v)[..., None]
-    return v * c + np.cross(axis, v) * s + axis * k * (1.0 - c)
+    """v (..., 3) rotated about the unit axis (..., 3) by angle (...) (rad), by :mod:`planner.rotations`."""
+    return rotate_vectors(np.asarray(angle, dtype=float)[..., None] * np.asarray(axis, dtype=float), v)
 
 
 @dataclass(frozen=True, eq=False)

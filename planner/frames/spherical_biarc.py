@@ -196,26 +196,11 @@ def sample_tangents(z: np.ndarray) -> np.ndarray:
     return np.divide(d, nd, out=np.zeros_like(d), where=nd > 0)
 
 
-def _call(f: Callable, t: np.ndarray, name: str, unit: bool) -> np.ndarray:
-    out = np.asarray(f(t), dtype=float)
-    if out.shape != (t.shape[0], 3):
-        raise FrameDataError(f"must return shape ({t.shape[0]}, 3) for t of shape {t.shape}, got {out.shape}",
-                             name)
-    bad = ~np.isfinite(out).all(axis=1)
-    if unit:
-        bad |= np.abs(np.linalg.norm(out, axis=1) - 1.0) > val.UNIT_TOL
-    if bad.any():
-        i = int(np.argmax(bad))
-        what = "is not a finite unit vector" if unit else "is not finite"
-        raise FrameDataError(f"{name}(t) at t = {t[i]!r} {what} ({out[i]})", name)
-    return out
-
-
 def _derivative_fd(z: Callable, t: np.ndarray, lo: float, hi: float) -> np.ndarray:
     """Second-order finite differences of z at t inside [lo, hi] (one-sided at the ends)."""
     h = 1e-6 * (hi - lo)
     tc = np.clip(t, lo + h, hi - h)  # centre of a stencil that stays inside [lo, hi]
-    zm, z0, zp = (_call(z, tc + s, "z", True) for s in (-h, 0.0, h))
+    zm, z0, zp = (val.curve_values(z, tc + s, "z", True) for s in (-h, 0.0, h))
     off = ((t - tc) / h)[:, None]  # -1, 0 or 1: derivative of the interpolating parabola at t
     return ((zp - zm) / 2 + off * (zp - 2 * z0 + zm)) / h
 
@@ -312,7 +297,7 @@ def _assemble(done, tol):
 
 def _fit_callable(z, dz, tol, lo, hi, max_arcs):
     def derivative(t):
-        return _call(dz, t, "dz", False) if dz is not None else _derivative_fd(z, t, lo, hi)
+        return val.curve_values(dz, t, "dz", False) if dz is not None else _derivative_fd(z, t, lo, hi)
 
     edges = np.linspace(lo, hi, 9)
     a, b = edges[:-1], edges[1:]
@@ -320,14 +305,14 @@ def _fit_callable(z, dz, tol, lo, hi, max_arcs):
     frac = np.arange(1, CHECK_SAMPLES + 1) / (CHECK_SAMPLES + 1)
     while a.size:
         ends = np.concatenate((a, b))
-        pts = _call(z, ends, "z", True)
+        pts = val.curve_values(z, ends, "z", True)
         der = _tangent_plane(pts, derivative(ends))
         tan = _directions(pts, der, hi - lo)
         speed = np.linalg.norm(der, axis=1)
         k = a.size
         p0, p1, t0, t1 = pts[:k], pts[k:], tan[:k], tan[k:]
         ts = a[:, None] + (b - a)[:, None] * frac
-        zs = _call(z, ts.ravel(), "z", True)
+        zs = val.curve_values(z, ts.ravel(), "z", True)
         seg = np.repeat(np.arange(k), CHECK_SAMPLES)
         poly = np.concatenate((p0[:, None], zs.reshape(k, CHECK_SAMPLES, 3), p1[:, None]), axis=1)
         cum = np.concatenate((np.zeros((k, 1)), np.cumsum(geodesic_distance(poly[:, 1:], poly[:, :-1]), axis=1)),
@@ -339,10 +324,10 @@ def _fit_callable(z, dz, tol, lo, hi, max_arcs):
                               cum[good], params[good])
         junction = first.take(good).end
         for _ in range(2):  # Gauss-Newton on (z(t) - m) . z'(t) = 0: the point of z nearest to the junction
-            zt, dt = _call(z, mid, "z", True), derivative(mid)
+            zt, dt = val.curve_values(z, mid, "z", True), derivative(mid)
             step = np.einsum("ij,ij->i", zt - junction, dt) / np.maximum(np.einsum("ij,ij->i", dt, dt), 1e-300)
             mid = np.clip(mid - step, a[good], b[good])
-        speed_mid = np.linalg.norm(_tangent_plane(_call(z, mid, "z", True), derivative(mid)), axis=1)
+        speed_mid = np.linalg.norm(_tangent_plane(val.curve_values(z, mid, "z", True), derivative(mid)), axis=1)
         done.append((a[good], b[good], first.take(good), second.take(good), err[good], mid,
                      speed[:k][good], speed[k:][good], speed_mid))
         bad = ~good
@@ -351,7 +336,7 @@ def _fit_callable(z, dz, tol, lo, hi, max_arcs):
                 i = int(np.flatnonzero(bad)[np.argmin((b - a)[bad])])
                 raise ConvergenceError(f"spherical biarcs: tolerance {tol} not met near t = {a[i]:.9g} "
                                        f"(error {err[i]:.3g} rad on an interval of length "
-                                       f"{b[i] - a[i]:.3g}); is z smooth there?")
+                                       f"{b[i] - a[i]:.3g}; z may have a corner there)")
             if 2 * (sum(d[0].size for d in done) + 2 * int(bad.sum())) > max_arcs:
                 raise ConvergenceError(f"spherical biarcs: more than {max_arcs} arcs needed for tol = {tol}")
         half = 0.5 * (a[bad] + b[bad])
@@ -376,7 +361,7 @@ def _fit_samples(z, ts, tol, max_arcs):
         if stuck.any():
             s = int(i[np.argmax(stuck)])
             raise ConvergenceError(f"spherical biarcs: no acceptable biarc between samples {s} and {s + 1} "
-                                   "(the sampled tangents turn back); resample the curve more densely")
+                                   "(the sampled tangents turn back; denser samples may help)")
         ig, jg = i[good], j[good]
         frac = _junction_fraction(first.take(good), second.take(good))
         mid = np.interp(cum[ig] + frac * (cum[jg] - cum[ig]), cum, ts)

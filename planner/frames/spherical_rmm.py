@@ -28,8 +28,9 @@ from planner import quaternion as quat
 from planner.errors import ConvergenceError
 from planner.frames import validation as val
 from planner.frames.piecewise_motion import PiecewiseArcMotion
-from planner.frames.spherical_biarc import _call, fit_spherical_biarcs
+from planner.frames.spherical_biarc import fit_spherical_biarcs
 from planner.frames.validation import FrameDataError
+from planner.rotations import matrix_to_quaternion, quaternion_to_matrix
 
 #: Gauss-Legendre order of each quadrature panel.
 GL_ORDER = 16
@@ -54,12 +55,12 @@ def base_starts(zg: np.ndarray, max_angle: float = MAX_BASE_ANGLE) -> list[int]:
         starts.append(j)
 
 
-def _spin_rate(b: np.ndarray, z: np.ndarray, dz: np.ndarray) -> np.ndarray:
+def spin_rate(b: np.ndarray, z: np.ndarray, dz: np.ndarray) -> np.ndarray:
     """theta' = b.(z x z') / (1 + b.z), (n,): minus the reference motion's spin about z (seed eq. 3)."""
     return np.einsum("ij,ij->i", b, np.cross(z, dz)) / (1.0 + np.einsum("ij,ij->i", b, z))
 
 
-def _reference(b: np.ndarray, z: np.ndarray) -> np.ndarray:
+def shortest_arc_quaternions(b: np.ndarray, z: np.ndarray) -> np.ndarray:
     """Unit quaternions (n, 4) of the shortest-arc rotations taking b to z."""
     s = 1.0 + np.einsum("ij,ij->i", b, z)
     q = np.concatenate((s[:, None], np.cross(b, z)), axis=1)
@@ -120,21 +121,21 @@ class ExactSphericalRMM:
         s = (a + half)[:, None] + half[:, None] * _GL_X  # Gauss-Legendre nodes on [a, t]
         n, m = s.shape
         flat = s.ravel()
-        zs = _call(self.z, flat, "z", True)
-        ds = _call(self.dz, flat, "dz", False)
+        zs = val.curve_values(self.z, flat, "z", True)
+        ds = val.curve_values(self.dz, flat, "dz", False)
         b = np.repeat(self.bases[self.panel_piece[k]], m, axis=0)
-        f = _spin_rate(b, zs, ds).reshape(n, m)
+        f = spin_rate(b, zs, ds).reshape(n, m)
         return self.spin_start[k] + half * (f @ _GL_W)
 
     def _eval(self, t):
         t, k = self._locate(t)
         piece = self.panel_piece[k]
         b = self.bases[piece]
-        z = _call(self.z, t, "z", True)
+        z = val.curve_values(self.z, t, "z", True)
         theta = self._spin(t, k)
         zero = np.zeros_like(theta)
         spin = np.stack((np.cos(theta / 2), zero, zero, np.sin(theta / 2)), axis=1)
-        q = quat.mul(quat.mul(_reference(b, z), self.base_quaternions[piece]), spin)
+        q = quat.mul(quat.mul(shortest_arc_quaternions(b, z), self.base_quaternions[piece]), spin)
         return q, t, b, z
 
     def quaternion(self, t) -> np.ndarray:
@@ -143,17 +144,17 @@ class ExactSphericalRMM:
 
     def frames(self, t) -> np.ndarray:
         """Frames (n, 3, 3) at t (n,): column 2 = z(t), columns 0, 1 rotation-minimizing."""
-        return quat.to_matrix(self._eval(t)[0])
+        return quaternion_to_matrix(self._eval(t)[0])
 
     def angular_velocity(self, t) -> np.ndarray:
         """Angular velocity (n, 3) (rad per unit t): omega_ref + theta' z (seed eq. 3); equals z x z'."""
         _, t, b, z = self._eval(t)
-        dz = _call(self.dz, t, "dz", False)
+        dz = val.curve_values(self.dz, t, "dz", False)
         s, v = 1.0 + np.einsum("ij,ij->i", b, z), np.cross(b, z)
         ds, dv = np.einsum("ij,ij->i", b, dz), np.cross(b, dz)
         # omega = 2 vec(p' p*) / |p|^2 for p = (s, v) (seed eq. 7), |p|^2 = 2 s
         omega_ref = (s[:, None] * dv - ds[:, None] * v + np.cross(v, dv)) / s[:, None]
-        return omega_ref + _spin_rate(b, z, dz)[:, None] * z
+        return omega_ref + spin_rate(b, z, dz)[:, None] * z
 
 
 def _panel_rule(f: Callable, a: np.ndarray, b: np.ndarray) -> np.ndarray:
@@ -166,8 +167,8 @@ def _check_derivative(z: Callable, dz: Callable, lo: float, hi: float) -> None:
     """Compare dz with central differences of z at a few interior points; raise if they disagree."""
     ts = lo + (hi - lo) * np.array([0.1123, 0.3571, 0.5, 0.6667, 0.8919])
     h = 1e-6 * (hi - lo)
-    fd = (_call(z, ts + h, "z", True) - _call(z, ts - h, "z", True)) / (2 * h)
-    d = _call(dz, ts, "dz", False)
+    fd = (val.curve_values(z, ts + h, "z", True) - val.curve_values(z, ts - h, "z", True)) / (2 * h)
+    d = val.curve_values(dz, ts, "dz", False)
     err = np.linalg.norm(fd - d, axis=1)
     limit = 1e-5 * (np.linalg.norm(d, axis=1).max() + 1.0 / (hi - lo))
     if (err > limit).any():
@@ -210,13 +211,13 @@ def exact_spherical_rmm(z: Callable, dz: Callable, start=None, *, interval: tupl
     if not hi > lo:
         raise FrameDataError(f"must satisfy t0 < t1, got {interval}", "interval")
     _check_derivative(z, dz, lo, hi)
-    z0 = _call(z, np.array([lo]), "z", True)[0]
+    z0 = val.curve_values(z, np.array([lo]), "z", True)[0]
     f0 = val.default_frame(z0, 2) if start is None else val.frame(start, "start", z0, 2)
-    q0 = val.matrix_to_quaternion(f0)
+    q0 = matrix_to_quaternion(f0)
 
     # pieces: renew the base before z is MAX_BASE_ANGLE away from it (checked on a fine grid)
     grid = np.linspace(lo, hi, 4097)
-    zg = _call(z, grid, "z", True)
+    zg = val.curve_values(z, grid, "z", True)
     starts = base_starts(zg)
     pieces = np.append(grid[starts], hi)
     bases = zg[starts]
@@ -230,7 +231,7 @@ def exact_spherical_rmm(z: Callable, dz: Callable, start=None, *, interval: tupl
         def rate(s, own=owner):
             m = s.size // own.size
             b_s = np.repeat(bases[own], m, axis=0)
-            return _spin_rate(b_s, _call(z, s, "z", True), _call(dz, s, "dz", False))
+            return spin_rate(b_s, val.curve_values(z, s, "z", True), val.curve_values(dz, s, "dz", False))
 
         mid = 0.5 * (a + b)
         whole = _panel_rule(rate, a, b)
@@ -244,7 +245,7 @@ def exact_spherical_rmm(z: Callable, dz: Callable, start=None, *, interval: tupl
         if bad.any() and ((b - a)[bad].min() < 1e-10 * (hi - lo) or sum(x.size for x in done_a) > max_panels):
             i = int(np.flatnonzero(bad)[0])
             raise ConvergenceError("exact spherical RMM: the spin integral does not converge near "
-                                   f"t = {a[i]:.9g}; is z smooth there?")
+                                   f"t = {a[i]:.9g} (z may have a corner there)")
         a, b, owner = (np.concatenate((a[bad], mid[bad])), np.concatenate((mid[bad], b[bad])),
                        np.concatenate((owner[bad], owner[bad])))
     a, b, v, own = (np.concatenate(x) for x in (done_a, done_b, done_v, done_p))
@@ -262,7 +263,7 @@ def exact_spherical_rmm(z: Callable, dz: Callable, start=None, *, interval: tupl
         last = first_panel[p] - 1
         theta = float(spin_start[last] + v[last])
         spin = np.array([np.cos(theta / 2), 0.0, 0.0, np.sin(theta / 2)])
-        ref = _reference(bases[p - 1][None], bases[p][None])[0]
+        ref = shortest_arc_quaternions(bases[p - 1][None], bases[p][None])[0]
         base_q[p] = quat.mul(quat.mul(ref, base_q[p - 1]), spin)
     panels = np.append(a, b[-1])
     return ExactSphericalRMM(z, dz, pieces, bases, base_q, panels, own, spin_start)

@@ -2,10 +2,13 @@
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import numpy as np
 
 from planner import quaternion as quat
 from planner.errors import PlannerError
+from planner.rotations import quaternion_to_matrix
 
 #: Tolerance on |v| - 1 for data that must be unit vectors, and on F^T F - I for frames.
 UNIT_TOL = 1e-9
@@ -133,16 +136,25 @@ def default_frame(axis: np.ndarray, axis_column: int) -> np.ndarray:
     The frame is the shortest-arc rotation taking e1 to ``axis`` (half turn about e3 when axis = -e1),
     with its columns shifted cyclically.
     """
-    m = quat.to_matrix(quat.rotate_i_to(np.asarray(axis, dtype=float)))
+    m = quaternion_to_matrix(quat.rotate_i_to(np.asarray(axis, dtype=float)))
     return np.roll(m, axis_column, axis=1)
 
 
-def matrix_to_quaternion(m: np.ndarray) -> np.ndarray:
-    """Unit quaternions (..., 4) (scalar, i, j, k) of rotation matrices (..., 3, 3), scalar part >= 0."""
-    from scipy.spatial.transform import Rotation
+def curve_values(f: Callable, t: np.ndarray, name: str, unit: bool) -> np.ndarray:
+    """Values (n, 3) of a user's curve callable ``f`` at parameters t (n,), checked.
 
-    m = np.asarray(m, dtype=float)
-    q = Rotation.from_matrix(m.reshape(-1, 3, 3)).as_quat()  # scalar-last
-    q = np.concatenate((q[:, 3:], q[:, :3]), axis=1)
-    q = np.where(q[:, :1] < 0, -q, q)
-    return q.reshape(m.shape[:-2] + (4,))
+    Raises FrameDataError naming ``name`` and the parameter value when ``f`` returns the wrong shape, a
+    non-finite row or (``unit``) a row that is not a unit vector.
+    """
+    out = np.asarray(f(t), dtype=float)
+    if out.shape != (t.shape[0], 3):
+        raise FrameDataError(f"must return shape ({t.shape[0]}, 3) for t of shape {t.shape}, got {out.shape}",
+                             name)
+    bad = ~np.isfinite(out).all(axis=1)
+    if unit:
+        bad |= np.abs(np.linalg.norm(out, axis=1) - 1.0) > UNIT_TOL
+    if bad.any():
+        i = int(np.argmax(bad))
+        what = "is not a finite unit vector" if unit else "is not finite"
+        raise FrameDataError(f"{name}(t) at t = {t[i]!r} {what} ({out[i]})", name)
+    return out

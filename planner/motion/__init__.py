@@ -30,14 +30,9 @@ from planner.motion.orientation import (
     tool_orientation,
 )
 from planner.motion.profile import FeedProfile
-from planner.motion.rotvec import (
-    continuous_rotvec,
-    matrix_to_quaternion,
-    quaternion_to_matrix,
-    quaternion_to_rotvec,
-    rotvec_from_quaternions,
-)
+from planner.motion.rotvec import continuous_rotvec, rotvec_from_quaternions
 from planner.motion.stream import RATES, PoseStream, as_transform, poses_at_length, sample_poses, transform_to_pose
+from planner.rotations import matrix_to_quaternion, quaternion_to_matrix, quaternion_to_rotvec  # deprecated here
 
 __all__ = [
     "OUTPUT_PINS",

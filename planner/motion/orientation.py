@@ -16,9 +16,14 @@ import numpy as np
 from planner import quaternion as qt
 from planner.motion.evaluator import evaluator_for
 from planner.motion.limits import MotionInputError
-from planner.motion.rotvec import matrix_to_quaternion
+from planner.rotations import matrix_to_quaternion, rotation_angle
 
 Orientation = Callable[[np.ndarray], np.ndarray]
+
+# ``rotation_angle`` is planner.rotations.rotation_angle, re-exported here for planner/export/movep.py (deprecated
+# here: import it from planner.rotations).
+__all__ = ["ConstantOrientation", "FrameOrientation", "Orientation", "orientation_rate", "rotation_angle",
+           "tool_orientation"]
 
 
 @dataclass(frozen=True, eq=False)
@@ -131,15 +136,6 @@ class ConstantOrientation:
 
     def at_parameter(self, u) -> np.ndarray:
         return self(u)
-
-
-def rotation_angle(R1: np.ndarray, R2: np.ndarray) -> np.ndarray:
-    """Angle (n,) of the relative rotation R2 R1^T, rad, accurate for small angles.
-
-    Uses |R2 - R1|_F = 2 sqrt(2) sin(theta / 2) (R2 - R1 = (Q - I) R1 with Q a rotation by theta).
-    """
-    d = np.linalg.norm((R2 - R1).reshape(-1, 9), axis=1)
-    return 2.0 * np.arcsin(np.clip(d / (2.0 * np.sqrt(2.0)), 0.0, 1.0))
 
 
 def orientation_rate(orientation: Orientation, s, lo, hi, h: float | None = None) -> np.ndarray:
