@@ -58,6 +58,9 @@ class Chunk:
     io : ndarray (k,) of int64
         Digital output bits set at each sample (:data:`IO_BIT_OFFSET`; ``PlanSettings.cut_output`` is on
         during cuts), 0 when the job switches nothing.
+    final : bool
+        Whether this is the move's last chunk (a move of more than :data:`CHUNK_SAMPLES` samples comes in
+        several).
     """
 
     move: int
@@ -68,6 +71,7 @@ class Chunk:
     lines: np.ndarray
     joints: np.ndarray | None = None
     io: np.ndarray | None = None
+    final: bool = True
 
     def __len__(self) -> int:
         return self.times.size
@@ -130,7 +134,7 @@ class Trajectory:
 
     def chunks(self, *, joints: bool | None = None, progress: Callable[[str, int, int], None] | None = None,
                ) -> Iterator[Chunk]:
-        """One :class:`Chunk` per moving move, in order.
+        """One :class:`Chunk` per moving move (several for a move of more than :data:`CHUNK_SAMPLES` samples), in order.
 
         ``joints``: add the robot's joints (default: when the job has a robot; True without a robot is an
         error). ``progress(stage, done, total)`` is called with the samples produced ("samples").
@@ -202,7 +206,8 @@ def _with_io(job, chunks):
         on = bit if c.kind == "cut" else 0
         if on and n:
             io = np.full(n, on, dtype=np.int64)
-            io[-1] = 0  # the last sample of a cut is the first of the next move: the output is off there
+            if c.final:
+                io[-1] = 0  # the last sample of a cut is the first of the next move: the output is off there
             yield replace(c, io=io)
         else:
             yield replace(c, io=np.zeros(n, dtype=np.int64))
@@ -214,45 +219,57 @@ def sample_counts(moves, rate: float) -> np.ndarray:
     return np.where(d > 0.0, np.ceil(d * rate - 1e-9), 0.0).astype(np.int64)
 
 
-def _pose_chunks(job, rate: float):
-    """One :class:`Chunk` of poses (no joints, no I/O) per moving move of the job, in order."""
+#: Samples per chunk at most: a move longer than this comes in several chunks (bounded memory: a slow pass of
+#: an hour is 1.8 million samples at 500 Hz).
+CHUNK_SAMPLES = 65_536
+
+
+def _pose_chunks(job, rate: float, piece: int = CHUNK_SAMPLES):
+    """Chunks of poses (no joints, no I/O) of every moving move of the job, in order, at most ``piece``
+    samples each (``Chunk.final`` marks a move's last chunk)."""
     moves = job.moves
     counts = sample_counts(moves, rate)
     offsets = np.concatenate(([0], np.cumsum(counts)))
     moving = np.flatnonzero(counts > 0)
-    final = int(moving[-1]) if moving.size else -1
+    last_move = int(moving[-1]) if moving.size else -1
     Tb = as_transform(job.settings.part_frame, "part_frame")
     Rb, pb = Tb[:3, :3], Tb[:3, 3]
     r_prev = None
     for k in moving:
         m = moves[k]
-        n = int(counts[k]) + (1 if k == final else 0)
-        r = q = None
-        if m.kind == "reconfiguration":  # a joint move: its poses are the forward kinematics of its joints
-            from planner.kinematics import forward_matrix
+        n = int(counts[k]) + (1 if k == last_move else 0)
+        orientation = tool_orientation(m.frames) if m.kind in ("cut", "rapid") else None
+        state = None
+        for a in range(0, n, piece):
+            b = min(a + piece, n)
+            r = q = None
+            if m.kind == "reconfiguration":  # a joint move: its poses are the forward kinematics of its joints
+                from planner.kinematics import forward_matrix
 
-            q = m.item.joints(m.profile.s(np.arange(n) / rate))
-            T = forward_matrix(job.settings.robot, q, tcp=job.settings.tcp)
-            pos, R = T[:, :3, 3], T[:, :3, :3]
-            lines = np.full(n, m.item.line)
-        elif m.kind in ("cut", "rapid"):
-            ps = sample_poses(m.path, m.profile, tool_orientation(m.frames), rate=rate, base=Tb)
-            pos, R = ps.positions[:n], ps.rotations[:n]
-            r = ps.poses[:n, 3:]  # continuous within the move; checked against the previous move below
-            if m.kind == "cut":
-                lines = m.item.lines[np.minimum(ps.span[:n] + 1, len(m.item) - 1)]
-            else:
-                lines = np.full(n, m.item.line)
-        else:  # a turn in place
-            angle = m.profile.s(np.arange(n) / rate)
-            R = np.matmul(Rb, m.frames.frames(angle))
-            pos = np.broadcast_to(Rb @ m.point + pb, (n, 3))
-            lines = np.full(n, m.item.line)
-        if r is None or (r_prev is not None and np.abs(r[0] - r_prev).max() > 1e-6):
-            r, _ = continuous_rotvec(R, None if r_prev is None else rotvec_to_quaternion(r_prev), r_prev)
-        r_prev = r[-1]
-        yield Chunk(int(k), m.kind, m.pass_index, (offsets[k] + np.arange(n)) / rate,
-                    np.hstack((pos, r)), np.asarray(lines, dtype=np.int64), q)
+                q = m.item.joints(m.profile.s(np.arange(a, b) / rate))
+                T = forward_matrix(job.settings.robot, q, tcp=job.settings.tcp)
+                pos, R = T[:, :3, 3], T[:, :3, :3]
+                lines = np.full(b - a, m.item.line)
+            elif m.kind in ("cut", "rapid"):
+                ps = sample_poses(m.path, m.profile, orientation, rate=rate, base=Tb, window=(a, b - a),
+                                  previous=state)
+                state = ps.state
+                pos, R = ps.positions, ps.rotations
+                r = ps.poses[:, 3:]  # continuous within the move; checked against the previous move below
+                if m.kind == "cut":
+                    lines = m.item.lines[np.minimum(ps.span + 1, len(m.item) - 1)]
+                else:
+                    lines = np.full(b - a, m.item.line)
+            else:  # a turn in place
+                angle = m.profile.s(np.arange(a, b) / rate)
+                R = np.matmul(Rb, m.frames.frames(angle))
+                pos = np.broadcast_to(Rb @ m.point + pb, (b - a, 3))
+                lines = np.full(b - a, m.item.line)
+            if r is None or (r_prev is not None and np.abs(r[0] - r_prev).max() > 1e-6):
+                r, _ = continuous_rotvec(R, None if r_prev is None else rotvec_to_quaternion(r_prev), r_prev)
+            r_prev = r[-1]
+            yield Chunk(int(k), m.kind, m.pass_index, (offsets[k] + np.arange(a, b)) / rate,
+                        np.hstack((pos, r)), np.asarray(lines, dtype=np.int64), q, final=b == n)
 
 
 def track_joints(job, chunks, q_start=None):

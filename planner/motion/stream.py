@@ -92,6 +92,8 @@ class PoseStream:
         Tool I/O events placed on the samples, in time order.
     profile : FeedProfile
         The time law the stream samples.
+    state : (quaternion (4,), rotation vector (3,)) or None
+        The last sample's unit quaternion and rotation vector: ``previous`` of the next window.
     """
 
     rate: float
@@ -106,6 +108,7 @@ class PoseStream:
     base: np.ndarray
     events: tuple[ScheduledEvent, ...] = ()
     profile: FeedProfile | None = field(default=None, repr=False)
+    state: tuple | None = field(default=None, repr=False)
 
     def __len__(self) -> int:
         return self.times.size
@@ -143,6 +146,8 @@ def sample_poses(
     events=(),
     chunk: int = 8192,
     inversion: str = "fast",
+    window: tuple[int, int] | None = None,
+    previous: tuple | None = None,
 ) -> PoseStream:
     """Sample a planned motion at the controller rate.
 
@@ -169,6 +174,12 @@ def sample_poses(
         Arc-length inversion and point evaluation: :class:`SplineEvaluator` (default; the same
         results as the path's ``parameter_at_length`` and ``points`` to round-off, several times
         faster) or the path's own methods.
+    window : (first, count), optional
+        Only samples first .. first + count - 1 of the stream (bounded memory for long moves; the same
+        values as the whole stream's rows). No events with a window.
+    previous : (quaternion (4,), rotation vector (3,)), optional
+        The sample before the window, so that the rotation vectors continue it (e.g. the last row of the
+        previous window: ``(matrix_to_quaternion(R[-1]), poses[-1, 3:])``).
 
     Returns
     -------
@@ -194,13 +205,22 @@ def sample_poses(
     if not (callable(orientation) or frames_u is not None):
         raise MotionInputError("orientation",
                                f"must be a callable s -> (n, 3, 3) frames, got {type(orientation).__name__}")
-    n = int(np.ceil(profile.duration * rate - 1e-9)) + 1
-    scheduled = schedule_events(events, profile, rate, n)  # validate the events before the work
-    times = np.arange(n) / rate
+    total = int(np.ceil(profile.duration * rate - 1e-9)) + 1
+    if window is None:
+        first, n = 0, total
+        scheduled = schedule_events(events, profile, rate, n)  # validate the events before the work
+    else:
+        first, n = int(window[0]), int(window[1])
+        if events:
+            raise MotionInputError("events", "are scheduled on the whole stream: not with a window")
+        if not (0 <= first and 0 <= n and first + n <= total):
+            raise MotionInputError("window", f"samples {first}..{first + n - 1} are outside 0..{total - 1}")
+        scheduled = ()
+    times = (first + np.arange(n)) / rate
     s, u = np.empty(n), np.empty(n)
     poses = np.empty((n, 6))
     rot = np.empty((n, 3, 3))
-    q_prev = r_prev = None
+    q_prev, r_prev = (None, None) if previous is None else previous
     for a in range(0, n, chunk):
         b = min(a + chunk, n)
         sc = profile.s(times[a:b])
@@ -229,7 +249,8 @@ def sample_poses(
         poses[a:b, :3] = pc @ Rb.T + pb if turn else pc + pb
     span_b = span_bounds(path)
     span = np.clip(np.searchsorted(span_b, s, side="right") - 1, 0, span_b.size - 2)
-    return PoseStream(rate, times, s, u, span, poses[:, :3], rot, poses, Tt, Tb, scheduled, profile)
+    state = None if q_prev is None else (q_prev, r_prev)
+    return PoseStream(rate, times, s, u, span, poses[:, :3], rot, poses, Tt, Tb, scheduled, profile, state)
 
 
 def poses_at_length(path, orientation, s, *, base=None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
