@@ -21,7 +21,8 @@ READERS: dict[str, Callable[..., Toolpath]] = {"apt": read_apt, "gcode": read_gc
 #: File suffixes and the format they name (".txt" and unknown suffixes are sniffed).
 SUFFIXES = {
     ".apt": "apt", ".cls": "apt", ".clsf": "apt", ".cl": "apt", ".ncl": "apt", ".aptsource": "apt",
-    ".nc": "gcode", ".ngc": "gcode", ".tap": "gcode", ".gcode": "gcode", ".mpf": "gcode", ".eia": "gcode",
+    ".nc": "gcode", ".ngc": "gcode", ".tap": "gcode", ".gcode": "gcode", ".mpf": "gcode", ".spf": "gcode",
+    ".eia": "gcode",
     ".csv": "csv", ".tsv": "csv", ".xyz": "csv", ".json": "json",
 }  # fmt: skip
 
@@ -30,7 +31,7 @@ _APT = re.compile(
     r"CUTTER|SPINDL|COOLNT|PAINT|MACHIN|CIRCLE|\$\$)",
     re.IGNORECASE,
 )
-_GCODE = re.compile(r"\s*(%|N\d+|[GMT]\d|O\d|\(|[XYZ]\s*[-+.\d])", re.IGNORECASE)
+_GCODE = re.compile(r"\s*(%|N\d+|[GMT]\d|O\d|\(|;|[XYZ]\s*[-+.\d]|DEF\s|MSG\s*\(|_\w+\s*=)", re.IGNORECASE)
 _NUMERIC = re.compile(r"\s*[-+.\d]")
 
 
@@ -79,7 +80,8 @@ def read_toolpath(path, *, format: str | None = None, **options) -> Toolpath:
         The file (a stream needs ``format``).
     format : {"apt", "gcode", "csv", "json"}, optional
         Skip detection. By default the suffix decides (``.apt .cls .cl .ncl`` APT; ``.nc .ngc .tap
-        .gcode .mpf`` G-code; ``.csv .tsv .xyz`` CSV; ``.json``), else the first lines of the file.
+        .gcode .mpf .spf`` G-code, the last two in the Sinumerik dialect; ``.csv .tsv .xyz`` CSV;
+        ``.json``), else the first lines of the file.
     **options
         Passed to the reader: :func:`~planner.io.apt.read_apt`, :func:`~planner.io.gcode.read_gcode`
         (e.g. ``machine="haas-umc-750"``), :func:`~planner.io.csv_reader.read_csv` or

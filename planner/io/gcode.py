@@ -51,6 +51,7 @@ Anything else (an unknown G code, a word the reader does not know) is skipped wi
 
 from __future__ import annotations
 
+import itertools
 import math
 import re
 from array import array
@@ -62,6 +63,7 @@ from planner.io._collect import PathCollector, check_arcs, open_lines, source_na
 from planner.io.cycles import DEFAULT_PECK_CLEARANCE, DrillCycle, hole_moves
 from planner.io.errors import InputFileError, WarningLimiter
 from planner.io.machines import TableTableKinematics, machine_kinematics
+from planner.io.sinumerik import SNIFF, Sinumerik
 from planner.io.toolpath import Arc, Event, Toolpath, linearize_arcs, vec3
 
 _TOKEN = re.compile(r"([A-Z])([^A-Z]*)")
@@ -102,7 +104,7 @@ _MODE = {"tcpc": 0, "dwo": 1, "machine": 2}
 
 
 class _Reader:
-    def __init__(self, source: str, units: str, machine: TableTableKinematics | None):
+    def __init__(self, source: str, units: str, machine: TableTableKinematics | None, dialect: str = "iso"):
         self.source = source
         self.units, self.scale = unit_scale(units)
         self.default_units = self.units
@@ -134,6 +136,9 @@ class _Reader:
         self.retract_r = False  # G99: retract to R; G98 (default): to the initial level
         self.peck_clearance = DEFAULT_PECK_CLEARANCE
         self.tool_next = math.nan
+        self.tool_label = ""  # Sinumerik T="name"
+        self.sinumerik_dwell = False  # a Sinumerik G4 block: its F/S word is the dwell
+        self.sinumerik = Sinumerik(self) if dialect == "sinumerik" else None
         self.pending_rapid = False
         self.last_feed: float | None = None
         self.started = False
@@ -141,6 +146,10 @@ class _Reader:
 
     def fail(self, line: int, word: str, problem: str) -> NoReturn:
         raise InputFileError(self.source, line, f"word {word}" if word else "block", problem)
+
+    def fail_construct(self, line: int, construct: str, problem: str) -> NoReturn:
+        """A Sinumerik construct the reader refuses: the message names the line and the construct."""
+        raise InputFileError(self.source, line, construct, problem)
 
     # ------------------------------------------------------------------ tokenising
     def words(self, line: int, code: str) -> list[tuple[str, float, str]]:
@@ -180,6 +189,11 @@ class _Reader:
 
     # ------------------------------------------------------------------ blocks
     def block(self, line: int, text: str) -> None:
+        if self.sinumerik is not None:
+            self.sinumerik_dwell = False
+            text = self.sinumerik.translate(line, text)
+            if not text:
+                return
         if "(" in text or ";" in text:
             text = self.strip_comments(line, text)
         code = text.replace(" ", "").replace("\t", "").upper()
@@ -410,7 +424,8 @@ class _Reader:
     def m_code(self, line: int, m: float, text: str) -> None:
         out = self.out
         if m == 6.0:
-            out.event("tool_change", line, f"T{self.tool_next:g}", self.tool_next, text.strip())
+            label = self.tool_label or f"T{self.tool_next:g}"
+            out.event("tool_change", line, label, self.tool_next, text.strip())
         elif m in (3.0, 4.0):
             speed = self.rpm * 2.0 * math.pi / 60.0
             out.event("spindle", line, "CLW" if m == 3.0 else "CCLW", speed, text.strip())
@@ -626,6 +641,7 @@ def read_gcode(
     units: str = "mm",
     arc_tolerance: float | None = None,
     source: str | None = None,
+    dialect: str = "auto",
 ) -> Toolpath:
     """Read a G-code program into a :class:`Toolpath` (see the module notes for the dialect).
 
@@ -643,6 +659,10 @@ def read_gcode(
         inserts chord points within that tolerance (see :func:`~planner.io.toolpath.linearize_arcs`).
     source : str, optional
         Name used in messages (default: the file's base name).
+    dialect : {"auto", "iso", "sinumerik"}, default "auto"
+        "iso": ISO 6983 / Fanuc / Haas; "sinumerik": Siemens 840D (:mod:`planner.io.sinumerik`);
+        "auto": Sinumerik for ``.mpf``/``.spf`` names or when the first 200 lines hold Sinumerik
+        constructs (DEF, assignments, MSG, CYCLE800/832, TRAORI, FNORM, SUPA), else ISO.
 
     Returns
     -------
@@ -658,8 +678,17 @@ def read_gcode(
     """
     kin = machine_kinematics(machine) if machine is not None else None
     name = source_name(src, source)
-    reader = _Reader(name, units, kin)
+    if dialect not in ("auto", "iso", "sinumerik"):
+        raise ValueError(f"dialect must be 'auto', 'iso' or 'sinumerik', got {dialect!r}")
     with open_lines(src) as lines:
+        if dialect == "auto":
+            if name.lower().endswith((".mpf", ".spf")):
+                dialect = "sinumerik"
+            else:
+                head = list(itertools.islice(lines, 200))
+                dialect = "sinumerik" if any(SNIFF.match(t) for t in head) else "iso"
+                lines = itertools.chain(head, lines)
+        reader = _Reader(name, units, kin, dialect)
         reader.run(lines)
     if reader.out.count == 0:
         raise InputFileError(name, None, "", "holds no motion block with a known X, Y and Z")

@@ -1,0 +1,618 @@
+"""The Sinumerik 840D dialect of the G-code reader: blocks translated into the ISO words the reader plans.
+
+Selected by the file name (``.mpf``, ``.spf``), by ``read_gcode(..., dialect="sinumerik")``, or, with
+``dialect="auto"`` and another name, by Sinumerik constructs in the first lines (``DEF``, assignments,
+``MSG(``, ``CYCLE800(``/``CYCLE832(``, ``TRAORI``, ``FNORM``, ``SUPA``). Each block is read left to right:
+
+Read
+    ``;`` comments (parentheses group expressions, they are not comments); ``N``/``:`` block numbers;
+    ``DEF REAL|INT|BOOL|CHAR|STRING[n] name[=expr], ...`` declarations; assignments ``name=expr`` to
+    declared variables, R parameters (``R1``) and names starting with ``_`` (a global user variable
+    without DEF draws a warning); expressions with ``+ - * /``, ``DIV``, ``MOD``, parentheses and
+    ``SIN COS TAN ASIN ACOS ATAN2 SQRT ABS POT TRUNC ROUND LN EXP MINVAL MAXVAL`` (degrees, as the
+    control); address words written ``X10``, ``X=expr``, ``X=IC(expr)`` (incremental in a G90 block),
+    ``X=AC(expr)``, rotary ``C=DC|ACP|ACN(expr)`` (absolute angle), ``I=AC(expr)`` (absolute arc
+    centre), ``CR=expr`` (arc radius, as ISO ``R``), ``F=``, ``S=``/``S1=``, ``M=``, ``T=n``,
+    ``T="name"`` (a ``tool_select`` event; M6 changes to it), ``D``; ``G70``/``G700`` inch and
+    ``G71``/``G710`` metric (the Sinumerik meaning); ``G4 F<s>`` / ``G4 S<rev>`` dwell (a ``dwell``
+    event; F is not the feed there).
+Kept as events (no motion)
+    ``MSG("text")`` (``insert``); ``CYCLE832(tol, ...)`` (``setting``, value = tolerance in metres);
+    ``CYCLE800(...)`` with every offset and angle 0 (``frame``: the swivel reset); ``TRAORI``,
+    ``TRAFOOF`` (``frame``); ``SUPA``/``G53``/``G153`` blocks (``home``: the named axes are in machine
+    coordinates, unknown in the part frame, as ISO ``G53``; their values are not evaluated);
+    ``G500``, ``G505..G599`` (``frame``); settings without geometry (``setting``): ``FNORM FLIN FCUB
+    COMPOF COMPCAD COMPCURV COMPSURF SOFT BRISK DRIVE FFWON FFWOF G60 G601 G602 G603 G64 G641 G642 G643
+    G644 G645 G9 G450 G451 UPATH SPATH ORIWKS ORIMKS ORIAXES ORIVECT ORICONO ORISON ORISOF CUT2D
+    CUT2DF CUT3DC CUT3DF CUT3DFF CFC CFTCP CFIN STOPRE WORKPIECE(...) FGROUP(...) G25 G26 TURN=0``
+    and ``TRANS``/``ROT``/``SCALE``/``MIRROR`` without values (frame resets); ``PROC name``
+    (``partno``); ``M17``/``RET`` (``end``).
+Refused, naming the line and the construct (they change the geometry in ways not read here)
+    ``CYCLE800`` with a non-zero offset or angle (the swivelled frame), other ``CYCLExxx(...)``
+    technology cycles and ``MCALL`` of one, ``TURN=n`` with n != 0, ``TRANS/ATRANS/ROT/AROT/SCALE/
+    ASCALE/MIRROR/AMIRROR`` with values, ``G58/G59`` (programmable offsets), ``CIP CT AR= AP= RP=
+    POLAR I1= J1= K1=``, tool orientation words ``A2 B2 C2 A3 B3 C3 LEAD TILT THETA ORIRESET``,
+    program flow (``IF ELSE ENDIF WHILE FOR LOOP REPEAT GOTOF GOTOB GOTO CASE`` and labels), system
+    variables ``$...``, indexed variables, ``G33 G331 G332 G110 G111 G112``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+
+#: Sinumerik markers that select the dialect in a file whose name does not (``dialect="auto"``).
+SNIFF = re.compile(
+    r"^\s*(?:N\d+\s+)?(?:DEF\s|MSG\s*\(|CYCLE8\d\d\s*\(|TRAORI\b|TRAFOOF\b|FNORM\b|SUPA\b|_\w+\s*=|R\d+\s*=)",
+    re.IGNORECASE,
+)
+
+_SETTINGS = frozenset(
+    "FNORM FLIN FCUB COMPOF COMPCAD COMPCURV COMPSURF SOFT BRISK DRIVE FFWON FFWOF G60 G601 G602 G603 G64 G641 "
+    "G642 G643 G644 G645 G9 G450 G451 UPATH SPATH ORIWKS ORIMKS ORIAXES ORIVECT ORICONO ORISON ORISOF CUT2D "
+    "CUT2DF CUT3DC CUT3DF CUT3DFF CFC CFTCP CFIN STOPRE WAITM G25 G26 DIAMOF MCALL ORIEULER ORIRPY".split()
+)
+_FRAME_RESETS = frozenset("TRANS ATRANS ROT AROT SCALE ASCALE MIRROR AMIRROR".split())
+_FRAME_WORDS = frozenset({"TRAORI", "TRAFOOF", "G500"})
+_FLOW = frozenset("IF ELSE ENDIF WHILE ENDWHILE FOR ENDFOR LOOP ENDLOOP REPEAT UNTIL GOTOF GOTOB GOTO GOTOC "
+                  "CASE DEFAULT CALL PCALL EXTCALL".split())  # fmt: skip
+_REFUSED_WORDS = {
+    "CIP": "circle through an intermediate point",
+    "CT": "tangential circle",
+    "POLAR": "polar coordinates",
+    "ORIRESET": "tool orientation reset (moves the rotary axes)",
+    "G58": "programmable axial offset",
+    "G59": "programmable axial offset",
+    "G33": "thread cutting",
+    "G331": "rigid tapping",
+    "G332": "rigid tapping retract",
+    "G110": "polar pole",
+    "G111": "polar pole",
+    "G112": "polar pole",
+    "LEAD": "tool lead angle",
+    "TILT": "tool tilt angle",
+    "THETA": "tool rotation angle",
+}
+_REFUSED_ADDRESSES = {
+    "AR": "arc opening angle",
+    "AP": "polar angle",
+    "RP": "polar radius",
+    "I1": "intermediate point of CIP",
+    "J1": "intermediate point of CIP",
+    "K1": "intermediate point of CIP",
+    "A2": "tool orientation (Euler/RPY angle)",
+    "B2": "tool orientation (Euler/RPY angle)",
+    "C2": "tool orientation (Euler/RPY angle)",
+    "A3": "tool orientation vector",
+    "B3": "tool orientation vector",
+    "C3": "tool orientation vector",
+    "A4": "surface normal",
+    "B4": "surface normal",
+    "C4": "surface normal",
+    "A5": "surface normal",
+    "B5": "surface normal",
+    "C5": "surface normal",
+}
+_SINGLE = frozenset("XYZABCIJKFSTDMHGNLPQRUVWE")
+_FUNCS = {
+    "SIN": lambda a: math.sin(math.radians(a)),
+    "COS": lambda a: math.cos(math.radians(a)),
+    "TAN": lambda a: math.tan(math.radians(a)),
+    "ASIN": lambda a: math.degrees(math.asin(a)),
+    "ACOS": lambda a: math.degrees(math.acos(a)),
+    "ATAN2": lambda a, b: math.degrees(math.atan2(a, b)),
+    "SQRT": math.sqrt,
+    "ABS": abs,
+    "POT": lambda a: a * a,
+    "TRUNC": lambda a: float(math.trunc(a)),
+    "ROUND": lambda a: float(math.floor(a + 0.5)),
+    "LN": math.log,
+    "EXP": math.exp,
+    "MINVAL": min,
+    "MAXVAL": max,
+}
+_NUM = re.compile(r"(?:\d+\.?\d*|\.\d+)(?:EX[-+]?\d+)?")
+_IDENT = re.compile(r"[A-Z_$][A-Z0-9_]*")
+_BLOCK_NUMBER = re.compile(r"^(?:[N:]\d+\s*)+", re.IGNORECASE)
+_COMPACT = re.compile(r"([A-Z]+)([-+]?(?:\d+\.?\d*|\.\d+))")
+
+
+class ExpressionError(ValueError):
+    """An expression the reader cannot evaluate (the message says why)."""
+
+
+class Expression:
+    """Recursive-descent evaluator of Sinumerik arithmetic over a variable table (upper-case names)."""
+
+    def __init__(self, text: str, variables: dict[str, float | str | None]):
+        self.s = text.upper()
+        self.i = 0
+        self.vars = variables
+
+    def value(self) -> float:
+        v = self.sum()
+        self.skip()
+        if self.i != len(self.s):
+            raise ExpressionError(f"unexpected {self.s[self.i:]!r}")
+        return v
+
+    def skip(self) -> None:
+        while self.i < len(self.s) and self.s[self.i] in " \t":
+            self.i += 1
+
+    def peek_word(self, word: str) -> bool:
+        self.skip()
+        end = self.i + len(word)
+        if not self.s.startswith(word, self.i):
+            return False
+        return end >= len(self.s) or not (self.s[end].isalnum() or self.s[end] == "_")
+
+    def sum(self) -> float:
+        v = self.product()
+        while True:
+            self.skip()
+            c = self.s[self.i : self.i + 1]
+            if c in ("+", "-") and c:
+                self.i += 1
+                w = self.product()
+                v = v + w if c == "+" else v - w
+            else:
+                return v
+
+    def product(self) -> float:
+        v = self.unary()
+        while True:
+            self.skip()
+            c = self.s[self.i : self.i + 1]
+            if c in ("*", "/") and c:
+                self.i += 1
+                w = self.unary()
+                if c == "/" and w == 0.0:
+                    raise ExpressionError("division by zero")
+                v = v * w if c == "*" else v / w
+            elif self.peek_word("DIV") or self.peek_word("MOD"):
+                op = self.s[self.i : self.i + 3]
+                self.i += 3
+                w = self.unary()
+                if w == 0.0:
+                    raise ExpressionError(f"{op} by zero")
+                v = float(math.trunc(v / w)) if op == "DIV" else math.fmod(v, w)
+            else:
+                return v
+
+    def unary(self) -> float:
+        self.skip()
+        c = self.s[self.i : self.i + 1]
+        if c in ("-", "+") and c:
+            self.i += 1
+            v = self.unary()
+            return -v if c == "-" else v
+        return self.atom()
+
+    def atom(self) -> float:
+        self.skip()
+        if self.i >= len(self.s):
+            raise ExpressionError("expression ends early")
+        c = self.s[self.i]
+        if c == "(":
+            self.i += 1
+            v = self.sum()
+            self.skip()
+            if self.s[self.i : self.i + 1] != ")":
+                raise ExpressionError("missing ')'")
+            self.i += 1
+            return v
+        m = _NUM.match(self.s, self.i)
+        if m:
+            self.i = m.end()
+            return float(m.group(0).replace("EX", "E"))
+        m = _IDENT.match(self.s, self.i)
+        if not m:
+            raise ExpressionError(f"unexpected {self.s[self.i:]!r}")
+        name = m.group(0)
+        self.i = m.end()
+        self.skip()
+        if self.s[self.i : self.i + 1] == "[":
+            raise ExpressionError(f"indexed variable {name}[...] is not read")
+        if name.startswith("$"):
+            raise ExpressionError(f"system variable {name} (machine state) is not read")
+        if self.s[self.i : self.i + 1] == "(":
+            if name not in _FUNCS:
+                raise ExpressionError(f"function {name}() is not known")
+            self.i += 1
+            args = [self.sum()]
+            self.skip()
+            while self.s[self.i : self.i + 1] == ",":
+                self.i += 1
+                args.append(self.sum())
+                self.skip()
+            if self.s[self.i : self.i + 1] != ")":
+                raise ExpressionError(f"missing ')' after the arguments of {name}")
+            self.i += 1
+            try:
+                return float(_FUNCS[name](*args))
+            except (TypeError, ValueError, OverflowError) as exc:
+                raise ExpressionError(f"{name}{tuple(args)}: {exc}") from None
+        if name not in self.vars:
+            raise ExpressionError(f"variable {name} is not defined (no DEF or assignment before)")
+        v = self.vars[name]
+        if not isinstance(v, float):
+            raise ExpressionError(f"variable {name} has no numeric value")
+        return v
+
+
+def split_words(text: str) -> list[str]:
+    """The block's words: split at blanks outside parentheses and strings."""
+    words, cur, depth, quote = [], [], 0, False
+    for ch in text:
+        if ch == '"':
+            quote = not quote
+        elif not quote:
+            if ch in "([":
+                depth += 1
+            elif ch in ")]":
+                depth -= 1
+            elif ch in " \t" and depth == 0:
+                if cur:
+                    words.append("".join(cur))
+                    cur = []
+                continue
+        cur.append(ch)
+    if cur:
+        words.append("".join(cur))
+    # an expression may hold blanks around its operators: "R2=7 DIV 2", "X=_X0 + 5"
+    merged: list[str] = []
+    for w in words:
+        u = w.upper()
+        if merged and "=" in merged[-1]:
+            prev = merged[-1].upper()
+            if u in ("DIV", "MOD") or w[0] in "+-*/" or prev[-1] in "+-*/=(" or prev.endswith((" DIV", " MOD")):
+                merged[-1] += " " + w
+                continue
+        merged.append(w)
+    return merged
+
+
+def strip_comment(text: str) -> str:
+    """The block without its ``;`` comment (a ``;`` inside a string is kept)."""
+    quote = False
+    for k, ch in enumerate(text):
+        if ch == '"':
+            quote = not quote
+        elif ch == ";" and not quote:
+            return text[:k]
+    return text
+
+
+def fmt(v: float) -> str:
+    """A number as a positional decimal the ISO word parser reads (no exponent)."""
+    if not math.isfinite(v):
+        raise ExpressionError(f"value {v!r} is not finite")
+    s = f"{v:.12f}".rstrip("0")
+    return s + "0" if s.endswith(".") else s
+
+
+class Sinumerik:
+    """Translator of Sinumerik blocks for one :class:`planner.io.gcode._Reader` (see the module notes)."""
+
+    def __init__(self, reader):
+        self.r = reader
+        self.vars: dict[str, float | str | None] = {}
+        self.declared: set[str] = set()
+        self.tool_name = ""
+
+    def fail(self, line: int, construct: str, problem: str):
+        self.r.fail_construct(line, construct, problem)
+
+    def eval(self, line: int, construct: str, expr: str) -> float:
+        try:
+            return Expression(expr, self.vars).value()
+        except ExpressionError as exc:
+            self.fail(line, construct, f"{construct}: {exc}")
+            raise AssertionError("unreachable") from None
+
+    # ------------------------------------------------------------------ one block
+    def translate(self, line: int, raw: str) -> str:
+        """The ISO words of a Sinumerik block ("" when nothing is left for the ISO reader)."""
+        text = strip_comment(raw).strip()
+        if not text:
+            return ""
+        if text.startswith("/"):
+            text = text[1:].lstrip()
+        text = _BLOCK_NUMBER.sub("", text)
+        words = split_words(text)
+        if not words:
+            return ""
+        head = words[0].upper()
+        label = re.fullmatch(r"([A-Z_][A-Z0-9_]*):", head)
+        if label:
+            self.fail(line, head, f"label {label.group(1)}: program flow (jumps, labels) is not read")
+        if head in _FLOW:
+            self.fail(line, head, f"{head}: program flow (IF, loops, jumps) is not read; post without it")
+        if head in _FRAME_RESETS and len(words) > 1:
+            self.fail(line, head, f"{head} {' '.join(words[1:])}: a programmable frame (shift, rotation, scale or "
+                      "mirror) is not read")  # fmt: skip
+        if head == "DEF":
+            self.define(line, text)
+            return ""
+        if head == "PROC":
+            self.r.out.event("partno", line, " ".join(words[1:2]), math.nan, text)
+            return ""
+        if head in ("EXTERN", "GUD", "LUD"):
+            self.r.out.event("machine", line, head, math.nan, text)
+            return ""
+        supa = any(w.upper() in ("SUPA", "G53", "G153") for w in words)
+        iso: list[str] = []
+        block_abs = self.r.absolute
+        for w in words:
+            u = w.upper()
+            if u in ("G90", "G91"):
+                block_abs = u == "G90"
+        for w in words:
+            iso.extend(self.word(line, w, text, supa, block_abs))
+        if supa:
+            iso.insert(0, "G53")
+        return "".join(iso)
+
+    def define(self, line: int, text: str) -> None:
+        m = re.match(r"\s*DEF\s+(REAL|INT|BOOL|CHAR|STRING\s*\[\s*\d+\s*\]|AXIS|FRAME)\s+(.*)$", text, re.IGNORECASE)
+        if not m:
+            self.fail(line, "DEF", f"DEF: cannot read the declaration {text.strip()!r} (type REAL, INT, BOOL, CHAR, "
+                      "STRING[n], AXIS or FRAME, then names)")  # fmt: skip
+        kind = m.group(1).upper()
+        for part in _split_commas(m.group(2)):
+            name, eq, expr = part.partition("=")
+            name = name.strip().upper()
+            if not _IDENT.fullmatch(name) or "[" in part.split("=")[0]:
+                self.fail(line, "DEF", f"DEF {kind}: {name!r} is not a variable name the reader reads (no arrays)")
+            self.declared.add(name)
+            if not eq:
+                self.vars[name] = 0.0 if kind in ("REAL", "INT", "BOOL") else None
+            elif kind in ("REAL", "INT", "BOOL"):
+                self.vars[name] = self.eval(line, f"DEF {kind} {name}", expr)
+            else:
+                self.vars[name] = expr.strip().strip('"')
+        self.r.out.event("machine", line, "DEF", math.nan, text.strip())
+
+    def word(self, line: int, w: str, text: str, supa: bool, block_abs: bool) -> list[str]:
+        """ISO words for one Sinumerik word (events and assignments are handled here)."""
+        out = self.r.out
+        u = w.upper()
+        call = re.fullmatch(r"([A-Z_][A-Z0-9_]*)\s*\((.*)\)", u, re.DOTALL)
+        if call:
+            return self.call(line, call.group(1), w[w.index("(") + 1 : w.rindex(")")], text)
+        name, eq, expr = w.partition("=")
+        name_u = name.strip().upper()
+        if eq:
+            if name_u in _REFUSED_ADDRESSES:
+                self.fail(line, name_u, f"{name_u}= ({_REFUSED_ADDRESSES[name_u]}) is not read")
+            if name_u.startswith("$"):
+                self.fail(line, name_u, f"{name_u}= writes a system variable (machine state): not read")
+            if "[" in name_u:
+                self.fail(line, name_u, f"{name_u}= writes an indexed variable: not read")
+            if name_u == "T":
+                label = expr.strip().strip('"')
+                self.tool_name = label
+                self.r.tool_next = math.nan
+                self.r.tool_label = label
+                out.event("tool_select", line, label, math.nan, text)
+                return []
+            if name_u == "TURN":
+                turns = self.eval(line, "TURN", expr)
+                if turns != 0.0:
+                    self.fail(line, "TURN", f"TURN={turns:g}: full helical turns of G2/G3 are not read")
+                out.event("setting", line, "TURN", 0.0, text)
+                return []
+            if name_u == "CR":
+                return ["R" + fmt(self.eval(line, "CR", expr))]
+            if name_u in ("D", "H"):
+                return []
+            base = re.fullmatch(r"([SM])\d*", name_u)
+            if base:
+                return [base.group(1) + fmt(self.eval(line, name_u, expr))]
+            if len(name_u) == 1 and name_u in _SINGLE:
+                if supa and name_u in "XYZABC":
+                    return [name_u + "0"]  # machine coordinates: the value is not used
+                return [name_u + self.address_value(line, name_u, expr, block_abs)]
+            self.assign(line, name_u, expr)
+            return []
+        if u in _REFUSED_WORDS:
+            self.fail(line, u, f"{u} ({_REFUSED_WORDS[u]}) is not read")
+        if u in _SETTINGS:
+            out.event("setting", line, u, math.nan, text)
+            return []
+        if u in _FRAME_WORDS or re.fullmatch(r"G5(?:0[5-9]|[1-9]\d)", u):
+            out.event("frame", line, u, math.nan, text)
+            return []
+        if u in _FRAME_RESETS:
+            out.event("frame", line, u, math.nan, text)
+            return []
+        if u in ("SUPA", "G153"):
+            return []
+        if u in ("RET", "M17"):
+            out.event("end", line, u, math.nan, text)
+            return []
+        if u in ("G70", "G700"):
+            return ["G20"]
+        if u in ("G71", "G710"):
+            return ["G21"]
+        if u in ("G4", "G04"):
+            self.r.sinumerik_dwell = True
+            return []
+        if self.r.sinumerik_dwell and re.fullmatch(r"[FS][-+]?(?:\d+\.?\d*|\.\d+)", u):
+            self.r.sinumerik_dwell = False
+            value = float(u[1:])
+            seconds = value if u[0] == "F" else value * 60.0 / self.r.rpm
+            out.event("dwell", line, "G4", seconds, text)
+            return []
+        parts = _COMPACT.findall(u)
+        if parts and "".join(a + b for a, b in parts) == u:
+            return [self.compact(line, a, b, text) for a, b in parts]
+        if _IDENT.fullmatch(u):
+            self.fail(line, u, f"{u}: a Sinumerik instruction the reader does not know; the program cannot be "
+                      "planned without knowing what it does")  # fmt: skip
+        self.fail(line, u[:20], f"cannot read {w!r}")
+        return []
+
+    def compact(self, line: int, letters: str, number: str, text: str) -> str:
+        """A word written ``LETTERS<number>`` (``G1``, ``X10``, ``S1000``)."""
+        if letters in _REFUSED_ADDRESSES or letters + number in _REFUSED_WORDS:
+            key = letters if letters in _REFUSED_ADDRESSES else letters + number
+            what = _REFUSED_ADDRESSES.get(key) or _REFUSED_WORDS[key]
+            self.fail(line, key, f"{key} ({what}) is not read")
+        if letters == "G" and f"G{number}" in _SETTINGS:
+            self.r.out.event("setting", line, f"G{number}", math.nan, text)
+            return ""
+        if letters == "G" and (f"G{number}" in _FRAME_WORDS or re.fullmatch(r"5(?:0[5-9]|[1-9]\d)", number)):
+            self.r.out.event("frame", line, f"G{number}", math.nan, text)
+            return ""
+        if letters in ("G", "M", "T", "D", "H", "N"):
+            if letters == "G" and number in ("70", "700"):
+                return "G20"
+            if letters == "G" and number in ("71", "710"):
+                return "G21"
+            if letters == "G" and number in ("4", "04"):
+                self.r.sinumerik_dwell = True
+                return ""
+            if letters in ("T",):
+                self.r.tool_label = ""
+            return letters + number
+        if letters in ("F", "S") and self.r.sinumerik_dwell:
+            self.r.sinumerik_dwell = False
+            value = float(number)
+            seconds = value if letters == "F" else value * 60.0 / self.r.rpm
+            self.r.out.event("dwell", line, "G4", seconds, text)
+            return ""
+        if letters == "CR":
+            return "R" + number
+        if letters == "R" and self.r.motion not in (2, 3):
+            self.fail(line, f"R{number}", f"R{number}: an R parameter needs an assignment (R{number}=...)")
+        if len(letters) == 1:
+            return letters + number
+        if re.fullmatch(r"[SM]", letters[0]) and letters[1:].isdigit():
+            return letters[0] + number
+        self.fail(line, letters, f"{letters}{number}: address {letters} is not read")
+        return ""
+
+    def address_value(self, line: int, name: str, expr: str, block_abs: bool) -> str:
+        """The ISO number for ``NAME=expr`` (IC/AC/DC/ACP/ACN resolved against the reader's position)."""
+        e = expr.strip()
+        m = re.fullmatch(r"(IC|AC|DC|ACP|ACN)\s*\((.*)\)", e, re.IGNORECASE | re.DOTALL)
+        mode = None
+        if m:
+            mode, e = m.group(1).upper(), m.group(2)
+        v = self.eval(line, f"{name}=", e)
+        r = self.r
+        if mode is None or (mode == "AC" and block_abs and name in "XYZABC") or (mode == "IC" and not block_abs):
+            return fmt(v)
+        if name in "IJK":
+            if mode != "AC":
+                self.fail(line, name, f"{name}={mode}(...): only AC (absolute centre) is read for arc centres")
+            k = "IJK".index(name)
+            cur = r.pos[k]
+            if cur != cur:
+                self.fail(line, name, f"{name}=AC(...): the start of the arc is not known")
+            return fmt(v - cur / r.scale)
+        if name in "XYZ":
+            k = "XYZ".index(name)
+            cur = r.pos[k] / r.scale
+        elif name in r.rot_words:
+            if mode in ("DC", "ACP", "ACN"):
+                if not block_abs:
+                    self.fail(line, name, f"{name}={mode}(...) in a G91 block is not read")
+                return fmt(v)
+            cur = math.degrees(r.angles[r.rot_words.index(name)])
+        else:
+            if v != 0.0:
+                self.fail(line, name, f"{name}={mode}(...): {name} is not an axis of the machine")
+            return fmt(v)
+        if cur != cur:
+            self.fail(line, name, f"{name}={mode}(...): the current {name} is not known")
+        if mode == "IC":
+            return fmt(cur + v)  # absolute value in this G90 block
+        if mode in ("DC", "ACP", "ACN"):
+            self.fail(line, name, f"{name}={mode}(...) is for rotary axes")
+        return fmt(v - cur)  # AC in a G91 block: the increment
+
+    def assign(self, line: int, name: str, expr: str) -> None:
+        if not _IDENT.fullmatch(name):
+            self.fail(line, name[:20], f"{name}=: not an address or a variable name")
+        if name not in self.declared and not re.fullmatch(r"R\d+", name):
+            if not name.startswith("_"):
+                self.fail(line, name, f"{name}=: {name} is neither an address the reader knows nor a declared "
+                          "variable (DEF)")  # fmt: skip
+            if name not in self.vars:
+                self.r.warn.warn("undeclared variables", line, f"variable {name} assigned without DEF (a global user "
+                                 "variable?): read as a REAL")  # fmt: skip
+        value = expr.strip()
+        if value.startswith('"'):
+            self.vars[name] = value.strip('"')
+        else:
+            self.vars[name] = self.eval(line, f"{name}=", value)
+
+    def call(self, line: int, name: str, args: str, text: str) -> list[str]:
+        out = self.r.out
+        if name == "MSG":
+            msg = args.strip()
+            out.event("insert", line, msg.strip('"'), math.nan, text)
+            return []
+        if name == "CYCLE832":
+            parts = _split_commas(args)
+            tol = math.nan
+            if parts and parts[0].strip():
+                try:
+                    tol = Expression(parts[0], self.vars).value() * self.r.scale
+                except ExpressionError:
+                    tol = math.nan
+            out.event("setting", line, "CYCLE832", tol, text)
+            return []
+        if name == "CYCLE800":
+            parts = _split_commas(args)
+            geo = parts[4:13]
+            vals = []
+            for p in geo:
+                p = p.strip()
+                vals.append(0.0 if not p else self.eval(line, "CYCLE800", p))
+            if any(v != 0.0 for v in vals):
+                shown = ", ".join(f"{k}={v:g}" for k, v in zip(("X0", "Y0", "Z0", "A", "B", "C", "X1", "Y1", "Z1"),
+                                                                vals, strict=False) if v != 0.0)
+                self.fail(line, "CYCLE800", f"CYCLE800 swivels the working plane ({shown}): the swivelled frame is "
+                          "not read; post the operation with TRAORI and tool vectors or rotary angles")  # fmt: skip
+            out.event("frame", line, "CYCLE800", math.nan, text)
+            return []
+        if name in ("WORKPIECE", "FGROUP", "FGREF", "SOFTA", "BRISKA"):
+            out.event("setting", line, name, math.nan, text)
+            return []
+        if name == "TRAORI":
+            out.event("frame", line, "TRAORI", math.nan, text)
+            return []
+        if name in _FRAME_RESETS:
+            if args.strip():
+                self.fail(line, name, f"{name}({args.strip()}) moves the frame: not read")
+            out.event("frame", line, name, math.nan, text)
+            return []
+        if name.startswith("CYCLE") or name.startswith("POCKET") or name.startswith("SLOT") or name == "MCALL":
+            self.fail(line, name, f"{name}(...): a Sinumerik technology cycle whose moves are not in the program; "
+                      "post it as explicit moves")  # fmt: skip
+        self.fail(line, name, f"{name}(...): a call the reader does not know; its moves are not in the program")
+        return []
+
+
+def _split_commas(text: str) -> list[str]:
+    """Comma-separated parts of ``text`` outside parentheses and strings."""
+    parts, cur, depth, quote = [], [], 0, False
+    for ch in text:
+        if ch == '"':
+            quote = not quote
+        elif not quote:
+            if ch in "([":
+                depth += 1
+            elif ch in ")]":
+                depth -= 1
+            elif ch == "," and depth == 0:
+                parts.append("".join(cur))
+                cur = []
+                continue
+        cur.append(ch)
+    parts.append("".join(cur))
+    return parts
