@@ -668,7 +668,7 @@ class _Reader:
         end_pt = ctrl[-1]
         k = self.add_point(line, float(end_pt[0]), float(end_pt[1]), float(end_pt[2]))
         if axes is not None:
-            self.out.set_axis(k, *axes[-1], True)
+            self.out.set_axis(k, float(axes[-1, 0]), float(axes[-1, 1]), float(axes[-1, 2]), True)
         self.out.add_nurbs(line, k, degree, full, ctrl, weights, axes)
 
     def other(self, line: int, major: str, body: str) -> None:
