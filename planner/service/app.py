@@ -1,0 +1,493 @@
+"""The FastAPI application: job routes, exports streamed from the saved job, health, metrics and the page.
+
+``create_app(config)`` builds an app whose lifespan opens (and migrates) the store, re-queues jobs a previous
+run left running, and starts the worker pool; ``planner serve`` runs it under uvicorn.
+
+Errors: a user's mistake (bad JSON, a bad setting, a file the reader refuses) is 422 with ``detail`` a list of
+``{"loc": [...], "msg": ...}`` naming the field (and, for a file, the reader's message with its line); a job of
+another key is 404 exactly like a job that does not exist; an export of a job that is not done is 409.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import re
+import shutil
+import threading
+import uuid
+from collections.abc import AsyncIterator, Iterator
+from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from fastapi import Depends, FastAPI, HTTPException, Query, Request
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, PlainTextResponse, Response, StreamingResponse
+from pydantic import ValidationError
+from sqlalchemy import select
+from starlette.datastructures import UploadFile
+
+from planner.errors import PlannerError
+from planner.service.auth import DEV_PRINCIPAL, Principal, authenticate
+from planner.service.config import ServiceConfig
+from planner.service.metrics import Metrics
+from planner.service.schemas import JobCreated, JobList, JobView, ReadOptions, SettingsModel, WaypointJob
+from planner.service.store import Job, now, open_store
+from planner.service.workers import WorkerPool, job_dir, recover, remove_job_files
+
+API = "/v1"
+_JOB_ID = re.compile(r"^[0-9a-f]{32}$")
+_STATIC = Path(__file__).resolve().parent / "static"
+
+
+# -- errors ------------------------------------------------------------------------------------------
+class Unprocessable(HTTPException):
+    """422 naming the field: ``detail`` = [{"loc": [...], "msg": ..., "type": ...}]."""
+
+    def __init__(self, loc: list, msg: str, kind: str = "value_error"):
+        super().__init__(422, [{"loc": loc, "msg": msg, "type": kind}])
+
+
+def _validation_detail(exc: ValidationError, prefix: list) -> list[dict]:
+    """pydantic errors without the (possibly huge or non-JSON) input values."""
+    return [{"loc": prefix + list(e["loc"]), "msg": e["msg"], "type": e["type"]}
+            for e in exc.errors(include_url=False, include_context=False, include_input=False)]
+
+
+def _settings_loc(message: str, prefix: list) -> list:
+    """The field a PlanSettings message starts with (``"tolerance must be ..."``), else the settings object."""
+    m = re.match(r"(?:unknown settings? )?([a-z_]+)", message)
+    known = set(SettingsModel.model_fields)
+    return prefix + [m.group(1)] if m and m.group(1) in known else prefix
+
+
+# -- the request body limit (pure ASGI: counts the bytes as they arrive) --------------------------------
+class BodyLimit:
+    def __init__(self, app, limit: int):
+        self.app = app
+        self.limit = limit
+
+    async def __call__(self, scope, receive, send):
+        if scope["type"] != "http":
+            return await self.app(scope, receive, send)
+        for name, value in scope.get("headers", []):
+            if name == b"content-length" and value.isdigit() and int(value) > self.limit:
+                return await self._too_large(send)
+        seen = 0
+
+        async def counted():
+            nonlocal seen
+            message = await receive()
+            if message["type"] == "http.request":
+                seen += len(message.get("body", b""))
+                if seen > self.limit:
+                    raise _TooLarge()
+            return message
+
+        try:
+            await self.app(scope, counted, send)
+        except _TooLarge:
+            with contextlib.suppress(Exception):
+                await self._too_large(send)
+
+    async def _too_large(self, send):
+        body = json.dumps({"detail": f"request body larger than the service's limit of {self.limit} bytes"}).encode()
+        await send({"type": "http.response.start", "status": 413,
+                    "headers": [(b"content-type", b"application/json"), (b"content-length", str(len(body)).encode())]})
+        await send({"type": "http.response.body", "body": body})
+
+
+class _TooLarge(Exception):
+    pass
+
+
+# -- the app -------------------------------------------------------------------------------------------
+class Service:
+    """What the routes share: configuration, store, pool, metrics."""
+
+    def __init__(self, cfg: ServiceConfig):
+        self.cfg = cfg
+        self.engine, self.sessions = open_store(cfg.db_url)
+        self.metrics = Metrics()
+        self.pool = WorkerPool(self.sessions, cfg, self.metrics)
+        self.plot_lock = threading.Lock()
+
+    def start(self) -> dict:
+        self.cfg.data_dir.mkdir(parents=True, exist_ok=True)
+        (self.cfg.data_dir / "jobs").mkdir(exist_ok=True)
+        recovered = recover(self.sessions, self.cfg)
+        self.pool.start()
+        return recovered
+
+    def stop(self) -> None:
+        self.pool.stop()
+        self.engine.dispose()
+
+
+def _service(request: Request) -> Service:
+    return request.app.state.service
+
+
+def principal(request: Request) -> Principal:
+    """The caller: the key of ``Authorization: Bearer`` / ``X-API-Key``, or the development operator."""
+    svc = _service(request)
+    if svc.cfg.dev_no_auth:
+        return DEV_PRINCIPAL
+    key = request.headers.get("x-api-key")
+    auth = request.headers.get("authorization", "")
+    if auth.lower().startswith("bearer "):
+        key = auth[7:].strip()
+    with svc.sessions() as s:
+        who = authenticate(s, key)
+    if who is None:
+        raise HTTPException(401, "a valid API key is needed (Authorization: Bearer <key>)",
+                            headers={"WWW-Authenticate": "Bearer"})
+    return who
+
+
+Caller = Annotated[Principal, Depends(principal)]
+
+
+def own_job(svc: Service, who: Principal, job_id: str) -> Job:
+    """The caller's job, or 404 (also for another key's job: its existence is not revealed)."""
+    if _JOB_ID.match(job_id):
+        with svc.sessions() as s:
+            job = s.scalars(select(Job).where(Job.id == job_id, Job.owner == who.key_id)).first()
+        if job is not None:
+            return job
+    raise HTTPException(404, f"no job {job_id}")
+
+
+def job_view(svc: Service, job: Job) -> dict:
+    """The JSON of ``GET /v1/jobs/{id}``."""
+    base = f"{API}/jobs/{job.id}"
+    t = {"queued_s": ((job.started_at or job.finished_at or now()) - job.created_at),
+         "running_s": None if job.started_at is None else (job.finished_at or now()) - job.started_at,
+         "planning_s": job.planning_s}
+    links: dict[str, str] = {"self": base}
+    if job.state == "done":
+        links.update({"csv": f"{base}/trajectory?format=csv", "json": f"{base}/trajectory?format=json",
+                      "plot": f"{base}/plot.png"})
+        if json.loads(job.settings).get("robot"):
+            links["script"] = f"{base}/trajectory?format=script"
+    return {
+        "id": job.id, "state": job.state, "created_at": job.created_at, "started_at": job.started_at,
+        "finished_at": job.finished_at,
+        "progress": {"stage": job.stage, "done": job.done, "total": job.total},
+        "attempts": job.attempts,
+        "input": {"kind": job.input_kind, "name": job.input_name, "format": job.input_format,
+                  "bytes": job.input_bytes},
+        "settings": json.loads(job.settings), "read_options": json.loads(job.read_options), "timings": t,
+        "summary": json.loads(job.summary) if job.summary else None,
+        "describe": json.loads(job.describe) if job.describe else None,
+        "error": {"kind": job.error_kind or "", "message": job.error} if job.error else None,
+        "note": job.note,
+        "storage_bytes": job.input_bytes + job.job_bytes + len(job.settings) + len(job.summary or ""),
+        "links": links,
+    }
+
+
+def _safe_name(filename: str | None) -> str:
+    """A file name of our own making from an upload's name: its base name, [A-Za-z0-9._-] only, no leading dot."""
+    base = re.split(r"[\\/]", filename or "")[-1]
+    name = re.sub(r"[^A-Za-z0-9._-]", "_", base).lstrip(".")[:120]
+    return name or "upload.txt"
+
+
+_JOB_BODY = {
+    "requestBody": {
+        "required": True,
+        "content": {
+            "application/json": {"schema": {"$ref": "#/components/schemas/WaypointJob"}},
+            "multipart/form-data": {"schema": {
+                "type": "object", "required": ["file"],
+                "properties": {
+                    "file": {"type": "string", "format": "binary",
+                             "description": "toolpath file: APT/CLSF, 5-axis G-code, CSV or JSON"},
+                    "settings": {"type": "string", "description": "JSON of SettingsModel"},
+                    "read_options": {"type": "string", "description": "JSON of ReadOptions (units, machine)"},
+                }}},
+        },
+    },
+}
+
+
+def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
+    """The service's ASGI app (``cfg`` default: from the environment)."""
+    cfg = cfg or ServiceConfig.from_env()
+
+    @contextlib.asynccontextmanager
+    async def lifespan(app: FastAPI) -> AsyncIterator[None]:
+        svc = Service(cfg)
+        svc.start()
+        app.state.service = svc
+        try:
+            yield
+        finally:
+            await run_in_threadpool(svc.stop)
+
+    app = FastAPI(title="planner service", version="1", lifespan=lifespan,
+                  description="Path jobs for robot tool-orientation planning: submit waypoints or a toolpath file, "
+                              "watch the job, download the trajectory (CSV, JSON), the URScript program and the plot.")
+    app.add_middleware(BodyLimit, limit=cfg.max_request_bytes)
+
+    @app.exception_handler(PlannerError)
+    async def _planner_error(request: Request, exc: PlannerError):
+        return JSONResponse({"detail": [{"loc": [], "msg": str(exc), "type": "planner_error"}]}, status_code=422)
+
+    @app.get("/", include_in_schema=False)
+    def page() -> HTMLResponse:
+        return HTMLResponse((_STATIC / "index.html").read_text(encoding="utf-8"))
+
+    @app.get("/healthz", tags=["service"])
+    def healthz(request: Request) -> dict:
+        svc = _service(request)
+        with svc.sessions() as s:
+            s.execute(select(1))
+        return {"status": "ok", "workers": svc.pool.alive, "busy": svc.pool.busy, "dev_no_auth": svc.cfg.dev_no_auth}
+
+    @app.get("/metrics", tags=["service"], response_class=PlainTextResponse)
+    def metrics(request: Request) -> PlainTextResponse:
+        svc = _service(request)
+        text = svc.metrics.text(svc.pool.counts(), svc.pool.alive, svc.pool.busy)
+        return PlainTextResponse(text, media_type="text/plain; version=0.0.4; charset=utf-8")
+
+    @app.post(f"{API}/jobs", status_code=202, response_model=JobCreated, tags=["jobs"], openapi_extra=_JOB_BODY,
+              responses={413: {"description": "request too large"}, 415: {"description": "not JSON or multipart"},
+                         422: {"description": "bad input, naming the field"}})
+    async def submit(request: Request, who: Caller) -> JSONResponse:
+        """Submit a job: JSON waypoints (WaypointJob) or a multipart upload of a toolpath file."""
+        svc = _service(request)
+        ctype = request.headers.get("content-type", "").lower()
+        if ctype.startswith("application/json"):
+            body = await request.body()
+            try:
+                req = WaypointJob.model_validate_json(body)
+            except ValidationError as exc:
+                raise HTTPException(422, _validation_detail(exc, ["body"])) from None
+            job_id = await run_in_threadpool(_create_waypoint_job, svc, who, req)
+        elif ctype.startswith("multipart/form-data"):
+            job_id = await _submit_file(svc, who, request)
+        else:
+            raise HTTPException(415, "send application/json (waypoints) or multipart/form-data (a toolpath file)")
+        svc.metrics.count_submitted()
+        svc.pool.wake()
+        location = f"{API}/jobs/{job_id}"
+        return JSONResponse({"id": job_id, "state": "queued", "location": location}, status_code=202,
+                            headers={"Location": location})
+
+    @app.get(f"{API}/jobs", response_model=JobList, tags=["jobs"])
+    def list_jobs(request: Request, who: Caller, limit: Annotated[int, Query(ge=1, le=500)] = 50,
+                  cursor: Annotated[int | None, Query(ge=0, description="next_cursor of the previous page")] = None
+                  ) -> dict:
+        """The caller's jobs, newest first."""
+        svc = _service(request)
+        q = select(Job).where(Job.owner == who.key_id)
+        if cursor is not None:
+            q = q.where(Job.seq < cursor)
+        with svc.sessions() as s:
+            rows = list(s.scalars(q.order_by(Job.seq.desc()).limit(limit + 1)))
+        more = len(rows) > limit
+        rows = rows[:limit]
+        return {"jobs": [job_view(svc, j) for j in rows], "next_cursor": rows[-1].seq if more else None}
+
+    @app.get(f"{API}/jobs/{{job_id}}", response_model=JobView, tags=["jobs"],
+             responses={404: {"description": "no such job of this key"}})
+    def get_job(request: Request, job_id: str, who: Caller) -> dict:
+        """State, progress, timings, the summary the CLI prints, or the planner's error."""
+        svc = _service(request)
+        return job_view(svc, own_job(svc, who, job_id))
+
+    @app.delete(f"{API}/jobs/{{job_id}}", response_model=JobView, tags=["jobs"],
+                responses={404: {"description": "no such job of this key"}, 409: {"description": "job has ended"}})
+    def cancel_job(request: Request, job_id: str, who: Caller) -> dict:
+        """Cancel a queued or running job (a running job's worker is stopped within a second)."""
+        svc = _service(request)
+        job = own_job(svc, who, job_id)
+        if svc.pool.cancel(job.id) is None:
+            job = own_job(svc, who, job_id)
+            raise HTTPException(409, f"job {job_id} is {job.state}; only queued or running jobs can be cancelled")
+        return job_view(svc, own_job(svc, who, job_id))
+
+    @app.get(f"{API}/jobs/{{job_id}}/trajectory", tags=["exports"],
+             responses={200: {"content": {"text/csv": {}, "application/json": {}, "text/plain": {}}},
+                        404: {"description": "no such job of this key"}, 409: {"description": "job not done"}})
+    def trajectory(request: Request, job_id: str, who: Caller,
+                   format: Literal["csv", "json", "script"] = "csv") -> Response:  # noqa: A002
+        """The trajectory (CSV, JSON) or URScript program: the bytes ``planner plan -o`` writes, streamed."""
+        svc = _service(request)
+        row = own_job(svc, who, job_id)
+        job = _load_done(svc, row)
+        params = {"input": row.input_name}
+        stem = Path(row.input_name).stem or "job"
+        if format == "script":
+            from planner.export import job_program
+
+            try:
+                text = job_program(job, parameters=params)
+            except PlannerError as exc:
+                raise Unprocessable(["query", "format"], f"not writing {stem}.script: {exc}") from None
+            return Response(text.encode("utf-8"), media_type="text/plain; charset=utf-8",
+                            headers={"Content-Disposition": f'attachment; filename="{stem}.script"'})
+        from planner.export import csv_text, json_text
+
+        writer = csv_text if format == "csv" else json_text
+        pieces = writer(job.trajectory(), parameters=params)
+        first = next(pieces)  # the header is checked before the response starts
+        media = "text/csv; charset=utf-8" if format == "csv" else "application/json"
+        return StreamingResponse(_encoded(first, pieces), media_type=media,
+                                 headers={"Content-Disposition": f'attachment; filename="{stem}.{format}"'})
+
+    @app.get(f"{API}/jobs/{{job_id}}/plot.png", tags=["exports"], response_class=FileResponse,
+             responses={200: {"content": {"image/png": {}}}, 404: {"description": "no such job of this key"},
+                        409: {"description": "job not done"}})
+    def plot(request: Request, job_id: str, who: Caller) -> FileResponse:
+        """The picture ``planner plan --plot x.png`` draws (drawn once, then kept beside the saved job)."""
+        svc = _service(request)
+        row = own_job(svc, who, job_id)
+        target = job_dir(svc.cfg, row.id) / f"plot.{row.attempts}.png"
+        if not target.exists():
+            job = _load_done(svc, row)
+            with svc.plot_lock:  # matplotlib's pyplot is not thread-safe
+                if not target.exists():
+                    _draw(job, row.input_name, target)
+        return FileResponse(target, media_type="image/png")
+
+    from planner.service.executions import router as executions_router
+
+    app.include_router(executions_router, prefix=API)
+    return app
+
+
+def _encoded(first: str, pieces: Iterator[str]) -> Iterator[bytes]:
+    yield first.encode("utf-8")
+    for piece in pieces:
+        yield piece.encode("utf-8")
+
+
+def _load_done(svc: Service, row: Job):
+    from planner.job import load_job
+
+    if row.state != "done" or not row.job_file:
+        raise HTTPException(409, f"job {row.id} is {row.state}; exports exist once it is done")
+    return load_job(job_dir(svc.cfg, row.id) / row.job_file)
+
+
+def _draw(job, input_name: str, target: Path) -> None:
+    """The CLI's plot (same title), written atomically."""
+    import io
+
+    from planner.export import write_bytes_atomic
+    from planner.plot import plot_job
+
+    s = job.summary()
+    buf = io.BytesIO()
+    plot_job(job, buf, title=(f"{input_name}: {s['passes']} pass{'es' * (s['passes'] != 1)}, "
+                              f"{s['cut_length_mm']:.0f} mm of cut, {s['duration_s']:.1f} s"))
+    write_bytes_atomic(target, buf.getvalue())
+
+
+# -- submitting ------------------------------------------------------------------------------------------
+def _insert(svc: Service, job_id: str, who: Principal, **values: Any) -> None:
+    with svc.sessions() as s:
+        s.add(Job(id=job_id, owner=who.key_id, state="queued", created_at=now(), stage="", done=0, total=0,
+                  attempts=0, job_bytes=0, **values))
+        s.commit()
+
+
+def _checked_settings(model: SettingsModel, fmt: str, has_axes: bool, prefix: list):
+    from planner.plan import resolve
+
+    try:
+        settings = model.to_settings()
+        resolve(settings, fmt, has_axes)
+    except PlannerError as exc:
+        raise Unprocessable(_settings_loc(str(exc), prefix), str(exc)) from None
+    return settings
+
+
+def _create_waypoint_job(svc: Service, who: Principal, req: WaypointJob) -> str:
+    from planner.plan import waypoints_toolpath
+
+    n = len(req.waypoints)
+    if n > svc.cfg.max_waypoints:
+        raise Unprocessable(["body", "waypoints"], f"{n} waypoints; the service takes at most {svc.cfg.max_waypoints}")
+    feeds = None if req.feeds is None else [float("nan") if f is None else f for f in req.feeds]
+    try:
+        waypoints_toolpath(req.waypoints, req.axes, feeds)
+    except PlannerError as exc:
+        msg = str(exc)
+        field = next((f for f in ("axes", "feeds") if msg.startswith(f)), "waypoints")
+        raise Unprocessable(["body", field], msg) from None
+    settings = _checked_settings(req.settings, "waypoints", req.axes is not None, ["body", "settings"])
+    data = json.dumps({"waypoints": req.waypoints, "axes": req.axes, "feeds": req.feeds})
+    job_id = uuid.uuid4().hex
+    _insert(svc, job_id, who, input_kind="waypoints", input_name="<waypoints>", input_format="waypoints",
+            input_bytes=len(data), input_json=data, settings=json.dumps(settings.to_dict()), read_options="{}")
+    return job_id
+
+
+async def _submit_file(svc: Service, who: Principal, request: Request) -> str:
+    try:
+        form = await request.form(max_files=1, max_fields=10)
+    except HTTPException:
+        raise
+    except Exception as exc:
+        raise Unprocessable(["body"], f"not a readable multipart form ({exc})") from None
+    try:
+        unknown = sorted(set(form.keys()) - {"file", "settings", "read_options"})
+        if unknown:
+            raise Unprocessable(["body", unknown[0]], f"unknown form field {unknown[0]!r} (known: file, settings, "
+                                                      "read_options)")
+        upload = form.get("file")
+        if not isinstance(upload, UploadFile):
+            raise Unprocessable(["body", "file"], "a toolpath file is needed in the form field 'file'")
+        settings_model = _form_json(form.get("settings"), SettingsModel, "settings")
+        options = _form_json(form.get("read_options"), ReadOptions, "read_options")
+        job_id = uuid.uuid4().hex
+        try:
+            return await run_in_threadpool(_create_file_job, svc, who, job_id, upload, settings_model, options)
+        except BaseException:
+            remove_job_files(svc.cfg, job_id)
+            raise
+    finally:
+        await form.close()
+
+
+def _form_json(value, model, field: str):
+    if value is None or value == "":
+        return model()
+    if not isinstance(value, str):
+        raise Unprocessable(["body", field], f"{field} must be a JSON text field, not a file")
+    try:
+        return model.model_validate_json(value)
+    except ValidationError as exc:
+        raise HTTPException(422, _validation_detail(exc, ["body", field])) from None
+
+
+def _create_file_job(svc: Service, who: Principal, job_id: str, upload: UploadFile, settings_model: SettingsModel,
+                     options: ReadOptions) -> str:
+    from planner.io import detect_format, read_toolpath
+
+    name = _safe_name(upload.filename)
+    folder = job_dir(svc.cfg, job_id) / "input"
+    folder.mkdir(parents=True)
+    path = folder / name
+    with open(path, "wb") as f:
+        upload.file.seek(0)
+        shutil.copyfileobj(upload.file, f, 1 << 20)
+        size = f.tell()
+    read_options = options.as_dict()
+    try:
+        fmt = detect_format(path)
+        toolpath = read_toolpath(path, format=fmt, **read_options)
+    except PlannerError as exc:
+        raise Unprocessable(["body", "file"], str(exc)) from None
+    except TypeError as exc:  # an option this reader does not take
+        raise Unprocessable(["body", "read_options"], f"{name}: {exc}") from None
+    except UnicodeError as exc:
+        raise Unprocessable(["body", "file"], f"{name}: not a text file ({exc})") from None
+    settings = _checked_settings(settings_model, fmt, toolpath.axes is not None, ["body", "settings"])
+    _insert(svc, job_id, who, input_kind="file", input_name=name, input_format=fmt, input_bytes=size,
+            input_json=None, settings=json.dumps(settings.to_dict()), read_options=json.dumps(read_options))
+    return job_id

@@ -1,0 +1,77 @@
+"""API keys: created, listed and revoked by ``planner keys``; only the SHA-256 of a key is stored.
+
+A key is ``pk_<id>_<secret>`` (the id names the key in lists and logs; the secret is 32 random bytes). A request
+sends it as ``Authorization: Bearer <key>`` (or ``X-API-Key``). Roles: ``planner`` submits and reads its own jobs,
+``operator`` may also run jobs on robots. A key never sees another key's jobs (404, as for a job that does not
+exist).
+"""
+
+from __future__ import annotations
+
+import hashlib
+import hmac
+import secrets
+from dataclasses import dataclass
+
+from sqlalchemy import select
+from sqlalchemy.orm import Session
+
+from planner.errors import PlannerError
+from planner.service.store import DEV_OWNER, ROLES, ApiKey, now
+
+
+@dataclass(frozen=True)
+class Principal:
+    """Who makes a request: the key's id (the owner of its jobs) and role."""
+
+    key_id: str
+    role: str
+    name: str = ""
+
+
+#: Everyone in development mode (PLANNER_DEV_NO_AUTH=1): an operator owning the "dev" jobs.
+DEV_PRINCIPAL = Principal(DEV_OWNER, "operator", "development mode")
+
+
+def key_hash(key: str) -> str:
+    """SHA-256 of a key, hex (keys are 256-bit random secrets: a fast hash is the right one)."""
+    return hashlib.sha256(key.encode("utf-8")).hexdigest()
+
+
+def create_key(session: Session, name: str, role: str) -> tuple[ApiKey, str]:
+    """A new key (stored as its hash) and the key itself, shown once."""
+    if role not in ROLES:
+        raise PlannerError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
+    if not name or len(name) > 200:
+        raise PlannerError("a key needs a name of 1..200 characters")
+    key_id = secrets.token_hex(4)
+    key = f"pk_{key_id}_{secrets.token_urlsafe(32)}"
+    row = ApiKey(id=key_id, name=name, role=role, key_hash=key_hash(key), created_at=now())
+    session.add(row)
+    session.commit()
+    return row, key
+
+
+def list_keys(session: Session) -> list[ApiKey]:
+    return list(session.scalars(select(ApiKey).order_by(ApiKey.created_at)))
+
+
+def revoke_key(session: Session, key_id: str) -> ApiKey:
+    row = session.get(ApiKey, key_id)
+    if row is None:
+        raise PlannerError(f"no key with id {key_id!r}")
+    if row.revoked_at is None:
+        row.revoked_at = now()
+        session.commit()
+    return row
+
+
+def authenticate(session: Session, key: str | None) -> Principal | None:
+    """The principal of a valid, unrevoked key, else None."""
+    if not key or not key.startswith("pk_"):
+        return None
+    digest = key_hash(key)
+    row = session.scalars(select(ApiKey).where(ApiKey.key_hash == digest)).first()
+    if row is None or row.revoked_at is not None or not hmac.compare_digest(row.key_hash, digest):
+        return None
+    return Principal(row.id, row.role, row.name)

@@ -1,0 +1,74 @@
+"""Prometheus text exposition (format 0.0.4) of the service: jobs by state, queue depth, planning times."""
+
+from __future__ import annotations
+
+import threading
+
+#: Upper bounds of the planning-time histogram buckets, s.
+BUCKETS = (0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0, 300.0, 1800.0)
+
+
+class Histogram:
+    """A cumulative histogram (thread-safe)."""
+
+    def __init__(self, buckets: tuple[float, ...] = BUCKETS):
+        self.buckets = buckets
+        self.counts = [0] * len(buckets)
+        self.count = 0
+        self.sum = 0.0
+        self._lock = threading.Lock()
+
+    def observe(self, value: float) -> None:
+        with self._lock:
+            self.count += 1
+            self.sum += value
+            for i, b in enumerate(self.buckets):
+                if value <= b:
+                    self.counts[i] += 1
+
+    def lines(self, name: str) -> list[str]:
+        with self._lock:
+            out = [f'{name}_bucket{{le="{b:g}"}} {c}' for b, c in zip(self.buckets, self.counts, strict=True)]
+            out += [f'{name}_bucket{{le="+Inf"}} {self.count}', f"{name}_sum {self.sum:.6f}",
+                    f"{name}_count {self.count}"]
+        return out
+
+
+class Metrics:
+    """What the service counts besides the database's figures."""
+
+    def __init__(self) -> None:
+        self.planning = Histogram()
+        self.submitted = 0
+        self.finished: dict[str, int] = {}
+        self._lock = threading.Lock()
+
+    def count_submitted(self) -> None:
+        with self._lock:
+            self.submitted += 1
+
+    def count_finished(self, state: str, planning_s: float | None = None) -> None:
+        with self._lock:
+            self.finished[state] = self.finished.get(state, 0) + 1
+        if planning_s is not None:
+            self.planning.observe(planning_s)
+
+    def text(self, by_state: dict[str, int], workers_alive: int, workers_busy: int) -> str:
+        """The exposition text; ``by_state`` counts the stored jobs (every state present, zeros included)."""
+        lines = ["# HELP planner_jobs Jobs in the store by state.", "# TYPE planner_jobs gauge"]
+        lines += [f'planner_jobs{{state="{s}"}} {n}' for s, n in by_state.items()]
+        lines += ["# HELP planner_queue_depth Jobs waiting for a worker.", "# TYPE planner_queue_depth gauge",
+                  f"planner_queue_depth {by_state.get('queued', 0)}",
+                  "# HELP planner_workers Planning worker processes alive.", "# TYPE planner_workers gauge",
+                  f"planner_workers {workers_alive}",
+                  "# HELP planner_workers_busy Planning worker processes running a job.",
+                  "# TYPE planner_workers_busy gauge", f"planner_workers_busy {workers_busy}",
+                  "# HELP planner_jobs_submitted_total Jobs accepted since the service started.",
+                  "# TYPE planner_jobs_submitted_total counter", f"planner_jobs_submitted_total {self.submitted}",
+                  "# HELP planner_jobs_finished_total Jobs that reached a final state since the service started.",
+                  "# TYPE planner_jobs_finished_total counter"]
+        with self._lock:
+            lines += [f'planner_jobs_finished_total{{state="{s}"}} {n}' for s, n in sorted(self.finished.items())]
+        lines += ["# HELP planner_planning_seconds Planning time of finished jobs (worker, parse to saved plan).",
+                  "# TYPE planner_planning_seconds histogram", *self.planning.lines("planner_planning_seconds")]
+        return "\n".join(lines) + "\n"

@@ -1,0 +1,126 @@
+"""The job store: tables (SQLAlchemy 2), the engine (SQLite in WAL mode by default) and Alembic migrations.
+
+What a job keeps is small: its input (waypoints as JSON text, or the uploaded file under the service's data
+folder), its settings, the saved :class:`planner.PlannedJob` (a file ``plan.<attempt>.job`` in the job's folder,
+kilobytes to a few megabytes) and its summary. Exports are never stored: they are streamed from the saved job.
+"""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+
+from sqlalchemy import (
+    Float,
+    Index,
+    Integer,
+    String,
+    Text,
+    create_engine,
+    event,
+)
+from sqlalchemy.engine import Engine
+from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, sessionmaker
+
+#: Job states.
+STATES = ("queued", "running", "done", "failed", "cancelled")
+#: States a job never leaves.
+FINAL_STATES = ("done", "failed", "cancelled")
+#: Key roles: planner (submit and read its own jobs) and operator (may also execute on robots).
+ROLES = ("planner", "operator")
+#: The owner of jobs in development mode (PLANNER_DEV_NO_AUTH=1).
+DEV_OWNER = "dev"
+
+
+class Base(DeclarativeBase):
+    pass
+
+
+class ApiKey(Base):
+    """An API key: only the SHA-256 of the secret is stored."""
+
+    __tablename__ = "api_keys"
+    id: Mapped[str] = mapped_column(String(32), primary_key=True)
+    name: Mapped[str] = mapped_column(String(200))
+    role: Mapped[str] = mapped_column(String(16))
+    key_hash: Mapped[str] = mapped_column(String(64), unique=True)
+    created_at: Mapped[float] = mapped_column(Float)
+    revoked_at: Mapped[float | None] = mapped_column(Float, nullable=True)
+
+
+class Job(Base):
+    """A planning job (times are Unix seconds)."""
+
+    __tablename__ = "jobs"
+    seq: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    id: Mapped[str] = mapped_column(String(32), unique=True)
+    owner: Mapped[str] = mapped_column(String(32))  # an api_keys.id, or "dev"
+    state: Mapped[str] = mapped_column(String(16))
+    created_at: Mapped[float] = mapped_column(Float)
+    started_at: Mapped[float | None] = mapped_column(Float, nullable=True)
+    finished_at: Mapped[float | None] = mapped_column(Float, nullable=True)
+    input_kind: Mapped[str] = mapped_column(String(16))  # "waypoints" or "file"
+    input_name: Mapped[str] = mapped_column(String(255))  # the file's (sanitized) base name, or "<waypoints>"
+    input_format: Mapped[str] = mapped_column(String(16))
+    input_bytes: Mapped[int] = mapped_column(Integer, default=0)
+    input_json: Mapped[str | None] = mapped_column(Text, nullable=True)  # waypoints, axes, feeds
+    settings: Mapped[str] = mapped_column(Text)  # PlanSettings.to_dict() as JSON
+    read_options: Mapped[str] = mapped_column(Text, default="{}")
+    stage: Mapped[str] = mapped_column(String(32), default="")
+    done: Mapped[int] = mapped_column(Integer, default=0)
+    total: Mapped[int] = mapped_column(Integer, default=0)
+    attempts: Mapped[int] = mapped_column(Integer, default=0)
+    job_file: Mapped[str | None] = mapped_column(String(64), nullable=True)  # name inside the job's folder
+    job_bytes: Mapped[int] = mapped_column(Integer, default=0)
+    summary: Mapped[str | None] = mapped_column(Text, nullable=True)  # JSON of PlannedJob.summary()
+    describe: Mapped[str | None] = mapped_column(Text, nullable=True)  # JSON list of lines
+    planning_s: Mapped[float | None] = mapped_column(Float, nullable=True)
+    error_kind: Mapped[str | None] = mapped_column(String(16), nullable=True)  # input, internal, limit, interrupted
+    error: Mapped[str | None] = mapped_column(Text, nullable=True)
+    note: Mapped[str | None] = mapped_column(Text, nullable=True)  # e.g. "re-run after a restart of the service"
+
+    __table_args__ = (Index("ix_jobs_owner_seq", "owner", "seq"), Index("ix_jobs_state_seq", "state", "seq"))
+
+
+def make_engine(url: str) -> Engine:
+    """An engine for ``url``; SQLite gets WAL mode, a busy timeout and foreign keys on every connection."""
+    if url.startswith("sqlite"):
+        if url.startswith("sqlite:///") and url[len("sqlite:///"):] not in ("", ":memory:"):
+            Path(url[len("sqlite:///"):]).resolve().parent.mkdir(parents=True, exist_ok=True)
+        engine = create_engine(url, connect_args={"check_same_thread": False, "timeout": 30}, pool_size=20,
+                               max_overflow=20)
+
+        @event.listens_for(engine, "connect")
+        def _pragmas(dbapi_conn, _record):  # noqa: ANN001
+            cur = dbapi_conn.cursor()
+            cur.execute("PRAGMA journal_mode=WAL")
+            cur.execute("PRAGMA synchronous=NORMAL")
+            cur.execute("PRAGMA busy_timeout=30000")
+            cur.execute("PRAGMA foreign_keys=ON")
+            cur.close()
+
+        return engine
+    return create_engine(url, pool_pre_ping=True)
+
+
+def migrate(engine: Engine) -> None:
+    """Bring the database to the newest schema (Alembic ``upgrade head``)."""
+    from alembic import command
+    from alembic.config import Config
+
+    cfg = Config()
+    cfg.set_main_option("script_location", str(Path(__file__).resolve().parent / "migrations"))
+    with engine.begin() as conn:
+        cfg.attributes["connection"] = conn
+        command.upgrade(cfg, "head")
+
+
+def open_store(url: str) -> tuple[Engine, sessionmaker]:
+    """The engine (migrated) and a session factory."""
+    engine = make_engine(url)
+    migrate(engine)
+    return engine, sessionmaker(engine, expire_on_commit=False)
+
+
+def now() -> float:
+    return time.time()
