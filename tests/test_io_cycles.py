@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from planner import PlanSettings, plan
-from planner.io import InputFileError, InputFileWarning, read_apt, read_gcode
+from planner.io import InputFileError, InputFileWarning, ReaderWarning, read_apt, read_gcode
 
 MM = 1e-3
 MMPM = 1e-3 / 60.0
@@ -210,3 +210,22 @@ def test_plan_gives_one_plunge_pass_per_hole_and_no_cut_between_holes(form, tmp_
     for x, y in holes:
         on_axis |= np.hypot(xy[:, 0] - x, xy[:, 1] - y) < 1e-6
     assert on_axis[in_pass].all()
+
+
+def test_reader_warnings_are_one_self_contained_line(tmp_path):
+    text = "GOTO/0,0,9\nCYCLE/DRILL,DEEP,FEDTO,-3,RAPTO,1\nGOTO/1,0,0\nCYCLE/OFF\n" + "FOO/1\n" * 7
+    with pytest.warns(ReaderWarning) as rec:
+        read_apt(io.StringIO(text), source="t.apt")
+    msgs = [w.message for w in rec if issubclass(w.category, ReaderWarning)]
+    first = msgs[0]
+    assert isinstance(first, InputFileWarning) and (first.source, first.line) == ("t.apt", 2)
+    assert str(first) == "t.apt line 2: CYCLE/DRILL,DEEP gives no STEP: each hole is drilled in one feed"
+    assert [str(m) for m in msgs[1:]] == [f"t.apt line {n}: unknown record 'FOO/1' skipped" for n in range(5, 10)] + [
+        "t.apt: 2 more 'FOO' records (last at line 11) not listed"]
+    assert all("\n" not in str(m) for m in msgs)
+    assert str(ReaderWarning("f.nc", 3, "two\nlines")) == "f.nc line 3: two lines"
+    # plan() keeps the same one-line messages for the front ends
+    path = tmp_path / "t.apt"
+    path.write_text("FEDRAT/MMPM,100\n" + text.replace("FOO/1\n", "") + "GOTO/5,0,9\nGOTO/9,0,9\n")
+    job = plan(path, PlanSettings(path="cam"))
+    assert job.warnings == ("t.apt line 3: CYCLE/DRILL,DEEP gives no STEP: each hole is drilled in one feed",)

@@ -9,7 +9,7 @@ from planner.io.apt import read_apt
 from planner.io.csv_reader import read_csv
 from planner.io.cycles import DrillCycle, hole_moves
 from planner.io.dispatch import detect_format, read_toolpath
-from planner.io.errors import InputFileError, InputFileWarning
+from planner.io.errors import InputFileError, InputFileWarning, ReaderWarning
 from planner.io.gcode import read_gcode
 from planner.io.json_reader import read_json
 from planner.io.machines import HAAS_UMC_750, MACHINES, TableTableKinematics, machine_kinematics
@@ -20,6 +20,7 @@ __all__ = [
     "HAAS_UMC_750",
     "MACHINES",
     "Nurbs",
+    "ReaderWarning",
     "Arc",
     "DrillCycle",
     "Event",

@@ -434,8 +434,8 @@ class _Reader:
 
     def parse_cycle(self, line: int, parts: list[str]) -> DrillCycle:
         """The DrillCycle of a CYCLE record's fields (keywords with their values, see the module notes)."""
-        name = "CYCLE/" + ",".join(p.upper() for p in parts if p and p[0] not in _NUMERIC_START)
         kind = parts[0].upper()
+        name = "CYCLE/" + ",".join([kind] + [p.upper() for p in parts[1:] if p.upper() in _CYCLE_MODIFIERS])
         if kind not in _CYCLE_KINDS:
             self.fail(line, "field 1 of CYCLE", f"cycle {kind!r} ({name}) is not read: the readable cycles are "
                       f"{', '.join(sorted(_CYCLE_KINDS))} (the holes cannot be planned as a path)", 1)  # fmt: skip

@@ -40,7 +40,42 @@ class InputFileError(PlannerError):
         return (type(self), (self.source, self.line, self.field, self.problem))
 
 
-class InputFileWarning(UserWarning):
+class ReaderWarning(UserWarning):
+    """A reader's warning, self-contained on one line: ``"<file> line <n>: <what>"`` (``"<file>: <what>"``
+    for the whole file).
+
+    Front ends print ``str(warning)`` as it is (the CLI as ``warning: <message>``, grouping repeats); the
+    Python API keeps them as Python warnings. Built with ``ReaderWarning(source, line, problem)`` (any
+    newlines in ``problem`` are folded into blanks) or, like any warning, from one message string.
+
+    Attributes
+    ----------
+    source : str or None
+        Name of the file.
+    line : int or None
+        1-based line of the record (None for a whole-file remark).
+    problem : str
+        What was skipped or assumed.
+    """
+
+    def __init__(self, *args):
+        if len(args) == 3:
+            source, line, problem = args
+            self.source, self.line, self.problem = source, line, " ".join(str(problem).split())
+            where = str(source) if line is None else f"{source} line {line}"
+            super().__init__(f"{where}: {self.problem}")
+        else:
+            self.source, self.line = None, None
+            self.problem = " ".join(str(args[0]).split()) if args else ""
+            super().__init__(self.problem)
+
+    def __reduce__(self):
+        if self.source is not None:
+            return (type(self), (self.source, self.line, self.problem))
+        return (type(self), (self.problem,))
+
+
+class InputFileWarning(ReaderWarning):
     """A record was skipped or interpreted under an assumption; the message names file and line."""
 
 
@@ -62,8 +97,7 @@ class WarningLimiter:
         seen = self._counts.setdefault(key, [0, 0])
         seen[0] += 1
         if seen[0] <= self.limit:
-            where = self.source if line is None else f"{self.source} line {line}"
-            warnings.warn(f"{where}: {message}", InputFileWarning, stacklevel=4)
+            warnings.warn(InputFileWarning(self.source, line, message), stacklevel=4)
         else:
             seen[1] = line or 0
 
@@ -72,8 +106,8 @@ class WarningLimiter:
         for key, (count, last) in self._counts.items():
             if count > self.limit:
                 warnings.warn(
-                    f"{self.source}: {count - self.limit} more {key} (last at line {last}) not listed",
-                    InputFileWarning,
+                    InputFileWarning(self.source, None, f"{count - self.limit} more {key} (last at line {last}) "
+                                     "not listed"),
                     stacklevel=4,
                 )
         self._counts.clear()

@@ -147,10 +147,6 @@ class _Reader:
     def fail(self, line: int, word: str, problem: str) -> NoReturn:
         raise InputFileError(self.source, line, f"word {word}" if word else "block", problem)
 
-    def fail_construct(self, line: int, construct: str, problem: str) -> NoReturn:
-        """A Sinumerik construct the reader refuses: the message names the line and the construct."""
-        raise InputFileError(self.source, line, construct, problem)
-
     # ------------------------------------------------------------------ tokenising
     def words(self, line: int, code: str) -> list[tuple[str, float, str]]:
         if not code[0].isalpha():

@@ -40,6 +40,10 @@ from __future__ import annotations
 
 import math
 import re
+from collections.abc import Callable
+from typing import NoReturn
+
+from planner.io.errors import InputFileError
 
 #: Sinumerik markers that select the dialect in a file whose name does not (``dialect="auto"``).
 SNIFF = re.compile(
@@ -94,7 +98,7 @@ _REFUSED_ADDRESSES = {
     "C5": "surface normal",
 }
 _SINGLE = frozenset("XYZABCIJKFSTDMHGNLPQRUVWE")
-_FUNCS = {
+_FUNCS: dict[str, Callable[..., float]] = {
     "SIN": lambda a: math.sin(math.radians(a)),
     "COS": lambda a: math.cos(math.radians(a)),
     "TAN": lambda a: math.tan(math.radians(a)),
@@ -235,15 +239,17 @@ class Expression:
                 raise ExpressionError(f"{name}{tuple(args)}: {exc}") from None
         if name not in self.vars:
             raise ExpressionError(f"variable {name} is not defined (no DEF or assignment before)")
-        v = self.vars[name]
-        if not isinstance(v, float):
+        value = self.vars[name]
+        if not isinstance(value, float):
             raise ExpressionError(f"variable {name} has no numeric value")
-        return v
+        return value
 
 
 def split_words(text: str) -> list[str]:
     """The block's words: split at blanks outside parentheses and strings."""
-    words, cur, depth, quote = [], [], 0, False
+    words: list[str] = []
+    cur: list[str] = []
+    depth, quote = 0, False
     for ch in text:
         if ch == '"':
             quote = not quote
@@ -301,15 +307,15 @@ class Sinumerik:
         self.declared: set[str] = set()
         self.tool_name = ""
 
-    def fail(self, line: int, construct: str, problem: str):
-        self.r.fail_construct(line, construct, problem)
+    def fail(self, line: int, construct: str, problem: str) -> NoReturn:
+        """Refuse ``construct`` at ``line``: the message reads ``"<file> line <n>, <construct>: <problem>"``."""
+        raise InputFileError(self.r.source, line, construct, problem)
 
     def eval(self, line: int, construct: str, expr: str) -> float:
         try:
             return Expression(expr, self.vars).value()
         except ExpressionError as exc:
             self.fail(line, construct, f"{construct}: {exc}")
-            raise AssertionError("unreachable") from None
 
     # ------------------------------------------------------------------ one block
     def translate(self, line: int, raw: str) -> str:
@@ -600,7 +606,9 @@ class Sinumerik:
 
 def _split_commas(text: str) -> list[str]:
     """Comma-separated parts of ``text`` outside parentheses and strings."""
-    parts, cur, depth, quote = [], [], 0, False
+    parts: list[str] = []
+    cur: list[str] = []
+    depth, quote = 0, False
     for ch in text:
         if ch == '"':
             quote = not quote
