@@ -16,6 +16,7 @@ from planner.cli import DEMO_PART_FRAME, EXAMPLE_CLS, example_path, main
 from planner.kinematics import forward_matrix, get_model
 from planner.motion import poses_at_length, tool_orientation
 from planner.motion.stream import as_transform
+from tests.cam_excerpts import NX
 from tests.conftest import SHARED_DATA
 
 NX_JOB = SHARED_DATA / "nx_clsf_variable_contour_ust_a2.cls"
@@ -27,19 +28,15 @@ VEC = rf"\[({NUM}(?:, {NUM})*)\]"
 
 @pytest.fixture(scope="module")
 def nx_excerpt(tmp_path_factory):
-    """The first 300 lines of the real NX job (7 passes, 7 rapids), verbatim."""
-    if not NX_JOB.is_file():
-        return None
+    """The first 300 lines of the real NX job (7 passes, 7 rapids), verbatim (from its excerpt in tests/data)."""
     f = tmp_path_factory.mktemp("cam") / "ust_a2_head.cls"
-    f.write_text("".join(NX_JOB.read_text().splitlines(keepends=True)[:300]))
+    f.write_text(NX.head(300))
     return f
 
 
 def _source(name, nx_excerpt):
     if name == "example":
         return example_path(EXAMPLE_CLS)
-    if nx_excerpt is None:
-        pytest.skip(f"{NX_JOB} not present")
     return nx_excerpt
 
 
