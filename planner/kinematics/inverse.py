@@ -195,7 +195,7 @@ def _solve_block(m: URModel, T, q6_ref, q_out, valid_out, singular_out, clipped_
 
     # Shoulder: wrist centre p5 . z1 = d4 (Hawkins 2013, eq. for theta1).
     p5x, p5y = p[0] - m.d6 * z6[0], p[1] - m.d6 * z6[1]
-    r = np.sqrt(p5x * p5x + p5y * p5y)  # not np.hypot: identical to the one-pose solver's sqrt
+    r = np.hypot(p5x, p5y)  # (the one-pose solver calls numpy's hypot too: math.hypot rounds differently)
     psi = np.arctan2(p5y, p5x)
     with np.errstate(divide="ignore", invalid="ignore"):
         ratio = m.d4 / r

@@ -8,10 +8,12 @@ derivation on Python floats with ``math`` (about 15 us): the same formulas writt
 order, so every sum and product rounds as in the block solver, the same branch order
 ``b = 4 * i1 + 2 * i5 + i3``, the same thresholds (``_tolerances``), the same wrist-singularity rule
 (q6 set to its reference value) and the same forward-kinematics check of candidates computed from
-clipped round-off. Only ``math``'s atan2 / asin / acos may differ from numpy's vectorized ones by
-one unit in the last place; their results are only ever added to other angles, never fed back into
-a cosine, so the joints agree to ~1e-15 (a hypothesis property test in tests/test_kinematics_single.py
-proves equality to 1e-12 on random, near-singular and boundary poses).
+clipped round-off. The one hypot whose result feeds every later quantity (the wrist centre's
+distance from the base axis) is numpy's, called on Python floats. Only ``math``'s atan2 / asin / acos
+may differ from numpy's vectorized ones by one unit in the last place; their results are only ever
+added to other angles, never fed back into a cosine, so the joints agree to ~1e-15 (a hypothesis
+property test in tests/test_kinematics_single.py proves equality to 1e-12 on random, near-singular
+and boundary poses).
 
 One case is left to the block solver (:func:`solve_one` returns None): next to the wrist
 singularity, where the elbow cannot reach with q6 at its reference value and q234, q6 are turned
@@ -24,6 +26,8 @@ from __future__ import annotations
 
 import math
 from math import acos, asin, atan2, cos, hypot, sin, sqrt
+
+import numpy as np
 
 from planner.kinematics._tolerances import (
     BOUNDARY_TOL,
@@ -41,6 +45,7 @@ __all__ = ["solve_one"]
 
 _PI = math.pi
 _SQRT2 = math.sqrt(2.0)
+_np_hypot = np.hypot
 # Comparisons of the turning test closer than this to their threshold are left to the block solver
 # (math and numpy round atan2 and hypot differently by an ulp, ~1e-16 here).
 _UNDECIDED = 1e-12
@@ -59,7 +64,7 @@ def solve_one(m: URModel, R, p, q6_ref: float) -> list[tuple[float, ...] | None]
 
     # Shoulder: wrist centre p5 . z1 = d4 (as inverse._solve_block).
     p5x, p5y = px - d6 * r02, py - d6 * r12
-    r = sqrt(p5x * p5x + p5y * p5y)
+    r = float(_np_hypot(p5x, p5y))  # numpy's, as the block solver: math.hypot may differ by an ulp
     ratio = d4 / r if r > 0.0 else math.inf
     if not ratio <= 1.0 + BOUNDARY_TOL:
         return [None] * 8
