@@ -51,3 +51,11 @@ def test_corner_in_the_axis_curve_is_reported_as_ours():
         fit_spherical_biarcs(corner, 1e-9, interval=(0.0, 1.0))
     assert isinstance(info.value, ConvergenceError) and not isinstance(info.value, ValueError)
     assert "near t = 0.5" in str(info.value) and str(info.value).endswith(f"({NumericalError.NOTE})")
+
+
+def test_singular_slope_system_is_ours():
+    """Coincident knots (which the waypoint checks exclude upstream) make the LAPACK system singular: ours."""
+    from planner.curves.tangents import slopes_rows
+
+    with np.errstate(divide="ignore", invalid="ignore"), pytest.raises(NumericalError, match="singular cubic spline"):
+        slopes_rows(np.array([0.0, 1.0, 1.0, 2.0]), np.ones((3, 3)))

@@ -5,6 +5,8 @@ from __future__ import annotations
 import numpy as np
 from scipy.linalg.lapack import dgtsv
 
+from planner.errors import NumericalError
+
 
 def chord_knots(points: np.ndarray) -> np.ndarray:
     """Cumulative chord-length knots u (n,), u[0] = 0, for points (n, 3)."""
@@ -49,5 +51,5 @@ def slopes_rows(u: np.ndarray, dp: np.ndarray) -> np.ndarray:
     b[:, -1] = (h[-1] ** 2 * slope[:, -2] + (2 * d + h[-1]) * h[-2] * slope[:, -1]) / d
     x, info = dgtsv(dl, dd, du, b.T, overwrite_dl=1, overwrite_d=1, overwrite_du=1, overwrite_b=1)[3:]
     if info != 0:  # a singular system needs two coincident knots, which the callers' validation excludes
-        raise np.linalg.LinAlgError(f"singular cubic spline slope system (LAPACK gtsv info {info})")
+        raise NumericalError(f"singular cubic spline slope system (LAPACK gtsv info {info})")
     return x.T
