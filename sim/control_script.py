@@ -15,7 +15,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner.kinematics import forward, inverse, matrix_to_pose, pose_to_matrix
+from planner.kinematics import UnreachableError, forward, inverse, inverse_nearest, matrix_to_pose, pose_to_matrix
 from sim.motion import MotionError, Segment
 from sim.programs import Program
 
@@ -202,11 +202,10 @@ class ControlScript:
     def get_inverse_kin(self, pose, qnear=None) -> np.ndarray:
         """The IK solution nearest ``qnear`` (default: the current joints), as the controller picks it."""
         near = self.motion.q if qnear is None else np.asarray(qnear, dtype=float)
-        sols = inverse(self.motion.model, pose, tcp=self.motion.tcp)
-        if len(sols) == 0:
-            raise ScriptRuntimeError(f"get_inverse_kin(p{list(np.round(pose, 6))}): no solution")
-        cand = np.array([self.motion.wrap_near(s, near) for s in sols])
-        return cand[int(np.argmin(np.linalg.norm(cand - near, axis=1)))]
+        try:
+            return inverse_nearest(self.motion.model, pose, near, tcp=self.motion.tcp)
+        except (UnreachableError, ValueError) as exc:
+            raise ScriptRuntimeError(f"get_inverse_kin(p{np.round(pose, 6).tolist()}): {exc}") from None
 
     def _within_limits_pose(self, pose) -> bool:
         sols = inverse(self.motion.model, pose, tcp=self.motion.tcp)

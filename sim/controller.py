@@ -54,11 +54,14 @@ class SimController:
         Allow a non-loopback ``host``.
     startup_timeout : float
         Seconds to wait until every port serves.
+    realtime : bool
+        Run the child's threads SCHED_FIFO where the system allows it (its control loop highest), so
+        that a loaded machine does not delay the 500 Hz loop.
     """
 
     def __init__(self, host: str = "127.0.0.2", model: str = "ur5e", modbus_port: int | None = 5020,
                  speed: float = 1.0, record=None, *, allow_remote: bool = False,
-                 startup_timeout: float = 20.0) -> None:
+                 startup_timeout: float = 20.0, realtime: bool = True) -> None:
         from planner.kinematics import get_model
 
         self.host = check_host(host, allow_remote)
@@ -74,6 +77,7 @@ class SimController:
             raise ValueError(f"record: use a .npz or .csv file name, got {self.record}")
         self.allow_remote = allow_remote
         self.startup_timeout = startup_timeout
+        self.realtime = realtime
         self.proc: subprocess.Popen | None = None
         self.ports: dict = {}
         self._lock = threading.Lock()
@@ -91,6 +95,8 @@ class SimController:
             cmd += ["--record", str(self.record.resolve())]
         if self.allow_remote:
             cmd.append("--allow-remote")
+        if not self.realtime:
+            cmd.append("--no-realtime")
         env = dict(os.environ)
         env["PYTHONPATH"] = str(_REPO) + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
         # the child's stderr goes to a file (a pipe nobody reads could fill up and stall the child)

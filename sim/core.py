@@ -19,7 +19,7 @@ import threading
 
 import numpy as np
 
-from planner.kinematics import forward_matrix, link_frames, matrix_to_pose
+from planner.kinematics import forward, forward_matrix, link_frames
 from sim.control_script import ControlScript
 from sim.motion import DT, MotionError, MotionModel, Segment
 from sim.programs import PathMove, ProgramError, parse_program
@@ -72,6 +72,7 @@ class Core:
         self.execution_time_ms = 0.0
         self.late_ticks = 0  # control-loop ticks skipped because the loop fell behind (wall clock)
         self.packages_sent = 0  # RTDE data packages sent
+        self.max_late_ms = 0.0  # largest wake-up delay of the control loop, ms
         self.log: collections.deque = collections.deque(maxlen=200)
         self.outbox: list[tuple[str, str, int]] = []  # text messages for RTDE clients
         self.input_time: dict[str, float] = {}
@@ -104,8 +105,9 @@ class Core:
 
     def _tcp_matrix(self) -> np.ndarray:
         if self._tcp_cache is None or self._tcp_cache[0] != self.steps:
-            T = forward_matrix(self.motion.model, self.motion.q, self.motion.tcp)
-            self._tcp_cache = (self.steps, T, matrix_to_pose(T))
+            m = self.motion
+            tcp = m.tcp if np.any(m.tcp) else None
+            self._tcp_cache = (self.steps, forward_matrix(m.model, m.q, tcp), forward(m.model, m.q, tcp))
         return self._tcp_cache[1]
 
     def tcp_pose(self) -> np.ndarray:
@@ -312,5 +314,6 @@ class Core:
             "in_double": list(self.registers.in_double),
             "motion": self.motion.mode,
             "late_ticks": self.late_ticks,
+            "max_late_ms": self.max_late_ms,
             "packages_sent": self.packages_sent,
         }

@@ -1,8 +1,9 @@
-"""The address rule every listener of the simulator obeys: loopback only, unless asked otherwise."""
+"""Process-level rules of the simulator: loopback addresses only (unless asked otherwise), thread priorities."""
 
 from __future__ import annotations
 
 import ipaddress
+import os
 
 
 def check_host(host: str, allow_remote: bool = False) -> str:
@@ -16,3 +17,13 @@ def check_host(host: str, allow_remote: bool = False) -> str:
             f"host {host} is not a loopback address (127.0.0.0/8); pass allow_remote=True to serve on it"
         )
     return str(addr)
+
+
+def set_realtime_priority(priority: int = 10) -> bool:
+    """Run the calling thread under SCHED_FIFO ``priority`` if the system allows it (a controller's loop
+    is real-time); the threads sleep most of each period and the kernel's RT throttling bounds them."""
+    try:
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
+        return True
+    except (OSError, AttributeError):
+        return False

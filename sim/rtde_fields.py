@@ -57,8 +57,8 @@ CONSTANT_OUTPUTS: dict[str, tuple[str, object]] = {
 }
 
 
-def _vec(a) -> tuple:
-    return tuple(float(x) for x in a)
+def _vec(a) -> list:
+    return a.tolist() if isinstance(a, np.ndarray) else [float(x) for x in a]
 
 
 #: Outputs computed from the controller state: name -> (type, getter(snapshot)).

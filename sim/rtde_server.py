@@ -14,11 +14,13 @@ and is ignored; a data package longer than its recipe is applied (its recipe's f
 
 from __future__ import annotations
 
+import os
 import socket
 import struct
 import threading
 
 from sim import rtde_protocol as rp
+from sim.hosts import set_realtime_priority
 from sim.rtde_fields import INPUTS, OUTPUTS, Snapshot, input_type, output_type
 
 CONTROLLER_VERSION = (5, 11, 6, 108949)
@@ -85,6 +87,8 @@ class Connection:
     # ---- input -------------------------------------------------------------------------------
     def serve(self) -> None:
         """Read packages until the client leaves (runs in its own thread)."""
+        if os.sched_getscheduler(0) == os.SCHED_FIFO:
+            set_realtime_priority(5)  # below the control loop, above the rest: inputs arrive on time
         buf = bytearray()
         try:
             while not self.closed:

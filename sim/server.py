@@ -11,12 +11,14 @@ client's process would deadlock). The child
   and sends the data packages due;
 * reads JSON commands, one per line, on stdin (``{"cmd": "state"}``, ``{"cmd": "set_digital_in",
   "mask": m, "value": v}``, ``{"cmd": "stop"}``) and answers each with one JSON line on stdout;
+* runs SCHED_FIFO where the system allows it (``--no-realtime``: not), the loop highest;
 * exits when stdin closes (the parent is gone) or on SIGTERM, writing its recording first.
 """
 
 from __future__ import annotations
 
 import argparse
+import gc
 import json
 import os
 import signal
@@ -26,24 +28,16 @@ import time
 
 from sim.core import Core
 from sim.dashboard import DashboardServer
-from sim.hosts import check_host
+from sim.hosts import check_host, set_realtime_priority
 from sim.motion import DT
 from sim.rtde_server import RTDEServer
 from sim.script_server import ScriptServer
 
 
-def set_realtime_priority(priority: int = 10) -> bool:
-    """Run the calling thread under SCHED_FIFO if the system allows it (a real controller's loop is
-    real-time); the loop sleeps most of each period, and the kernel's RT throttling bounds it anyway."""
-    try:
-        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(priority))
-        return True
-    except (OSError, AttributeError):
-        return False
-
-
 class Loop:
     """The control loop thread: ticks the core on an absolute wall-clock schedule."""
+
+    realtime = True
 
     def __init__(self, core: Core, rtde: RTDEServer, speed: float) -> None:
         self.core = core
@@ -55,7 +49,8 @@ class Loop:
 
     def run(self) -> None:
         core, rtde = self.core, self.rtde
-        set_realtime_priority()
+        if self.realtime:
+            set_realtime_priority(10)
         period = DT
         t0 = time.perf_counter()
         k = 0  # wall-clock ticks done
@@ -67,6 +62,7 @@ class Loop:
                 time.sleep(due - now)
                 now = time.perf_counter()
             behind = int((now - t0) / period) - k  # ticks due by now (>= 1)
+            core.max_late_ms = max(core.max_late_ms, (now - t0 - (k + 1) * period) * 1e3)
             if behind > 1:
                 # the loop was held up: simulated time still follows the wall clock (the missed
                 # periods are integrated), their data packages are lost
@@ -118,11 +114,18 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--speed", type=float, default=1.0)
     ap.add_argument("--record", default=None)
     ap.add_argument("--allow-remote", action="store_true")
+    ap.add_argument("--no-realtime", action="store_true", help="no SCHED_FIFO priorities")
     args = ap.parse_args(argv)
     host = check_host(args.host, args.allow_remote)
     if not args.speed > 0:
         raise SystemExit(f"--speed must be > 0, got {args.speed}")
-    sys.setswitchinterval(0.0005)  # bound the GIL hand-over latency seen by the control loop
+    sys.setswitchinterval(0.0002)  # bound the GIL hand-over latency seen by the control loop
+    if not args.no_realtime:
+        # every thread of the process real-time (they inherit it), so that none is preempted by other
+        # processes while it holds the GIL the control loop waits for; the loop and the RTDE readers
+        # raise themselves above the rest
+        set_realtime_priority(1)
+    Loop.realtime = not args.no_realtime
 
     from sim.io_state import IOState
 
@@ -150,6 +153,10 @@ def main(argv: list[str] | None = None) -> int:
             modbus = ModbusServerThread(io, host, args.modbus_port, tcp_pose=pose, allow_remote=args.allow_remote)
             modbus.start()
             modbus.wait_ready(10.0)
+    # everything allocated so far (modules, tables) out of the cyclic collector's reach: a full
+    # collection over it would stall the 500 Hz loop for milliseconds
+    gc.collect()
+    gc.freeze()
     loop = Loop(core, rtde, args.speed)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())

@@ -1,0 +1,212 @@
+"""Benchmark: the simulated UR controller's 500 Hz data stream as ur_rtde's RTDEReceiveInterface sees it.
+
+For 1 and for 4 simulators running at once (each its own child process on 127.x.x.x), one
+``rtde_receive.RTDEReceiveInterface`` per simulator (500 Hz, ur_rtde's default recipe of ~56
+variables) is polled every 0.1 ms by this process for ``--seconds``. Reported per configuration:
+
+* period: the wall time between the first sightings of consecutive new timestamps (ms): p50, p99,
+  max; ``|p99 - 2 ms|`` is the jitter figure (target: within 0.5 ms of 2 ms);
+* missed: data packages lost on the way (timestamp steps of more than one 2 ms period, counted in
+  periods) as the client saw them, and the periods the simulator's loop itself skipped (late ticks);
+* CPU: each simulator process's CPU time over the run, as a share of one core (mean over simulators).
+
+The simulator's control loop runs SCHED_FIFO where the system allows it; this process's threads
+(the poller and ur_rtde's receive threads) too, as ur_rtde sets itself on a real-time kernel
+(``--no-realtime`` leaves them at normal priority: on a loaded machine the client then misses packages
+that the simulator sent on time).
+
+The baseline (in the same run): the same poller on a plain Python thread that sets a timestamp every
+2 ms by ``time.sleep`` of one period after each step (the drifting schedule the simulator avoids),
+i.e. what the measurement itself adds on this machine. ``rows()`` of bench/bench_ik.py (one-pose IK for
+the 2 ms loop) is printed too when present.
+
+Run: python bench/bench_sim.py [--seconds 60]
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import sys
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+from _common import print_table  # noqa: E402
+
+from sim import SimController  # noqa: E402
+
+PERIOD = 0.002
+REALTIME = True
+
+
+def _free_hosts(n: int) -> list[str]:
+    import random
+    import socket
+
+    rng = random.Random()
+    hosts: list[str] = []
+    while len(hosts) < n:
+        host = f"127.{rng.randint(100, 250)}.{rng.randint(0, 255)}.{rng.randint(2, 254)}"
+        try:
+            with socket.socket() as s:
+                s.bind((host, 30004))
+        except OSError:
+            continue
+        hosts.append(host)
+    return hosts
+
+
+def _cpu_seconds(pid: int) -> float:
+    with open(f"/proc/{pid}/stat") as f:
+        fields = f.read().rsplit(")", 1)[1].split()
+    return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
+
+
+def _realtime_threads(priority: int = 20) -> bool:
+    """SCHED_FIFO for every thread of this process (ur_rtde's receive threads included), as ur_rtde
+    does itself on a real-time kernel; False if the system refuses."""
+    ok = True
+    for tid in os.listdir("/proc/self/task"):
+        try:
+            os.sched_setscheduler(int(tid), os.SCHED_FIFO, os.sched_param(priority))
+        except (OSError, AttributeError):
+            ok = False
+    return ok
+
+
+def _normal_threads() -> None:
+    for tid in os.listdir("/proc/self/task"):
+        try:
+            os.sched_setscheduler(int(tid), os.SCHED_OTHER, os.sched_param(0))
+        except (OSError, AttributeError):
+            pass
+
+
+def _poll(getters, seconds: float) -> list[tuple[np.ndarray, np.ndarray]]:
+    """First-seen wall times and values of new timestamps, per getter."""
+    seen_t = [[] for _ in getters]
+    seen_v = [[] for _ in getters]
+    last = [None] * len(getters)
+    end = time.perf_counter() + seconds
+    while True:
+        now = time.perf_counter()
+        if now > end:
+            break
+        for i, g in enumerate(getters):
+            v = g()
+            if v != last[i]:
+                last[i] = v
+                seen_t[i].append(now)
+                seen_v[i].append(v)
+        time.sleep(0.0001)
+    return [(np.array(t), np.array(v)) for t, v in zip(seen_t, seen_v, strict=True)]
+
+
+def _stats(series) -> dict:
+    periods, missed = [], 0
+    for t, v in series:
+        if len(t) < 3:
+            continue
+        periods.append(np.diff(t[1:]))
+        steps = np.round(np.diff(v[1:]) / PERIOD).astype(int)
+        missed += int(np.clip(steps - 1, 0, None).sum())
+    p = np.concatenate(periods) * 1e3 if periods else np.array([np.nan])
+    return {"p50": float(np.percentile(p, 50)), "p99": float(np.percentile(p, 99)), "max": float(p.max()),
+            "missed": missed, "n": int(sum(len(t) for t, _ in series))}
+
+
+def run_sims(n: int, seconds: float) -> dict:
+    import rtde_receive
+
+    sims = [SimController(h, modbus_port=None) for h in _free_hosts(n)]
+    receivers = []
+    try:
+        for s in sims:
+            s.start()
+        receivers = [rtde_receive.RTDEReceiveInterface(s.host) for s in sims]
+        if REALTIME:
+            _realtime_threads()
+        time.sleep(0.5)
+        late0 = [s.state()["late_ticks"] for s in sims]
+        cpu0 = [_cpu_seconds(s.proc.pid) for s in sims]
+        w0 = time.perf_counter()
+        series = _poll([r.getTimestamp for r in receivers], seconds)
+        wall = time.perf_counter() - w0
+        cpu = [(_cpu_seconds(s.proc.pid) - c) / wall for s, c in zip(sims, cpu0, strict=True)]
+        late = sum(s.state()["late_ticks"] - l0 for s, l0 in zip(sims, late0, strict=True))
+    finally:
+        _normal_threads()
+        for r in receivers:
+            r.disconnect()
+        for s in sims:
+            s.stop()
+    out = _stats(series)
+    out.update(late=late, cpu=100.0 * float(np.mean(cpu)))
+    return out
+
+
+def run_baseline(seconds: float) -> dict:
+    """The poller on a Python thread stepping a timestamp by sleeping one period after each step."""
+    state = {"t": 0.0}
+    stop = threading.Event()
+
+    def ticker():
+        while not stop.is_set():
+            time.sleep(PERIOD)
+            state["t"] = round(state["t"] + PERIOD, 9)
+
+    th = threading.Thread(target=ticker, daemon=True)
+    th.start()
+    if REALTIME:
+        _realtime_threads()
+    try:
+        series = _poll([lambda: state["t"]], seconds)
+    finally:
+        _normal_threads()
+        stop.set()
+        th.join()
+    out = _stats(series)
+    out.update(late=0, cpu=float("nan"))
+    return out
+
+
+def main(argv: list[str] | None = None) -> int:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
+    ap.add_argument("--seconds", type=float, default=60.0, help="measurement time per configuration (s)")
+    ap.add_argument("--no-realtime", action="store_true",
+                    help="leave this process's threads (poller, ur_rtde's receive threads) at normal priority")
+    args = ap.parse_args(argv)
+    global REALTIME
+    REALTIME = not args.no_realtime
+    rows = []
+    base = run_baseline(min(args.seconds, 10.0))
+    for n in (1, 4):
+        r = run_sims(n, args.seconds)
+        jitter = abs(r["p99"] - PERIOD * 1e3)
+        rows.append([f"{n} simulator{'s' if n > 1 else ''}", f"{r['p50']:.3f}", f"{r['p99']:.3f}",
+                     f"{r['max']:.3f}", f"{jitter:.3f}", "yes" if jitter <= 0.5 else "NO", r["missed"], r["late"],
+                     f"{r['cpu']:.1f}", f"{base['p99'] / r['p99']:.2f}"])
+    rows.append(["baseline: sleep(2 ms) loop", f"{base['p50']:.3f}", f"{base['p99']:.3f}", f"{base['max']:.3f}",
+                 f"{abs(base['p99'] - 2.0):.3f}", "", base["missed"], "", "", "1.00"])
+    print(f"RTDE data packages seen by RTDEReceiveInterface, {args.seconds:g} s per configuration, "
+          f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}, client threads "
+          f"{'SCHED_FIFO' if REALTIME else 'normal priority'}")
+    print_table(["configuration", "period p50 ms", "p99 ms", "max ms", "|p99 - 2| ms", "<= 0.5 ms",
+                 "missed (client)", "late ticks (sim)", "CPU % per sim", "baseline p99 / p99"], rows)
+    try:
+        import bench_ik
+    except ImportError:
+        return 0
+    print()
+    print("One-pose kinematics for the 2 ms loop (bench/bench_ik.py)")
+    print_table(bench_ik.HEADERS, bench_ik.rows())
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
