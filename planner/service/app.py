@@ -55,10 +55,10 @@ def _validation_detail(exc: ValidationError, prefix: list) -> list[dict]:
 
 
 def _settings_loc(message: str, prefix: list) -> list:
-    """The field a PlanSettings message starts with (``"tolerance must be ..."``), else the settings object."""
-    m = re.match(r"(?:unknown settings? )?([a-z_]+)", message)
+    """The first setting a PlanSettings message names (``"tolerance must be ..."``), else the settings object."""
     known = set(SettingsModel.model_fields)
-    return prefix + [m.group(1)] if m and m.group(1) in known else prefix
+    name = next((w for w in re.findall(r"[a-z_]+", message) if w in known), None)
+    return prefix if name is None else prefix + [name]
 
 
 # -- the request body limit (pure ASGI: counts the bytes as they arrive) --------------------------------
@@ -353,6 +353,19 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
                     _draw(job, row.input_name, target)
         return FileResponse(target, media_type="image/png")
 
+    def openapi() -> dict:
+        if app.openapi_schema is None:
+            from fastapi.openapi.utils import get_openapi
+
+            spec = get_openapi(title=app.title, version=app.version, description=app.description, routes=app.routes)
+            schema = WaypointJob.model_json_schema(ref_template="#/components/schemas/{model}")
+            comps = spec.setdefault("components", {}).setdefault("schemas", {})
+            comps.update(schema.pop("$defs", {}))
+            comps["WaypointJob"] = schema
+            app.openapi_schema = spec
+        return app.openapi_schema
+
+    app.openapi = openapi  # type: ignore[method-assign]  # the JSON body is parsed by hand (two content types)
     from planner.service.executions import router as executions_router
 
     app.include_router(executions_router, prefix=API)

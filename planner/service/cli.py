@@ -8,6 +8,7 @@ free port), then serves until SIGINT/SIGTERM, stopping its worker processes.
 from __future__ import annotations
 
 import argparse
+import signal
 import socket
 import sys
 
@@ -71,10 +72,15 @@ def cmd_serve(args: argparse.Namespace) -> None:
     print(f"planner serve: listening on http://{host}:{port}{mode}; {cfg.workers} workers; db {cfg.db_url}",
           flush=True)
     config = uvicorn.Config(create_app(cfg), log_level=args.log_level, timeout_graceful_shutdown=5)
+    signal.signal(signal.SIGTERM, _stopped)  # uvicorn re-raises the signal after its graceful shutdown
     try:
         uvicorn.Server(config).run(sockets=[sock])
     except KeyboardInterrupt:  # uvicorn re-raises SIGINT after its graceful shutdown
         pass
+
+
+def _stopped(signum, frame) -> None:
+    raise KeyboardInterrupt
 
 
 def _sessions(args: argparse.Namespace):

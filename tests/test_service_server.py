@@ -1,0 +1,200 @@
+"""The service as a process: a real uvicorn on 127.0.0.1 started by ``python -m planner.service serve --port 0``;
+its health, metrics, OpenAPI schema, request-size limit and refusals at start-up.
+
+:class:`ServiceProcess` is the helper the other ``test_service_*`` files use.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import httpx
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+
+
+class ServiceProcess:
+    """``planner serve`` in a subprocess on a free loopback port, with its own database under ``folder``."""
+
+    def __init__(self, folder: Path, *, workers: int = 1, dev: bool = True, env: dict | None = None,
+                 host: str = "127.0.0.1"):
+        self.folder = Path(folder)
+        self.folder.mkdir(parents=True, exist_ok=True)
+        self.db = f"sqlite:///{self.folder / 'jobs.sqlite'}"
+        self.workers = workers
+        self.host = host
+        self.env = {**os.environ, "PLANNER_DB": self.db, "PYTHONUNBUFFERED": "1", **(env or {})}
+        self.env.pop("PLANNER_DEV_NO_AUTH", None)
+        if dev:
+            self.env["PLANNER_DEV_NO_AUTH"] = "1"
+        self.proc: subprocess.Popen | None = None
+        self.url = ""
+        self.log = self.folder / "service.log"
+
+    def start(self, timeout: float = 60.0) -> ServiceProcess:
+        out = open(self.log, "ab")  # noqa: SIM115 (kept open for the process)
+        self.proc = subprocess.Popen(
+            [sys.executable, "-m", "planner.service", "serve", "--host", self.host, "--port", "0", "--workers",
+             str(self.workers)], cwd=self.folder, env=self.env, stdout=subprocess.PIPE, stderr=out)
+        out.close()
+        assert self.proc.stdout is not None
+        line = self.proc.stdout.readline().decode()
+        if "listening on " not in line:
+            self.proc.wait(10)
+            raise AssertionError(f"the service did not start: {line!r}\n{self.log.read_text()}")
+        self.url = line.split("listening on ")[1].split()[0]
+        deadline = time.monotonic() + timeout
+        while True:  # the lifespan (migrations, workers) runs before the first answer
+            try:
+                r = httpx.get(self.url + "/healthz", timeout=5)
+                if r.status_code == 200 and r.json()["workers"] == self.workers:
+                    return self
+            except httpx.TransportError:
+                pass
+            if time.monotonic() > deadline or self.proc.poll() is not None:
+                raise AssertionError(f"the service is not healthy in {timeout} s:\n{self.log.read_text()}")
+            time.sleep(0.1)
+
+    def client(self, key: str | None = None) -> httpx.Client:
+        headers = {"Authorization": f"Bearer {key}"} if key else {}
+        return httpx.Client(base_url=self.url, headers=headers, timeout=60)
+
+    def worker_pids(self) -> list[int]:
+        """The service's child processes (its planning workers)."""
+        assert self.proc is not None
+        pids: list[int] = []
+        for task in Path(f"/proc/{self.proc.pid}/task").iterdir():
+            pids += [int(x) for x in (task / "children").read_text().split()]
+        return [p for p in pids if "resource_tracker" not in Path(f"/proc/{p}/cmdline").read_text()]
+
+    def kill(self) -> None:
+        """SIGKILL, as a crash (the workers die with it: PR_SET_PDEATHSIG)."""
+        assert self.proc is not None
+        self.proc.send_signal(signal.SIGKILL)
+        self.proc.wait(10)
+        if self.proc.stdout:
+            self.proc.stdout.close()
+
+    def stop(self) -> int:
+        """SIGTERM (graceful) and the exit code."""
+        if self.proc is None or self.proc.poll() is not None:
+            return self.proc.returncode if self.proc else 0
+        self.proc.send_signal(signal.SIGTERM)
+        try:
+            code = self.proc.wait(20)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            code = self.proc.wait(10)
+        if self.proc.stdout:
+            self.proc.stdout.close()
+        return code
+
+    def keys(self, *args: str) -> str:
+        """``planner keys ...`` on this service's database; its standard output."""
+        r = subprocess.run([sys.executable, "-m", "planner.service", "keys", *args], cwd=self.folder, env=self.env,
+                           capture_output=True, text=True, timeout=60)
+        assert r.returncode == 0, r.stderr
+        return r.stdout
+
+
+def wait_state(client: httpx.Client, job_id: str, states=("done", "failed", "cancelled"), timeout: float = 120.0):
+    """Poll a job until it reaches one of ``states``; its view."""
+    deadline = time.monotonic() + timeout
+    while True:
+        r = client.get(f"/v1/jobs/{job_id}")
+        assert r.status_code == 200, r.text
+        view = r.json()
+        if view["state"] in states:
+            return view
+        if time.monotonic() > deadline:
+            raise AssertionError(f"job {job_id} still {view['state']} after {timeout} s: {view['progress']}")
+        time.sleep(0.05)
+
+
+def wait_until(predicate, timeout: float, what: str):
+    deadline = time.monotonic() + timeout
+    while not predicate():
+        if time.monotonic() > deadline:
+            raise AssertionError(f"not within {timeout} s: {what}")
+        time.sleep(0.02)
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory):
+    s = ServiceProcess(tmp_path_factory.mktemp("service"), workers=1,
+                       env={"PLANNER_MAX_REQUEST_BYTES": "200000"}).start()
+    yield s
+    assert s.stop() == 0, s.log.read_text()
+
+
+def test_health_and_metrics_count_jobs_by_state(server):
+    with server.client() as c:
+        h = c.get("/healthz").json()
+        assert h == {"status": "ok", "workers": 1, "busy": 0, "dev_no_auth": True}
+        r = c.post("/v1/jobs", json={"waypoints": [[0, 0, 0], [0.1, 0.05, 0], [0.2, 0, 0]]})
+        assert r.status_code == 202
+        wait_state(c, r.json()["id"])
+        m = c.get("/metrics")
+    assert m.headers["content-type"].startswith("text/plain; version=0.0.4")
+    values = {}
+    for line in m.text.splitlines():
+        if line and not line.startswith("#"):
+            name, value = line.rsplit(" ", 1)
+            values[name] = float(value)
+    assert values['planner_jobs{state="done"}'] == 1
+    assert values['planner_jobs{state="queued"}'] == 0 and values["planner_queue_depth"] == 0
+    assert values["planner_planning_seconds_count"] == 1
+    assert values['planner_planning_seconds_bucket{le="+Inf"}'] == 1
+    assert 0 < values["planner_planning_seconds_sum"] < 60
+    buckets = [v for k, v in values.items() if k.startswith("planner_planning_seconds_bucket")]
+    assert buckets == sorted(buckets)  # cumulative
+
+
+def test_openapi_schema_documents_both_bodies_and_the_docs_page(server):
+    with server.client() as c:
+        spec = c.get("/openapi.json").json()
+        docs = c.get("/docs")
+    body = spec["paths"]["/v1/jobs"]["post"]["requestBody"]["content"]
+    assert set(body) == {"application/json", "multipart/form-data"}
+    assert "file" in body["multipart/form-data"]["schema"]["properties"]
+    settings = spec["components"]["schemas"]["SettingsModel"]["properties"]
+    from planner.settings import PlanSettings
+
+    assert set(settings) == set(PlanSettings().to_dict())
+    for path in ("/v1/jobs/{job_id}", "/v1/jobs/{job_id}/trajectory", "/v1/jobs/{job_id}/plot.png", "/healthz",
+                 "/metrics", "/v1/jobs/{job_id}/executions"):
+        assert path in spec["paths"]
+    assert docs.status_code == 200 and "swagger" in docs.text.lower()
+
+
+def test_request_larger_than_the_limit_is_413(server):
+    n = 12_000  # about 300 kB of JSON, above this server's 200 kB
+    body = json.dumps({"waypoints": [[i * 1e-3, 0.0, 0.0] for i in range(n)]})
+    with server.client() as c:
+        r = c.post("/v1/jobs", content=body, headers={"content-type": "application/json"})
+        assert r.status_code == 413
+        assert "200000 bytes" in r.json()["detail"]
+
+        def chunks():  # no Content-Length: counted as it arrives
+            for k in range(0, len(body), 10_000):
+                yield body[k:k + 10_000].encode()
+
+        r = c.post("/v1/jobs", content=chunks(), headers={"content-type": "application/json"})
+        assert r.status_code == 413
+        assert c.get("/v1/jobs").json()["jobs"][0]["input"]["bytes"] < 1000  # nothing stored from those
+
+
+def test_dev_mode_refuses_a_non_loopback_address(tmp_path):
+    env = {**os.environ, "PLANNER_DEV_NO_AUTH": "1", "PLANNER_DB": f"sqlite:///{tmp_path / 'j.sqlite'}"}
+    r = subprocess.run([sys.executable, "-m", "planner.service", "serve", "--host", "0.0.0.0", "--port", "0"],
+                       env=env, capture_output=True, text=True, timeout=60, cwd=tmp_path)
+    assert r.returncode == 2
+    assert "PLANNER_DEV_NO_AUTH=1" in r.stderr and "loopback" in r.stderr and "0.0.0.0" in r.stderr
+    assert "listening" not in r.stdout
