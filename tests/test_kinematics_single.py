@@ -279,11 +279,14 @@ def test_bad_input_names_the_place(call, message):
 
 @settings(max_examples=300, deadline=None)
 @given(name=st.sampled_from(NAMES), q=st.lists(st.floats(-2 * np.pi, 2 * np.pi), min_size=6, max_size=6), tcp=tcps)
-def test_forward_one_equals_batch_exactly(name, q, tcp):
+def test_forward_and_conversions_of_one_equal_batch_exactly(name, q, tcp):
     batch = forward(name, np.array([q, q]), tcp=tcp)
     assert np.array_equal(forward(name, q, tcp=tcp), batch[0])
     assert np.array_equal(forward(name, tuple(q), tcp=tcp), batch[1])
     assert np.array_equal(forward_matrix(name, q, tcp=tcp), forward_matrix(name, np.array([q]), tcp=tcp)[0])
+    T = forward_matrix(name, np.array([q, q]), tcp=tcp)
+    assert np.array_equal(matrix_to_pose(T[0]), matrix_to_pose(T)[0])  # one transform, on floats
+    assert np.array_equal(pose_to_matrix(batch[0]), pose_to_matrix(batch)[0])
 
 
 # --- rotation-vector conversions against scipy -------------------------------------------------------

@@ -45,6 +45,9 @@ def pose_to_matrix(pose) -> np.ndarray:
     -------
     ndarray, shape (4, 4) or (n, 4, 4)
     """
+    one = six_floats(pose, "pose")
+    if one is not None:  # one pose on Python floats: the same operations, identical results
+        return frame_matrix(*pose_frame_1(one))
     arr, single = rows_of_six(pose, "pose")
     T = np.zeros((len(arr), 4, 4))
     T[:, :3, :3] = rotvec_to_matrix(arr[:, 3:])
@@ -61,12 +64,13 @@ def matrix_to_pose(T) -> np.ndarray:
     T = np.asarray(T, dtype=float)
     if T.shape[-2:] != (4, 4) or T.ndim not in (2, 3):
         raise PlannerError(f"transform: expected shape (4, 4) or (n, 4, 4), got {T.shape}")
-    single = T.ndim == 2
-    T = T[None] if single else T
+    if T.ndim == 2:  # one transform on Python floats: the same operations, identical results
+        (r00, r01, r02, x), (r10, r11, r12, y), (r20, r21, r22, z) = T[:3].tolist()
+        return np.array([x, y, z, *matrix_to_rotvec_1(r00, r01, r02, r10, r11, r12, r20, r21, r22)])
     pose = np.empty((len(T), 6))
     pose[:, :3] = T[:, :3, 3]
     pose[:, 3:] = matrix_to_rotvec(np.ascontiguousarray(T[:, :3, :3]))
-    return pose[0] if single else pose
+    return pose
 
 
 def link_frames(model: str | URModel, q) -> np.ndarray:
