@@ -24,6 +24,7 @@ from sim.control_script import ControlScript
 from sim.motion import DT, MotionError, MotionModel, Segment
 from sim.programs import PathMove, ProgramError, parse_program
 from sim.rtde_fields import Registers
+from sim.urscript import URScriptProgram, compile_program
 
 ROBOT_POWER_OFF, ROBOT_IDLE, ROBOT_RUNNING = 3, 5, 7
 SAFETY_NORMAL, SAFETY_PROTECTIVE_STOP = 1, 3
@@ -63,7 +64,7 @@ class Core:
         self.robot_mode = ROBOT_RUNNING
         self.safety_mode = SAFETY_NORMAL
         self.runtime_state = RUNTIME_STOPPED
-        self.program: ControlScript | None = None
+        self.program: ControlScript | URScriptProgram | None = None
         self.program_name = "<unnamed>"
         self.protective_stop_time = -1.0
         self.payload_mass = 0.0
@@ -207,12 +208,15 @@ class Core:
         if self.safety_mode != SAFETY_NORMAL:
             self.message(f"Program {prog.name} not started: robot is in protective stop", source="Program", level=1)
             return False
-        if not prog.is_control_script:
-            first = text.strip().split("\n", 1)[0][:80]
-            self.message(f"Compile error: the simulator cannot run {prog.name} ({first!r}); "
-                         "only ur_rtde's control script is supported", source="Program", level=0)
-            return False
-        self.program = ControlScript(self, prog)
+        if prog.is_control_script:
+            self.program = ControlScript(self, prog)
+        else:
+            try:
+                body = compile_program(text)
+            except ProgramError as exc:
+                self.message(f"Compile error in {prog.name}: {exc}", source="Program", level=0)
+                return False
+            self.program = URScriptProgram(self, prog.name, body)
         self.program_name = prog.name
         self.runtime_state = RUNTIME_PLAYING
         if self.recorder is not None:
@@ -245,7 +249,8 @@ class Core:
         if self.safety_mode == SAFETY_NORMAL and self.runtime_state == RUNTIME_PLAYING and self.program is not None:
             self.program.step()
             if self.program is not None and not self.program.keep_running:
-                self.message("RTDE Control Script Terminated", source="rtde_control", level=3)
+                if isinstance(self.program, ControlScript):
+                    self.message("RTDE Control Script Terminated", source="rtde_control", level=3)
                 self._end_program("program finished")
         if self.runtime_state != RUNTIME_PAUSED:
             self.motion.step(self.io.speed_slider)
