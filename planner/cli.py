@@ -47,7 +47,7 @@ def _fit_report(points: np.ndarray, method: str) -> dict:
     if method == "cubic":
         spline = fit_ph_cubic_spline(points)
     else:
-        spline = fit_ph_spline(points, continuity=method)
+        spline = fit_ph_spline(points, continuity="C1" if method == "C1" else "C2")
     elapsed = time.perf_counter() - t0
     return {
         "method": {"cubic": "G1 PH cubic spline"}.get(method, f"{method} PH quintic spline"),

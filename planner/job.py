@@ -20,8 +20,10 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from planner.cam.fidelity import PassFit
-from planner.cam.passes import CutPass, Segmentation, Skipped
+from planner.cam.moves import Reconfiguration
+from planner.cam.passes import CutPass, RapidMove, Reorientation, Segmentation, Skipped
 from planner.errors import PlannerError
+from planner.io.toolpath import Toolpath
 from planner.motion.profile import FeedProfile
 from planner.protocols import FrameField, Path
 from planner.settings import PlanSettings
@@ -29,6 +31,8 @@ from planner.settings import PlanSettings
 if TYPE_CHECKING:
     from planner.trajectory import Trajectory
 
+#: What a move carries out: a record of the file, or a change of the arm configuration the planner adds.
+MoveItem = CutPass | RapidMove | Reorientation | Skipped | Reconfiguration
 #: Version of the saved-job format (:meth:`PlannedJob.save`); a file of another version is refused.
 JOB_FILE_VERSION = 1
 _MAGIC = b"planner-job\n"
@@ -143,7 +147,7 @@ class PlannedMove:
     """
 
     kind: str
-    item: object
+    item: MoveItem
     path: Path | None
     frames: FrameField | None
     profile: FeedProfile | None
@@ -205,7 +209,7 @@ class PlannedJob:
 
     source: str
     settings: PlanSettings
-    toolpath: object
+    toolpath: Toolpath
     segmentation: Segmentation
     moves: tuple
     passes: tuple

@@ -36,6 +36,7 @@ from dataclasses import replace
 import numpy as np
 
 from planner.cam.axes import (
+    AxisField,
     axis_departure,
     axis_field,
     frame_with_axis,
@@ -198,6 +199,7 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
 
     check_budget(toolpath, s)  # before any fitting or sampling: refuses absurd work in well under a second
     t_plan = time.perf_counter()
+    assert s.arc_tolerance is not None  # filled in by PlanSettings.checked()
     tp = linearize_arcs(toolpath, s.arc_tolerance)
     if s.axes in ("fixed", "path") and tp.axes is not None:
         tp = replace(tp, axes=None, axis_given=None)  # the file's axes are not used: no reorientations either
@@ -346,6 +348,7 @@ def _with_reconfigurations(moves: list, changes: list, s: PlanSettings) -> list:
     from planner.kinematics import get_model
 
     out = list(moves)
+    assert s.robot is not None  # changes of configuration come from the robot check
     speeds = get_model(s.robot).speed_limits
     for k, r in sorted(changes, key=lambda c: c[0], reverse=True):
         F = moves[k].start_frame
@@ -386,6 +389,7 @@ def _plan_moves(tp, seg: Segmentation, fits, s: PlanSettings, fit_share: float, 
             if isinstance(item, CutPass):
                 tic = time.perf_counter()
                 fit = fits[item.index]
+                field: PathToolField | AxisField
                 if fields:
                     field = fields[item.index]
                     z = field.start[None, :, 2]
@@ -434,16 +438,16 @@ def _plan_moves(tp, seg: Segmentation, fits, s: PlanSettings, fit_share: float, 
                 z0, z1 = _tool_z(np.vstack((item.axis_from, item.axis_to)), 2, s.axes)
                 start = frame_with_axis(z0, np.array([1.0, 0.0, 0.0])) if frame is None else transport(frame, z0)
                 fr = turn_frames(start, z1)
-                profile = turn_profile(fr.angle, s.turn_limits) if fr.angle > 0.0 else None
+                turn = turn_profile(fr.angle, s.turn_limits) if fr.angle > 0.0 else None
                 frame = transport(fr.end, z1)
-                moves.append(PlannedMove("reorientation", item, None, fr, profile, start, frame, item.point.copy()))
+                moves.append(PlannedMove("reorientation", item, None, fr, turn, start, frame, item.point.copy()))
             else:  # Skipped: nothing moves
                 F = frame if frame is not None else frame_with_axis(-CAM_DEFAULT_AXIS, np.array([1.0, 0.0, 0.0]))
                 moves.append(PlannedMove("skipped", item, None, None, None, F, F, item.point.copy()))
         except PlannerError as exc:
             raise PlannerError(f"{_where(tp.source, item)}: {exc}") from exc
     tic = time.perf_counter()
-    cut_items = [m.item for m in moves if m.kind == "cut"]
+    cut_items = [m.item for m in moves if isinstance(m.item, CutPass)]
     if fields:
         slerp = np.full(len(cut_items), math.nan)
     else:
@@ -468,7 +472,7 @@ def _turns_fast(field, feeds: np.ndarray, job_feed: float, limits: MotionLimits)
     u = (k[:-1, None] + np.diff(k)[:, None] * np.linspace(0.0, 1.0, 9)).ravel()
     rate = np.linalg.norm(field.motion.dz(u), axis=1) / field.path.speed(u)  # |dz/ds| = |dz/du| / |dr/du|
     v = min(float(np.max(np.where(np.isnan(feeds), job_feed, feeds))), limits.speed)
-    return float(rate.max()) * v > 0.5 * limits.angular_speed
+    return limits.angular_speed is not None and float(rate.max()) * v > 0.5 * limits.angular_speed
 
 
 def _pass_report(item: CutPass, fit: PassFit, field, profile, elapsed: float) -> PassReport:

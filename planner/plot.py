@@ -303,6 +303,7 @@ def plot_job(job, target, *, rate: float | None = None, title: str | None = None
 
     if st.robot is not None:
         ax = fig.add_subplot(grid[1, 1])
+        assert dg.joints is not None  # a job with a robot: the digest tracked its joints
         joints_panel(ax, dg.times, dg.joints, st.robot, not job.problems)
         ax.set_title(f"{st.robot} joints, 1 pose in {dg.step} "
                      f"({'within limits' if not job.problems else f'{len(job.problems)} move(s) with problems'})")

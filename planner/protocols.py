@@ -1,7 +1,8 @@
 """The interfaces where the planner's objects meet, declared as ``typing.Protocol`` s.
 
 A path (:class:`Path`: the PH splines of :mod:`planner.curves`, a straight rapid), a field of tool frames
-along it (:class:`FrameField`: :class:`planner.cam.AxisField`, :class:`planner.frames.tool_field.PathToolField`,
+along it (:class:`FrameProvider`, and :class:`FrameField` with its end frame: :class:`planner.cam.AxisField`,
+:class:`planner.frames.tool_field.PathToolField`,
 the turning frames of rapids and turns in place), and the trajectory every consumer reads
 (:class:`TrajectoryLike`: :class:`planner.trajectory.Trajectory`). Consumers (exports, plot, drivers, the
 service) are typed against these, not against the concrete classes; mypy checks the match.
@@ -29,6 +30,24 @@ class Path(Protocol):
         """Parameters of the segment ends (m + 1,)."""
         ...
 
+    @property
+    def waypoint_knots(self) -> np.ndarray:
+        """Parameters of the points the path was fitted to (n,)."""
+        ...
+
+    @property
+    def waypoints(self) -> np.ndarray:
+        """The points the path was fitted to (n, 3)."""
+        ...
+
+    def locate(self, u: Any) -> tuple[np.ndarray, np.ndarray]:
+        """(segment (n,), local parameter in [0, 1] (n,)) of parameters u (n,)."""
+        ...
+
+    def arc_length(self, u: Any) -> np.ndarray:
+        """Arc lengths (n,) from the start at parameters u (n,)."""
+        ...
+
     def points(self, u: Any) -> np.ndarray:
         """Points (n, 3) at parameters u (n,)."""
         ...
@@ -43,8 +62,8 @@ class Path(Protocol):
 
 
 @runtime_checkable
-class FrameField(Protocol):
-    """Tool frames along a move: column 2 the tool z (approach axis), columns orthonormal, right-handed."""
+class FrameProvider(Protocol):
+    """Frames along a path or a move: orthonormal, right-handed (3, 3) per sample."""
 
     def frames(self, u: Any) -> np.ndarray:
         """Frames (n, 3, 3) at the move's parameters u (n,) (path parameter, or angle turned in place)."""
@@ -53,6 +72,11 @@ class FrameField(Protocol):
     def at_length(self, s: Any) -> np.ndarray:
         """Frames (n, 3, 3) at arc lengths s (n,) (angle turned, for a turn in place)."""
         ...
+
+
+@runtime_checkable
+class FrameField(FrameProvider, Protocol):
+    """Tool frames along a move: column 2 the tool z (approach axis); a :class:`FrameProvider` with its end."""
 
     @property
     def end(self) -> np.ndarray:

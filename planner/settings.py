@@ -181,7 +181,8 @@ class PlanSettings:
                     or any(isinstance(k, bool) or not isinstance(k, int | np.integer) or k < 0 for k in passes)):
                 raise PlannerError(f"passes must be pass numbers (>= 0), 'longest' or None, got {passes!r}")
             passes = tuple(sorted({int(k) for k in passes}))
-        return replace(s, tolerance=tol, arc_tolerance=arc, cut_output=out, passes=passes, **poses)
+        return replace(s, tolerance=tol, arc_tolerance=arc, cut_output=out, passes=passes,
+                       part_frame=poses["part_frame"], tcp=poses["tcp"])
 
     def to_dict(self) -> dict:
         """The settings as plain JSON values (limits as dicts), for job files, exports and REST."""

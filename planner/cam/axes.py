@@ -23,6 +23,7 @@ use them), i.e. minus the CAM vectors, which point from the tip towards the spin
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -30,6 +31,7 @@ from scipy.interpolate import PchipInterpolator
 
 from planner import quaternion as qt
 from planner.frames.spherical_rmm import base_starts, shortest_arc_quaternions, spin_rate  # the same RMM (seed eq. 3)
+from planner.protocols import Path
 from planner.rotations import matrix_to_quaternion, matrix_to_rotvec, quaternion_to_matrix, rotate_vectors
 
 #: Accuracy (rad) asked of each spin panel (its Chebyshev series' last two terms).
@@ -108,9 +110,9 @@ class AxisField:
         Frame at the start of the pass.
     """
 
-    path: object
+    path: Path
     axes: np.ndarray
-    interpolant: object
+    interpolant: Callable[..., np.ndarray] | None
     motion: SpinTable | None
     start: np.ndarray
 
@@ -188,8 +190,8 @@ class SpinTable:
         Chebyshev coefficients of theta - spin_start on each panel, in x = 2 (u - a) / (b - a) - 1.
     """
 
-    z: object
-    dz: object
+    z: Callable[..., np.ndarray]
+    dz: Callable[..., np.ndarray]
     pieces: np.ndarray
     bases: np.ndarray
     base_quaternions: np.ndarray
@@ -326,8 +328,8 @@ class UnitAxis:
     """The unit tool axis z(u) = c(u) / |c(u)| of an interpolant c and its derivative dz/du (a module-level
     callable, so that planned jobs pickle)."""
 
-    c: object
-    dc: object
+    c: Callable[..., np.ndarray]
+    dc: Callable[..., np.ndarray]
 
     def __call__(self, x) -> np.ndarray:
         return _unit(self.c(np.asarray(x, dtype=float)))

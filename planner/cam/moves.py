@@ -19,6 +19,7 @@ from planner.cam.axes import turn_axis
 from planner.curves.spline import PHSpline
 from planner.errors import PlannerError
 from planner.motion import MotionLimits, plan_feed
+from planner.protocols import Path
 from planner.rotations import matrix_to_quaternion, rotvec_to_matrix, rotvec_to_quaternion
 
 
@@ -43,7 +44,7 @@ class TurningFrames:
     rapid (x = arc length = path parameter) and the frames of a reorientation (x = angle turned).
     """
 
-    path: object
+    path: Path | None
     start: np.ndarray
     n: np.ndarray
     angle: float

@@ -35,6 +35,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.cam.passes import CutPass
 from planner.export.header import ExportError, trajectory_parameters
 from planner.export.movep import MovePPlan, plan_movep
 from planner.export.script_text import check_name, comment, header, num, pose, vec
@@ -264,6 +265,7 @@ def job_program(
                       f"  movej({vec(q0)}, a={num(aa)}, v={num(va)})"]
         if m.kind == "cut":
             item = job.moves[m.move].item
+            assert m.plan is not None and isinstance(item, CutPass)  # every pass has its movep plan
             op = f" ({item.operation})" if item.operation else ""
             lines.append(comment(
                 f"pass {m.pass_index}{op}, lines {m.first_line}-{m.last_line}: {1e3 * m.plan.s[-1]:.3f} mm at up to "

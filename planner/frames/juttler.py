@@ -41,7 +41,7 @@ _ONE = np.array([1.0, 0.0, 0.0, 0.0])
 # --------------------------------------------------------------------------------------------------
 # Closed forms in standard position
 # --------------------------------------------------------------------------------------------------
-def arc_q1(alpha: np.ndarray, psi: np.ndarray) -> np.ndarray:
+def arc_q1(alpha: np.ndarray | float, psi: np.ndarray | float) -> np.ndarray:
     """Q1 of seed eq. (10) with t phi replaced by the turned angle alpha, shape (..., 4)."""
     ca, sa = np.cos(alpha / 2), np.sin(alpha / 2)
     cp, sp = np.cos(psi / 2), np.sin(psi / 2)
@@ -156,7 +156,7 @@ def arc_transport(phi: np.ndarray, psi: np.ndarray, left: np.ndarray) -> np.ndar
     return quat.mul(q_end, quat.conj(q_start))
 
 
-def spin_for_start(f0: np.ndarray, psi: np.ndarray, left: np.ndarray, right: np.ndarray) -> np.ndarray:
+def spin_for_start(f0: np.ndarray, psi: np.ndarray | float, left: np.ndarray, right: np.ndarray) -> np.ndarray:
     """Initial spins rho (m,) with left Q1(0) Q2(0; rho) right = f0 (m, 4), sign included (eq. 10).
 
     f0 must be the quaternion of a frame whose axis column is the arc's start point; then
@@ -322,7 +322,7 @@ class RationalArcMotion:
                               self.left, self.right, self.axis_column)
 
 
-def _check_arc(phi, psi, w0, w1, rho):
+def _check_arc(phi, psi, w0, w1, rho) -> tuple[float, float, float, float, float]:
     phi = val.finite_scalar(phi, "phi")
     if abs(phi) >= 2 * np.pi:
         raise FrameDataError(f"arc angle must satisfy |phi| < 2 pi, got {phi!r}", "phi")
@@ -415,8 +415,8 @@ def arc_motion(start, axis, angle, *, start_frame=None, axis_column: int = 2, w0
     u = val.unit_vectors(np.reshape(axis, (1, 3)), "axis")[0]
     phi = val.finite_scalar(angle, "angle")
     right = matrix_to_quaternion(val.cyclic_permutation(axis_column))
-    psi, left = place_arcs(a[None], u[None])
-    psi, left = float(psi[0]), left[0]
+    psis, lefts = place_arcs(a[None], u[None])
+    psi, left = float(psis[0]), lefts[0]
     if start_frame is None:
         f0 = quat.mul(quat.mul(left, arc_q1(np.float64(0.0), np.float64(psi))), right)
     else:

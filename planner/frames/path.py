@@ -20,6 +20,7 @@ from __future__ import annotations
 
 from collections.abc import Callable, Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -29,6 +30,7 @@ from planner.frames.grm import grm_many
 from planner.frames.ph_cubic_rmm import ph_cubic_spline_rmm
 from planner.frames.rmf import check_start_frame
 from planner.frames.rmf_batch import PathRMFAngles
+from planner.protocols import Path
 from planner.rotations import quaternion_to_matrix
 
 METHODS = ("rmf", "grm", "er", "juttler", "double-reflection")
@@ -80,9 +82,9 @@ class PathFrames:
         The per-segment GRM solutions (method "grm"), with their figures.
     """
 
-    path: object
+    path: Path
     method: str
-    segment_angles: list
+    segment_angles: list | None
     offsets: np.ndarray
     stations: np.ndarray
     corrections: np.ndarray
@@ -93,6 +95,7 @@ class PathFrames:
         """(segment, local t, angle against the ER frame) at global parameters u, before corrections."""
         k, t = self.path.locate(u)
         if self.segment_angles is None:  # exact RMF, all segments at once along sorted samples
+            assert self.panels is not None
             return k, t, self.panels(k, t) + self.offsets[k]
         ang = np.empty_like(t)
         for seg in np.unique(k):
@@ -113,7 +116,7 @@ class PathFrames:
         """Unit quaternions (n, 4) of the exact RMF at segments k (n,) and local parameters t (n,), for
         samplers that located their samples already; None for other methods or with prescribed rolls
         (then use :meth:`quaternions`)."""
-        if self.segment_angles is not None or self.stations.size:
+        if self.segment_angles is not None or self.stations.size or self.panels is None:
             return None
         return _turned_quaternions(self.path, k, t, self.panels(k, t) + self.offsets[k])
 
@@ -162,7 +165,7 @@ def frame_field(
     closed: bool = False,
     prescribed: Mapping[int, np.ndarray] | None = None,
     weight: str | Callable = "twist",
-) -> PathFrames:
+) -> PathFrames | MotionFrames:
     """Build the frame field of a PH spline path (``fit_ph_spline`` or ``fit_ph_cubic_spline`` result).
 
     Parameters
@@ -192,7 +195,7 @@ def frame_field(
         off0 = float(_angle_in(F[None, :, 1], er0[None])[0])
     n = path.n_segments
     panels = PathRMFAngles(path.A) if funcs is None else None
-    totals = panels.totals if funcs is None else np.array([f(np.ones(1))[0] for f in funcs])
+    totals = panels.totals if panels is not None else np.array([f(np.ones(1))[0] for f in funcs or ()])
     if n > 1:
         end = _er_at(path, np.arange(n - 1), np.ones(n - 1))
         nxt = _er_at(path, np.arange(1, n), np.zeros(n - 1))
@@ -244,13 +247,13 @@ def _prescribe(field: PathFrames, prescribed: Mapping[int, np.ndarray]) -> PathF
             raise PlannerError(f"prescribed frame at waypoint {i}: expected a vector (3,) or frame (3, 3)")
         t = base[j, :, 0]
         w = v - (v @ t) * t
-        if np.linalg.norm(w) <= 1e-9 * max(np.linalg.norm(v), 1e-300):
+        if np.linalg.norm(w) <= 1e-9 * max(float(np.linalg.norm(v)), 1e-300):
             raise PlannerError(f"prescribed frame at waypoint {i}: the direction is parallel to the path tangent")
         needed.append(float(np.arctan2(w @ base[j, :, 2], w @ base[j, :, 1])))
-    needed = np.array(needed)
-    needed = needed[0] + np.concatenate(([0.0], np.cumsum(np.angle(np.exp(1j * np.diff(needed))))))
+    angles = np.array(needed)
+    angles = angles[0] + np.concatenate(([0.0], np.cumsum(np.angle(np.exp(1j * np.diff(angles))))))
     s = path.arc_length(u)
-    return PathFrames(path, field.method, field.segment_angles, field.offsets, s, needed, field.grm_frames,
+    return PathFrames(path, field.method, field.segment_angles, field.offsets, s, angles, field.grm_frames,
                       field.panels)
 
 
@@ -259,9 +262,9 @@ class MotionFrames:
     """Frames of a path from a method that is not an angle against the ER frame (Jüttler's rational
     motion, double reflection): the same ``frames(u)`` / ``at_length(s)`` interface as PathFrames."""
 
-    path: object
+    path: Path
     method: str
-    motion: object | None
+    motion: Any
     start: np.ndarray
 
     def frames(self, u) -> np.ndarray:

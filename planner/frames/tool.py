@@ -10,13 +10,16 @@ rational approximation of it (spherical biarcs + rational arc motions). Frames h
 from __future__ import annotations
 
 import warnings
+from collections.abc import Callable
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from scipy.interpolate import CubicSpline
 
 from planner.errors import PlannerError, WaypointError
 from planner.frames.spherical_rmm import exact_spherical_rmm, rational_spherical_rmm
+from planner.protocols import Path
 from planner.validation import check_tangents
 
 #: Neighbouring tool axes more than this far apart (degrees) are a flip, not a smooth tilt.
@@ -45,10 +48,10 @@ class ToolFrames:
         The spherical motion (``frames(u)``), exact or rational.
     """
 
-    path: object
+    path: Path
     method: str
-    axis_spline: object
-    motion: object
+    axis_spline: Callable[..., np.ndarray]
+    motion: Any
 
     def axis(self, u) -> np.ndarray:
         """The interpolated tool axis (n, 3) at global parameters u."""
@@ -145,6 +148,7 @@ def tool_frames(path, axes, method: str = "exact", *, start=None, tol: float = 1
 
     F0 = _default_start(path, a[0]) if start is None else np.asarray(start, dtype=float)
     interval = (float(u[0]), float(u[-1]))
+    motion: Any
     if method == "exact":
         motion = exact_spherical_rmm(z, dz, F0, interval=interval)
     else:

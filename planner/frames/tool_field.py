@@ -11,11 +11,13 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 
 from planner.frames.metrics import max_twist_deg
 from planner.frames.path import frame_field
+from planner.protocols import FrameProvider, Path
 
 #: Samples along the path at which the twist against the exact RMF is measured.
 TWIST_SAMPLES = 2001
@@ -62,10 +64,10 @@ class PathToolField:
         The exact RMF from the same start frame (the field itself for "rmf").
     """
 
-    path: object
+    path: Path
     method: str
-    field: object
-    reference: object
+    field: FrameProvider
+    reference: FrameProvider
 
     def frames(self, u) -> np.ndarray:
         """Tool frames (n, 3, 3) at path parameters u (n,)."""
@@ -121,9 +123,9 @@ class SampledFrames:
     interpolant : scipy.spatial.transform.Slerp
     """
 
-    path: object
+    path: Path
     u: np.ndarray
-    interpolant: object
+    interpolant: Any
 
     def frames(self, u) -> np.ndarray:
         u = np.clip(np.atleast_1d(np.asarray(u, dtype=float)), self.u[0], self.u[-1])
@@ -145,7 +147,7 @@ def sampled_frames(path, field, per_segment: int = 256) -> SampledFrames:
 def path_tool_field(path, method: str = "rmf") -> PathToolField:
     """Tool frames normal to ``path`` by ``method``, starting with the tool z nearest -Z."""
     start = down_start(path.tangent(path.knots[:1])[0])
-    field = frame_field(path, method, start=start)
+    field: FrameProvider = frame_field(path, method, start=start)
     if method == "double-reflection":  # a discrete method: run once on a dense grid
         field = sampled_frames(path, field)
     reference = field if method == "rmf" else frame_field(path, "rmf", start=start)

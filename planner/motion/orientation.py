@@ -9,13 +9,15 @@ inversion.
 from __future__ import annotations
 
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 
 from planner import quaternion as qt
 from planner.motion.evaluator import evaluator_for
 from planner.motion.limits import MotionInputError
+from planner.protocols import FrameProvider
 from planner.rotations import matrix_to_quaternion, rotation_angle
 
 Orientation = Callable[[np.ndarray], np.ndarray]
@@ -44,9 +46,10 @@ class FrameOrientation:
         Tool z is minus that column: columns 1 and 2 of the result are negated (a half turn about x).
     """
 
-    provider: object
+    provider: FrameProvider
     z_column: int = 2
     flip: bool = False
+    _inverse: Any = field(default=None, init=False, repr=False, compare=False)
 
     def __post_init__(self):
         if self.z_column not in (0, 1, 2):
