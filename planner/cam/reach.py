@@ -72,7 +72,7 @@ class JobReach:
     slowed : list of str
         One message per slowed stretch, in order, naming the pass (or move) and the source lines.
     reconfigurations : list of (int, Reconfiguration)
-        Changes of the arm configuration: the move (index in ``CamJob.moves``) to insert each before.
+        Changes of the arm configuration: the move (index in ``PlannedJob.moves``) to insert each before.
     start_joints : ndarray (6,) or None
         Joints at the job's first pose (rad), on the configuration the check followed.
     start_note : str
@@ -218,7 +218,7 @@ class MoveCheck:
     Attributes
     ----------
     k : int
-        Index of the move in ``CamJob.moves``.
+        Index of the move in ``PlannedJob.moves``.
     q, t : ndarray (n, 6), (n,)
         Joints (rad; rows of NaN: unreachable) and times (s) of the samples rated last.
     problem : str
