@@ -448,7 +448,7 @@ def _same_solution(a, b) -> bool:
 
 
 def _q6_reference_1(q6_ref) -> float:
-    if type(q6_ref) in (float, int) and math.isfinite(q6_ref):
+    if isinstance(q6_ref, (float, int)) and math.isfinite(q6_ref):  # (np.float64 is a float)
         return float(q6_ref)
     return float(_q6_reference(q6_ref, 1)[0])
 
