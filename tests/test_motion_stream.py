@@ -26,7 +26,7 @@ from planner.motion import (
     sample_poses,
     tool_orientation,
 )
-from planner.motion.rotvec import quaternion_to_rotvec
+from planner.rotations import quaternion_to_rotvec
 
 LIM = MotionLimits(speed=1.0, acceleration=2.0, jerk=30.0)
 

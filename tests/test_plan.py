@@ -249,8 +249,9 @@ def test_frames_about_the_path_report_their_twist_against_the_exact_rmf(frame):
     twist = job.summary()["max_twist_vs_exact_rmf_deg"]
     if frame == "rmf":
         assert twist == 0.0
-    elif frame == "er":
-        assert twist > 1.0  # the ER frame is not rotation-minimizing
+    elif frame == "er":  # the ER frame is not rotation-minimizing: far more twist than the GRM frame's
+        grm = plan(_s_curve(), PlanSettings(axes="path", frame="grm")).summary()["max_twist_vs_exact_rmf_deg"]
+        assert twist > 0.05 and twist > 5.0 * grm
     else:
         assert 0.0 < twist < 1.0
     cut = next(m for m in job.moves if m.kind == "cut")

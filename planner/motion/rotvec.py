@@ -16,19 +16,9 @@ from __future__ import annotations
 
 import numpy as np
 
-from planner.rotations import matrix_to_quaternion, quaternion_to_matrix, quaternion_to_rotvec
+from planner.rotations import matrix_to_quaternion, quaternion_to_rotvec
 
-# Deprecated re-exports, kept while planner/motion/stream.py, planner/cam/stream.py and their tests move
-# to planner.rotations: import the conversions from there.
-__all__ = [
-    "continuous_quaternions",
-    "continuous_rotvec",
-    "matrix_to_quaternion",
-    "quaternion_to_matrix",
-    "quaternion_to_rotvec",
-    "rotvec_from_quaternions",
-    "unwrap_rotvec",
-]
+__all__ = ["continuous_quaternions", "continuous_rotvec", "rotvec_from_quaternions", "unwrap_rotvec"]
 
 
 def continuous_quaternions(q: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:

@@ -17,25 +17,11 @@ from planner.motion.evaluator import evaluator_for, span_bounds
 from planner.motion.events import ScheduledEvent, io_states, schedule_events
 from planner.motion.limits import MotionInputError, finite_array, positive
 from planner.motion.profile import FeedProfile
-from planner.motion.rotvec import (
-    continuous_rotvec,
-    matrix_to_quaternion,
-    quaternion_to_matrix,
-    rotvec_from_quaternions,
-)
+from planner.motion.rotvec import continuous_rotvec, rotvec_from_quaternions
+from planner.rotations import matrix_to_quaternion, quaternion_to_matrix, rotvec_to_matrix
 
 #: Controller rates of UR robots: e-Series 500 Hz, CB-Series 125 Hz.
 RATES = (500.0, 125.0)
-
-
-def _rotvec_matrix(r: np.ndarray) -> np.ndarray:
-    """Rotation matrix (3, 3) of one rotation vector (Rodrigues' formula)."""
-    th = float(np.linalg.norm(r))
-    if th == 0.0:
-        return np.eye(3)
-    k = r / th
-    K = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    return np.eye(3) + np.sin(th) * K + (1.0 - np.cos(th)) * (K @ K)  # Rodrigues' rotation formula
 
 
 def as_transform(value, name: str) -> np.ndarray:
@@ -45,7 +31,7 @@ def as_transform(value, name: str) -> np.ndarray:
     a = finite_array(value, name)
     if a.shape == (6,):
         T = np.eye(4)
-        T[:3, :3] = _rotvec_matrix(a[3:])
+        T[:3, :3] = rotvec_to_matrix(a[3:])
         T[:3, 3] = a[:3]
         return T
     if a.shape != (4, 4):
