@@ -97,11 +97,17 @@ class ServiceProcess:
         return code
 
     def keys(self, *args: str) -> str:
-        """``planner keys ...`` on this service's database; its standard output."""
-        r = subprocess.run([sys.executable, "-m", "planner.service", "keys", *args], cwd=self.folder, env=self.env,
-                           capture_output=True, text=True, timeout=60)
-        assert r.returncode == 0, r.stderr
-        return r.stdout
+        """``planner keys ...`` on this service's database (run in this process); its standard output."""
+        import contextlib
+        import io
+
+        from planner.service.cli import main
+
+        out = io.StringIO()
+        with contextlib.redirect_stdout(out):
+            code = main(["keys", "--db", self.db, *args])
+        assert code == 0, out.getvalue()
+        return out.getvalue()
 
 
 def wait_state(client: httpx.Client, job_id: str, states=("done", "failed", "cancelled"), timeout: float = 120.0):

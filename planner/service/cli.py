@@ -68,8 +68,8 @@ def cmd_serve(args: argparse.Namespace) -> None:
     sock.listen(1024)
     sock.set_inheritable(True)
     host, port = sock.getsockname()[:2]
-    mode = " (development mode: no API keys)" if cfg.dev_no_auth else ""
-    print(f"planner serve: listening on http://{host}:{port}{mode}; {cfg.workers} workers; db {cfg.db_url}",
+    mode = "; development mode: no API keys" if cfg.dev_no_auth else ""
+    print(f"planner serve: listening on http://{host}:{port} ({cfg.workers} workers; db {cfg.db_url}{mode})",
           flush=True)
     config = uvicorn.Config(create_app(cfg), log_level=args.log_level, timeout_graceful_shutdown=5)
     signal.signal(signal.SIGTERM, _stopped)  # uvicorn re-raises the signal after its graceful shutdown

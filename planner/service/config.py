@@ -50,14 +50,16 @@ class ServiceConfig:
     @classmethod
     def from_env(cls, env: dict | None = None, **overrides) -> ServiceConfig:
         """The configuration from ``PLANNER_DB``, ``PLANNER_DATA``, ``PLANNER_WORKERS``, ``PLANNER_DEV_NO_AUTH``,
-        ``PLANNER_MAX_REQUEST_BYTES``, ``PLANNER_MAX_WAYPOINTS``, ``PLANNER_JOB_TIMEOUT``; ``overrides`` win."""
+        ``PLANNER_MAX_REQUEST_BYTES``, ``PLANNER_MAX_WAYPOINTS``, ``PLANNER_JOB_TIMEOUT``, ``PLANNER_MAX_ATTEMPTS``;
+        ``overrides`` win."""
         env = dict(os.environ if env is None else env)
         db = env.get("PLANNER_DB") or DEFAULT_DB
         kw: dict = {"db_url": db, "dev_no_auth": env.get("PLANNER_DEV_NO_AUTH", "") == "1"}
         for key, name, conv in (("PLANNER_WORKERS", "workers", int),
                                 ("PLANNER_MAX_REQUEST_BYTES", "max_request_bytes", int),
                                 ("PLANNER_MAX_WAYPOINTS", "max_waypoints", int),
-                                ("PLANNER_JOB_TIMEOUT", "job_timeout_s", float)):
+                                ("PLANNER_JOB_TIMEOUT", "job_timeout_s", float),
+                                ("PLANNER_MAX_ATTEMPTS", "max_attempts", int)):
             if env.get(key):
                 try:
                     kw[name] = conv(env[key])

@@ -1,0 +1,85 @@
+"""A service killed (SIGKILL) or stopped (SIGTERM) mid-job and started again on the same database: nothing is
+lost, nothing runs twice to completion, a job interrupted too often fails with the reason."""
+
+from __future__ import annotations
+
+import sqlite3
+from pathlib import Path
+
+import numpy as np
+
+from tests.test_service_server import ServiceProcess, wait_state, wait_until
+
+SMALL = {"waypoints": [[0, 0, 0], [0.1, 0.03, 0], [0.2, 0, 0.01]]}
+
+
+def big() -> dict:
+    t = np.linspace(0, 200 * np.pi, 20_000)  # a few seconds of planning
+    return {"waypoints": np.c_[0.1 * np.cos(t) + 1e-4 * t, 0.1 * np.sin(t), 2e-4 * t].tolist()}
+
+
+def gone(pid: int) -> bool:
+    stat = Path(f"/proc/{pid}/stat")
+    try:
+        return stat.read_text().split()[2] in ("Z", "X")
+    except OSError:
+        return True
+
+
+def saved_files(folder: Path, job_id: str) -> list[str]:
+    return sorted(p.name for p in (folder / "jobs.sqlite.data" / "jobs" / job_id).glob("plan.*.job"))
+
+
+def test_kill_and_restart_loses_nothing_and_runs_nothing_twice(tmp_path):
+    s1 = ServiceProcess(tmp_path, workers=1).start()
+    try:
+        with s1.client() as c:
+            a = c.post("/v1/jobs", json=big()).json()["id"]
+            b = c.post("/v1/jobs", json=SMALL).json()["id"]
+            wait_state(c, a, states=("running",), timeout=60)
+            workers = s1.worker_pids()
+    finally:
+        s1.kill()
+    wait_until(lambda: all(gone(p) for p in workers), 2.0, "the workers die with the killed service")
+
+    s2 = ServiceProcess(tmp_path, workers=1).start()
+    try:
+        with s2.client() as c:
+            va, vb = wait_state(c, a), wait_state(c, b)
+            assert va["state"] == vb["state"] == "done", (va["error"], vb["error"])
+            assert va["attempts"] == 2 and "restart" in va["note"]
+            assert vb["attempts"] == 1 and vb["note"] is None
+            assert saved_files(tmp_path, a) == ["plan.2.job"] and saved_files(tmp_path, b) == ["plan.1.job"]
+            assert c.get(f"/v1/jobs/{a}/trajectory").status_code == 200
+            metrics = c.get("/metrics").text
+            assert 'planner_jobs_finished_total{state="done"} 2' in metrics  # each completed once, here
+            d = c.post("/v1/jobs", json=big()).json()["id"]
+            wait_state(c, d, states=("running",), timeout=60)
+    finally:
+        s2.kill()
+
+    s3 = ServiceProcess(tmp_path, workers=1, env={"PLANNER_MAX_ATTEMPTS": "1"}).start()
+    try:
+        with s3.client() as c:
+            vd = c.get(f"/v1/jobs/{d}").json()
+            assert vd["state"] == "failed" and vd["error"]["kind"] == "interrupted"
+            assert "interrupted by restarts of the service 1 times while running" in vd["error"]["message"]
+            e = c.post("/v1/jobs", json=big()).json()["id"]
+            wait_state(c, e, states=("running",), timeout=60)
+            workers = s3.worker_pids()
+    finally:
+        assert s3.stop() == 0  # graceful: the running job goes back to the queue, its start not counted
+    assert all(gone(p) for p in workers)
+
+    s4 = ServiceProcess(tmp_path, workers=1).start()
+    try:
+        with s4.client() as c:
+            ve = wait_state(c, e)
+            assert ve["state"] == "done" and ve["attempts"] == 1
+            jobs = c.get("/v1/jobs").json()["jobs"]
+    finally:
+        assert s4.stop() == 0
+    assert sorted(j["id"] for j in jobs) == sorted([a, b, d, e])
+    with sqlite3.connect(tmp_path / "jobs.sqlite") as conn:
+        states = dict(conn.execute("select id, state from jobs").fetchall())
+    assert states == {a: "done", b: "done", d: "failed", e: "done"}
