@@ -67,9 +67,10 @@ def _cpu_seconds(pid: int) -> float:
     return (int(fields[11]) + int(fields[12])) / os.sysconf("SC_CLK_TCK")
 
 
-def _realtime_threads(priority: int = 20) -> bool:
+def _realtime_threads(priority: int = 3) -> bool:
     """SCHED_FIFO for every thread of this process (ur_rtde's receive threads included), as ur_rtde
-    does itself on a real-time kernel; False if the system refuses."""
+    does itself on a real-time kernel, below the simulators' control loops (a real controller is
+    another machine, which its clients cannot delay); False if the system refuses."""
     ok = True
     for tid in os.listdir("/proc/self/task"):
         try:

@@ -88,7 +88,7 @@ class Connection:
     def serve(self) -> None:
         """Read packages until the client leaves (runs in its own thread)."""
         if os.sched_getscheduler(0) == os.SCHED_FIFO:
-            set_realtime_priority(5)  # below the control loop, above the rest: inputs arrive on time
+            set_realtime_priority(8)  # below the control loop, above the rest: inputs arrive on time
         buf = bytearray()
         try:
             while not self.closed:

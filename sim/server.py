@@ -124,7 +124,7 @@ def main(argv: list[str] | None = None) -> int:
         # every thread of the process real-time (they inherit it), so that none is preempted by other
         # processes while it holds the GIL the control loop waits for; the loop and the RTDE readers
         # raise themselves above the rest
-        set_realtime_priority(1)
+        set_realtime_priority(6)
     Loop.realtime = not args.no_realtime
 
     from sim.io_state import IOState
@@ -169,8 +169,7 @@ def main(argv: list[str] | None = None) -> int:
              "modbus": modbus.port if modbus else None}
     print("READY " + json.dumps({"host": host, "pid": os.getpid(), "ports": ports}), flush=True)
     try:
-        while not stop.wait(0.2):
-            pass
+        stop.wait()  # no periodic wake-ups: a woken thread of ours would take the GIL from the loop
     finally:
         loop.stop.set()
         loop.thread.join(2.0)
