@@ -37,7 +37,6 @@ from planner.service.workers import WorkerPool, job_dir, recover, remove_job_fil
 
 API = "/v1"
 _JOB_ID = re.compile(r"^[0-9a-f]{32}$")
-_STATIC = Path(__file__).resolve().parent / "static"
 
 
 # -- errors ------------------------------------------------------------------------------------------
@@ -237,7 +236,9 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
 
     @app.get("/", include_in_schema=False)
     def page() -> HTMLResponse:
-        return HTMLResponse((_STATIC / "index.html").read_text(encoding="utf-8"))
+        from planner.service.page import PAGE
+
+        return HTMLResponse(PAGE)
 
     @app.get("/healthz", tags=["service"])
     def healthz(request: Request) -> dict:

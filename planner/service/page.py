@@ -1,0 +1,287 @@
+"""The page at ``GET /``: one HTML file with its script and style, no build step (kept in Python so that it is
+installed with the package). It talks to the same REST API as any client: upload or paste, settings, progress,
+summary, plot, downloads, cancel, and the run on the simulated robot."""
+
+# ruff: noqa: E501
+PAGE = r"""<!doctype html>
+<html lang="en">
+<head>
+<meta charset="utf-8">
+<meta name="viewport" content="width=device-width, initial-scale=1">
+<title>planner: path jobs</title>
+<style>
+  :root { --fg: #1d2330; --muted: #5b6475; --line: #d5d9e0; --accent: #2457c5; --bad: #b3261e; --ok: #1e7b34; }
+  * { box-sizing: border-box; }
+  body { font: 14px/1.45 system-ui, sans-serif; color: var(--fg); margin: 0; background: #f5f6f8; }
+  header { background: #fff; border-bottom: 1px solid var(--line); padding: 10px 20px; display: flex; gap: 16px;
+           align-items: center; }
+  header h1 { font-size: 18px; margin: 0; flex: 1; }
+  main { display: grid; grid-template-columns: 380px 1fr; gap: 16px; padding: 16px 20px; }
+  section { background: #fff; border: 1px solid var(--line); border-radius: 6px; padding: 12px 14px; }
+  h2 { font-size: 15px; margin: 0 0 8px; }
+  label { display: block; margin: 6px 0 2px; color: var(--muted); font-size: 12px; }
+  input, select, textarea { width: 100%; font: inherit; padding: 4px 6px; border: 1px solid var(--line);
+                            border-radius: 4px; }
+  textarea { height: 110px; font-family: ui-monospace, monospace; font-size: 12px; }
+  .row { display: grid; grid-template-columns: 1fr 1fr; gap: 8px; }
+  .tabs button { border: 1px solid var(--line); background: #fff; padding: 4px 10px; cursor: pointer; }
+  .tabs button.on { background: var(--accent); color: #fff; border-color: var(--accent); }
+  button.primary { margin-top: 10px; background: var(--accent); color: #fff; border: 0; padding: 7px 14px;
+                   border-radius: 4px; cursor: pointer; font: inherit; }
+  button:disabled { opacity: .5; cursor: default; }
+  #error { color: var(--bad); white-space: pre-wrap; margin-top: 8px; }
+  progress { width: 100%; height: 14px; }
+  pre { background: #f7f8fa; border: 1px solid var(--line); padding: 8px; overflow-x: auto; font-size: 12px;
+        white-space: pre-wrap; }
+  #plot { max-width: 100%; border: 1px solid var(--line); display: none; margin-top: 8px; }
+  table { border-collapse: collapse; width: 100%; font-size: 12px; }
+  td, th { border-bottom: 1px solid var(--line); padding: 3px 4px; text-align: left; }
+  tr.job { cursor: pointer; } tr.job:hover { background: #eef2fb; }
+  .state-done { color: var(--ok); } .state-failed { color: var(--bad); } .state-cancelled { color: var(--muted); }
+  #downloads a { margin-right: 12px; }
+  .hidden { display: none; }
+</style>
+</head>
+<body>
+<header>
+  <h1>planner: robot path jobs</h1>
+  <span id="mode"></span>
+  <input id="apikey" type="password" placeholder="API key (pk_...)" style="width: 280px">
+</header>
+<main>
+  <div>
+    <section>
+      <h2>New job</h2>
+      <div class="tabs"><button id="tab-file" class="on" type="button">Upload a toolpath</button><button
+        id="tab-points" type="button">Paste waypoints</button></div>
+      <div id="pane-file">
+        <label for="file">APT/CLSF, 5-axis G-code, CSV or JSON file</label>
+        <input id="file" type="file">
+        <div class="row">
+          <div><label for="units">units of a CSV/JSON file</label>
+            <select id="units"><option value="">default (mm)</option><option>mm</option><option>m</option>
+              <option>inch</option></select></div>
+          <div><label for="machine">machine (5-axis G-code)</label><input id="machine" placeholder="haas-umc-750"></div>
+        </div>
+      </div>
+      <div id="pane-points" class="hidden">
+        <label for="points">waypoints x, y, z in mm, one per line (or a JSON list)</label>
+        <textarea id="points" placeholder="0, 0, 0&#10;100, 20, 0&#10;200, 0, 10"></textarea>
+      </div>
+      <div class="row">
+        <div><label for="path">path model</label><select id="path"><option>auto</option><option>interpolate</option>
+          <option>cam</option></select></div>
+        <div><label for="axes">tool axis</label><select id="axes"><option>auto</option><option>file</option>
+          <option>approach</option><option>fixed</option><option>path</option></select></div>
+        <div><label for="frame">frame method</label><select id="frame"><option>rmf</option><option>grm</option>
+          <option>juttler</option><option>er</option><option>double-reflection</option></select></div>
+        <div><label for="tolerance">tolerance, mm</label><input id="tolerance" type="number" step="any" value="0.01"></div>
+        <div><label for="corner">corner angle, deg</label><input id="corner" type="number" step="any" value="60"></div>
+        <div><label for="feed">feed, mm/s</label><input id="feed" type="number" step="any" value="50"></div>
+        <div><label for="rate">rate, Hz</label><input id="rate" type="number" step="any" value="500"></div>
+        <div><label for="robot">robot</label><select id="robot"><option value="">none</option><option>ur3e</option>
+          <option>ur5e</option><option>ur10e</option><option>ur16e</option><option>ur20</option></select></div>
+        <div><label for="passes">passes (K,K or longest)</label><input id="passes" placeholder="all"></div>
+        <div><label for="partframe">part frame x,y,z,rx,ry,rz (m, rad)</label><input id="partframe"></div>
+      </div>
+      <button id="submit" class="primary" type="button">Plan</button>
+      <div id="error"></div>
+    </section>
+    <section style="margin-top: 16px">
+      <h2>My jobs</h2>
+      <table><thead><tr><th>created</th><th>input</th><th>state</th></tr></thead><tbody id="jobs"></tbody></table>
+    </section>
+  </div>
+  <section id="job">
+    <h2>Job <span id="job-id"></span></h2>
+    <div id="job-empty">Submit a job or pick one from the list.</div>
+    <div id="job-body" class="hidden">
+      <div>state: <b id="job-state"></b> <span id="job-stage"></span>
+        <button id="cancel" type="button" class="hidden">Cancel</button></div>
+      <progress id="job-progress" max="1" value="0"></progress>
+      <div id="job-error" style="color: var(--bad)"></div>
+      <div id="downloads"></div>
+      <pre id="summary" class="hidden"></pre>
+      <button id="execute" type="button" class="hidden">Run on the simulated robot</button>
+      <span id="execute-result"></span>
+      <img id="plot" alt="plot of the planned job">
+    </div>
+  </section>
+</main>
+<script>
+"use strict";
+const $ = (id) => document.getElementById(id);
+let current = null, timer = null, devMode = false;
+$("apikey").value = localStorage.getItem("planner-key") || "";
+$("apikey").addEventListener("change", () => { localStorage.setItem("planner-key", $("apikey").value); listJobs(); });
+
+function headers(extra) {
+  const h = Object.assign({}, extra || {});
+  const key = $("apikey").value.trim();
+  if (key) h["Authorization"] = "Bearer " + key;
+  return h;
+}
+async function api(path, options) {
+  const o = Object.assign({}, options || {});
+  o.headers = headers(o.headers);
+  const r = await fetch(path, o);
+  if (!r.ok) {
+    let msg = r.status + " " + r.statusText;
+    try {
+      const body = await r.json();
+      msg = Array.isArray(body.detail)
+        ? body.detail.map((d) => (d.loc || []).slice(1).join(".") + ": " + d.msg).join("\n")
+        : (body.detail || msg);
+    } catch (e) { /* not JSON */ }
+    throw new Error(msg);
+  }
+  return r;
+}
+function tab(which) {
+  $("tab-file").classList.toggle("on", which === "file");
+  $("tab-points").classList.toggle("on", which === "points");
+  $("pane-file").classList.toggle("hidden", which !== "file");
+  $("pane-points").classList.toggle("hidden", which !== "points");
+}
+$("tab-file").onclick = () => tab("file");
+$("tab-points").onclick = () => tab("points");
+
+function num(id, scale) { const v = parseFloat($(id).value); return Number.isFinite(v) ? v * (scale || 1) : undefined; }
+function settings() {
+  const s = {path: $("path").value, axes: $("axes").value, frame: $("frame").value};
+  const put = (k, v) => { if (v !== undefined) s[k] = v; };
+  put("tolerance", num("tolerance", 1e-3)); put("corner_deg", num("corner")); put("feed", num("feed", 1e-3));
+  put("rate", num("rate"));
+  if ($("robot").value) s.robot = $("robot").value;
+  const pf = $("partframe").value.trim();
+  if (pf) s.part_frame = pf.split(/[ ,]+/).map(Number);
+  const p = $("passes").value.trim();
+  if (p === "longest") s.passes = "longest";
+  else if (p && p !== "all") s.passes = p.split(/[ ,]+/).map((x) => parseInt(x, 10));
+  return s;
+}
+function parsePoints(text) {
+  text = text.trim();
+  let rows;
+  if (text.startsWith("[")) rows = JSON.parse(text);
+  else rows = text.split(/\n+/).filter((l) => l.trim() && !l.trim().startsWith("#"))
+    .map((l) => l.trim().split(/[ ,;\t]+/).map(Number));
+  return rows.map((r) => r.map((x) => x / 1000));
+}
+$("submit").onclick = async () => {
+  $("error").textContent = "";
+  $("submit").disabled = true;
+  try {
+    let r;
+    if (!$("pane-file").classList.contains("hidden")) {
+      const f = $("file").files[0];
+      if (!f) throw new Error("choose a toolpath file");
+      const form = new FormData();
+      form.append("file", f);
+      form.append("settings", JSON.stringify(settings()));
+      const ro = {};
+      if ($("units").value) ro.units = $("units").value;
+      if ($("machine").value.trim()) ro.machine = $("machine").value.trim();
+      form.append("read_options", JSON.stringify(ro));
+      r = await api("/v1/jobs", {method: "POST", body: form});
+    } else {
+      const body = {waypoints: parsePoints($("points").value), settings: settings()};
+      r = await api("/v1/jobs", {method: "POST", body: JSON.stringify(body),
+                                 headers: {"Content-Type": "application/json"}});
+    }
+    const created = await r.json();
+    show(created.id);
+    listJobs();
+  } catch (e) {
+    $("error").textContent = e.message;
+  } finally {
+    $("submit").disabled = false;
+  }
+};
+async function download(url, name) {
+  const r = await api(url);
+  const blob = await r.blob();
+  const a = document.createElement("a");
+  a.href = URL.createObjectURL(blob); a.download = name; a.click();
+  setTimeout(() => URL.revokeObjectURL(a.href), 5000);
+}
+function show(id) {
+  current = id;
+  $("job-empty").classList.add("hidden");
+  $("job-body").classList.remove("hidden");
+  $("job-id").textContent = id;
+  $("plot").style.display = "none"; $("plot").removeAttribute("src");
+  $("summary").classList.add("hidden"); $("downloads").innerHTML = ""; $("job-error").textContent = "";
+  $("execute").classList.add("hidden"); $("execute-result").textContent = "";
+  if (timer) clearTimeout(timer);
+  poll();
+}
+async function poll() {
+  const id = current;
+  let v;
+  try { v = await (await api("/v1/jobs/" + id)).json(); } catch (e) { $("job-error").textContent = e.message; return; }
+  if (id !== current) return;
+  $("job-state").textContent = v.state;
+  $("job-state").className = "state-" + v.state;
+  $("job-stage").textContent = v.progress.stage ? `(${v.progress.stage} ${v.progress.done}/${v.progress.total})` : "";
+  $("job-progress").value = v.state === "done" ? 1 : (v.progress.total ? v.progress.done / v.progress.total : 0);
+  $("cancel").classList.toggle("hidden", !(v.state === "queued" || v.state === "running"));
+  if (v.state === "queued" || v.state === "running") { timer = setTimeout(poll, 500); return; }
+  listJobs();
+  if (v.error) $("job-error").textContent = v.error.message;
+  if (v.state !== "done") return;
+  $("summary").textContent = (v.describe || []).join("\n");
+  $("summary").classList.remove("hidden");
+  const stem = v.input.name.replace(/\.[^.]*$/, "").replace(/[<>]/g, "") || "job";
+  const links = [["csv", "trajectory CSV"], ["json", "trajectory JSON"]].concat(v.links.script ? [["script", "URScript program"]] : []);
+  $("downloads").innerHTML = "";
+  for (const [fmt, text] of links) {
+    const a = document.createElement("a");
+    a.href = "#"; a.textContent = text; a.id = "download-" + fmt;
+    a.onclick = (ev) => { ev.preventDefault(); download(v.links[fmt], `${stem}.${fmt}`).catch((e) => { $("job-error").textContent = e.message; }); };
+    $("downloads").appendChild(a);
+  }
+  $("execute").classList.remove("hidden");
+  try {
+    const blob = await (await api(v.links.plot)).blob();
+    if (id !== current) return;
+    $("plot").src = URL.createObjectURL(blob);
+    $("plot").style.display = "block";
+  } catch (e) { $("job-error").textContent = "plot: " + e.message; }
+}
+$("cancel").onclick = async () => {
+  try { await api("/v1/jobs/" + current, {method: "DELETE"}); } catch (e) { $("job-error").textContent = e.message; }
+  poll();
+};
+$("execute").onclick = async () => {
+  try {
+    await api(`/v1/jobs/${current}/executions`, {method: "POST", body: JSON.stringify({robot: "sim"}),
+                                                  headers: {"Content-Type": "application/json"}});
+    $("execute-result").textContent = "started";
+  } catch (e) { $("execute-result").textContent = e.message; }
+};
+async function listJobs() {
+  try {
+    const page = await (await api("/v1/jobs?limit=20")).json();
+    const body = $("jobs");
+    body.innerHTML = "";
+    for (const j of page.jobs) {
+      const tr = document.createElement("tr");
+      tr.className = "job"; tr.onclick = () => show(j.id);
+      const cells = [new Date(j.created_at * 1000).toLocaleTimeString(), j.input.name, j.state];
+      for (const c of cells) { const td = document.createElement("td"); td.textContent = c; tr.appendChild(td); }
+      tr.lastChild.className = "state-" + j.state;
+      body.appendChild(tr);
+    }
+  } catch (e) { /* no key yet */ }
+}
+fetch("/healthz").then((r) => r.json()).then((h) => {
+  devMode = h.dev_no_auth;
+  $("mode").textContent = devMode ? "development mode (no keys)" : "";
+  $("apikey").classList.toggle("hidden", devMode);
+  listJobs();
+});
+</script>
+</body>
+</html>
+"""
