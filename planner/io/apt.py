@@ -519,27 +519,22 @@ class _Reader:
         cyc = self.drill
         assert cyc is not None
         s = self.scale
-        p = np.array(vals[:3]) * s
+        p = (vals[0] * s, vals[1] * s, vals[2] * s)
         given = len(vals) == 6
-        if given:
-            a = np.array(vals[3:6])
-            norm = float(np.linalg.norm(a))
-            if abs(norm - 1.0) > self.axis_tolerance:
-                self.fail(line, "fields 4-6 of GOTO", f"tool axis {tuple(vals[3:6])} is not a unit vector "
-                          f"(length {norm:.9g})", 4)  # fmt: skip
-            a = a / norm
-        else:
-            a = np.array(self.axis, dtype=float)
-            a = a / np.linalg.norm(a)
-        n = self.out.count
-        current = np.array(self.out.xyz[3 * n - 3 : 3 * n]) if n else None
+        a = tuple(vals[3:6]) if given else self.axis
+        norm = math.sqrt(a[0] ** 2 + a[1] ** 2 + a[2] ** 2)
+        if given and abs(norm - 1.0) > self.axis_tolerance:
+            self.fail(line, "fields 4-6 of GOTO", f"tool axis {a} is not a unit vector (length {norm:.9g})", 4)
+        a = (a[0] / norm, a[1] / norm, a[2] / norm)
+        out = self.out
+        n = out.count
+        current = (out.xyz[3 * n - 3], out.xyz[3 * n - 2], out.xyz[3 * n - 1]) if n else None
         self.rapid_next = False
         moves, bottom = hole_moves(current, p, a, cyc)
-        out = self.out
         for j, (q, rapid) in enumerate(moves):
-            k = out.add_point(line, float(q[0]), float(q[1]), float(q[2]), rapid)
+            k = out.add_point(line, q[0], q[1], q[2], rapid)
             if j == 0 and given:
-                out.set_axis(k, float(a[0]), float(a[1]), float(a[2]), given)
+                out.set_axis(k, a[0], a[1], a[2], True)
             if not rapid:
                 out.set_feed(k, cyc.feed)
             if j == bottom and cyc.dwell > 0.0:

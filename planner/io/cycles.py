@@ -25,8 +25,6 @@ from __future__ import annotations
 import math
 from dataclasses import dataclass
 
-import numpy as np
-
 #: Default back-off / re-approach distance between pecks, metres (Fanuc parameters 5114/5115 set it
 #: per machine; 0.5 mm is a common value). Readers take ``peck_clearance`` to change it.
 DEFAULT_PECK_CLEARANCE = 0.5e-3
@@ -91,43 +89,47 @@ class DrillCycle:
         return ""
 
 
-def hole_moves(current, hole, axis, cycle: DrillCycle) -> tuple[list[tuple[np.ndarray, bool]], int]:
+def hole_moves(current, hole, axis, cycle: DrillCycle) -> tuple[list[tuple[tuple[float, float, float], bool]], int]:
     """The tool-tip points of one hole of ``cycle`` (see the module notes).
 
     Parameters
     ----------
-    current : array_like (3,) or None
+    current : 3 floats or None
         Where the tool is before the hole (None: unknown, e.g. the first record of a file).
-    hole : array_like (3,)
+    hole : 3 floats
         The point of the hole axis the levels are measured from.
-    axis : array_like (3,)
+    axis : 3 floats
         Unit tool axis (tip towards spindle).
     cycle : DrillCycle
 
     Returns
     -------
-    moves : list of (point (3,), rapid)
+    moves : list of ((x, y, z), rapid)
         The points in order; ``rapid`` False for feed moves. Consecutive repeats are left out.
     bottom : int
         Index in ``moves`` of the (last) point at the hole bottom, where the dwell happens.
+
+    Plain Python floats throughout: a hole is a handful of points, and per-point numpy calls would cost
+    more than the arithmetic.
     """
-    p0 = np.asarray(hole, dtype=float)
-    a = np.asarray(axis, dtype=float)
-    a = a / np.linalg.norm(a)
-    moves: list[tuple[np.ndarray, bool]] = []
-    last = None if current is None else np.asarray(current, dtype=float)
+    px, py, pz = (float(v) for v in hole)
+    ax, ay, az = (float(v) for v in axis)
+    norm = math.sqrt(ax * ax + ay * ay + az * az)
+    ax, ay, az = ax / norm, ay / norm, az / norm
+    moves: list[tuple[tuple[float, float, float], bool]] = []
+    last = None if current is None else tuple(float(v) for v in current)
 
     def go(level: float, rapid: bool) -> None:
         nonlocal last
-        p = p0 + level * a
-        if last is not None and np.linalg.norm(p - last) <= 1e-12:
+        p = (px + level * ax, py + level * ay, pz + level * az)
+        if last is not None and abs(p[0] - last[0]) + abs(p[1] - last[1]) + abs(p[2] - last[2]) <= 1e-12:
             return
         moves.append((p, rapid))
         last = p
 
     came_from = cycle.clearance
     if last is not None:
-        came_from = float((last - p0) @ a)
+        came_from = (last[0] - px) * ax + (last[1] - py) * ay + (last[2] - pz) * az
         go(came_from, True)  # traverse at the current level
     r = cycle.clearance
     go(r, True)

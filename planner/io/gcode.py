@@ -382,19 +382,20 @@ class _Reader:
         problem = cyc.problem()
         if problem:
             self.fail(line, "", f"{name}: {problem}")
-        normal = np.zeros(3)
+        normal = [0.0, 0.0, 0.0]
         normal[k] = 1.0
+        pos = self.pos
         for rep in range(max(repeats, 0)):
-            current = None if self.pos[k] != self.pos[k] else np.array(self.pos, dtype=float)
+            current = None if pos[k] != pos[k] else tuple(pos)
             for i, w in in_plane:
                 if w in axes and (rep == 0 or not self.absolute):
                     v = axes[w][0] * s
-                    self.pos[i] = v if self.absolute else self.pos[i] + v
-            if any(self.pos[i] != self.pos[i] for i, _ in in_plane):
+                    pos[i] = v if self.absolute else pos[i] + v
+            if any(pos[i] != pos[i] for i, _ in in_plane):
                 self.fail(line, "", f"{name}: the hole position is not known (after G28/G53 give X and Y)")
-            hole = np.array(self.pos, dtype=float)
+            hole = list(pos)
             hole[k] = 0.0
-            if current is not None and not np.isfinite(current).all():
+            if current is not None and any(v != v for v in current):
                 current = None
             moves, bottom = hole_moves(current, hole, normal, cyc)
             for j, (q, rapid) in enumerate(moves):
@@ -402,13 +403,13 @@ class _Reader:
                 if j == bottom and cyc.dwell > 0.0:
                     self.out.event("dwell", line, name, cyc.dwell, text.strip())
             if moves:
-                self.pos[:] = [float(v) for v in moves[-1][0]]
+                pos[:] = moves[-1][0]
 
     def emit(self, line: int, xyz, rapid: bool, rot_given: bool = False) -> None:
         """Append one point (program frame, metres) with the modal rotary state."""
         out = self.out
         k = len(out.lines)
-        out.xyz.extend((float(xyz[0]), float(xyz[1]), float(xyz[2])))
+        out.xyz.extend(xyz)
         out.lines.append(line)
         if rapid or self.pending_rapid:
             out.rapid_idx.append(k)

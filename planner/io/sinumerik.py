@@ -7,7 +7,7 @@ Selected by the file name (``.mpf``, ``.spf``), by ``read_gcode(..., dialect="si
 Read
     ``;`` comments (parentheses group expressions, they are not comments); ``N``/``:`` block numbers;
     ``DEF REAL|INT|BOOL|CHAR|STRING[n] name[=expr], ...`` declarations; assignments ``name=expr`` to
-    declared variables, R parameters (``R1``) and names starting with ``_`` (a global user variable
+    declared variables, R parameters (``R1``, 0 until assigned) and names starting with ``_`` (a global user variable
     without DEF draws a warning); expressions with ``+ - * /``, ``DIV``, ``MOD``, parentheses and
     ``SIN COS TAN ASIN ACOS ATAN2 SQRT ABS POT TRUNC ROUND LN EXP MINVAL MAXVAL`` (degrees, as the
     control); address words written ``X10``, ``X=expr``, ``X=IC(expr)`` (incremental in a G90 block),
@@ -117,6 +117,13 @@ _FUNCS: dict[str, Callable[..., float]] = {
 }
 _NUM = re.compile(r"(?:\d+\.?\d*|\.\d+)(?:EX[-+]?\d+)?")
 _IDENT = re.compile(r"[A-Z_$][A-Z0-9_]*")
+_R_PARAM = re.compile(r"R\d+")
+_LABEL = re.compile(r"([A-Z_][A-Z0-9_]*):")
+_CALL = re.compile(r"([A-Z_][A-Z0-9_]*)\s*\((.*)\)", re.DOTALL)
+_SPINDLE_M = re.compile(r"([SM])\d*")
+_SETTABLE_FRAME = re.compile(r"G5(?:0[5-9]|[1-9]\d)")
+_DWELL_WORD = re.compile(r"[FS][-+]?(?:\d+\.?\d*|\.\d+)")
+_MODE_CALL = re.compile(r"(IC|AC|DC|ACP|ACN)\s*\((.*)\)", re.IGNORECASE | re.DOTALL)
 _BLOCK_NUMBER = re.compile(r"^(?:[N:]\d+\s*)+", re.IGNORECASE)
 _COMPACT = re.compile(r"([A-Z]+)([-+]?(?:\d+\.?\d*|\.\d+))")
 
@@ -125,39 +132,39 @@ class ExpressionError(ValueError):
     """An expression the reader cannot evaluate (the message says why)."""
 
 
+_TOKENS = re.compile(r"\s*(?:((?:\d+\.?\d*|\.\d+)(?:EX[-+]?\d+)?)|([A-Z_$][A-Z0-9_]*)|(\S))")
+
+
 class Expression:
-    """Recursive-descent evaluator of Sinumerik arithmetic over a variable table (upper-case names)."""
+    """Recursive-descent evaluator of Sinumerik arithmetic over a variable table (upper-case names).
+
+    Grammar: ``sum := product (("+" | "-") product)*``, ``product := unary (("*" | "/" | DIV | MOD)
+    unary)*``, ``unary := ("+" | "-") unary | atom``, ``atom := number | name | name "(" sum ("," sum)*
+    ")" | "(" sum ")"``; trigonometry in degrees, as on the control.
+    """
 
     def __init__(self, text: str, variables: dict[str, float | str | None]):
-        self.s = text.upper()
-        self.i = 0
+        self.toks: list[tuple[str, str]] = []  # (kind, text): kind "n" number, "i" name, "o" other
+        for num, name, other in _TOKENS.findall(text.upper()):
+            self.toks.append(("n", num) if num else ("i", name) if name else ("o", other))
+        self.k = 0
         self.vars = variables
 
     def value(self) -> float:
         v = self.sum()
-        self.skip()
-        if self.i != len(self.s):
-            raise ExpressionError(f"unexpected {self.s[self.i:]!r}")
+        if self.k != len(self.toks):
+            raise ExpressionError(f"unexpected {''.join(t for _, t in self.toks[self.k:])!r}")
         return v
 
-    def skip(self) -> None:
-        while self.i < len(self.s) and self.s[self.i] in " \t":
-            self.i += 1
-
-    def peek_word(self, word: str) -> bool:
-        self.skip()
-        end = self.i + len(word)
-        if not self.s.startswith(word, self.i):
-            return False
-        return end >= len(self.s) or not (self.s[end].isalnum() or self.s[end] == "_")
+    def peek(self) -> str:
+        return self.toks[self.k][1] if self.k < len(self.toks) else ""
 
     def sum(self) -> float:
         v = self.product()
         while True:
-            self.skip()
-            c = self.s[self.i : self.i + 1]
-            if c in ("+", "-") and c:
-                self.i += 1
+            c = self.peek()
+            if c == "+" or c == "-":
+                self.k += 1
                 w = self.product()
                 v = v + w if c == "+" else v - w
             else:
@@ -166,77 +173,68 @@ class Expression:
     def product(self) -> float:
         v = self.unary()
         while True:
-            self.skip()
-            c = self.s[self.i : self.i + 1]
-            if c in ("*", "/") and c:
-                self.i += 1
+            c = self.peek()
+            if c == "*" or c == "/":
+                self.k += 1
                 w = self.unary()
                 if c == "/" and w == 0.0:
                     raise ExpressionError("division by zero")
                 v = v * w if c == "*" else v / w
-            elif self.peek_word("DIV") or self.peek_word("MOD"):
-                op = self.s[self.i : self.i + 3]
-                self.i += 3
+            elif c == "DIV" or c == "MOD":
+                self.k += 1
                 w = self.unary()
                 if w == 0.0:
-                    raise ExpressionError(f"{op} by zero")
-                v = float(math.trunc(v / w)) if op == "DIV" else math.fmod(v, w)
+                    raise ExpressionError(f"{c} by zero")
+                v = float(math.trunc(v / w)) if c == "DIV" else math.fmod(v, w)
             else:
                 return v
 
     def unary(self) -> float:
-        self.skip()
-        c = self.s[self.i : self.i + 1]
-        if c in ("-", "+") and c:
-            self.i += 1
+        c = self.peek()
+        if c == "-" or c == "+":
+            self.k += 1
             v = self.unary()
             return -v if c == "-" else v
         return self.atom()
 
     def atom(self) -> float:
-        self.skip()
-        if self.i >= len(self.s):
+        if self.k >= len(self.toks):
             raise ExpressionError("expression ends early")
-        c = self.s[self.i]
-        if c == "(":
-            self.i += 1
+        kind, tok = self.toks[self.k]
+        self.k += 1
+        if kind == "n":
+            return float(tok.replace("EX", "E"))
+        if tok == "(":
             v = self.sum()
-            self.skip()
-            if self.s[self.i : self.i + 1] != ")":
+            if self.peek() != ")":
                 raise ExpressionError("missing ')'")
-            self.i += 1
+            self.k += 1
             return v
-        m = _NUM.match(self.s, self.i)
-        if m:
-            self.i = m.end()
-            return float(m.group(0).replace("EX", "E"))
-        m = _IDENT.match(self.s, self.i)
-        if not m:
-            raise ExpressionError(f"unexpected {self.s[self.i:]!r}")
-        name = m.group(0)
-        self.i = m.end()
-        self.skip()
-        if self.s[self.i : self.i + 1] == "[":
+        if kind != "i":
+            raise ExpressionError(f"unexpected {tok!r}")
+        name = tok
+        nxt = self.peek()
+        if nxt == "[":
             raise ExpressionError(f"indexed variable {name}[...] is not read")
         if name.startswith("$"):
             raise ExpressionError(f"system variable {name} (machine state) is not read")
-        if self.s[self.i : self.i + 1] == "(":
+        if nxt == "(":
             if name not in _FUNCS:
                 raise ExpressionError(f"function {name}() is not known")
-            self.i += 1
+            self.k += 1
             args = [self.sum()]
-            self.skip()
-            while self.s[self.i : self.i + 1] == ",":
-                self.i += 1
+            while self.peek() == ",":
+                self.k += 1
                 args.append(self.sum())
-                self.skip()
-            if self.s[self.i : self.i + 1] != ")":
+            if self.peek() != ")":
                 raise ExpressionError(f"missing ')' after the arguments of {name}")
-            self.i += 1
+            self.k += 1
             try:
                 return float(_FUNCS[name](*args))
             except (TypeError, ValueError, OverflowError) as exc:
                 raise ExpressionError(f"{name}{tuple(args)}: {exc}") from None
+        if name not in self.vars and _R_PARAM.fullmatch(name):
+            return 0.0  # R parameters exist on every control (0 until assigned)
         if name not in self.vars:
             raise ExpressionError(f"variable {name} is not defined (no DEF or assignment before)")
         value = self.vars[name]
@@ -247,6 +245,27 @@ class Expression:
 
 def split_words(text: str) -> list[str]:
     """The block's words: split at blanks outside parentheses and strings."""
+    if "(" in text or '"' in text or "[" in text:
+        words = _split_nested(text)
+    else:
+        words = text.split()
+    # an expression may hold blanks around its operators: "R2=7 DIV 2", "X=_X0 + 5"
+    if len(words) < 2 or not any(w[0] in "+-*/" or w.upper() in ("DIV", "MOD") or w[-1] in "+-*/=" for w in words):
+        return words
+    merged: list[str] = []
+    for w in words:
+        u = w.upper()
+        if merged and "=" in merged[-1]:
+            prev = merged[-1].upper()
+            if u in ("DIV", "MOD") or w[0] in "+-*/" or prev[-1] in "+-*/=(" or prev.endswith((" DIV", " MOD")):
+                merged[-1] += " " + w
+                continue
+        merged.append(w)
+    return merged
+
+
+def _split_nested(text: str) -> list[str]:
+    """Words of ``text`` split at blanks outside parentheses, brackets and strings."""
     words: list[str] = []
     cur: list[str] = []
     depth, quote = 0, False
@@ -266,21 +285,14 @@ def split_words(text: str) -> list[str]:
         cur.append(ch)
     if cur:
         words.append("".join(cur))
-    # an expression may hold blanks around its operators: "R2=7 DIV 2", "X=_X0 + 5"
-    merged: list[str] = []
-    for w in words:
-        u = w.upper()
-        if merged and "=" in merged[-1]:
-            prev = merged[-1].upper()
-            if u in ("DIV", "MOD") or w[0] in "+-*/" or prev[-1] in "+-*/=(" or prev.endswith((" DIV", " MOD")):
-                merged[-1] += " " + w
-                continue
-        merged.append(w)
-    return merged
+    return words
 
 
 def strip_comment(text: str) -> str:
     """The block without its ``;`` comment (a ``;`` inside a string is kept)."""
+    if '"' not in text:
+        k = text.find(";")
+        return text if k < 0 else text[:k]
     quote = False
     for k, ch in enumerate(text):
         if ch == '"':
@@ -312,10 +324,16 @@ class Sinumerik:
         raise InputFileError(self.r.source, line, construct, problem)
 
     def eval(self, line: int, construct: str, expr: str) -> float:
+        e = expr.strip()
+        if e and (e[0].isdigit() or e[0] in ".+-") and "_" not in e:
+            try:
+                return float(e)  # a plain number (the common case)
+            except ValueError:
+                pass
         try:
             return Expression(expr, self.vars).value()
         except ExpressionError as exc:
-            self.fail(line, construct, f"{construct}: {exc}")
+            self.fail(line, construct, str(exc))
 
     # ------------------------------------------------------------------ one block
     def translate(self, line: int, raw: str) -> str:
@@ -330,7 +348,7 @@ class Sinumerik:
         if not words:
             return ""
         head = words[0].upper()
-        label = re.fullmatch(r"([A-Z_][A-Z0-9_]*):", head)
+        label = _LABEL.fullmatch(head) if head.endswith(":") else None
         if label:
             self.fail(line, head, f"label {label.group(1)}: program flow (jumps, labels) is not read")
         if head in _FLOW:
@@ -384,7 +402,7 @@ class Sinumerik:
         """ISO words for one Sinumerik word (events and assignments are handled here)."""
         out = self.r.out
         u = w.upper()
-        call = re.fullmatch(r"([A-Z_][A-Z0-9_]*)\s*\((.*)\)", u, re.DOTALL)
+        call = _CALL.fullmatch(u) if u.endswith(")") else None
         if call:
             return self.call(line, call.group(1), w[w.index("(") + 1 : w.rindex(")")], text)
         name, eq, expr = w.partition("=")
@@ -413,7 +431,7 @@ class Sinumerik:
                 return ["R" + fmt(self.eval(line, "CR", expr))]
             if name_u in ("D", "H"):
                 return []
-            base = re.fullmatch(r"([SM])\d*", name_u)
+            base = _SPINDLE_M.fullmatch(name_u)
             if base:
                 return [base.group(1) + fmt(self.eval(line, name_u, expr))]
             if len(name_u) == 1 and name_u in _SINGLE:
@@ -427,7 +445,7 @@ class Sinumerik:
         if u in _SETTINGS:
             out.event("setting", line, u, math.nan, text)
             return []
-        if u in _FRAME_WORDS or re.fullmatch(r"G5(?:0[5-9]|[1-9]\d)", u):
+        if u in _FRAME_WORDS or _SETTABLE_FRAME.fullmatch(u):
             out.event("frame", line, u, math.nan, text)
             return []
         if u in _FRAME_RESETS:
@@ -445,7 +463,7 @@ class Sinumerik:
         if u in ("G4", "G04"):
             self.r.sinumerik_dwell = True
             return []
-        if self.r.sinumerik_dwell and re.fullmatch(r"[FS][-+]?(?:\d+\.?\d*|\.\d+)", u):
+        if self.r.sinumerik_dwell and _DWELL_WORD.fullmatch(u):
             self.r.sinumerik_dwell = False
             value = float(u[1:])
             seconds = value if u[0] == "F" else value * 60.0 / self.r.rpm
@@ -469,7 +487,7 @@ class Sinumerik:
         if letters == "G" and f"G{number}" in _SETTINGS:
             self.r.out.event("setting", line, f"G{number}", math.nan, text)
             return ""
-        if letters == "G" and (f"G{number}" in _FRAME_WORDS or re.fullmatch(r"5(?:0[5-9]|[1-9]\d)", number)):
+        if letters == "G" and (f"G{number}" in _FRAME_WORDS or _SETTABLE_FRAME.fullmatch("G" + number)):
             self.r.out.event("frame", line, f"G{number}", math.nan, text)
             return ""
         if letters in ("G", "M", "T", "D", "H", "N"):
@@ -495,7 +513,7 @@ class Sinumerik:
             self.fail(line, f"R{number}", f"R{number}: an R parameter needs an assignment (R{number}=...)")
         if len(letters) == 1:
             return letters + number
-        if re.fullmatch(r"[SM]", letters[0]) and letters[1:].isdigit():
+        if letters[0] in "SM" and letters[1:].isdigit():
             return letters[0] + number
         self.fail(line, letters, f"{letters}{number}: address {letters} is not read")
         return ""
@@ -503,7 +521,7 @@ class Sinumerik:
     def address_value(self, line: int, name: str, expr: str, block_abs: bool) -> str:
         """The ISO number for ``NAME=expr`` (IC/AC/DC/ACP/ACN resolved against the reader's position)."""
         e = expr.strip()
-        m = re.fullmatch(r"(IC|AC|DC|ACP|ACN)\s*\((.*)\)", e, re.IGNORECASE | re.DOTALL)
+        m = _MODE_CALL.fullmatch(e) if e.endswith(")") else None
         mode = None
         if m:
             mode, e = m.group(1).upper(), m.group(2)
@@ -543,7 +561,7 @@ class Sinumerik:
     def assign(self, line: int, name: str, expr: str) -> None:
         if not _IDENT.fullmatch(name):
             self.fail(line, name[:20], f"{name}=: not an address or a variable name")
-        if name not in self.declared and not re.fullmatch(r"R\d+", name):
+        if name not in self.declared and not _R_PARAM.fullmatch(name):
             if not name.startswith("_"):
                 self.fail(line, name, f"{name}=: {name} is neither an address the reader knows nor a declared "
                           "variable (DEF)")  # fmt: skip

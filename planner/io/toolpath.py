@@ -156,6 +156,11 @@ class Nurbs:
         object.__setattr__(self, "weights", _readonly(w))
         if self.axes is not None:
             object.__setattr__(self, "axes", _readonly(np.asarray(self.axes, dtype=float).reshape(-1, 3)))
+        # homogeneous coordinates (w x, w y, w z, w) of the points, and of the axes when given
+        cols = [c * w[:, None], w[:, None]]
+        if self.axes is not None:
+            cols.insert(1, self.axes * w[:, None])
+        object.__setattr__(self, "_spline", BSpline(t, np.hstack(cols), p, extrapolate=False))
 
     @property
     def kind(self) -> str:
@@ -168,21 +173,23 @@ class Nurbs:
         p = self.degree
         return float(self.knots[p]), float(self.knots[-p - 1])
 
-    def _blend(self, values: np.ndarray, u) -> np.ndarray:
-        hom = np.column_stack((values * self.weights[:, None], self.weights))
+    def _homogeneous(self, u) -> np.ndarray:
         u0, u1 = self.domain
-        h = BSpline(self.knots, hom, self.degree, extrapolate=False)(np.clip(np.asarray(u, dtype=float), u0, u1))
-        return h[..., :-1] / h[..., -1:]
+        return self._spline(np.clip(np.asarray(u, dtype=float), u0, u1))  # type: ignore[attr-defined]
 
     def evaluate(self, u) -> np.ndarray:
         """Points ``C(u)`` (shape ``u.shape + (3,)``, metres) of the exact curve; ``u`` clipped to the domain."""
-        return self._blend(self.control, u)
+        h = self._homogeneous(u)
+        return h[..., :3] / h[..., -1:]
 
     def axis_at(self, u) -> np.ndarray | None:
-        """Unit tool axes along the curve (shape ``u.shape + (3,)``), or None when the record gives none."""
+        """Unit tool axes along the curve (shape ``u.shape + (3,)``), or None when the record gives none.
+
+        The axes blend like the points, ``sum N_i w_i a_i / sum N_i w_i``, normalised.
+        """
         if self.axes is None:
             return None
-        a = self._blend(self.axes, u)
+        a = self._homogeneous(u)[..., 3:6]
         return a / np.linalg.norm(a, axis=-1, keepdims=True)
 
     def sample_parameters(self, tolerance: float) -> np.ndarray:
@@ -197,11 +204,12 @@ class Nurbs:
         k = np.unique(self.knots[(self.knots >= u0) & (self.knots <= u1)])
         u = np.unique(np.concatenate([k[:-1, None] + np.diff(k)[:, None] * np.arange(4)[None, :] / 4.0,
                                       k[-1:, None]], axis=None))
-        frac = np.array([0.25, 0.5, 0.75])
+        frac = np.array([0.0, 0.25, 0.5, 0.75])
+        pu = self.evaluate(u)
         for _ in range(40):
             a, b = u[:-1], u[1:]
-            pa, pb = self.evaluate(a), self.evaluate(b)
-            mid = a[:, None] + (b - a)[:, None] * frac[None, :]
+            pa, pb = pu[:-1], pu[1:]
+            mid = a[:, None] + (b - a)[:, None] * frac[None, 1:]
             pm = self.evaluate(mid)  # (n, 3, 3)
             d = (pb - pa)[:, None, :]
             dd = np.maximum(np.einsum("nki,nki->nk", d, d), 1e-300)
@@ -210,7 +218,10 @@ class Nurbs:
             bad = (dev > tolerance) & ((b - a) > 1e-15 * max(1.0, abs(u1)))
             if not bad.any():
                 break
-            u = np.sort(np.concatenate((u, 0.5 * (a[bad] + b[bad]))))
+            # the midpoints of the bad intervals are known already: insert them with their points
+            order = np.argsort(np.concatenate((u, 0.5 * (a[bad] + b[bad]))), kind="stable")
+            u = np.concatenate((u, 0.5 * (a[bad] + b[bad])))[order]
+            pu = np.concatenate((pu, pm[bad, 1]))[order]
         return u
 
 
