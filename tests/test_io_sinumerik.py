@@ -186,6 +186,6 @@ def test_refused_constructs_name_line_and_construct(text, line, construct, words
 
 
 def test_sinumerik_dwell_in_revolutions():
-    tp = read("S600 M3\nG0 X0 Y0 Z0\nG4 S10\nG1 X1 F100\n")
-    (dwell,) = tp.events_of("dwell")
-    assert dwell.value == pytest.approx(1.0) and not math.isnan(tp.feeds[-1])  # 10 rev at 600 rpm
+    tp = read("S600 M3\nG0 X0 Y0 Z0\nG1 X1 F100\nG4 S10\nX2\nG4 F=2*1.5\nX3\n")
+    assert [d.value for d in tp.events_of("dwell")] == pytest.approx([1.0, 3.0])  # 10 rev at 600 rpm; 3 s
+    assert np.allclose(tp.feeds[1:], 100 * MM / 60) and not math.isnan(tp.feeds[-1])  # F unchanged by G4

@@ -1,5 +1,8 @@
 """Reader of 3- and 5-axis G-code (ISO 6983 / Fanuc / Haas dialect) into a toolpath.
 
+The Sinumerik 840D dialect (``.mpf``/``.spf``, ``dialect="sinumerik"``) is translated block by block
+into these words by :mod:`planner.io.sinumerik` (see there for what it reads, keeps and refuses).
+
 What is read
 ------------
 * Blocks: optional ``N`` number, words ``letter + number``; spaces ignored (as controls do);

@@ -427,6 +427,12 @@ class Sinumerik:
                     self.fail(line, "TURN", f"TURN={turns:g}: full helical turns of G2/G3 are not read")
                 out.event("setting", line, "TURN", 0.0, text)
                 return []
+            if name_u in ("F", "S") and self.r.sinumerik_dwell:
+                self.r.sinumerik_dwell = False
+                value = self.eval(line, f"G4 {name_u}=", expr)
+                seconds = value if name_u == "F" else value * 60.0 / self.r.rpm
+                out.event("dwell", line, "G4", seconds, text)
+                return []
             if name_u == "CR":
                 return ["R" + fmt(self.eval(line, "CR", expr))]
             if name_u in ("D", "H"):

@@ -395,6 +395,13 @@ def _slerp_rows(a0: np.ndarray, a1: np.ndarray, s: np.ndarray) -> np.ndarray:
     return (np.sin((1.0 - s) * w)[:, None] * a0 + np.sin(s * w)[:, None] * a1) / math.sin(w)
 
 
+#: A NURBS is sampled within this fraction of the linearisation tolerance: with the planner's default
+#: ``arc_tolerance = tolerance / 10`` its chords stay within 2 % of the CAM tolerance of the exact curve, the
+#: margin the pass fit leaves (it refines while above 98 % of the tolerance), so the planned path stays
+#: within the CAM tolerance of the NURBS itself, not only of its polyline.
+NURBS_SAMPLING_FRACTION = 0.2
+
+
 def linearize_arcs(toolpath: Toolpath, tolerance: float = 1e-5) -> Toolpath:
     """Insert points along every :class:`Arc` and :class:`Nurbs` so that chords stay within ``tolerance``.
 
@@ -403,8 +410,9 @@ def linearize_arcs(toolpath: Toolpath, tolerance: float = 1e-5) -> Toolpath:
     toolpath : Toolpath
         A reader's output.
     tolerance : float, default 1e-5
-        Largest distance, metres, between a chord and the circle (sagitta) or the NURBS curve (0.01 mm,
-        the default planning tolerance of the project).
+        Largest distance, metres, between a chord and the circle (sagitta), 0.01 mm by default (the
+        planning tolerance of the project). A NURBS is sampled within ``NURBS_SAMPLING_FRACTION`` (0.2)
+        of it, so that the pass fit stays within its tolerance of the exact curve.
 
     Returns
     -------
@@ -429,7 +437,7 @@ def linearize_arcs(toolpath: Toolpath, tolerance: float = 1e-5) -> Toolpath:
         p0, p1 = tp.points[arc.start], tp.points[arc.index]
         nurbs_axes = None
         if isinstance(arc, Nurbs):
-            u = arc.sample_parameters(tolerance)[1:-1]
+            u = arc.sample_parameters(tolerance * NURBS_SAMPLING_FRACTION)[1:-1]
             pts = arc.evaluate(u)
             nurbs_axes = arc.axis_at(u)
         else:
