@@ -12,7 +12,7 @@ import numpy as np
 import pytest
 
 from planner import PlanSettings, plan
-from planner.io import InputFileError, InputFileWarning, read_gcode, read_toolpath
+from planner.io import InputFileError, InputFileWarning, read_apt, read_gcode, read_toolpath
 
 MM = 1e-3
 
@@ -163,7 +163,10 @@ def test_undeclared_global_variable_warns_once_with_its_line():
         ("G0 X0 Y0 Z0\nIF R1>0 GOTOF END\n", 2, "IF", ["program flow"]),
         ("G0 X0 Y0 Z0\nMARK1:\n", 2, "MARK1:", ["label"]),
         ("$P_UIFR[1]=CTRANS(X,10)\nG0 X0 Y0 Z0\n", 1, "$P_UIFR[1]", ["system variable"]),
-        ("TRAORI\nG1 X0 Y0 Z0 A3=0 B3=0 C3=1\n", 2, "A3", ["tool orientation vector"]),
+        ("G1 X0 Y0 Z0 A3=0 B3=0 C3=1 F9\n", 1, "A3", ["without TRAORI"]),
+        ("TRAORI\nG1 X0 Y0 Z0 A3=0 C3=1 F9\n", 2, "B3", ["B3 missing"]),
+        ("TRAORI\nG1 X0 Y0 Z0 A3=0 B3=0 C3=0 F9\n", 2, "A3", ["zero"]),
+        ("TRAORI\nG1 X0 Y0 Z0 A2=10 F9\n", 2, "A2", ["Euler/RPY"]),
         ("G0 X0 Y0 Z0\nCIP X10 Y10 I1=5 J1=8\n", 2, "CIP", ["intermediate point"]),
         ("G0 X=_NOPE Y0 Z0\n", 1, "X=", ["variable _NOPE is not defined"]),
         ("G0 X0 Y0 Z0\nG58 X5\n", 2, "G58", ["programmable axial offset"]),
@@ -189,3 +192,46 @@ def test_sinumerik_dwell_in_revolutions():
     tp = read("S600 M3\nG0 X0 Y0 Z0\nG1 X1 F100\nG4 S10\nX2\nG4 F=2*1.5\nX3\n")
     assert [d.value for d in tp.events_of("dwell")] == pytest.approx([1.0, 3.0])  # 10 rev at 600 rpm; 3 s
     assert np.allclose(tp.feeds[1:], 100 * MM / 60) and not math.isnan(tp.feeds[-1])  # F unchanged by G4
+
+
+FIVE_AXIS = """; 5-axis finishing with tool vectors
+DEF REAL _S=0.6
+G17 G710 G90 G94
+TRAORI
+ORIWKS ORIVECT
+G0 X0 Y0 Z20 A3=0 B3=0 C3=1
+G1 Z0 F=500
+X10 A3=0 B3=-_S C3=0.8
+X20 Y5 A3=_S B3=0 C3=0.8
+A3=0 B3=0 C3=1
+G0 Z30
+TRAFOOF
+M30
+"""
+
+FIVE_AXIS_APT = """RAPID
+GOTO/0,0,20,0,0,1
+FEDRAT/MMPM,500
+GOTO/0,0,0
+GOTO/10,0,0,0,-0.6,0.8
+GOTO/20,5,0,0.6,0,0.8
+GOTO/20,5,0,0,0,1
+RAPID
+GOTO/20,5,30
+"""
+
+
+def test_traori_tool_vectors_read_as_the_apt_tool_axes(tmp_path):
+    sin = read(FIVE_AXIS)
+    apt = read_apt(io.StringIO(FIVE_AXIS_APT), source="t.apt")
+    assert np.abs(sin.points - apt.points).max() <= 1e-15 and sin.rapid.tolist() == apt.rapid.tolist()
+    assert np.abs(sin.axes - apt.axes).max() <= 1e-15
+    assert sin.axis_given.tolist() == apt.axis_given.tolist() == [True, False, True, True, True, False]
+    assert np.allclose(sin.feeds[~sin.rapid], apt.feeds[~apt.rapid], rtol=1e-15, atol=0)
+    (tmp_path / "five.mpf").write_text(FIVE_AXIS)
+    (tmp_path / "five.apt").write_text(FIVE_AXIS_APT)
+    jobs = [plan(tmp_path / n, PlanSettings(path="cam")) for n in ("five.mpf", "five.apt")]
+    assert [m.kind for m in jobs[0].moves] == [m.kind for m in jobs[1].moves]
+    assert "reorientation" in [m.kind for m in jobs[0].moves]  # the vector-only block turns the tool in place
+    poses = [np.concatenate([c.poses for c in j.trajectory(250.0).chunks(joints=False)]) for j in jobs]
+    assert poses[0].shape == poses[1].shape and np.abs(poses[0] - poses[1]).max() <= 1e-12

@@ -141,6 +141,8 @@ class _Reader:
         self.tool_next = math.nan
         self.tool_label = ""  # Sinumerik T="name"
         self.sinumerik_dwell = False  # a Sinumerik G4 block: its F/S word is the dwell
+        self.vector: tuple[float, float, float] | None = None  # Sinumerik A3/B3/C3 of the current block
+        self.vectors_used = False
         self.sinumerik = Sinumerik(self) if dialect == "sinumerik" else None
         self.pending_rapid = False
         self.last_feed: float | None = None
@@ -191,8 +193,29 @@ class _Reader:
         if self.sinumerik is not None:
             self.sinumerik_dwell = False
             text = self.sinumerik.translate(line, text)
-            if not text:
+            n0 = self.out.count
+            if text:
+                self.iso_block(line, text)
+            if self.vector is not None:
+                self.apply_vector(line, n0)
+            return
+        self.iso_block(line, text)
+
+    def apply_vector(self, line: int, n0: int) -> None:
+        """The tool vector of a Sinumerik block (A3/B3/C3 under TRAORI) at the point the block reached."""
+        v = self.vector
+        assert v is not None
+        self.vector = None
+        self.vectors_used = True
+        out = self.out
+        if out.count == n0:  # the orientation alone changes: the tool turns where it is
+            if any(c != c for c in self.pos):
+                out.set_axis(out.count, v[0], v[1], v[2], True)
                 return
+            self.emit(line, tuple(self.pos), self.motion == 0)
+        out.set_axis(out.count - 1, v[0], v[1], v[2], True)
+
+    def iso_block(self, line: int, text: str) -> None:
         if "(" in text or ";" in text:
             text = self.strip_comments(line, text)
         code = text.replace(" ", "").replace("\t", "").upper()
@@ -586,6 +609,9 @@ class _Reader:
         mode = np.frombuffer(bytes(self.mode), dtype=np.uint8)
         given = np.frombuffer(bytes(self.given), dtype=np.uint8).astype(bool)
         m = self.machine
+        if self.vectors_used and self.rotary_used:
+            raise InputFileError(self.source, None, "", "the program gives both tool vectors (A3/B3/C3) and rotary "
+                                 "axis angles: read one or the other")  # fmt: skip
         if m is None or not self.rotary_used:
             return tp
         pts = np.array(tp.points)

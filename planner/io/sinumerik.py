@@ -13,9 +13,11 @@ Read
     control); address words written ``X10``, ``X=expr``, ``X=IC(expr)`` (incremental in a G90 block),
     ``X=AC(expr)``, rotary ``C=DC|ACP|ACN(expr)`` (absolute angle), ``I=AC(expr)`` (absolute arc
     centre), ``CR=expr`` (arc radius, as ISO ``R``), ``F=``, ``S=``/``S1=``, ``M=``, ``T=n``,
-    ``T="name"`` (a ``tool_select`` event; M6 changes to it), ``D``; ``G70``/``G700`` inch and
-    ``G71``/``G710`` metric (the Sinumerik meaning); ``G4 F<s>`` / ``G4 S<rev>`` dwell (a ``dwell``
-    event; F is not the feed there).
+    ``T="name"`` (a ``tool_select`` event; M6 changes to it), ``D``; under ``TRAORI`` the tool vector
+    ``A3= B3= C3=`` (all three in the block, normalised; the tool axis from the tip towards the spindle
+    at the block's end point, modal; a block with a vector and no position turns the tool in place);
+    ``G70``/``G700`` inch and ``G71``/``G710`` metric (the Sinumerik meaning); ``G4 F<s>`` /
+    ``G4 S<rev>`` dwell (a ``dwell`` event; F is not the feed there).
 Kept as events (no motion)
     ``MSG("text")`` (``insert``); ``CYCLE832(tol, ...)`` (``setting``, value = tolerance in metres);
     ``CYCLE800(...)`` with every offset and angle 0 (``frame``: the swivel reset); ``TRAORI``,
@@ -31,7 +33,8 @@ Refused, naming the line and the construct (they change the geometry in ways not
     ``CYCLE800`` with a non-zero offset or angle (the swivelled frame), other ``CYCLExxx(...)``
     technology cycles and ``MCALL`` of one, ``TURN=n`` with n != 0, ``TRANS/ATRANS/ROT/AROT/SCALE/
     ASCALE/MIRROR/AMIRROR`` with values, ``G58/G59`` (programmable offsets), ``CIP CT AR= AP= RP=
-    POLAR I1= J1= K1=``, tool orientation words ``A2 B2 C2 A3 B3 C3 LEAD TILT THETA ORIRESET``,
+    POLAR I1= J1= K1=``, tool orientation words ``A2 B2 C2 A4 B4 C4 A5 B5 C5 LEAD TILT THETA ORIRESET``,
+    a vector without TRAORI or with a component missing, vectors mixed with rotary angles in one program,
     program flow (``IF ELSE ENDIF WHILE FOR LOOP REPEAT GOTOF GOTOB GOTO CASE`` and labels), system
     variables ``$...``, indexed variables, ``G33 G331 G332 G110 G111 G112``.
 """
@@ -87,9 +90,6 @@ _REFUSED_ADDRESSES = {
     "A2": "tool orientation (Euler/RPY angle)",
     "B2": "tool orientation (Euler/RPY angle)",
     "C2": "tool orientation (Euler/RPY angle)",
-    "A3": "tool orientation vector",
-    "B3": "tool orientation vector",
-    "C3": "tool orientation vector",
     "A4": "surface normal",
     "B4": "surface normal",
     "C4": "surface normal",
@@ -318,6 +318,8 @@ class Sinumerik:
         self.vars: dict[str, float | str | None] = {}
         self.declared: set[str] = set()
         self.tool_name = ""
+        self.traori = False
+        self.vector: dict[str, float] = {}
 
     def fail(self, line: int, construct: str, problem: str) -> NoReturn:
         """Refuse ``construct`` at ``line``: the message reads ``"<file> line <n>, <construct>: <problem>"``."""
@@ -376,6 +378,19 @@ class Sinumerik:
             iso.extend(self.word(line, w, text, supa, block_abs))
         if supa:
             iso.insert(0, "G53")
+        if self.vector:
+            got = self.vector
+            self.vector = {}
+            missing = [w for w in ("A3", "B3", "C3") if w not in got]
+            if missing:
+                self.fail(line, missing[0], f"tool vector: {', '.join(missing)} missing (give A3, B3 and C3 together)")
+            if not self.traori:
+                self.fail(line, "A3", "tool vector A3/B3/C3 without TRAORI (the orientation transformation)")
+            i, j, k = got["A3"], got["B3"], got["C3"]
+            n = math.sqrt(i * i + j * j + k * k)
+            if not n > 0.0:
+                self.fail(line, "A3", "tool vector A3/B3/C3 is zero")
+            self.r.vector = (i / n, j / n, k / n)
         return "".join(iso)
 
     def define(self, line: int, text: str) -> None:
@@ -433,6 +448,9 @@ class Sinumerik:
                 seconds = value if name_u == "F" else value * 60.0 / self.r.rpm
                 out.event("dwell", line, "G4", seconds, text)
                 return []
+            if name_u in ("A3", "B3", "C3"):
+                self.vector[name_u] = self.eval(line, f"{name_u}=", expr)
+                return []
             if name_u == "CR":
                 return ["R" + fmt(self.eval(line, "CR", expr))]
             if name_u in ("D", "H"):
@@ -452,6 +470,8 @@ class Sinumerik:
             out.event("setting", line, u, math.nan, text)
             return []
         if u in _FRAME_WORDS or _SETTABLE_FRAME.fullmatch(u):
+            if u in ("TRAORI", "TRAFOOF"):
+                self.traori = u == "TRAORI"
             out.event("frame", line, u, math.nan, text)
             return []
         if u in _FRAME_RESETS:
@@ -614,6 +634,7 @@ class Sinumerik:
             out.event("setting", line, name, math.nan, text)
             return []
         if name == "TRAORI":
+            self.traori = True
             out.event("frame", line, "TRAORI", math.nan, text)
             return []
         if name in _FRAME_RESETS:
