@@ -6,7 +6,9 @@ length is a quintic polynomial in t, so lengths and their inversion need no quad
 
 The functions prefixed ``batch_`` work on stacks of quintics (A of shape (..., 3, 4)); the spline
 fitters use them to build thousands of segments at numpy speed. :class:`PHQuintic` is the
-one-segment view with the documented public API.
+one-segment view with the documented public API. The default member of the Hermite family (C1 Hermite
+interpolation, and so the C1 and C2 splines) is chosen by a rule that respects the data's geometry
+(issue 12): see :func:`batch_hermite`.
 """
 
 from __future__ import annotations
@@ -23,22 +25,13 @@ from planner.validation import check_vector
 # C1 Hermite interpolation (Farouki's family with two free angles)
 # ---------------------------------------------------------------------------------------------
 
-_CC_GRID = 24
-#: Newton evaluations from the starts of the global grid search (rough data, where the certificate fails).
-_CC_SEARCH_EVALS = 6
-#: Newton evaluations on the CC measure from the alpha-criterion start (most segments converge after one).
-_CC_EVALS = 4
-#: A Newton step has converged when its predicted decrease is below this fraction of F plus ...
-_CC_RTOL = 1e-9
-#: ... this fraction of the data scale 25 (|d0| + |d1|) (F's terms are a few times it: some 1000 ulps).
-_CC_ATOL = 3e-13
-#: Half-width (rad) of the arc around the fast path's angle within which the certificate must place the
-#: global minimum (0.25 rad from the returned angle); segments whose certified arc is wider get the global
-#: grid search ...
-_CERT_ARC = 0.24
-_CERT_X = float(np.sin(_CERT_ARC / 2) ** 2)
-#: ... and the returned angle is the last Newton step (at most this, rad) from where it was certified.
-_CERT_STEP = 0.01
+#: Weight of the fallback axis in :func:`_pure_vector_axis` (relative, squared): it decides the axis only where
+#: the end tangents are antiparallel to about 1e-6 (|sigma| below about 1e-6 |a0| |a2|).
+_AXIS_FALLBACK = 1e-12
+#: Composite Gauss-Legendre rule of the bending energy of the four candidates (see bending_energies): pieces of
+#: [0, 1] and nodes on each. The energy of a candidate near a cusp is a sharp peak; 16 x 8 nodes rank the
+#: candidates of rough random data as 256 x 64 nodes do, to 1e-4 of the energy (tests).
+_GL_NODES, _GL_PIECES = 8, 16
 _FLIP = np.array([2, 3, 0, 1])
 _IPERM, _ISIGN = np.array([1, 0, 3, 2]), np.array([[-1.0], [1.0], [1.0], [-1.0]])  # <B i, Q> = sum B[_IPERM] Q _ISIGN
 
@@ -111,254 +104,185 @@ def _dot(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->j", p, q)
 
 
-class _CCMeasure:
-    """The CC measure of the Hermite family as a cheap trigonometric function of delta = phi2 - phi0.
+def _pure_vector_axis(Sc, Ss, sc, ss, lam, dp):
+    """(cos, sin) (N,) of the delta = phi2 - phi0 (defined up to pi) at which A0 i A2* is a pure vector.
 
-    min over phi0 of |5 (A0 + A2) - Q|^2 = 25 |X|^2 + |alpha| - 10 sqrt((|alpha| |X|^2 + <X i X*, alpha>) / 2)
-    with X = a0 + a2 e^{i delta}, because max_phi <X e^{i phi}, Q> = |(w0, w1)| for w = Q* X, and
-    w0^2 + w1^2 = (|w|^2 + (w i w*)_i) / 2 = (|alpha| |X|^2 + <X i X*, alpha>) / 2. Everything is a
-    trigonometric polynomial in delta: ``P`` = |X|^2 holds the per-segment coefficients on the basis
-    (1, cos, sin) of delta, ``G`` = |alpha|^2 and ``H`` = <X i X*, alpha> on (1, cos, sin, cos 2 delta,
-    sin 2 delta), as rows (3, N) and (5, N).
-
-    With S(delta) = i_product(a0, a2 e^{i delta}) = Sc cos + Ss sin, sigma = (sigma_c, sigma_s) the scalar
-    parts of a0 i a2*, a0 a2* (orthogonal to those of the vector parts: |S|^2 = |a0|^2 |a2|^2 - (sigma.z)^2,
-    z = (cos, sin)), alpha = base + 10 S and X i X* = e + 2 S:
-    P = P0 + 2 sigma.z_perp, G = G0 + 20 mb.z - 100 (sigma.z)^2, H = G / 5 + K0 + l.z, with
-    mb = (Sc.base, Ss.base), l = 10 (Sc.e, Ss.e) - 2 mb (the "linear forms" Lc, Ls of ``_cc_eval``).
+    The quaternion a0 i (a2 e^{i delta})* = (sc cos + ss sin) + S(delta) has the scalar part sigma.z with
+    sigma = (sc, ss), z = (cos delta, sin delta): it vanishes on the axis z = +-sigma_perp. Where the end
+    tangents are antiparallel sigma = 0 and every delta qualifies; there the axis maximizing |<S(delta), dp>|
+    (b = (<Sc, dp>, <Ss, dp>)) decides. Both axes are blended sign-free, on doubled angles (an axis z ~ -z
+    is the point (x^2 - y^2, 2 x y)), the second with the weight _AXIS_FALLBACK, so that the result is a
+    continuous function of the data wherever the blend is nonzero. Both axes are carried onto themselves by
+    every isometry of the data (rotations; the reflections that fix planar data or map mirror-symmetric data
+    onto their reversal), so their blend is too. lam = |a0|^2 |a2|^2, dp = p1 - p0 (3, N).
     """
-
-    P: np.ndarray
-    G: np.ndarray
-    H: np.ndarray
-
-    @classmethod
-    def from_forms(cls, Lc, Ls, P0, G0, K0):
-        """The measure from the forms of _cc_eval: (10 sigma, 20 mb, l) as rows Lc (cos parts), Ls (sin parts)."""
-        self = cls.__new__(cls)
-        sc, ss = 0.1 * Lc[0], 0.1 * Ls[0]
-        # (sigma.z)^2 = |sigma|^2 / 2 + (sc^2 - ss^2) cos 2 delta / 2 + sc ss sin 2 delta
-        self.P = np.stack((P0, 2 * ss, -2 * sc))
-        G = (G0 - 50 * (sc * sc + ss * ss), Lc[1], Ls[1], 50 * (ss * ss - sc * sc), -100 * sc * ss)
-        self.G = np.stack(G)
-        self.H = 0.2 * self.G
-        self.H[0] += K0
-        self.H[1] += Lc[2]
-        self.H[2] += Ls[2]
-        return self
-
-    @staticmethod
-    def _basis(delta):
-        """(5, ...) rows 1, cos, sin, cos 2 delta, sin 2 delta."""
-        c, s = np.cos(delta), np.sin(delta)
-        return np.stack((np.ones_like(c), c, s, c * c - s * s, 2 * c * s))
-
-    @staticmethod
-    def _measure(P, G, H):
-        """F from P, G, H (overwrites G and H)."""
-        alpha = np.sqrt(np.abs(G, out=G), out=G)  # |alpha|^2 >= 0 up to round-off
-        H += alpha * P  # 2 (w0^2 + w1^2) >= 0 up to round-off
-        r = np.sqrt(np.abs(H, out=H), out=H)
-        return 25 * P + alpha - (10 / np.sqrt(2)) * r
-
-    def on_grid(self, delta):
-        """Measure (K, N) at the same K values of delta (K,) for every segment (three matrix products)."""
-        b = self._basis(delta).T
-        return self._measure(b[:, :3] @ self.P, b @ self.G, b @ self.H)
+    bc, bs = _dot(Sc, dp), _dot(Ss, dp)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = _AXIS_FALLBACK / (lam * _dot(dp, dp))
+        w = np.where(np.isfinite(w), w, 0.0)
+        il = np.where(lam > 0, 1.0 / lam, 0.0)
+    Dx = (ss * ss - sc * sc) * il + (bc * bc - bs * bs) * w  # doubled angle of sigma_perp = (-ss, sc) ...
+    Dy = (-2.0 * il) * ss * sc + (2.0 * w) * bc * bs  # ... and of b
+    r = np.hypot(Dx, Dy)
+    # half angle: (r + Dx, Dy) ~ z for Dx >= 0 and (Dy, r - Dx) ~ z otherwise (no cancellation either way)
+    pos = Dx >= 0
+    x, y = np.where(pos, r + Dx, Dy), np.where(pos, Dy, r - Dx)
+    n = np.hypot(x, y)
+    ok = n > 0  # no axis at all: d1 antiparallel to d0 and p1 - p0 along them (a straight hairpin)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(ok, x / n, 1.0), np.where(ok, y / n, 0.0)
 
 
-def _cc_grid_starts(cc: _CCMeasure):
-    """Starts of the global search over a grid of 24 values of delta: the vertex of the parabola through the
-    best grid point and its neighbours (N,), that best value (N,), and where another basin's best grid point
-    (away from the first's neighbours) is nearly as good, those segments' indices and that point."""
-    n, k, h = cc.P.shape[1], _CC_GRID, 2 * np.pi / _CC_GRID
-    cols = np.arange(n)
-    grid = np.arange(k) * h
-    Fg = cc.on_grid(grid)  # (K, N)
-    first = np.argmin(Fg, axis=0)
-    fm, f0, fp = Fg[first - 1, cols], Fg[first, cols], Fg[(first + 1) % k, cols]
-    curv = fm - 2 * f0 + fp
-    with np.errstate(all="ignore"):
-        off = np.where(curv > 0, 0.5 * h * (fm - fp) / curv, 0.0)
-    Fg[first - 1, cols] = Fg[first, cols] = Fg[(first + 1) % k, cols] = np.inf
-    second = np.argmin(Fg, axis=0)
-    amb = np.flatnonzero(Fg[second, cols] < 1.5 * f0 + 1e-12 * cc.P[0])
-    return grid[first] + np.clip(off, -h, h), f0, amb, grid[second[amb]]
+def _member(a0, a2d, Q, c0, s0) -> np.ndarray:
+    """A (3, 4, N) of the member A0 = a0 e^{i phi0}, A2 = a2d e^{i phi0}, A1 = -(3/4)(A0 + A2) + Q / 4
+    (Farouki's solution of the end-point condition), c0, s0 = cos, sin phi0."""
+    A = np.empty((3,) + a0.shape)
+    _times_e_i(a0, c0, s0, A[0])
+    _times_e_i(a2d, c0, s0, A[2])
+    np.multiply(A[0] + A[2], -0.75, out=A[1])
+    A[1] += 0.25 * Q
+    return A
 
 
-def _alpha_start(sc, ss, bc, bs, s2):
-    """(cos, sin) (N,) of a start at the global minimum of T = |S(delta) - w|^2 over the circle, and |sigma|.
+def _energy_matrices(nodes: int, pieces: int = 1) -> tuple[np.ndarray, ...]:
+    """Weights (K,) of the composite Gauss-Legendre rule on [0, 1] (``pieces`` equal pieces, ``nodes`` each) and
+    the matrices that map the inner products of A0, A1, A2 to sigma = |A|^2, |A'|^2 and sigma' / 2 = <A, A'>
+    (K, 6 products g00 g01 g02 g11 g12 g22), and to <A i, A'> (K, 3 products h01 h02 h12, h_jk = <A_j i, A_k>
+    = -h_kj) at the K nodes."""
+    x, wx = np.polynomial.legendre.leggauss(nodes)
+    t = ((0.5 * (x + 1.0))[None] + np.arange(pieces)[:, None]).ravel() / pieces
+    w = np.tile(wx, pieces) / (2.0 * pieces)
+    nodes = t.size
+    b = np.stack(((1 - t) ** 2, 2 * t * (1 - t), t * t), axis=1)  # A(t) = sum b_j A_j
+    db = np.stack((-2 * (1 - t), 2 - 4 * t, 2 * t), axis=1)  # A'(t) = sum db_j A_j
+    pairs = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+    Ms, Md, Mx = (np.zeros((nodes, 6)) for _ in range(3))
+    for q, (j, k) in enumerate(pairs):
+        f = 1.0 if j == k else 2.0  # g_jk appears as jk and kj
+        Ms[:, q] = f * b[:, j] * b[:, k]
+        Md[:, q] = f * db[:, j] * db[:, k]
+        Mx[:, q] = b[:, j] * db[:, k] + (b[:, k] * db[:, j] if j != k else 0.0)
+    Mh = np.zeros((nodes, 3))
+    for q, (j, k) in enumerate(((0, 1), (0, 2), (1, 2))):  # <A i, A'> = sum b_j db_k h_jk, h_kj = -h_jk
+        Mh[:, q] = b[:, j] * db[:, k] - b[:, k] * db[:, j]
+    return w, Ms, Md, Mx, Mh
 
-    With z = (cos delta, sin delta) and M = [Sc Ss]: M^T M = |a0|^2 |a2|^2 I - sigma sigma^T (see _CCMeasure),
-    so T = |w|^2 + |a0|^2 |a2|^2 - (sigma.z)^2 - 2 b.z with b = M^T w = (bc, bs), and its minimum over the
-    circle is a 2 x 2 trust-region subproblem: in the frame u = sigma / |sigma|, z = (x, y), |b.u| = b1,
-    |b.u_perp| = b2: x = b1 / t, y = b2 / (s2 + t), t > 0 the root of g(t) = (b1 / t)^2 + (b2 / (s2 + t))^2 = 1
-    (Lagrange multiplier s2 + t >= s2: the global minimum). Here t is the largest of three lower bounds of
-    that root, t >= b1 / x_c from x <= x_c, the positive root of the cubic b1 + (s2 - b2) x - b2 x^3 / 2
-    (1/sqrt(1 - x^2) >= 1 + x^2 / 2), and z(t) is put on the circle: exact to O(x^5) where the minimum is flat
-    (x small: w near the tip of a thin ellipse S, where Newton in delta converges slowly), in the global
-    minimum's basin elsewhere, where Newton on the CC measure converges fast. (1/sqrt(g) is concave, so
-    Newton on g(t) = 1 from there would rise monotonically to the root; on smooth and on random data a
-    step of it spares no later Newton step on the measure.)
+
+_GL_W, _E_S, _E_D, _E_X, _E_H = _energy_matrices(_GL_NODES, _GL_PIECES)
+#: The screening rule of _least_energy_member (2 x 4 nodes): a candidate whose estimate is below 1 / _SCREEN of
+#: the others' is taken without the full rule (on 1e5 rough random planar data: no difference from the full
+#: rule; a 3-node rule with a factor 3 differed on 1 %).
+_GL3_W, _L_S, _L_D, _L_X, _L_H = _energy_matrices(4, 2)
+_SCREEN = 10.0
+#: Weight of the CC measure that breaks ties of the bending energy (see _least_energy_member).
+_TIE = 1e-9
+
+
+def bending_energies(A: np.ndarray) -> np.ndarray:
+    """Bending energy integral of kappa^2 ds (M,) of PH quintics A (3, 4, M) (coefficients, component rows),
+    by the composite Gauss-Legendre rule _GL_PIECES x _GL_NODES (a cusp at a node counts as infinite energy).
+
+    With r' = A i A*: sigma = |A|^2, r'' = 2 vec(A' i A*), so kappa^2 sigma = (|r''|^2 - sigma'^2) / sigma^3
+    = 4 (|A|^2 |A'|^2 - <A, A'>^2 - <A i, A'>^2) / |A|^6; each term is a quadratic form in A0, A1, A2, so the
+    values at the nodes are matrix products of their nine inner products.
     """
-    sn = np.sqrt(s2)  # sigma = 0 (no frame) gives nan: left to the grid search
-    isn = 1.0 / sn
-    uc, us = sc * isn, ss * isn
-    B1 = uc * bc + us * bs
-    B2 = uc * bs - us * bc
-    b1, b2 = np.abs(B1), np.abs(B2)
-    # Cardano for x^3 + 3 p3 x - 2 qh = 0, p3 = 2 (b2 - s2) / (3 b2), qh = b1 / b2: with disc >= 0 the real root
-    # A - p3 / A = 2 qh / (A^2 + p3 + (p3 / A)^2) (A^2 >= -p3 there: no cancellation), which is >= 2 sqrt(-p3)
-    # when p3 < 0; with three real roots (disc < 0) the largest is at most 2 sqrt(-p3) (so the fmax of the two)
-    ib2 = 1.0 / b2
-    p3 = (b2 - s2) * ib2 * (2.0 / 3.0)
-    qh = b1 * ib2
-    disc = qh * qh + p3 * p3 * p3
-    A = np.cbrt(np.sqrt(np.abs(disc)) + qh)
-    B = p3 / A
-    xc = np.fmax((qh + qh) / (A * A + p3 + B * B), np.sqrt(-4.0 * p3))
-    t = np.fmax(np.fmax(b1, b2 - s2), b1 / xc)  # t >= b1 (x <= 1), s2 + t >= b2 (y <= 1), t >= b1 / x_c
-    x, y = b1 / t, b2 / (s2 + t)
-    ir = 1.0 / np.sqrt(x * x + y * y)  # onto the circle
-    x, y = np.copysign(x * ir, B1), np.copysign(y * ir, B2)
-    return uc * x - us * y, us * x + uc * y, sn
+    A0, A1, A2 = A
+    g = np.stack((_dot(A0, A0), _dot(A0, A1), _dot(A0, A2), _dot(A1, A1), _dot(A1, A2), _dot(A2, A2)))
+    A0i, A1i = A0[_IPERM] * _ISIGN, A1[_IPERM] * _ISIGN  # A_j i
+    h = np.stack((_dot(A0i, A1), _dot(A0i, A2), _dot(A1i, A2)))
+    s, d, x, y = _E_S @ g, _E_D @ g, _E_X @ g, _E_H @ h
+    num = s * d
+    num -= x * x
+    num -= y * y
+    np.maximum(num, 0.0, out=num)  # |A|^2 |A'_perp|^2 >= 0 but for round-off
+    s3 = s * s
+    s3 *= s
+    with np.errstate(divide="ignore", invalid="ignore"):
+        f = num / s3
+    f[~(s3 > 0)] = np.inf
+    return 4.0 * (_GL_W @ f)
 
 
-def _cc_eval(forms, c, s, derivs=True):
-    """The CC measure F (N,) at z = (c, s) = e^{i delta} and |u| + |v| = 25 P + a; with ``derivs`` also
-    dF/d delta, d^2F/d delta^2 (after F) and the values Lz, Lp of the linear forms (last).
+def _least_energy_member(dp, base, a0, a2, r0, r1) -> np.ndarray:
+    """A (3, 4, N) of the default member (see :func:`batch_hermite`): of the four members with A0 i A2* a pure
+    vector, the one of least bending energy.
 
-    forms = (Lc, Ls, P0, G0, K0): the linear forms (10 sigma, 20 mb, l, b) of _CCMeasure as rows of cos and
-    sin coefficients, Lz = Lc c + Ls s and Lp = Ls c - Lc s (the derivative in delta), and the constants.
-    F = 25 P + a - 10 r with P = P0 + 2 sigma.z_perp, a = |alpha| = sqrt(G), G = G0 + 20 mb.z - 100 (sigma.z)^2,
-    r = sqrt((a P + H) / 2), H = G / 5 + K0 + l.z.
+    The candidates are delta in {delta0, delta0 + pi} (``_pure_vector_axis``) and, for each, phi0 at the maximum
+    of <A0 + A2, Q> and phi0 + pi. Their energies E = 4 int Lambda / sigma^3 dt (see :func:`bending_energies`)
+    follow from nine inner products of A0, A1, A2, themselves from a few inner products of a0, a2, Q
+    (A1 = -(3/4)(A0 + A2) + Q/4, <A0, A0> = |d0|, ...). A coarse Gauss rule screens them: where one candidate's
+    estimate is below 1 / _SCREEN of the other three's (smooth data: the others have cusps or loops) it is
+    taken; elsewhere the four energies by the composite rule of :func:`bending_energies` decide.
     """
-    Lc, Ls, P0, G0, K0 = forms
-    Lz, Lp = Lc * c + Ls * s, Ls * c - Lc * s
-    sz, mz, lz = Lz[:3]
-    sp, mp, lp = Lp[:3]
-    P = P0 + 0.2 * sp
-    q = sz * sz
-    G = G0 + mz - q
-    a = np.sqrt(G)
-    r = np.sqrt(0.5 * (a * P + 0.2 * G + K0 + lz))
-    Sg = 25.0 * P + a
-    F = Sg - 10.0 * r
-    if not derivs:
-        return F, Sg
-    G1 = mp - 2.0 * sz * sp  # P' = -sz / 5, P'' = -sp / 5
-    G2 = 2.0 * (q - sp * sp) - mz
-    ia = 0.5 / a
-    a1 = G1 * ia
-    a2 = (G2 - 2.0 * a1 * a1) * ia
-    ir = 0.25 / r
-    r1 = (a1 * P + 0.2 * (G1 - a * sz) + lp) * ir
-    r2 = (a2 * P + 0.2 * (G2 - 2.0 * a1 * sz - a * sp) - lz - 4.0 * r1 * r1) * ir
-    return F, a1 - 5.0 * sz - 10.0 * r1, a2 - 5.0 * sp - 10.0 * r2, Sg, Lz, Lp
-
-
-def _cc_newton(forms, c, s, atol, evals=_CC_EVALS, clip=None):
-    """Newton on dF/d delta = 0 from z = (c, s), at most ``evals`` evaluations of F, F', F'' (later ones only
-    on the segments not yet converged). A step has converged when F'' > 0 and its predicted decrease is below
-    _CC_RTOL F + atol; at a flat (quartic) minimum a Newton step leaves 16/81 of the excess, 8/27 of the
-    predicted decrease, and near a regular one far less. Returns z after the last step, whether that step
-    had converged, and (z, F, 25 P + |alpha|, the linear forms, the step) where it was taken."""
-    F, F1, F2, Sg, Lz, Lp = _cc_eval(forms, c, s)
-    step = F1 / np.abs(F2)  # a descent step also where F'' <= 0
-    if clip is not None:  # far from the minimum (the grid search's starts)
-        step = np.fmax(np.fmin(step, clip), -clip)
-    conv = (F2 > 0) & (0.5 * F1 * step <= _CC_RTOL * F + atol)
-    at = (c, s, F, Sg, Lz, Lp, step)
-    k = 1.0 / np.sqrt(1.0 + step * step)
-    c, s = (c + step * s) * k, (s - step * c) * k  # z e^{-i atan(step)}
-    if evals > 1 and not conv.all():
-        idx = np.flatnonzero(~conv)
-        sub = tuple(f[..., idx] for f in forms)
-        c[idx], s[idx], conv[idx], sub = _cc_newton(sub, c[idx], s[idx], atol[idx], evals - 1, clip)
-        for full, part in zip(at, sub, strict=True):
-            full[..., idx] = part
-    return c, s, conv, at
-
-
-def _cc_member(base, e, w, a0, a2, r0, r1):
-    """(cos, sin) (N,) of delta = phi2 - phi0 of the member minimizing the CC measure, and S(delta) (3, N).
-
-    Fast path: start at the global minimum of the alpha criterion |S(delta) - w|^2 (w = 3 (p1 - p0) - (d0 + d1),
-    zero exactly for PH-cubic data; see _alpha_start), then Newton on F. A certificate then proves, per
-    segment, that the global minimum of F lies within _CERT_ARC of where the last Newton step was taken;
-    segments without it (Newton not converged, or the bound too weak) get the global grid search and
-    Newton from the better of its result and the fast one.
-    """
-    n = base.shape[1]
-    # the products a0 i a2* = (sigma_c, Sc) and a0 a2* = (sigma_s, Ss): S(delta) = Sc cos + Ss sin
-    R = _PRODUCTS @ np.multiply(a0[:, None], a2[None]).reshape(16, n)
+    n = dp.shape[1]
+    R = _PRODUCTS @ np.multiply(a0[:, None], a2[None]).reshape(16, n)  # a0 i a2* and a0 a2*, (vec, scalar)
     Sc, Ss = R[:3], R[4:7]
-    sc, ss = R[3], R[7]
-    s2 = sc * sc + ss * ss
-    lam = r0 * r1  # |a0|^2 |a2|^2
-    Lc, Ls = np.empty((4, n)), np.empty((4, n))  # linear forms (10 sigma, 20 mb, l, b), see _cc_eval
-    np.multiply(sc, 10.0, out=Lc[0])
-    np.multiply(ss, 10.0, out=Ls[0])
-    mc, ms, ec, es = _dot(Sc, base), _dot(Ss, base), _dot(Sc, e), _dot(Ss, e)
-    np.multiply(mc, 20.0, out=Lc[1])
-    np.multiply(ms, 20.0, out=Ls[1])
-    Lc[2], Ls[2] = 10.0 * ec - 2.0 * mc, 10.0 * es - 2.0 * ms
-    Lc[3], Ls[3] = _dot(Sc, w), _dot(Ss, w)  # b = M^T w
-    bb = _dot(base, base)
-    scale = 25.0 * (r0 + r1)
-    forms = (Lc, Ls, r0 + r1, bb + 100.0 * lam, _dot(base, e) - 0.2 * bb)
-    atol = _CC_ATOL * scale
-    T0 = _dot(w, w) + lam
-    with np.errstate(all="ignore"):  # degenerate data give inf/nan, caught by the certificate
-        c, s, sn = _alpha_start(sc, ss, Lc[3], Ls[3], s2)
-        c, s, conv, (c0, s0, F, Sg, (sz, _, _, bz), (sp, _, _, bp), step) = _cc_newton(forms, c, s, atol)
-        # Certificate. For the fibres over u = 25 X i X* and v = alpha (nearest points A, B; Hopf map),
-        # |u - v|^2 = F (2 Sg - F) exactly with Sg = |u| + |v| = 25 P + |alpha|, and u - v = 40 (S - w): so
-        # F = Sg - sqrt(Sg^2 - 1600 T) >= 800 T / Sg, with T = |S - w|^2 the alpha criterion. P and alpha are
-        # affine in z, so Sg(z') <= Sg(z) + L |z' - z|, L = 50 |sigma| + 10 |a0| |a2|, and
-        # Sg <= Smax = 25 (|a0| + |a2|)^2 + |base| + 10 |a0| |a2|.
-        Ff = F * (1.0 + 1e-12) + 1e-13 * scale  # F and Sg with their round-off
-        rl = np.sqrt(lam)
-        rx = np.sqrt(_CERT_X)
-        Sbound = np.fmin(scale + 60.0 * rl + np.sqrt(bb), Sg + (100.0 * rx) * sn + (20.0 * rx) * rl)
-        # Exactly, T(z') - T(z) = (z' - z)^T K (z' - z) - 2 gamma sin(theta) for z' = z e^{i theta}, with
-        # K = M^T M - lambda I, lambda = z^T (M^T M z - b) (kappa = |a0|^2 |a2|^2 - lambda), gamma = T'(z) / 2,
-        # and T(z) = |w|^2 + |a0|^2 |a2|^2 - (sigma.z)^2 - 2 b.z = T0 - kappa - b.z (sz, sp are 10 sigma.z, ...)
-        kappa = 0.01 * (sz * sz) + bz
-        Tz = T0 - kappa - bz  # the alpha criterion where the last step was taken
-        mu = kappa - s2  # smallest eigenvalue of K; shifted to K + neg I >= 0, paid for below
-        neg = np.fmax(-mu, 0.0)
-        k11, k22 = bz + neg, kappa - 0.01 * (sp * sp) + neg  # z^T K z, z_perp^T K z_perp
-        # With x = sin^2(theta / 2), |z' - z| = 2 sqrt(x), |sin(theta)| <= 2 sqrt(x) and (z' - z)^T K (z' - z) =
-        # 4 x (k11 x - 2 k12 sqrt(x (1 - x)) + k22 (1 - x)) >= 4 x max(mu, (sqrt(k11 x) - sqrt(k22))_+^2)
-        # (k12^2 <= k11 k22). So F(z') > F wherever h(x) = 800 (T(z) + that - 4 |gamma| sqrt(x) - 4 neg x)
-        # - F min(Smax, Sg + 2 L sqrt(x)) > 0; h is convex with h(0) < 0, so h(x_max) > 0 proves it for every
-        # |theta| >= _CERT_ARC: the global minimum lies in that arc. (T(z) less a margin for its cancellation.)
-        Q = (4.0 * _CERT_X) * np.fmax(mu, np.fmax(np.sqrt(k11 * _CERT_X) - np.sqrt(k22), 0.0) ** 2)
-        Q -= (4.0 * rx) * np.abs(0.01 * (sz * sp) + bp) + (4.0 * _CERT_X) * neg + 1e-13 * (T0 + lam)
-        bad = np.flatnonzero(~(conv & (800.0 * (Tz + Q) > Ff * Sbound) & (np.abs(step) <= _CERT_STEP)))
-        if bad.size:  # the global search: Newton from the grid's best basin (or the fast result where that is lower
-            # than the grid's best) and from a second basin nearly as good; the best of them
-            sub = (Lc[:, bad], Ls[:, bad], forms[2][bad], forms[3][bad], forms[4][bad])
-            start, fg, amb, start2 = _cc_grid_starts(_CCMeasure.from_forms(*sub))
-            nb = bad.size
-            both = np.concatenate((np.arange(nb), amb))  # both basins' starts in one Newton run
-            fast = _cc_eval(sub, c[bad], s[bad], derivs=False)[0] <= fg
-            d = np.concatenate((start, start2))
-            cb, sb = np.cos(d), np.sin(d)
-            cb[:nb][fast], sb[:nb][fast] = c[bad][fast], s[bad][fast]
-            sub2 = tuple(f[..., both] for f in sub)
-            cb, sb = _cc_newton(sub2, cb, sb, atol[bad][both], _CC_SEARCH_EVALS, 0.2)[:2]
-            Fb = _cc_eval(sub2, cb, sb, derivs=False)[0]
-            worse = ~(Fb[:nb] <= fg)  # Newton lost: the grid point
-            cb[:nb][worse], sb[:nb][worse], Fb[:nb][worse] = np.cos(start[worse]), np.sin(start[worse]), fg[worse]
-            better = np.flatnonzero(Fb[nb:] < Fb[amb])  # the second basin where it is better
-            cb[amb[better]], sb[amb[better]] = cb[nb + better], sb[nb + better]
-            cb, sb = cb[:nb], sb[:nb]
-            fail = ~np.isfinite(cb + sb)  # degenerate data (certified segments are finite)
-            cb[fail], sb[fail] = 1.0, 0.0
-            c[bad], s[bad] = cb, sb
-    return c, s, Sc * c + Ss * s
+    c, s = _pure_vector_axis(Sc, Ss, R[3], R[7], r0 * r1, dp)
+    c02, e02 = R[7] * c - R[3] * s, R[3] * c + R[7] * s  # <a0, a2 e^{i delta}>, <a0 i, a2 e^{i delta}>
+    # per delta (rows 0: delta0, 1: delta0 + pi): a2 e^{i delta}, Q, phi0 and the inner products at phi0
+    a2d = np.stack((_times_e_i(a2, c, s), _times_e_i(a2, -c, -s)))  # (2, 4, N)
+    S = Sc * c + Ss * s
+    Q, qq = sqrt_rot(np.stack((base + 10.0 * S, base - 10.0 * S), axis=1).reshape(3, 2 * n))
+    Q = Q.reshape(4, 2, n).transpose(1, 0, 2)
+    qq = qq.reshape(2, n)  # |Q|^2 = |alpha|
+    u0, v0 = (a0 * Q).sum(axis=1), (a0[_IPERM] * _ISIGN * Q).sum(axis=1)  # <a0, Q>, <a0 i, Q>  (2, N)
+    u2, v2 = (a2d * Q).sum(axis=1), (a2d[:, _IPERM] * _ISIGN * Q).sum(axis=1)
+    x, y = u0 + u2, v0 + v2  # <(a0 + a2d) e^{i phi0}, Q> = x cos + y sin: the maximum at phi0 = atan2(y, x)
+    h = np.hypot(x, y)
+    ok = h > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c0, s0 = np.where(ok, x / h, 1.0), np.where(ok, y / h, 0.0)
+    P0, P2 = c0 * u0 + s0 * v0, c0 * u2 + s0 * v2  # <A0, Q>, <A2, Q>
+    V0, V2 = c0 * v0 - s0 * u0, c0 * v2 - s0 * u2  # <A0 i, Q>, <A2 i, Q>
+    # candidates k = 2 * (delta index) + (phi0 + pi): the flip negates A0, A2 and so P, V
+    f = np.array([1.0, -1.0])[:, None]
+    sg = np.array([1.0, -1.0])[:, None]
+    g02 = np.repeat(sg * c02, 2, axis=0)  # (4, N)
+    e = np.repeat(sg * e02, 2, axis=0)
+    P0, P2, V0, V2 = ((f[:, None] * z[None]).transpose(1, 0, 2).reshape(4, n) for z in (P0, P2, V0, V2))
+    qq4 = np.repeat(qq, 2, axis=0)
+    g00, g22 = np.broadcast_to(r0, (4, n)), np.broadcast_to(r1, (4, n))
+    g01 = -0.75 * (r0 + g02) + 0.25 * P0
+    g12 = -0.75 * (g02 + r1) + 0.25 * P2
+    g11 = 0.5625 * (r0 + r1 + 2.0 * g02) - 0.375 * (P0 + P2) + 0.0625 * qq4
+    g = np.stack((g00, g01, g02, g11, g12, g22)).reshape(6, 4 * n)
+    hh = np.stack((-0.75 * e + 0.25 * V0, e, -0.75 * e - 0.25 * V2)).reshape(3, 4 * n)
+    # screening: the energies by the 2 x 4-node rule from the inner products; a candidate below 1 / _SCREEN of
+    # the other three is taken, elsewhere the full rule decides
+    sv, dv, xv, yv = _L_S @ g, _L_D @ g, _L_X @ g, _L_H @ hh
+    num = sv * dv
+    num -= xv * xv
+    num -= yv * yv
+    np.maximum(num, 0.0, out=num)  # >= 0 but for round-off
+    sv3 = sv * sv
+    sv3 *= sv
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        fv = num / sv3
+    fv[~(sv3 > 0)] = np.inf
+    est = (_GL3_W @ fv).reshape(4, n)
+    # ties (a straight segment and the same line with stops, both of zero energy) go to the least CC measure
+    # |A0 - 2 A1 + A2|^2 (FGMS 2008): _TIE of it, made dimensionless by (|d0| + |d1|)^2, joins the energy
+    cc = (g[0] + 4.0 * g[3] + g[5] - 4.0 * g[1] + 2.0 * g[2] - 4.0 * g[4]).reshape(4, n)
+    tie = _TIE / (r0 + r1) ** 2
+    est = 4.0 * est + tie * cc
+    best = np.argmin(est, axis=0)
+    cols = np.arange(n)
+    others = est.copy()
+    others[best, cols] = np.inf
+    bad = np.flatnonzero(~(others.min(axis=0) > _SCREEN * est[best, cols]))
+    if bad.size:  # no certificate: the four energies by quadrature
+        cand = np.empty((3, 4, 4, bad.size))
+        for k in range(4):
+            j, fl = divmod(k, 2)
+            sign = 1.0 - 2.0 * fl
+            m = _member(a0[:, bad], a2d[j][:, bad], Q[j][:, bad], sign * c0[j, bad], sign * s0[j, bad])
+            cand[:, :, k] = m
+        E = bending_energies(cand.reshape(3, 4, 4 * bad.size)).reshape(4, bad.size)
+        cc = ((cand[0] - 2.0 * cand[1] + cand[2]) ** 2).sum(axis=0)
+        best[bad] = np.argmin(E + tie[bad] * cc, axis=0)
+    j, fl = best // 2, best % 2
+    sign = 1.0 - 2.0 * fl
+    return _member(a0, a2d[j, :, cols].T, Q[j, :, cols].T, sign * c0[j, cols], sign * s0[j, cols])
 
 
 def hermite_rows(dp, d0, d1, a0, a2, r0, r1, angles=None, root_scale=None) -> np.ndarray:
@@ -366,33 +290,15 @@ def hermite_rows(dp, d0, d1, a0, a2, r0, r1, angles=None, root_scale=None) -> np
     (4, N) and r0, r1 = |d0|, |d1|; returns A (N, 3, 4), multiplied by ``root_scale`` (N,) if given (the
     interpolant of data scaled by h is h times the curve, sqrt(h) times A, with the same free angles)."""
     n = dp.shape[1]
-    e = d0 + d1
-    base = 120.0 * dp - 15.0 * e  # Farouki: alpha = base + 5 (A0 i A2* + A2 i A0*)
+    base = 120.0 * dp - 15.0 * (d0 + d1)  # Farouki: alpha = base + 5 (A0 i A2* + A2 i A0*)
     if angles is None:
-        c, s, S = _cc_member(base, e, 3.0 * dp - e, a0, a2, r0, r1)  # S = i_product(a0, a2 e^{i delta})
-        a2d = _times_e_i(a2, c, s)  # a2 e^{i delta}
+        A = _least_energy_member(dp, base, a0, a2, r0, r1)
     else:
         phi0 = np.broadcast_to(np.asarray(angles[0], dtype=float), (n,))
         delta = np.broadcast_to(np.asarray(angles[1], dtype=float), (n,)) - phi0
         a2d = _times_e_i(a2, np.cos(delta), np.sin(delta))
-        S = _i_product(a0, a2d)
-    Q = sqrt_rot(base + 10.0 * S)[0]  # Farouki: (3A0+4A1+3A2) i (..)* = alpha
-    if angles is None:  # A0 + A2 = (a0 + a2d) e^{i phi0}; phi0 maximizes <(a0 + a2d) e^{i phi0}, Q>
-        B = a0 + a2d
-        x, y = _dot(B, Q), _dot(B[_IPERM], Q * _ISIGN)  # <B, Q>, <B i, Q>
-        with np.errstate(divide="ignore", invalid="ignore"):
-            ir = 1.0 / np.sqrt(x * x + y * y)
-            c0, s0 = x * ir, y * ir
-        bad = ~np.isfinite(ir)
-        if bad.any():
-            c0[bad], s0[bad] = 1.0, 0.0
-    else:
-        c0, s0 = np.cos(phi0), np.sin(phi0)
-    A = np.empty((3, 4, n))
-    _times_e_i(a0, c0, s0, A[0])  # A0 = a0 e^{i phi0}
-    _times_e_i(a2d, c0, s0, A[2])  # A2 = a2 e^{i phi2}
-    np.multiply(A[0] + A[2], -0.75, out=A[1])
-    A[1] += 0.25 * Q  # Farouki's solution of the end-point condition
+        Q = sqrt_rot(base + 10.0 * _i_product(a0, a2d))[0]  # Farouki: (3A0+4A1+3A2) i (..)* = alpha
+        A = _member(a0, a2d, Q, np.cos(phi0), np.sin(phi0))
     if root_scale is not None:
         A *= root_scale
     return A.transpose(2, 0, 1).copy()
@@ -404,31 +310,38 @@ def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
     Inputs have shape (N, 3). With ``angles`` = (phi0, phi2) (scalars or (N,) arrays) the member
     A0 = sqrt|d0| n(d0) e^{i phi0}, A2 = sqrt|d1| n(d1) e^{i phi2}, A1 = -(3/4)(A0 + A2) + Q/4 with
     Q i Q* = 120 (p1 - p0) - 15 (d0 + d1) + 5 (A0 i A2* + A2 i A0*) and Q's phase fixed to 0 (the common
-    phase of A0, A1, A2 does not change the curve) is returned.
+    phase of A0, A1, A2 does not change the curve) is returned (Farouki, al-Kandari, Sakkalis 2002).
 
-    With ``angles=None`` the member closest to a PH cubic is chosen: the angles minimizing the "CC" measure
-    |A0 - 2 A1 + A2|^2 of Farouki, Giannelli, Manni, Sestini (2008), in closed form in phi0 and globally over
-    delta = phi2 - phi0. The search starts at the global minimum of the "alpha criterion" |S(delta) - w|^2
-    (S = i_product(a0, a2 e^{i delta}), w = 3 (p1 - p0) - (d0 + d1); a 2 x 2 trust-region problem, solved
-    exactly where the measure's minimum is flat) and runs Newton on the measure from there. Per segment:
+    With ``angles=None`` (the default member) the rule is:
 
-    - PH-cubic data (the ordinary cubic Hermite interpolant is PH): both criteria vanish at the same delta
-      (S(delta) = w), and that cubic is reproduced (to 1e-8 of its size in the tests, round-off in practice).
-    - Certified segments: a lower bound of the measure (|u - v|^2 = F (2 (|u| + |v|) - F) for the fibres
-      over u = 25 X i X*, v = alpha, with u - v = 40 (S - w)), evaluated in floating point with round-off
-      margins, proves that the global minimum over delta lies within 0.25 rad of the returned delta, where
-      Newton has converged: F'' > 0 and a last step predicting a decrease below 1e-9 of the measure plus
-      3e-13 of the data scale 25 (|d0| + |d1|) / 4 (what remains is at most about 8/27 of that). Not proved:
-      that no second local minimum within those 0.25 rad is lower.
-    - Every other segment (rough data, where the bound is too weak) gets a global search: a grid of 24 values
-      of delta, Newton (steps of at most 0.2 rad) from the parabola vertex at the best grid point, or from
-      the fast path's result where that is already lower, and from the best grid point of a second basin
-      within 1.5 times of it; the lowest result, never above the best grid value.
+    1. Four distinguished members: those where A0 i A2* is a pure vector (zero scalar part). That fixes
+       delta = phi2 - phi0 up to pi in closed form (the scalar part is sigma.(cos delta, sin delta), see
+       :func:`_pure_vector_axis`); for each delta, phi0 is where |A0 - 2 A1 + A2| (the CC measure of Farouki,
+       Giannelli, Manni, Sestini 2008) is extremal, a sinusoid in phi0 with two extremes phi0, phi0 + pi.
+    2. Of the four, the one of least bending energy integral of kappa^2 ds (the criterion of Farouki 1996,
+       "The elastic bending energy of Pythagorean-hodograph curves", CAGD 13; Gauss-Legendre quadrature).
 
-    Against a dense brute-force search (tests/test_ph_quintic.py) the measure is within 1e-9 of the minimum
-    plus 1e-13 of the data scale 25 (|d0| + |d1|) / 4 (the size of its terms), on random Hermite data and on
-    spline tangents through smooth or noisy waypoints (observed: about 1e-14 of the scale). On smooth
-    waypoint data every segment is certified.
+    Why these four: the curve depends on the data alone, not on coordinates, and every isometry of the data
+    carries them onto themselves. For data in a plane (p1 - p0, d0, d1 coplanar) they are exactly the four
+    planar PH quintic interpolants of Farouki and Neff (1995, "Hermite interpolation by Pythagorean hodograph
+    quintics", Math. Comp. 64), so step 2 returns their "good" interpolant, planar in that plane; for
+    mirror-symmetric data (p1 = M p0, d1 = -M d0 for a reflection M) they are the four symmetric members, so
+    the curve is symmetric; for collinear data (d0, d1, p1 - p0 along one direction) the straight segment is
+    one of them, with zero energy. Rotations, translations, uniform scaling and reflections of the data move
+    the curve alike (a reflection maps A to n A j, which keeps the scalar part of A0 i A2* zero).
+
+    Why not the global CC minimum (FGMS 2008, this function's rule until issue 12): on planar or symmetric
+    data its minimum is generically attained by a mirror pair of non-planar or non-symmetric members, and
+    which one is returned is a tie-break; near such data the choice jumps between the pair. The rule here is
+    a continuous function of the data away from ties of the four energies (nearly planar data give nearly
+    planar curves). It keeps fourth-order approximation of smooth curves (tests/test_curves_symmetry.py: on a
+    helix its error is within 1.3 times the CC member's and falls as h^4); it does not reproduce a PH cubic
+    whose data are not planar, as the CC rule does.
+
+    Degenerate data: where d1 is antiparallel to d0 every delta qualifies and the axis maximizing
+    |<A0 i A2*, p1 - p0>| is used (blended continuously, see :func:`_pure_vector_axis`); with p1 - p0 also
+    along d0 the data are invariant under rotations about that line, which no curve leaving it can be, and
+    delta = 0 of the internal square roots is returned.
     """
     p0, p1, d0, d1 = (np.asarray(x, dtype=float) for x in (p0, p1, d0, d1))
     n = p0.shape[0]
@@ -472,12 +385,14 @@ class PHQuintic(PHSegment):
         """C1 Hermite interpolant: r(0) = p0, r(1) = p1, r'(0) = d0, r'(1) = d1 (metres, metres/unit t).
 
         The PH quintic interpolants form a two-parameter family (Farouki's free angles phi0, phi2).
-        ``angles=(phi0, phi2)`` (radians) selects a member explicitly; the default (None) picks the
-        member closest to a PH cubic, minimizing |A0 - 2 A1 + A2|^2 (Farouki, Giannelli, Manni, Sestini
-        2008): it reproduces the ordinary cubic Hermite interpolant whenever that is itself a PH curve, and
-        its measure is within 1e-9 of the global minimum plus 1e-13 of 25 (|d0| + |d1|) / 4 (tested against
-        a dense brute-force search); the global minimum is proved to lie within 0.25 rad of the chosen
-        phi2 - phi0, or found by a global grid search where that proof fails (see :func:`batch_hermite`).
+        ``angles=(phi0, phi2)`` (radians) selects a member explicitly (relative to internal square roots of d0,
+        d1: not a geometric choice). The default (None) depends on the data alone: of the four members where
+        A0 i A2* is a pure vector, the one of least bending energy (see :func:`batch_hermite` for the rule, its
+        literature and why). What users may rely on, each to round-off: rotating, translating, uniformly
+        scaling or reflecting the data moves the curve alike; data in a plane give a curve in that plane, the
+        planar "good" interpolant (least bending energy of the four planar PH quintic interpolants of Farouki
+        and Neff 1995); collinear data (p1 - p0, d0, d1 along one direction) give the straight segment; data
+        symmetric about a plane (p1 = M p0, d1 = -M d0) give a curve symmetric about it.
         """
         p0 = check_vector(p0, "p0")
         p1 = check_vector(p1, "p1")

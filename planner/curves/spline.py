@@ -315,13 +315,18 @@ def fit_ph_spline(
     end_tangents : pair of array_like (3,), optional
         C2 only: tangent directions at the first and last waypoint (default: the cubic spline's).
     angles : (phi0, phi2), optional
-        C1 only: the free angles of every segment's Hermite interpolant (default: closest to a PH
-        cubic, see :meth:`PHQuintic.hermite`).
+        C1 only: the free angles of every segment's Hermite interpolant (default: the member of least
+        bending energy among the four where A0 i A2* is a pure vector, see :meth:`PHQuintic.hermite`).
 
     Returns
     -------
     PHSpline
-        Passes through every waypoint to round-off.
+        Passes through every waypoint to round-off. With the default member the fit respects the data's
+        geometry, C1 and C2 alike, to round-off: rotated, translated, uniformly scaled or reflected
+        waypoints give the same path moved alike; waypoints in a plane (any plane) give a path in that
+        plane; waypoints in order along a line give the straight path; waypoints symmetric about a plane
+        (reflected = reversed) give a path symmetric about it (tests/test_curves_symmetry.py). The C2 solve
+        keeps these: its least-norm Newton steps from the C1 spline commute with the isometries.
 
     Raises
     ------
