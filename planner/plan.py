@@ -58,6 +58,9 @@ CAM_DEFAULT_AXIS = np.array([0.0, 0.0, 1.0])
 #: Input formats whose points are CAD waypoints (interpolated by default); the others are CAM polylines.
 WAYPOINT_FORMATS = ("csv", "json", "waypoints")
 
+#: CAM chords fitted in one batch at most (the batched fit needs about 5 kB per chord while it runs).
+FIT_BATCH_SPANS = 8192
+
 #: A progress callback: (stage, done, total), e.g. ("moves", 120, 457). The CLI draws it with tqdm.
 Progress = Callable[[str, int, int], None]
 
@@ -295,8 +298,17 @@ def _format_of(name: str) -> str:
 
 def _fit(source: str, cuts, s: PlanSettings) -> list[PassFit]:
     """The PH path of every pass: within tolerance of the polyline ("cam") or through the points ("interpolate")."""
-    if s.path == "cam":
-        return fit_passes([p.points for p in cuts], s.tolerance)
+    if s.path == "cam":  # batched over passes, in groups of bounded size (memory grows with the spans fitted at once)
+        out: list[PassFit] = []
+        group: list = []
+        spans = 0
+        for p in cuts:
+            group.append(p.points)
+            spans += len(p) - 1
+            if spans >= FIT_BATCH_SPANS:
+                out += fit_passes(group, s.tolerance)
+                group, spans = [], 0
+        return out + (fit_passes(group, s.tolerance) if group else [])
     from planner.curves import fit_ph_cubic_spline, fit_ph_spline
 
     out = []
