@@ -5,6 +5,9 @@ command reaches the controller and no control period (so no data package) is mis
 from __future__ import annotations
 
 import math
+import os
+import threading
+import time
 
 import numpy as np
 import pytest
@@ -19,6 +22,40 @@ make_sim = sim_fixtures.make_sim  # fixture
 AMPLITUDE = np.array([0.3, -0.2, 0.25, 0.2, 0.3, 0.4])  # rad
 FREQUENCY = 0.25  # Hz
 LOOKAHEAD, GAIN = 0.1, 300.0
+
+
+class StallProbe:
+    """A real-time thread sleeping to an absolute 2 ms schedule, as the simulator's loop does: the periods
+    it finds itself more than a period late are what this machine stalled (the same for any process)."""
+
+    def __init__(self) -> None:
+        self.late = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self) -> None:
+        try:
+            os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(10))
+        except (OSError, AttributeError):
+            pass
+        t0, k = time.perf_counter(), 0
+        while not self._stop.is_set():
+            k += 1
+            delay = t0 + k * 0.002 - time.perf_counter()
+            if delay > 0:
+                time.sleep(delay)
+            behind = int((time.perf_counter() - t0) / 0.002) - k
+            if behind > 0:
+                self.late += behind
+                k += behind
+
+    def __enter__(self) -> StallProbe:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        self._thread.join()
 
 
 def _stream(sim, seconds: float) -> int:
@@ -37,7 +74,7 @@ def _stream(sim, seconds: float) -> int:
     return n
 
 
-def _check(sim, rec_path, n_sent: int) -> None:
+def _check(sim, rec_path, n_sent: int, machine_late: int) -> None:
     state = sim.state()
     sim.stop()
     rec = recording.load(rec_path)
@@ -55,22 +92,25 @@ def _check(sim, rec_path, n_sent: int) -> None:
     assert err.max() <= 1.05 * bound + 1e-3, (err.max(), bound)
     assert err.max() > 0.3 * bound  # the lag is modelled, not zero
     # simulated time advanced one 2 ms period per period, and the control loop kept the wall clock's
-    # schedule: a period whose tick came more than 2 ms late loses its data package. On an idle machine
-    # that never happens (bench/bench_sim.py measures it); this shared 2-core test machine may delay
-    # even a SCHED_FIFO thread now and then (other sessions' processes), so up to 1 % of the periods are
-    # tolerated here
+    # schedule: a period whose tick comes more than 2 ms late loses its data package. The loop loses
+    # no more periods than this machine stalls a real-time thread (the probe; a shared virtual machine
+    # stalls for tens of ms now and then), give or take 0.5 % of the periods
     assert np.allclose(np.diff(rec.t), 0.002)
-    assert state["late_ticks"] <= max(2, 0.01 * n_sent), state["late_ticks"]
+    assert state["late_ticks"] <= 2 * machine_late + max(2, 0.005 * n_sent), (state["late_ticks"], machine_late)
 
 
 def test_servoj_stream_5s_follows_the_commanded_path(make_sim, tmp_path):
     path = tmp_path / "servo5.npz"
     sim = make_sim(record=path)
-    _check(sim, path, _stream(sim, 5.0))
+    with StallProbe() as probe:
+        n = _stream(sim, 5.0)
+    _check(sim, path, n, probe.late)
 
 
 @pytest.mark.slow
 def test_servoj_stream_60s_at_500hz(make_sim, tmp_path):
     path = tmp_path / "servo60.npz"
     sim = make_sim(record=path)
-    _check(sim, path, _stream(sim, 60.0))
+    with StallProbe() as probe:
+        n = _stream(sim, 60.0)
+    _check(sim, path, n, probe.late)
