@@ -286,3 +286,35 @@ def test_programs_replace_the_running_one_and_unknown_programs_are_refused(arm):
     c.stopScript()
     time.sleep(0.05)
     assert r.getRuntimeState() == 1
+
+
+def test_upper_range_registers(make_sim):
+    sim = make_sim()
+    flags = rtde_control.RTDEControlInterface.Flags
+    c = rtde_control.RTDEControlInterface(sim.host, -1.0, flags.FLAG_UPLOAD_SCRIPT | flags.FLAG_UPPER_RANGE_REGISTERS)
+    try:
+        q1 = (HOME + [0.1, -0.1, 0.1, 0.0, 0.0, 0.2]).tolist()
+        assert c.moveJ(q1, 1.0, 3.0)
+        np.testing.assert_allclose(sim.state()["q"], q1, atol=1e-9)
+        st = sim.state()
+        assert st["out_int"][24] in (1, 2) and st["out_int"][0] == 0  # the script answers on register 24
+        np.testing.assert_allclose(c.getForwardKinematics(), forward("ur5e", q1), atol=1e-9)
+    finally:
+        c.stopScript()
+        c.disconnect()
+
+
+def test_rtde_watchdog_stops_the_program(make_sim):
+    sim = make_sim()
+    c = rtde_control.RTDEControlInterface(sim.host)
+    try:
+        assert c.setWatchdog(20.0)  # at least 20 Hz of input packages, or the program stops
+        for _ in range(20):
+            assert c.kickWatchdog()
+            time.sleep(0.01)
+        assert c.isProgramRunning()
+        time.sleep(0.3)  # silence
+        assert not c.isProgramRunning()
+        assert any("watchdog" in m[2] for m in sim.state()["log"])
+    finally:
+        c.disconnect()
