@@ -196,7 +196,6 @@ class Snapshot:
         self.motion = core.motion
         self.registers = core.registers
         self.io = core.io.snapshot()
-        self._cache: dict[str, np.ndarray] = {}
 
     @property
     def actual_tcp_pose(self) -> np.ndarray:
@@ -204,7 +203,7 @@ class Snapshot:
 
     @property
     def target_tcp_pose(self) -> np.ndarray:
-        return self.core.tcp_pose()
+        return self.core.tcp_pose()  # the motion model's joints follow their targets exactly
 
     @property
     def actual_tcp_speed(self) -> np.ndarray:
