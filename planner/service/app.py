@@ -403,7 +403,7 @@ def _draw(job, input_name: str, target: Path) -> None:
 
 # -- submitting ------------------------------------------------------------------------------------------
 def _insert(svc: Service, job_id: str, who: Principal, **values: Any) -> None:
-    with svc.sessions() as s:
+    with svc.pool.write_lock, svc.sessions() as s:
         s.add(Job(id=job_id, owner=who.key_id, state="queued", created_at=now(), stage="", done=0, total=0,
                   attempts=0, job_bytes=0, **values))
         s.commit()

@@ -59,7 +59,7 @@ def cmd_serve(args: argparse.Namespace) -> None:
         print(f"planner serve: warning: binding {args.host}: the service is reachable from other hosts "
               "(API keys required)", file=sys.stderr)
     family = socket.AF_INET6 if ":" in args.host else socket.AF_INET
-    sock = socket.socket(family, socket.SOCK_STREAM)
+    sock = socket.socket(family, socket.SOCK_STREAM, socket.IPPROTO_TCP)  # asyncio sets TCP_NODELAY on its sockets
     sock.setsockopt(socket.SOL_SOCKET, socket.SO_REUSEADDR, 1)
     try:
         sock.bind((args.host, args.port))

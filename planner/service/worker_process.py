@@ -15,6 +15,8 @@ import signal
 import time
 from pathlib import Path
 
+#: Niceness added to worker processes (PLANNER_WORKER_NICE, default 5).
+WORKER_NICE = int(os.environ.get("PLANNER_WORKER_NICE", "5") or 0)
 #: Seconds between progress messages.
 PROGRESS_EVERY = 0.2
 
@@ -95,6 +97,8 @@ def run_task(task: dict, send) -> None:
 def worker_main(conn, parent_pid: int) -> None:
     """The worker's loop: a task dict in, messages out, until the pipe closes or None arrives."""
     _die_with_parent(parent_pid)
+    with contextlib.suppress(OSError):
+        os.nice(WORKER_NICE)  # batch work: the service's requests come first on a busy machine
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C goes to the service, which stops its workers
     import planner.plan  # noqa: F401  (imported before the first job: its time is not the job's)
 

@@ -143,7 +143,7 @@ class Slot(threading.Thread):
                 "out_path": str(out), "parent_pid": os.getpid()}
         self.conn.send(task)
         deadline = time.monotonic() + pool.cfg.job_timeout_s
-        last_write = 0.0
+        last_write = time.monotonic()  # a job of less than PROGRESS_WRITE_EVERY writes no progress
         while True:
             if job_id in pool.cancelled or pool.stopping.is_set():
                 self.stop_process(kill=True)
@@ -204,7 +204,9 @@ class WorkerPool:
         self.metrics = metrics
         self.stopping = threading.Event()
         self._cond = threading.Condition()
-        self._claim_lock = threading.Lock()
+        #: One writer at a time in this process: SQLite serializes writers anyway, and its busy handler sleeps
+        #: (up to 100 ms a time) when they collide; a lock hands the write over at once.
+        self.write_lock = threading.Lock()
         self.cancelled: set[str] = set()
         self.slots = [Slot(self, i) for i in range(cfg.workers)]
 
@@ -236,31 +238,33 @@ class WorkerPool:
     # -- store transitions ----------------------------------------------------------------------
     def claim(self) -> dict | None:
         """The oldest queued job, now running with one more attempt; None after a short wait if none."""
-        with self._claim_lock:
+        with self.write_lock:
             with self.sessions() as s:
                 job = s.scalars(select(Job).where(Job.state == "queued").order_by(Job.seq).limit(1)).first()
+                if job is not None:
+                    s.expunge(job)  # its values as read: the update below does not refresh them
                 if job is not None:
                     n = s.execute(update(Job).where(Job.id == job.id, Job.state == "queued").values(
                         state="running", started_at=now(), attempts=Job.attempts + 1, stage="starting", done=0,
                         total=0)).rowcount
                     s.commit()
                     if n == 1:
-                        s.refresh(job)
-                        return {c: getattr(job, c) for c in ("id", "attempts", "input_kind", "input_json",
-                                                             "input_name", "settings", "read_options")}
+                        return {"id": job.id, "attempts": job.attempts + 1, "input_kind": job.input_kind,
+                                "input_json": job.input_json, "input_name": job.input_name, "settings": job.settings,
+                                "read_options": job.read_options}
         with self._cond:
             self._cond.wait(0.5)
         return None
 
     def progress(self, job_id: str, attempt: int, stage: str, done: int, total: int) -> None:
-        with self.sessions() as s:
+        with self.write_lock, self.sessions() as s:
             s.execute(update(Job).where(Job.id == job_id, Job.state == "running", Job.attempts == attempt).values(
                 stage=stage, done=done, total=total))
             s.commit()
 
     def finish(self, job_id: str, attempt: int, state: str, **values) -> bool:
         """Move a running job of this attempt to ``state``; False (and its file removed) if it is no longer so."""
-        with self.sessions() as s:
+        with self.write_lock, self.sessions() as s:
             n = s.execute(update(Job).where(Job.id == job_id, Job.state == "running", Job.attempts == attempt).values(
                 state=state, finished_at=now(), **values)).rowcount
             s.commit()
@@ -273,14 +277,14 @@ class WorkerPool:
 
     def requeue(self, job_id: str, attempt: int) -> None:
         """A job whose service is stopping: queued again, its start not counted."""
-        with self.sessions() as s:
+        with self.write_lock, self.sessions() as s:
             s.execute(update(Job).where(Job.id == job_id, Job.state == "running", Job.attempts == attempt).values(
                 state="queued", attempts=attempt - 1, stage="", done=0, total=0))
             s.commit()
 
     def cancel(self, job_id: str) -> str | None:
         """Cancel a queued or running job: its state before ("queued"/"running"), or None if it had ended."""
-        with self.sessions() as s:
+        with self.write_lock, self.sessions() as s:
             before = s.scalar(select(Job.state).where(Job.id == job_id))
             if before not in ("queued", "running"):
                 return None

@@ -1,0 +1,277 @@
+"""Benchmark: the REST service for path jobs (``planner.service``, issue 15) against planning called directly.
+
+1. 500 jobs of 100 waypoints (smooth random 3-D curves, seeded) submitted as JSON by 20 concurrent clients to a
+   real service (uvicorn on 127.0.0.1, ``--workers 2``, SQLite in WAL mode, development mode without keys):
+   throughput (jobs/s from the first submit to the last job done), p50/p99 submit latency (the 202), p99
+   completion time (created -> done, the service's clocks); none lost (every id answered, listed once, done),
+   none duplicated (one start and one saved plan per job). Baseline in the same run: the same 500 plans called
+   directly (``plan`` + ``PlannedJob.save``, as a worker does) in a pool of the same number of processes.
+   Targets on this 2-core machine: p99 submit latency below 50 ms, throughput at least 80 % of the baseline.
+2. One whole NX job (``shared/data/nx_clsf_variable_contour_ust_a2.cls``, 12.9 million poses at 500 Hz) uploaded
+   as a file: time to done, peak memory of the service (its process and its worker, VmHWM), storage per job, the
+   time to first byte of the CSV and JSON exports and their streaming rate over the first 50 MB; baseline: ``planner
+   plan`` on the same file (wall time and peak memory of the process).
+
+Run: ``python bench/bench_service.py [--jobs 500] [--clients 20] [--workers 2]`` (a few minutes).
+"""
+
+from __future__ import annotations
+
+import argparse
+import concurrent.futures as cf
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+import threading
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import httpx  # noqa: E402
+from _common import print_table  # noqa: E402
+
+NX_FILE = ROOT.parent / "shared" / "data" / "nx_clsf_variable_contour_ust_a2.cls"
+
+
+def curves(n_jobs: int, n_points: int, seed: int = 15) -> list[list[list[float]]]:
+    """Smooth 3-D curves in metres: sums of a few random sines, about 0.4 m long, no repeated points."""
+    rng = np.random.default_rng(seed)
+    s = np.linspace(0.0, 1.0, n_points)
+    out = []
+    for _ in range(n_jobs):
+        a, f, p = rng.uniform(0.01, 0.05, (3, 3)), rng.uniform(0.5, 2.0, (3, 3)), rng.uniform(0, 2 * np.pi, (3, 3))
+        wobble = (a[None] * np.sin(2 * np.pi * f[None] * s[:, None, None] + p[None])).sum(axis=2)
+        pts = np.c_[0.4 * s, np.zeros_like(s), np.zeros_like(s)] + wobble
+        out.append(pts.round(9).tolist())
+    return out
+
+
+def _plan_and_save(points: list, folder: str, k: int) -> float:
+    from planner import plan
+
+    tic = time.perf_counter()
+    plan(np.asarray(points), None).save(Path(folder) / f"{k}.job")
+    return time.perf_counter() - tic
+
+
+def direct(jobs: list, workers: int) -> float:
+    """Wall time of the same plans (and saves) in a pool of ``workers`` processes, after warming it."""
+    with tempfile.TemporaryDirectory() as folder, cf.ProcessPoolExecutor(workers) as pool:
+        list(pool.map(_plan_and_save, jobs[:workers], [folder] * workers, range(workers)))  # imports, first call
+        tic = time.perf_counter()
+        list(pool.map(_plan_and_save, jobs, [folder] * len(jobs), range(len(jobs)), chunksize=1))
+        return time.perf_counter() - tic
+
+
+class Service:
+    """``python -m planner.service serve`` in development mode on a free loopback port."""
+
+    def __init__(self, folder: Path, workers: int):
+        env = {**os.environ, "PLANNER_DEV_NO_AUTH": "1", "PLANNER_DB": f"sqlite:///{folder / 'jobs.sqlite'}",
+               "PLANNER_MAX_REQUEST_BYTES": str(64 << 20)}
+        self.folder = folder
+        self.proc = subprocess.Popen([sys.executable, "-m", "planner.service", "serve", "--port", "0", "--workers",
+                                      str(workers)], cwd=folder, env=env, stdout=subprocess.PIPE)
+        assert self.proc.stdout is not None
+        line = self.proc.stdout.readline().decode()
+        if "listening on " not in line:
+            raise SystemExit(f"the service did not start: {line!r}")
+        self.url = line.split("listening on ")[1].split()[0]
+        deadline = time.monotonic() + 60
+        while True:
+            try:
+                if httpx.get(self.url + "/healthz").json()["workers"] == workers:
+                    break
+            except httpx.TransportError:
+                pass
+            if time.monotonic() > deadline:
+                raise SystemExit("the service is not healthy after 60 s")
+            time.sleep(0.1)
+
+    def peak_kib(self) -> dict[str, int]:
+        """VmHWM (peak resident memory) of the service process and of each child, KiB."""
+        pids = [self.proc.pid]
+        for task in Path(f"/proc/{self.proc.pid}/task").iterdir():
+            pids += [int(x) for x in (task / "children").read_text().split()]
+        out = {}
+        for pid in pids:
+            status = Path(f"/proc/{pid}/status").read_text()
+            cmd = Path(f"/proc/{pid}/cmdline").read_text()
+            if "resource_tracker" in cmd:
+                continue
+            name = "service" if pid == self.proc.pid else f"worker {pid}"
+            out[name] = int(next(x for x in status.splitlines() if x.startswith("VmHWM")).split()[1])
+        return out
+
+    def stop(self) -> None:
+        self.proc.terminate()
+        self.proc.wait(30)
+
+
+def run_clients(url: str, jobs: list, clients: int) -> tuple[list[float], list[str], float]:
+    """Submit every job from ``clients`` threads; (latencies s, ids, Unix time of the first submit)."""
+    latencies: list[float] = []
+    ids: list[str] = []
+    lock = threading.Lock()
+    start = threading.Barrier(clients)
+    first = [float("inf")]
+
+    def client(k: int) -> None:
+        mine = jobs[k::clients]
+        with httpx.Client(base_url=url, timeout=60) as c:
+            start.wait()
+            for pts in mine:
+                body = json.dumps({"waypoints": pts})
+                wall, tic = time.time(), time.perf_counter()
+                r = c.post("/v1/jobs", content=body, headers={"content-type": "application/json"})
+                dt = time.perf_counter() - tic
+                if r.status_code != 202:
+                    raise RuntimeError(f"submit answered {r.status_code}: {r.text[:200]}")
+                with lock:
+                    first[0] = min(first[0], wall)
+                    latencies.append(dt)
+                    ids.append(r.json()["id"])
+
+    threads = [threading.Thread(target=client, args=(k,)) for k in range(clients)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    return latencies, ids, first[0]
+
+
+def all_jobs(c: httpx.Client) -> list[dict]:
+    out, cursor = [], None
+    while True:
+        page = c.get("/v1/jobs", params={"limit": 500, **({"cursor": cursor} if cursor else {})}).json()
+        out += page["jobs"]
+        cursor = page["next_cursor"]
+        if cursor is None:
+            return out
+
+
+def bench_many(n_jobs: int, n_points: int, clients: int, workers: int) -> None:
+    jobs = curves(n_jobs, n_points)
+    t_direct = direct(jobs, workers)
+    with tempfile.TemporaryDirectory() as tmp:
+        svc = Service(Path(tmp), workers)
+        try:
+            lat, ids, t0 = run_clients(svc.url, jobs, clients)
+            with httpx.Client(base_url=svc.url, timeout=60) as c:
+                while True:
+                    counts = {}
+                    for line in c.get("/metrics").text.splitlines():
+                        if line.startswith("planner_jobs{"):
+                            counts[line.split('"')[1]] = int(line.rsplit(" ", 1)[1])
+                    if counts["queued"] + counts["running"] == 0:
+                        break
+                    time.sleep(0.5)  # (the end is the last job's finished_at, not when this poll sees it)
+                listed = all_jobs(c)
+                t_end = max(j["finished_at"] for j in listed)
+            files = {p.parent.name: [] for p in (Path(tmp) / "jobs.sqlite.data" / "jobs").glob("*/plan.*.job")}
+            for p in (Path(tmp) / "jobs.sqlite.data" / "jobs").glob("*/plan.*.job"):
+                files[p.parent.name].append(p.name)
+        finally:
+            svc.stop()
+    t_service = t_end - t0
+    done = [j for j in listed if j["state"] == "done"]
+    completion = [j["finished_at"] - j["created_at"] for j in done]
+    lost = len(set(ids) - {j["id"] for j in listed}) + (n_jobs - len(set(ids)))
+    duplicated = (len(listed) - len({j["id"] for j in listed}) + sum(j["attempts"] != 1 for j in listed)
+                  + sum(len(v) != 1 for v in files.values()))
+    lat_ms = np.array(lat) * 1e3
+    print(f"\n{n_jobs} jobs x {n_points} waypoints, {clients} concurrent clients, {workers} worker processes "
+          f"({os.cpu_count()} cores)\n")
+    print_table(
+        ["", "jobs/s", "wall s", "ratio", "p50 submit ms", "p99 submit ms", "p99 completion s", "done", "lost",
+         "duplicated"],
+        [["direct: plan + save in a pool", f"{n_jobs / t_direct:.1f}", f"{t_direct:.2f}", "1.00", "", "", "",
+          n_jobs, "", ""],
+         ["service: POST /v1/jobs -> done", f"{n_jobs / t_service:.1f}", f"{t_service:.2f}",
+          f"{t_direct / t_service:.2f}", f"{np.percentile(lat_ms, 50):.1f}", f"{np.percentile(lat_ms, 99):.1f}",
+          f"{np.percentile(completion, 99):.2f}", len(done), lost, duplicated]])
+    print(f"\ntargets: p99 submit latency < 50 ms ({'met' if np.percentile(lat_ms, 99) < 50 else 'NOT met'}), "
+          f"throughput >= 80 % of direct ({'met' if t_direct / t_service >= 0.8 else 'NOT met'}); "
+          f"none lost ({'yes' if lost == 0 and len(done) == n_jobs else 'NO'}), "
+          f"none duplicated ({'yes' if duplicated == 0 else 'NO'}); "
+          f"mean submit {statistics.fmean(lat_ms):.1f} ms")
+
+
+def bench_nx(workers: int) -> None:
+    if not NX_FILE.exists():
+        print(f"\n{NX_FILE} not found: the whole-NX-job part is skipped")
+        return
+    tic = time.perf_counter()
+    proc = subprocess.Popen([sys.executable, "-m", "planner.cli", "plan", str(NX_FILE)], stdout=subprocess.DEVNULL)
+    _, status, usage = os.wait4(proc.pid, 0)
+    t_cli = time.perf_counter() - tic
+    if status != 0:
+        raise SystemExit("planner plan failed on the NX file")
+    with tempfile.TemporaryDirectory() as tmp:
+        svc = Service(Path(tmp), workers)
+        try:
+            with httpx.Client(base_url=svc.url, timeout=600) as c:
+                tic = time.perf_counter()
+                with open(NX_FILE, "rb") as f:
+                    r = c.post("/v1/jobs", files={"file": (NX_FILE.name, f)})
+                t_submit = time.perf_counter() - tic
+                job_id = r.json()["id"]
+                while (view := c.get(f"/v1/jobs/{job_id}").json())["state"] not in ("done", "failed"):
+                    time.sleep(0.05)
+                t_done = time.perf_counter() - tic
+                if view["state"] != "done":
+                    raise SystemExit(f"the NX job failed: {view['error']}")
+                peaks = svc.peak_kib()
+                streams = {}
+                for fmt in ("csv", "json"):
+                    tic = time.perf_counter()
+                    with c.stream("GET", f"/v1/jobs/{job_id}/trajectory", params={"format": fmt}) as resp:
+                        got, ttfb = 0, None
+                        for piece in resp.iter_raw():
+                            if ttfb is None:
+                                ttfb = time.perf_counter() - tic
+                            got += len(piece)
+                            if got >= 50 << 20:
+                                break
+                    streams[fmt] = (ttfb, got / (time.perf_counter() - tic - ttfb) / 2**20)
+        finally:
+            svc.stop()
+    poses = view["summary"]["duration_s"] * 500
+    storage = view["storage_bytes"]
+    print(f"\nwhole NX job: {NX_FILE.name} ({NX_FILE.stat().st_size / 2**20:.2f} MiB, "
+          f"{view['summary']['passes']} passes, about {poses / 1e6:.1f} million poses at 500 Hz)\n")
+    print_table(["", "time to done s", "peak memory MiB", "ratio"],
+                [["planner plan (one process)", f"{t_cli:.2f}", f"{usage.ru_maxrss / 1024:.0f}", "1.00"],
+                 [f"service (submit {t_submit:.2f} s incl. reading the file)", f"{t_done:.2f}",
+                  f"{peaks['service'] / 1024:.0f} service, "
+                  + ", ".join(f"{v / 1024:.0f}" for k, v in peaks.items() if k != "service") + " workers",
+                  f"{t_done / t_cli:.2f}"]])
+    print(f"\nstorage per job: {storage / 2**20:.2f} MiB (input {view['input']['bytes'] / 2**20:.2f} MiB + saved "
+          "plan + settings + summary); exports are streamed, never stored")
+    print_table(["export", "time to first byte s", "rate MiB/s (first 50 MiB)"],
+                [[fmt, f"{t:.2f}", f"{rate:.1f}"] for fmt, (t, rate) in streams.items()])
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--jobs", type=int, default=500)
+    ap.add_argument("--points", type=int, default=100)
+    ap.add_argument("--clients", type=int, default=20)
+    ap.add_argument("--workers", type=int, default=2)
+    ap.add_argument("--skip-nx", action="store_true")
+    args = ap.parse_args()
+    bench_many(args.jobs, args.points, args.clients, args.workers)
+    if not args.skip_nx:
+        bench_nx(args.workers)
+
+
+if __name__ == "__main__":
+    main()
