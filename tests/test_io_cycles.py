@@ -229,3 +229,16 @@ def test_reader_warnings_are_one_self_contained_line(tmp_path):
     path.write_text("FEDRAT/MMPM,100\n" + text.replace("FOO/1\n", "") + "GOTO/5,0,9\nGOTO/9,0,9\n")
     job = plan(path, PlanSettings(path="cam"))
     assert job.warnings == ("t.apt line 3: CYCLE/DRILL,DEEP gives no STEP: each hole is drilled in one feed",)
+
+
+def test_apt_holes_follow_the_msys_frame_and_gcode_holes_the_plane():
+    # MSYS: CL x along part +Y, CL y along part -X, origin (100, 0, 0); the holes are expanded in the CL frame
+    tp = apt("MSYS/100,0,0,0,1,0,-1,0,0\nGOTO/0,0,30\nCYCLE/DRILL,FEDTO,-4,RAPTO,2,MMPM,100\nGOTO/10,5,0\nCYCLE/OFF\n")
+    expect_cl = np.array([[0, 0, 30], [10, 5, 30], [10, 5, 2], [10, 5, -4], [10, 5, 2]], float)
+    rot = np.array([[0, -1, 0], [1, 0, 0], [0, 0, 1]], float)  # columns: the CL axes in the part frame
+    assert np.allclose(tp.points / MM, expect_cl @ rot.T + [100, 0, 0], rtol=0, atol=1e-12)
+    # G18: the drilling axis is Y (R and the bottom are Y levels), the hole position X and Z
+    tp = nc("G90 G18 G21 G0 X0 Y50 Z0\nG99 G81 X10 Z5 Y-3 R2 F60\nX20\nG80\n")
+    assert_rows(rows(tp)[1:], [
+        (10, 50, 5, True, None, 2), (10, 2, 5, True, None, 2), (10, -3, 5, False, 60, 2), (10, 2, 5, True, None, 2),
+        (20, 2, 5, True, None, 3), (20, -3, 5, False, 60, 3), (20, 2, 5, True, None, 3)])
