@@ -172,6 +172,7 @@ def test_gcode_g83_g73_pecks_g82_dwell_and_incremental_repeats():
         (apt, "GOTO/0,0,9\nCYCLE/DRILL,FEDTO,-3\nCIRCLE/0,0,0,0,0,1\n", 3, ["CIRCLE", "CYCLE/DRILL"]),
         (nc, "G0 X0 Y0 Z9\nG76 X1 Z-3 R1 Q0.1\n", 2, ["G76", "fine boring"]),
         (nc, "G0 X0 Y0 Z9\nG87 X1 Z-3 R1\n", 2, ["G87", "back boring"]),
+        (nc, "G0 X0 Y0 Z9\nG84.1 X1 Z-3 R1\n", 2, ["G84.1", "canned cycle"]),
         (nc, "G0 X0 Y0 Z9\nG83 X1 Z-3 R1 F50\n", 2, ["G83", "Q"]),
         (nc, "G0 X0 Y0 Z9\nG81 X1 Z3 R1 F50\n", 2, ["G81", "not below the clearance"]),
         (nc, "G0 X0 Y0 Z9\nG81 X1 R1 F50\n", 2, ["G81", "no Z level"]),

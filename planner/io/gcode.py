@@ -334,8 +334,9 @@ class _Reader:
             self.cycle = g
             self.cycle_line = line
             out.event("cycle", line, f"G{raw}", math.nan, text.strip())
-        elif g in _REFUSED_CYCLES:
-            self.fail(line, "G", f"G{raw} ({_REFUSED_CYCLES[g]}) is a canned cycle the reader does not expand: "
+        elif g in _REFUSED_CYCLES or (70.0 <= g < 90.0 and g != 80.0):
+            what = _REFUSED_CYCLES.get(g, "a canned cycle")
+            self.fail(line, "G", f"G{raw} ({what}) is a canned cycle the reader does not expand: "
                       "its holes cannot be planned")  # fmt: skip
         elif g == 80.0:
             if self.cycle is not None:
