@@ -45,7 +45,8 @@ What is read
   ``P`` dwell at the bottom (G82, G89, tapping; the same seconds/milliseconds rule as G04; a ``dwell``
   event), ``L``/``K`` repeats (G91 repeats the X/Y increment), ``G98`` retract to the initial level
   (the tool's level when the cycle started), ``G99`` to R. Plunges are fed at the modal F; G74/G84/
-  G85/G89 feed out, the others rapid out. ``G70 G71 G72 G76 G77 G87 G88`` are refused naming the line.
+  G85/G89 feed out, the others rapid out. Every other G70..G89 (G76, G87, G88, Haas bolt patterns
+  G70-G72, ...) is refused naming the line.
 
 Anything else (an unknown G code, a word the reader does not know) is skipped with an
 :class:`~planner.io.errors.InputFileWarning`; a malformed number raises
