@@ -243,3 +243,13 @@ def test_apt_holes_follow_the_msys_frame_and_gcode_holes_the_plane():
     assert_rows(rows(tp)[1:], [
         (10, 50, 5, True, None, 2), (10, 2, 5, True, None, 2), (10, -3, 5, False, 60, 2), (10, 2, 5, True, None, 2),
         (20, 2, 5, True, None, 3), (20, -3, 5, False, 60, 3), (20, 2, 5, True, None, 3)])
+
+
+def test_peck_clearance_option():
+    text = "G90 G21 G0 X0 Y0 Z10\nG99 G73 X0 Y0 Z-5 R2 Q3 F100\nG80\n"
+    z = nc(text, peck_clearance=0.2e-3).points[:, 2] / MM
+    assert z == pytest.approx([10, 2, -1, -0.8, -4, -3.8, -5, 2])
+    with pytest.raises(ValueError, match="peck_clearance"):
+        nc(text, peck_clearance=0.0)
+    apt_z = apt("GOTO/0,0,9\nCYCLE/BRKCHP,FEDTO,-4,RAPTO,1,STEP,2\nGOTO/0,0,0\n", peck_clearance=1e-3).points[:, 2]
+    assert apt_z / MM == pytest.approx([9, 1, -1, 0, -3, -2, -4, 1])

@@ -810,6 +810,7 @@ def read_apt(
     arc_tolerance: float | None = None,
     axis_tolerance: float = AXIS_TOLERANCE,
     source: str | None = None,
+    peck_clearance: float = DEFAULT_PECK_CLEARANCE,
 ) -> Toolpath:
     """Read APT / CL data (``.apt``, ``.cls``, ``.cl``, ``.ncl``) into a :class:`Toolpath`.
 
@@ -830,6 +831,9 @@ def read_apt(
         Largest accepted ``| |(i,j,k)| - 1 |`` of a tool axis before it is renormalised.
     source : str, optional
         Name used in messages (default: the file's base name).
+    peck_clearance : float, default 0.5e-3
+        Peck drilling: the distance, metres, a chip-breaking cycle backs off and a deep cycle stops above
+        the last depth before feeding again (a machine parameter the program does not give).
 
     Returns
     -------
@@ -848,7 +852,10 @@ def read_apt(
         An unknown record skipped (naming its line) or a value read under an assumption.
     """
     name = source_name(src, source)
+    if not (isinstance(peck_clearance, int | float) and 0.0 < peck_clearance < 1.0):
+        raise ValueError(f"peck_clearance must be a length in metres in (0, 1), got {peck_clearance!r}")
     reader = _Reader(name, units, frames, axis_tolerance)
+    reader.peck_clearance = float(peck_clearance)
     with open_lines(src) as lines:
         reader.run(lines)
     if reader.out.count == 0:

@@ -670,6 +670,7 @@ def read_gcode(
     arc_tolerance: float | None = None,
     source: str | None = None,
     dialect: str = "auto",
+    peck_clearance: float = DEFAULT_PECK_CLEARANCE,
 ) -> Toolpath:
     """Read a G-code program into a :class:`Toolpath` (see the module notes for the dialect).
 
@@ -687,6 +688,9 @@ def read_gcode(
         inserts chord points within that tolerance (see :func:`~planner.io.toolpath.linearize_arcs`).
     source : str, optional
         Name used in messages (default: the file's base name).
+    peck_clearance : float, default 0.5e-3
+        Peck drilling: the distance, metres, a chip-breaking cycle backs off and a deep cycle stops above
+        the last depth before feeding again (a machine parameter the program does not give).
     dialect : {"auto", "iso", "sinumerik"}, default "auto"
         "iso": ISO 6983 / Fanuc / Haas; "sinumerik": Siemens 840D (:mod:`planner.io.sinumerik`);
         "auto": Sinumerik for ``.mpf``/``.spf`` names or when the first 200 lines hold Sinumerik
@@ -706,6 +710,8 @@ def read_gcode(
     """
     kin = machine_kinematics(machine) if machine is not None else None
     name = source_name(src, source)
+    if not (isinstance(peck_clearance, int | float) and 0.0 < peck_clearance < 1.0):
+        raise ValueError(f"peck_clearance must be a length in metres in (0, 1), got {peck_clearance!r}")
     if dialect not in ("auto", "iso", "sinumerik"):
         raise ValueError(f"dialect must be 'auto', 'iso' or 'sinumerik', got {dialect!r}")
     with open_lines(src) as lines:
@@ -717,6 +723,7 @@ def read_gcode(
                 dialect = "sinumerik" if any(SNIFF.match(t) for t in head) else "iso"
                 lines = itertools.chain(head, lines)
         reader = _Reader(name, units, kin, dialect)
+        reader.peck_clearance = float(peck_clearance)
         reader.run(lines)
     if reader.out.count == 0:
         raise InputFileError(name, None, "", "holds no motion block with a known X, Y and Z")
