@@ -167,6 +167,7 @@ def test_undeclared_global_variable_warns_once_with_its_line():
         ("TRAORI\nG1 X0 Y0 Z0 A3=0 C3=1 F9\n", 2, "B3", ["B3 missing"]),
         ("TRAORI\nG1 X0 Y0 Z0 A3=0 B3=0 C3=0 F9\n", 2, "A3", ["zero"]),
         ("TRAORI\nG1 X0 Y0 Z0 A2=10 F9\n", 2, "A2", ["Euler/RPY"]),
+        ("TRAORI\nG0 X0 Y0 Z0\nORIRESET(30,0)\n", 3, "ORIRESET", ["depends on the machine"]),
         ("G0 X0 Y0 Z0\nCIP X10 Y10 I1=5 J1=8\n", 2, "CIP", ["intermediate point"]),
         ("G0 X=_NOPE Y0 Z0\n", 1, "X=", ["variable _NOPE is not defined"]),
         ("G0 X0 Y0 Z0\nG58 X5\n", 2, "G58", ["programmable axial offset"]),
@@ -203,7 +204,7 @@ G0 X0 Y0 Z20 A3=0 B3=0 C3=1
 G1 Z0 F=500
 X10 A3=0 B3=-_S C3=0.8
 X20 Y5 A3=_S B3=0 C3=0.8
-A3=0 B3=0 C3=1
+ORIRESET()
 G0 Z30
 TRAFOOF
 M30

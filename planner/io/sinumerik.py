@@ -33,7 +33,7 @@ Refused, naming the line and the construct (they change the geometry in ways not
     ``CYCLE800`` with a non-zero offset or angle (the swivelled frame), other ``CYCLExxx(...)``
     technology cycles and ``MCALL`` of one, ``TURN=n`` with n != 0, ``TRANS/ATRANS/ROT/AROT/SCALE/
     ASCALE/MIRROR/AMIRROR`` with values, ``G58/G59`` (programmable offsets), ``CIP CT AR= AP= RP=
-    POLAR I1= J1= K1=``, tool orientation words ``A2 B2 C2 A4 B4 C4 A5 B5 C5 LEAD TILT THETA ORIRESET``,
+    POLAR I1= J1= K1=``, tool orientation words ``A2 B2 C2 A4 B4 C4 A5 B5 C5 LEAD TILT THETA``, ``ORIRESET(angles)``,
     a vector without TRAORI or with a component missing, vectors mixed with rotary angles in one program,
     program flow (``IF ELSE ENDIF WHILE FOR LOOP REPEAT GOTOF GOTOB GOTO CASE`` and labels), system
     variables ``$...``, indexed variables, ``G33 G331 G332 G110 G111 G112``.
@@ -67,7 +67,6 @@ _REFUSED_WORDS = {
     "CIP": "circle through an intermediate point",
     "CT": "tangential circle",
     "POLAR": "polar coordinates",
-    "ORIRESET": "tool orientation reset (moves the rotary axes)",
     "G58": "programmable axial offset",
     "G59": "programmable axial offset",
     "G33": "thread cutting",
@@ -477,6 +476,11 @@ class Sinumerik:
         if u in _FRAME_RESETS:
             out.event("frame", line, u, math.nan, text)
             return []
+        if u == "ORIRESET":
+            if not self.traori:
+                self.fail(line, "ORIRESET", "ORIRESET without TRAORI (the orientation transformation)")
+            self.vector = {"A3": 0.0, "B3": 0.0, "C3": 1.0}  # the rotary axes at zero: the tool along +Z
+            return []
         if u in ("SUPA", "G153"):
             return []
         if u in ("RET", "M17"):
@@ -633,6 +637,11 @@ class Sinumerik:
         if name in ("WORKPIECE", "FGROUP", "FGREF", "SOFTA", "BRISKA"):
             out.event("setting", line, name, math.nan, text)
             return []
+        if name == "ORIRESET":
+            if args.strip():
+                self.fail(line, "ORIRESET", f"ORIRESET({args.strip()}) turns the rotary axes to given angles: not "
+                          "read (the tool axis they mean depends on the machine)")  # fmt: skip
+            return self.word(line, "ORIRESET", text, False, True)
         if name == "TRAORI":
             self.traori = True
             out.event("frame", line, "TRAORI", math.nan, text)
