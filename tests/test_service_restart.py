@@ -14,7 +14,7 @@ SMALL = {"waypoints": [[0, 0, 0], [0.1, 0.03, 0], [0.2, 0, 0.01]]}
 
 
 def big() -> dict:
-    t = np.linspace(0, 200 * np.pi, 20_000)  # a few seconds of planning
+    t = np.linspace(0, 200 * np.pi, 15_000)  # a few seconds of planning
     return {"waypoints": np.c_[0.1 * np.cos(t) + 1e-4 * t, 0.1 * np.sin(t), 2e-4 * t].tolist()}
 
 

@@ -135,7 +135,7 @@ def wait_until(predicate, timeout: float, what: str):
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
     s = ServiceProcess(tmp_path_factory.mktemp("service"), workers=1,
-                       env={"PLANNER_MAX_REQUEST_BYTES": "200000"}).start()
+                       env={"PLANNER_MAX_REQUEST_BYTES": "2000000", "PLANNER_JOB_TIMEOUT": "2"}).start()
     yield s
     assert s.stop() == 0, s.log.read_text()
 
@@ -181,16 +181,16 @@ def test_openapi_schema_documents_both_bodies_and_the_docs_page(server):
 
 
 def test_request_larger_than_the_limit_is_413(server):
-    n = 12_000  # about 300 kB of JSON, above this server's 200 kB
+    n = 100_000  # about 2.5 MB of JSON, above this server's 2 MB
     body = json.dumps({"waypoints": [[i * 1e-3, 0.0, 0.0] for i in range(n)]})
     with server.client() as c:
         r = c.post("/v1/jobs", content=body, headers={"content-type": "application/json"})
         assert r.status_code == 413
-        assert "200000 bytes" in r.json()["detail"]
+        assert "2000000 bytes" in r.json()["detail"]
 
         def chunks():  # no Content-Length: counted as it arrives
-            for k in range(0, len(body), 10_000):
-                yield body[k:k + 10_000].encode()
+            for k in range(0, len(body), 100_000):
+                yield body[k:k + 100_000].encode()
 
         r = c.post("/v1/jobs", content=chunks(), headers={"content-type": "application/json"})
         assert r.status_code == 413
@@ -204,3 +204,20 @@ def test_dev_mode_refuses_a_non_loopback_address(tmp_path):
     assert r.returncode == 2
     assert "PLANNER_DEV_NO_AUTH=1" in r.stderr and "loopback" in r.stderr and "0.0.0.0" in r.stderr
     assert "listening" not in r.stdout
+
+
+def test_a_job_over_the_time_limit_fails_with_the_reason(server):
+    import numpy as np
+
+    t = np.linspace(0, 200 * np.pi, 40_000)  # about 6 s of planning on an idle machine
+    body = json.dumps({"waypoints": np.c_[0.1 * np.cos(t) + 1e-4 * t, 0.1 * np.sin(t), 2e-4 * t].round(7).tolist()})
+    with server.client() as c:
+        r = c.post("/v1/jobs", content=body, headers={"content-type": "application/json"})
+        assert r.status_code == 202, r.text
+        tic = time.monotonic()
+        view = wait_state(c, r.json()["id"], timeout=30)
+        elapsed = time.monotonic() - tic
+        assert view["state"] == "failed" and view["error"]["kind"] == "limit", view
+        assert view["error"]["message"] == "planning took longer than the service's limit of 2 s"
+        assert 2.0 <= elapsed < 10.0
+        assert c.get("/healthz").json()["workers"] == 1  # a fresh worker took its place
