@@ -262,17 +262,6 @@ def cmd_demo(args: argparse.Namespace) -> None:
     cmd_plan(plan_args)
 
 
-def cmd_sim(args: argparse.Namespace) -> None:
-    """``planner sim ...``: the simulated UR controller of the ``sim`` package (a front end, like the CLI)."""
-    try:
-        from sim.__main__ import main as sim_main
-    except ImportError as exc:
-        raise PlannerError(f"the simulated controller is not available ({exc})") from None
-    code = sim_main(args.sim_args)
-    if code:
-        raise SystemExit(code)
-
-
 def build_parser() -> argparse.ArgumentParser:
     ap = argparse.ArgumentParser(prog="planner", description="Robot tool-path planning with PH curves.")
     sub = ap.add_subparsers(dest="command", required=True)
@@ -321,9 +310,7 @@ def build_parser() -> argparse.ArgumentParser:
                    "(movep along the passes within --tolerance, movel between), .job saved plan")
     p.add_argument("--plot", help="write a picture (.png, .svg, .pdf): paths and tool axes, frames, speed, joints, fit")
     p.set_defaults(func=cmd_plan)
-    sm = sub.add_parser("sim", help="run the simulated UR controller (see python -m sim --help)")
-    sm.add_argument("sim_args", nargs=argparse.REMAINDER, help="arguments of python -m sim")
-    sm.set_defaults(func=cmd_sim)
+    sub.add_parser("sim", help="run the simulated UR controller on a loopback address (planner sim --help)")
     d = sub.add_parser("demo", help="run the main job on the bundled example")
     d.add_argument("--out", default="out", help="folder for the program and the plot (default: out)")
     d.set_defaults(func=cmd_demo)
@@ -331,6 +318,14 @@ def build_parser() -> argparse.ArgumentParser:
 
 
 def main(argv: list[str] | None = None) -> int:
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["sim"]:  # every option after "sim" is the simulator's (python -m sim --help)
+        try:
+            from sim.__main__ import main as sim_main
+        except ImportError as exc:
+            print(f"planner: error: the simulated controller is not available ({exc})", file=sys.stderr)
+            return 2
+        return sim_main(argv[1:])
     args = build_parser().parse_args(argv)
     try:
         args.func(args)

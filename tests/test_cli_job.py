@@ -151,3 +151,9 @@ def test_unplaced_part_gets_a_hint_and_repeated_warnings_are_grouped(capsys, tmp
     assert "moves with problems" in out and "hint      no part frame given" in out
     lines = warning_lines(("a.apt line 3: x", "a.apt line 3: x", "b"))
     assert lines == ["  warning   a.apt line 3: x (2 times)", "  warning   b"]
+
+
+def test_planner_sim_passes_its_options_to_the_simulator_and_refuses_remote_hosts(capsys):
+    assert main(["sim", "--host", "8.8.8.8"]) != 0
+    captured = capsys.readouterr()
+    assert "8.8.8.8 is not a loopback address" in captured.out + captured.err
