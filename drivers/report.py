@@ -1,0 +1,274 @@
+"""The execution report: how a run followed its plan, computed from what was recorded during the run.
+
+ONE implementation for every driver: :class:`drivers.ur.URDriver` records the actual TCP, joints and digital
+outputs from RTDE, :class:`drivers.sim.SimDriver` from its in-process motion model; both call
+:func:`execution_report`.
+
+Figures: the tracked TCP path's largest distance from the PLANNED PATH (the distance to the planned path
+polyline at the controller rate, not a time-aligned difference: a run that is late but on the path has no
+path error); duration against the planned one; every switch of a digital output with its planned and actual
+arc length along the planned path and its distance from the planned station; the joints' smallest margin to
+their position limits; the failure, if any, with the robot's reason and the job's time, pose and line.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from drivers.base import DriverError
+
+
+def bit_name(bit: int) -> str:
+    """Readable name of a digital output bit: standard[3], configurable[1], tool[0]."""
+    if bit < 8:
+        return f"standard[{bit}]"
+    if bit < 16:
+        return f"configurable[{bit - 8}]"
+    return f"tool[{bit - 16}]"
+
+
+@dataclass(frozen=True)
+class IOSwitch:
+    """One switch of a digital output: planned and actual.
+
+    bit: output bit (standard 0-7, configurable 8-15, tool 16-17); value: the new state;
+    planned_s: arc length of the planned station along the planned TCP path, m;
+    actual_s: arc length along the planned path where the output actually switched (the actual TCP's position
+    projected on the path's tangent at the station), m; NaN if it never switched;
+    distance_mm: distance of the actual TCP at the switch from the planned station, mm (NaN if never switched);
+    planned_t, actual_t: job time of the planned and of the actual switch, s (NaN if missing).
+    """
+
+    bit: int
+    value: bool
+    planned_s: float
+    actual_s: float
+    distance_mm: float
+    planned_t: float = math.nan
+    actual_t: float = math.nan
+
+    @property
+    def switched(self) -> bool:
+        return not math.isnan(self.actual_s)
+
+
+@dataclass(frozen=True)
+class ExecutionReport:
+    """How a run went.
+
+    mode: "stream" or "program" (or the driver's own, e.g. "dry-run");
+    ok: finished without a failure; reason: the failure's reason ("" when ok);
+    planned_duration: duration of the planned trajectory, s; duration: recorded run time, s;
+    samples: recorded samples; max_path_error: largest distance of the tracked TCP from the planned path, m;
+    max_path_error_t: job time of that sample, s; io_events: tuple of :class:`IOSwitch`;
+    joint_limit_margin: smallest distance of a recorded joint from its position limit, rad;
+    failure: the :class:`drivers.base.DriverError` or None.
+    """
+
+    mode: str
+    ok: bool
+    reason: str
+    planned_duration: float
+    duration: float
+    samples: int
+    max_path_error: float
+    io_events: tuple
+    joint_limit_margin: float
+    failure: DriverError | None = None
+    max_path_error_t: float = math.nan
+    path_length: float = 0.0
+
+    @property
+    def max_io_distance_mm(self) -> float:
+        """Largest distance of a switch from its station, mm (NaN without switches; inf if one was missed)."""
+        if not self.io_events:
+            return math.nan
+        return max(math.inf if not e.switched else e.distance_mm for e in self.io_events)
+
+    def describe(self) -> list[str]:
+        """The report as lines of text (what the CLI prints)."""
+        head = "ok" if self.ok else f"FAILED: {self.failure if self.failure is not None else self.reason}"
+        lines = [f"execution ({self.mode}): {head}"]
+        pct = ""
+        if self.planned_duration > 0:
+            pct = f" ({100.0 * self.duration / self.planned_duration:.1f} % of planned)"
+        lines.append(f"  duration {self.duration:.3f} s, planned {self.planned_duration:.3f} s{pct}; "
+                     f"{self.samples} samples recorded")
+        if self.samples:
+            at = "" if math.isnan(self.max_path_error_t) else f" at t = {self.max_path_error_t:.3f} s"
+            lines.append("  tracked TCP path: largest distance from the planned path "
+                         f"{self.max_path_error * 1e3:.3f} mm{at}")
+            lines.append(f"  joint-limit margin {self.joint_limit_margin:.3f} rad "
+                         f"({math.degrees(self.joint_limit_margin):.1f} deg)")
+        if self.io_events:
+            done = [e for e in self.io_events if e.switched]
+            missed = len(self.io_events) - len(done)
+            worst = max((e.distance_mm for e in done), default=math.nan)
+            lines.append(f"  I/O: {len(done)} of {len(self.io_events)} switches made"
+                         + (f", {missed} not made" if missed else "")
+                         + (f"; largest distance from its station {worst:.3f} mm" if done else ""))
+            for e in self.io_events[:8]:
+                state = "on " if e.value else "off"
+                if e.switched:
+                    lines.append(f"    {bit_name(e.bit)} {state} at s = {e.actual_s:.4f} m "
+                                 f"(planned {e.planned_s:.4f} m, {e.distance_mm:.3f} mm from the station)")
+                else:
+                    lines.append(f"    {bit_name(e.bit)} {state} planned at s = {e.planned_s:.4f} m: not switched")
+            if len(self.io_events) > 8:
+                lines.append(f"    ... {len(self.io_events) - 8} more")
+        return lines
+
+
+def planned_path(job, rate: float | None = None):
+    """The planned TCP path at the controller rate: times (n,), positions (n, 3) m, io bits (n,), lines (n,)
+    and cumulative arc length (n,) m. Read from the job's one trajectory (no second sampler)."""
+    tr = job.trajectory(rate)
+    ts, ps, io, ln = [], [], [], []
+    for c in tr.chunks(joints=False):
+        ts.append(c.times)
+        ps.append(c.poses[:, :3])
+        io.append(c.io)
+        ln.append(c.lines)
+    if not ts:
+        z = np.zeros(0)
+        return z, np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64), z
+    t = np.concatenate(ts)
+    p = np.concatenate(ps)
+    s = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))))
+    return t, p, np.concatenate(io), np.concatenate(ln), s
+
+
+def distance_to_polyline(points: np.ndarray, path: np.ndarray, *, k: int = 8) -> tuple[np.ndarray, np.ndarray]:
+    """Distance (m) of each point (m, 3) from the polyline ``path`` (n, 3), and the index of the segment
+    start nearest to it (m,). The candidate segments are those next to the ``k`` nearest vertices (exact for a
+    polyline sampled densely against the distances measured, as the planned path at the controller rate is)."""
+    points = np.asarray(points, dtype=float).reshape(-1, 3)
+    path = np.asarray(path, dtype=float).reshape(-1, 3)
+    if path.shape[0] == 0 or points.shape[0] == 0:
+        return np.full(points.shape[0], np.nan), np.zeros(points.shape[0], np.int64)
+    if path.shape[0] == 1:
+        return np.linalg.norm(points - path[0], axis=1), np.zeros(points.shape[0], np.int64)
+    # drop repeated vertices (the tool rests at move boundaries): they make the k nearest all the same point
+    keep = np.concatenate(([True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-12))
+    idx_map = np.flatnonzero(keep)
+    v = path[keep]
+    if v.shape[0] == 1:
+        return np.linalg.norm(points - v[0], axis=1), np.zeros(points.shape[0], np.int64)
+    kk = min(k, v.shape[0])
+    _, near = cKDTree(v).query(points, k=kk)
+    near = near.reshape(points.shape[0], kk)
+    nseg = v.shape[0] - 1
+    seg = np.concatenate((np.clip(near - 1, 0, nseg - 1), np.clip(near, 0, nseg - 1)), axis=1)  # (m, 2k)
+    a = v[seg]
+    d = v[seg + 1] - a
+    w = points[:, None, :] - a
+    dd = np.einsum("mkj,mkj->mk", d, d)
+    u = np.clip(np.einsum("mkj,mkj->mk", w, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+    dist = np.linalg.norm(w - u[..., None] * d, axis=2)
+    best = dist.argmin(axis=1)
+    rows = np.arange(points.shape[0])
+    return dist[rows, best], idx_map[seg[rows, best]]
+
+
+def _switches(times: np.ndarray, io: np.ndarray, first: int) -> list[tuple[int, bool, int]]:
+    """(bit, value, index) of every change of a bit in the io samples, from the state ``first`` before them."""
+    io = np.asarray(io, dtype=np.int64)
+    if io.size == 0:
+        return []
+    prev = np.concatenate(([first], io[:-1]))
+    change = io ^ prev
+    out = []
+    for i in np.flatnonzero(change):
+        bits = int(change[i])
+        b = 0
+        while bits:
+            if bits & 1:
+                out.append((b, bool((int(io[i]) >> b) & 1), int(i)))
+            bits >>= 1
+            b += 1
+    return out
+
+
+def joint_limit_margin(model: str | None, joints: np.ndarray) -> float:
+    """Smallest distance of the recorded joints (n, 6) rad from the model's position limits, rad (NaN without)."""
+    q = np.asarray(joints, dtype=float).reshape(-1, 6)
+    q = q[np.isfinite(q).all(axis=1)]
+    if model is None or q.shape[0] == 0:
+        return math.nan
+    from planner.kinematics.ur_models import get_model
+
+    m = get_model(model)
+    lo, hi = np.asarray(m.q_min), np.asarray(m.q_max)
+    return float(np.minimum(q - lo, hi - q).min())
+
+
+def execution_report(job, recorded_times, recorded_tcp, recorded_joints, recorded_io, *, mode: str,
+                     failure: DriverError | None = None, planned=None) -> ExecutionReport:
+    """The report of a run from what was recorded.
+
+    Parameters
+    ----------
+    job : PlannedJob
+    recorded_times : (n,) job time of each recorded sample, s (0 at the start of the planned trajectory)
+    recorded_tcp : (n, 6) actual TCP poses p[x, y, z, rx, ry, rz] in the base frame, m, rad
+    recorded_joints : (n, 6) actual joints, rad
+    recorded_io : (n,) actual digital output bits (standard 0-7, configurable 8-15, tool 16-17)
+    mode : str
+    failure : DriverError or None
+    planned : the result of :func:`planned_path` (computed from the job when None)
+    """
+    t = np.asarray(recorded_times, dtype=float).reshape(-1)
+    n = t.size
+    tcp = np.asarray(recorded_tcp, dtype=float).reshape(n, 6) if n else np.zeros((0, 6))
+    q = np.asarray(recorded_joints, dtype=float).reshape(n, 6) if n else np.zeros((0, 6))
+    io = np.asarray(recorded_io, dtype=np.int64).reshape(-1) if n else np.zeros(0, np.int64)
+    if io.size != n:
+        raise ValueError(f"recorded_io has {io.size} samples, recorded_times {n}")
+    pt, pp, pio, _, ps = planned if planned is not None else planned_path(job)
+    planned_duration = float(pt[-1] - pt[0]) if pt.size else 0.0
+    if n:
+        dist, seg = distance_to_polyline(tcp[:, :3], pp)
+        worst = int(np.nanargmax(dist)) if np.isfinite(dist).any() else 0
+        max_err, max_err_t = float(dist[worst]), float(t[worst])
+    else:
+        max_err, max_err_t = 0.0, math.nan
+    events = _io_events(t, tcp, io, pt, pp, pio, ps)
+    return ExecutionReport(
+        mode=mode, ok=failure is None, reason="" if failure is None else failure.reason,
+        planned_duration=planned_duration, duration=float(t[-1] - t[0]) if n > 1 else 0.0, samples=int(n),
+        max_path_error=max_err, max_path_error_t=max_err_t, io_events=tuple(events),
+        joint_limit_margin=joint_limit_margin(job.settings.robot, q), failure=failure,
+        path_length=float(ps[-1]) if ps.size else 0.0)
+
+
+def _io_events(t, tcp, io, pt, pp, pio, ps) -> list[IOSwitch]:
+    """Planned switches matched, bit by bit and in order, with the recorded ones."""
+    planned = _switches(pt, pio, 0)
+    actual = _switches(t, io, 0)  # the driver clears the job's outputs before the run
+    act_by = {}
+    for b, v, i in actual:
+        act_by.setdefault((b, v), []).append(i)
+    used = {}
+    out = []
+    for b, v, i in planned:
+        station = pp[i]
+        j0 = max(i - 1, 0)
+        j1 = min(i + 1, pp.shape[0] - 1)
+        tan = pp[j1] - pp[j0]
+        nt = np.linalg.norm(tan)
+        tan = tan / nt if nt > 0 else tan
+        k = used.get((b, v), 0)
+        cands = act_by.get((b, v), [])
+        if k < len(cands):
+            used[(b, v)] = k + 1
+            j = cands[k]
+            p = tcp[j, :3]
+            out.append(IOSwitch(b, v, float(ps[i]), float(ps[i] + np.dot(p - station, tan)),
+                                float(np.linalg.norm(p - station) * 1e3), float(pt[i]), float(t[j])))
+        else:
+            out.append(IOSwitch(b, v, float(ps[i]), math.nan, math.nan, float(pt[i]), math.nan))
+    return out
