@@ -67,12 +67,16 @@ def _where(toolpath, i: int) -> str:
 
 
 def _arc_points(toolpath, tolerance: float) -> int:
-    """Points the arcs of the toolpath will add when linearised within ``tolerance`` (estimate)."""
-    from planner.io.toolpath import Arc
+    """Points the arcs (estimate) and NURBS records (their sampling, counted) of the toolpath will add when
+    linearised within ``tolerance``."""
+    from planner.io.toolpath import NURBS_SAMPLING_FRACTION, Arc, Nurbs
 
     total = 0.0
     p = toolpath.points
     for arc in toolpath.events:
+        if isinstance(arc, Nurbs):
+            total += max(len(arc.sample_parameters(tolerance * NURBS_SAMPLING_FRACTION)) - 2, 0)
+            continue
         if not isinstance(arc, Arc):
             continue
         c, n = np.asarray(arc.centre, float), np.asarray(arc.axis, float)
