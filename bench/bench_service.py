@@ -62,9 +62,16 @@ def _plan_and_save(points: list, folder: str, k: int) -> float:
     return time.perf_counter() - tic
 
 
+def _nice() -> None:
+    from planner.service.worker_process import WORKER_NICE
+
+    os.nice(WORKER_NICE)
+
+
 def direct(jobs: list, workers: int) -> float:
-    """Wall time of the same plans (and saves) in a pool of ``workers`` processes, after warming it."""
-    with tempfile.TemporaryDirectory() as folder, cf.ProcessPoolExecutor(workers) as pool:
+    """Wall time of the same plans (and saves) in a pool of ``workers`` processes, after warming it; the processes
+    at the niceness of the service's workers (which matters on a machine shared with other work)."""
+    with tempfile.TemporaryDirectory() as folder, cf.ProcessPoolExecutor(workers, initializer=_nice) as pool:
         list(pool.map(_plan_and_save, jobs[:workers], [folder] * workers, range(workers)))  # imports, first call
         tic = time.perf_counter()
         list(pool.map(_plan_and_save, jobs, [folder] * len(jobs), range(len(jobs)), chunksize=1))

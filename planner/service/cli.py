@@ -13,8 +13,7 @@ import socket
 import sys
 
 from planner.errors import PlannerError
-from planner.service.config import DEFAULT_DB, ServiceConfig, is_loopback
-from planner.service.store import ROLES
+from planner.service.config import DEFAULT_DB, ROLES, ServiceConfig, is_loopback
 
 
 def add_subcommands(sub) -> None:

@@ -9,6 +9,8 @@ from pathlib import Path
 
 from planner.errors import PlannerError
 
+#: Key roles: planner (submit and read its own jobs) and operator (may also execute on robots).
+ROLES = ("planner", "operator")
 #: Default database: one SQLite file in the working directory.
 DEFAULT_DB = "sqlite:///jobs.sqlite"
 

@@ -22,12 +22,12 @@ from sqlalchemy import (
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, sessionmaker
 
+from planner.service.config import ROLES  # noqa: F401  (re-exported: the roles a key row may hold)
+
 #: Job states.
 STATES = ("queued", "running", "done", "failed", "cancelled")
 #: States a job never leaves.
 FINAL_STATES = ("done", "failed", "cancelled")
-#: Key roles: planner (submit and read its own jobs) and operator (may also execute on robots).
-ROLES = ("planner", "operator")
 #: The owner of jobs in development mode (PLANNER_DEV_NO_AUTH=1).
 DEV_OWNER = "dev"
 
