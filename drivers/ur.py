@@ -1,0 +1,610 @@
+"""Execute planned jobs on Universal Robots e-Series controllers through ur_rtde.
+
+Two modes, one report (:func:`drivers.report.execution_report`):
+
+- "stream": ``servoJ`` with the planner's own joints (the branch the planner chose and tracked, so the
+  controller never picks another) at the job's rate, one target per control period in an
+  ``initPeriod``/``waitPeriod`` loop, after a joint move onto ``job.start_joints`` (the safe approach), and
+  ending with ``servoStop`` (a controlled stop). The job's digital outputs switch at the samples where the
+  trajectory's I/O bits change (RTDE I/O interface, or Modbus with ``io="modbus"``).
+- "program": the job's URScript program (:func:`planner.export.job_program`) sent to the script port
+  (30002); the driver watches it run (RTDE runtime state; progress by the actual TCP's arc length along the
+  planned path).
+
+In both modes the actual TCP, joints and digital outputs are recorded from ``RTDEReceiveInterface``. Every
+failure is a :class:`drivers.base.DriverError` subclass with the robot's reason and the job's time, planned
+pose and source line; the driver never retries a motion by itself. The driver connects only to the host it is
+given.
+"""
+
+from __future__ import annotations
+
+import socket
+import threading
+import time
+
+import numpy as np
+
+from drivers.base import (
+    CancelledError,
+    ConnectionLostError,
+    DriverError,
+    EmergencyStopError,
+    NotReadyError,
+    PeriodOverrunError,
+    ProtectiveStopError,
+    RobotState,
+)
+from drivers.report import ExecutionReport, distance_to_polyline, execution_report, planned_path
+
+#: RTDE safety_status_bits: protective stop (bit 2), robot / system emergency stop (bits 7, 8), safeguard (3).
+_BIT_PROTECTIVE = 1 << 2
+_BITS_EMERGENCY = (1 << 7) | (1 << 8)
+#: RTDE runtime_state: 2 PLAYING, 4 PAUSED (1 STOPPED).
+_PLAYING, _PAUSED = 2, 4
+_ROBOT_MODES = {-1: "NO_CONTROLLER", 0: "DISCONNECTED", 1: "CONFIRM_SAFETY", 2: "BOOTING", 3: "POWER_OFF",
+                4: "POWER_ON", 5: "IDLE", 6: "BACKDRIVE", 7: "RUNNING", 8: "UPDATING_FIRMWARE"}
+_SAFETY_MODES = {1: "NORMAL", 2: "REDUCED", 3: "PROTECTIVE_STOP", 4: "RECOVERY", 5: "SAFEGUARD_STOP",
+                 6: "SYSTEM_EMERGENCY_STOP", 7: "ROBOT_EMERGENCY_STOP", 8: "VIOLATION", 9: "FAULT",
+                 10: "VALIDATE_JOINT_ID", 11: "UNDEFINED_SAFETY_MODE", 12: "AUTOMATIC_MODE_SAFEGUARD_STOP",
+                 13: "SYSTEM_THREE_POSITION_ENABLING_STOP"}
+MODES = ("stream", "program")
+
+
+class ProgramStoppedError(DriverError):
+    """The program on the robot stopped before the job ended (a stop from the dashboard or the pendant)."""
+
+    kind = "program stopped"
+
+
+class RTDEOutputs:
+    """Digital outputs through ur_rtde's ``RTDEIOInterface``: ``set_bits(mask, value)`` on the 18-bit word
+    (standard 0-7, configurable 8-15, tool 16-17), as :class:`drivers.modbus_io.ModbusToolIO` offers."""
+
+    def __init__(self, host: str) -> None:
+        import rtde_io
+
+        self.io = rtde_io.RTDEIOInterface(host)
+
+    def set_bits(self, mask: int, value: int) -> None:
+        for b in range(18):
+            if not (mask >> b) & 1:
+                continue
+            on = bool((value >> b) & 1)
+            if b < 8:
+                ok = self.io.setStandardDigitalOut(b, on)
+            elif b < 16:
+                ok = self.io.setConfigurableDigitalOut(b - 8, on)
+            else:
+                ok = self.io.setToolDigitalOut(b - 16, on)
+            if ok is False:
+                raise ConnectionLostError(f"the RTDE I/O interface refused to set output bit {b}")
+
+    def close(self) -> None:
+        try:
+            self.io.disconnect()
+        except RuntimeError:
+            pass
+
+
+class URDriver:
+    """A UR e-Series robot at ``host`` through ur_rtde (see the module doc).
+
+    Parameters
+    ----------
+    host : str
+        The controller's address (the only host the driver talks to).
+    model : str
+        UR model the jobs are planned for (checked against ``job.settings.robot``).
+    io : "rtde" or "modbus"
+        How the job's digital outputs are switched.
+    modbus_port : int
+        Modbus TCP port of the controller (with ``io="modbus"``).
+    lookahead, gain : float
+        servoJ lookahead time (s, 0.03..0.2) and proportional gain (100..2000).
+    overrun_limit : float
+        A control period that ends this many seconds late stops the run with PeriodOverrunError, s.
+    settle : float
+        Seconds of recording after the last target (the arm's lag behind the servo targets).
+    """
+
+    def __init__(self, host: str, model: str = "ur5e", *, io: str = "rtde", modbus_port: int = 502,
+                 lookahead: float = 0.1, gain: float = 300.0, overrun_limit: float = 0.05, settle: float = 0.3,
+                 deceleration: float = 10.0) -> None:
+        if not isinstance(host, str) or not host.strip():
+            raise ValueError(f"host must be the controller's address, got {host!r}")
+        if io not in ("rtde", "modbus"):
+            raise ValueError(f"io must be 'rtde' or 'modbus', got {io!r}")
+        if not 0.03 <= float(lookahead) <= 0.2:
+            raise ValueError(f"lookahead must be within 0.03..0.2 s, got {lookahead!r}")
+        if not 100.0 <= float(gain) <= 2000.0:
+            raise ValueError(f"gain must be within 100..2000, got {gain!r}")
+        if not float(overrun_limit) > 0:
+            raise ValueError(f"overrun_limit must be > 0 s, got {overrun_limit!r}")
+        from planner.kinematics import get_model
+
+        self.host = host.strip()
+        self.model = get_model(model).name
+        self.io_kind = io
+        self.modbus_port = int(modbus_port)
+        self.lookahead = float(lookahead)
+        self.gain = float(gain)
+        self.overrun_limit = float(overrun_limit)
+        self.settle = float(settle)
+        self.deceleration = float(deceleration)
+        self._r = self._c = self._io = self._dash = None
+        self._paused = threading.Event()
+        self._stop = threading.Event()
+        self._mode: str | None = None
+
+    # ---- connection ---------------------------------------------------------------------------------
+    def connect(self) -> None:
+        """Connect the receive interface, check the robot is ready (powered, brakes released, no stop, in
+        remote control), then the control and I/O interfaces. NotReadyError / ConnectionLostError / ..."""
+        import dashboard_client
+        import rtde_receive
+
+        try:
+            self._r = rtde_receive.RTDEReceiveInterface(self.host)
+        except RuntimeError as exc:
+            raise ConnectionLostError(f"cannot connect to the controller at {self.host} (RTDE): {exc}") from exc
+        try:
+            self._dash = dashboard_client.DashboardClient(self.host)
+            self._dash.connect()
+            remote = self._dash.isInRemoteControl()
+        except RuntimeError as exc:
+            self.close()
+            raise ConnectionLostError(f"cannot connect to the dashboard server at {self.host}: {exc}") from exc
+        if not remote:
+            self.close()
+            raise NotReadyError("the robot is not in remote control (switch it to remote control on the pendant)")
+        self._check_state()
+        self._connect_control()
+        try:
+            if self.io_kind == "modbus":
+                from drivers.modbus_io import ModbusToolIO
+
+                self._io = ModbusToolIO(self.host, self.modbus_port)
+                self._io.connect()
+            else:
+                self._io = RTDEOutputs(self.host)
+        except (RuntimeError, OSError) as exc:
+            self.close()
+            if isinstance(exc, DriverError):
+                raise
+            raise ConnectionLostError(f"cannot connect the {self.io_kind} I/O at {self.host}: {exc}") from exc
+
+    def _connect_control(self) -> None:
+        import rtde_control
+
+        try:
+            self._c = rtde_control.RTDEControlInterface(self.host)
+        except RuntimeError as exc:
+            self.close()
+            raise NotReadyError(f"the controller at {self.host} refused the control connection: {exc}") from exc
+
+    def close(self) -> None:
+        """Disconnect every interface (the arm is left as it is: stopped after a run)."""
+        for name in ("_c", "_io", "_r"):
+            obj = getattr(self, name)
+            setattr(self, name, None)
+            if obj is None:
+                continue
+            try:
+                if name == "_c":
+                    obj.stopScript()
+                if hasattr(obj, "disconnect"):
+                    obj.disconnect()
+                else:
+                    obj.close()
+            except (RuntimeError, OSError):
+                pass
+        if self._dash is not None:
+            try:
+                self._dash.disconnect()
+            except RuntimeError:
+                pass
+            self._dash = None
+
+    def __enter__(self) -> URDriver:
+        self.connect()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _need(self):
+        if self._r is None:
+            raise ConnectionLostError(f"not connected to {self.host}: call connect() first")
+        return self._r
+
+    # ---- state ----------------------------------------------------------------------------------------
+    def state(self) -> RobotState:
+        r = self._need()
+        try:
+            bits = int(r.getSafetyStatusBits())
+            return RobotState(
+                joints=tuple(r.getActualQ()), tcp_pose=tuple(r.getActualTCPPose()), robot_mode=int(r.getRobotMode()),
+                safety_mode=int(r.getSafetyMode()), runtime_state=int(r.getRuntimeState()),
+                protective_stop=bool(bits & _BIT_PROTECTIVE), emergency_stop=bool(bits & _BITS_EMERGENCY),
+                program_running=int(r.getRuntimeState()) == _PLAYING,
+                digital_out=int(r.getActualDigitalOutputBits()))
+        except RuntimeError as exc:
+            raise ConnectionLostError(f"lost the RTDE connection to {self.host}: {exc}") from exc
+
+    def _fault(self) -> DriverError | None:
+        """The robot's fault now, as an error without the job's place (None: none)."""
+        r = self._r
+        if r is None or not r.isConnected():
+            return ConnectionLostError(f"the RTDE connection to {self.host} dropped")
+        bits = int(r.getSafetyStatusBits())
+        safety = int(r.getSafetyMode())
+        name = _SAFETY_MODES.get(safety, str(safety))
+        if bits & _BITS_EMERGENCY or safety in (6, 7):
+            return EmergencyStopError(f"emergency stop (safety mode {name})")
+        if bits & _BIT_PROTECTIVE or safety == 3:
+            return ProtectiveStopError(f"protective stop (safety mode {name}, safety status bits {bits:#x})"
+                                       f"{self._safety_text()}")
+        mode = int(r.getRobotMode())
+        if mode == 3:
+            return NotReadyError("the robot is powered off (robot mode POWER_OFF)")
+        if mode in (4, 5):
+            return NotReadyError(f"the robot's brakes are locked (robot mode {_ROBOT_MODES[mode]})")
+        if mode != 7:
+            return NotReadyError(f"the robot is not running (robot mode {_ROBOT_MODES.get(mode, mode)})")
+        if safety not in (1, 2):
+            return NotReadyError(f"the robot is stopped by its safety system (safety mode {name})")
+        return None
+
+    def _safety_text(self) -> str:
+        try:
+            return f"; dashboard: {self._dash.safetystatus()}" if self._dash is not None else ""
+        except RuntimeError:
+            return ""
+
+    def _check_state(self) -> None:
+        err = self._fault()
+        if err is not None:
+            raise err
+
+    # ---- motions ------------------------------------------------------------------------------------
+    def move_to_start(self, job, *, speed: float = 0.5, acceleration: float = 0.5) -> None:
+        """A joint move (rad/s, rad/s^2) onto ``job.start_joints``: the arm configuration the planner chose."""
+        self._check_job(job)
+        self._need()
+        self._check_state()
+        if self._c is None or not self._c.isProgramRunning():
+            if self._c is not None:
+                self._c.reuploadScript()
+            else:
+                self._connect_control()
+        q0 = [float(x) for x in job.start_joints]
+        try:
+            ok = self._c.moveJ(q0, float(speed), float(acceleration))
+        except RuntimeError as exc:
+            raise ConnectionLostError(f"the move to the start failed: {exc}") from exc
+        err = self._fault()
+        if not ok or err is not None:
+            err = err or DriverError("the controller did not complete the move to the start joints")
+            raise type(err)(f"move to the start: {err.reason}", t=0.0, pose=self._first_pose(job),
+                            line=self._first_line(job))
+        q = np.asarray(self._r.getActualQ())
+        if np.abs(q - q0).max() > 1e-3:
+            raise DriverError(f"the move to the start ended {np.abs(q - q0).max():.4f} rad from the start joints",
+                              t=0.0, pose=self._first_pose(job))
+
+    @staticmethod
+    def _first_pose(job):
+        for c in job.trajectory().chunks(joints=False):
+            if len(c):
+                return c.poses[0]
+        return None
+
+    @staticmethod
+    def _first_line(job):
+        return int(job.moves[0].line) if job.moves else None
+
+    def _check_job(self, job) -> None:
+        robot = job.settings.robot
+        if robot is None:
+            raise DriverError("the job was planned without a robot: plan it with robot=... to execute it")
+        from planner.kinematics import get_model
+
+        if get_model(robot).name != self.model:
+            raise DriverError(f"the job was planned for {robot}, the driver drives a {self.model}")
+        if job.problems:
+            raise DriverError(f"the job has {len(job.problems)} unreachable poses (first: {job.problems[0]}); "
+                              "it is not executed")
+        if job.start_joints is None:
+            raise DriverError("the job has no start joints (no reachable first pose)")
+
+    def pause(self) -> None:
+        """Hold the arm on the path (stream: the target stops advancing; program: dashboard pause)."""
+        self._paused.set()
+        if self._mode == "program" and self._dash is not None:
+            self._dash.pause()
+
+    def resume(self) -> None:
+        """Continue after :meth:`pause`."""
+        self._paused.clear()
+        if self._mode == "program" and self._dash is not None:
+            self._dash.play()
+
+    def stop(self) -> None:
+        """End the run now with a controlled stop; its report says CancelledError (stopped by the caller)."""
+        self._stop.set()
+
+    # ---- execution --------------------------------------------------------------------------------------
+    def execute(self, job, *, mode: str = "stream", progress=None,
+                cancel: threading.Event | None = None) -> ExecutionReport:
+        """Execute ``job`` (see the module doc) and return its report (``report.failure`` on failure).
+
+        DriverError is raised only when the run cannot start (not connected, wrong job, robot not ready);
+        once the arm moves, every failure ends the run with the arm stopped and is returned in the report.
+        """
+        if mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+        self._check_job(job)
+        self._need()
+        self._check_state()
+        self._stop.clear()
+        self._paused.clear()
+        cancel = cancel if cancel is not None else threading.Event()
+        planned = planned_path(job)
+        self.move_to_start(job)
+        mask = self._job_mask(planned[2])
+        if mask:
+            self._io.set_bits(mask, 0)
+        self._mode = mode
+        try:
+            run = self._stream if mode == "stream" else self._program
+            rec, failure = run(job, planned, mask, progress, cancel)
+        finally:
+            self._mode = None
+        return execution_report(job, *rec, mode=mode, failure=failure, planned=planned)
+
+    @staticmethod
+    def _job_mask(io: np.ndarray) -> int:
+        m = 0
+        for v in np.unique(io):
+            m |= int(v)
+        return m
+
+    def _stopped(self, cancel) -> DriverError | None:
+        if cancel.is_set():
+            return CancelledError("cancelled by the caller")
+        if self._stop.is_set():
+            return CancelledError("stopped by the caller (driver.stop())")
+        return None
+
+    def _safe_off(self, mask: int) -> None:
+        """Switch the job's outputs off after a failure (best effort: the connection may be gone)."""
+        if mask and self._io is not None:
+            try:
+                self._io.set_bits(mask, 0)
+            except (RuntimeError, OSError):
+                pass
+
+    def _stream(self, job, planned, mask, progress, cancel):
+        c, r, io = self._c, self._r, self._io
+        pt, pp, _, plines, _ = planned
+        total = pt.size
+        rate = float(job.settings.rate)
+        dt = 1.0 / rate
+        la, gain = self.lookahead, self.gain
+        T, X, Q, B = [], [], [], []
+        failure = None
+        done = 0
+        prev_io = 0
+        pending: list[_Station] = []  # output switches whose station the actual TCP has not reached yet
+        k = 0  # sample being commanded (job-wide)
+        t_last = None
+        report_every = max(1, int(rate // 10))
+        try:
+            for chunk in job.trajectory(rate).chunks():
+                qs = chunk.joints.tolist()
+                ios = chunk.io.tolist()
+                times = chunk.times.tolist()
+                i = 0
+                n = len(qs)
+                while i < n:
+                    t0 = c.initPeriod()
+                    now = time.perf_counter()
+                    if t_last is not None and now - t_last > self.overrun_limit:
+                        raise PeriodOverrunError(f"the control loop missed its period: {1e3 * (now - t_last):.1f} ms "
+                                                 f"between targets (limit {1e3 * self.overrun_limit:.0f} ms)")
+                    t_last = now
+                    err = self._stopped(cancel)
+                    if err is not None:
+                        raise err
+                    paused = self._paused.is_set()
+                    q = qs[i]
+                    if not c.servoJ(q, 0.0, 0.0, dt, la, gain):
+                        raise self._fault() or ProgramStoppedError(self._not_running_reason())
+                    if ios[i] != prev_io and not paused:
+                        pending.append(_Station(k, ios[i] ^ prev_io, ios[i], pp))
+                        prev_io = ios[i]
+                    T.append(times[i])
+                    x = r.getActualTCPPose()
+                    X.append(x)
+                    while pending and pending[0].reached(x, k):
+                        ev = pending.pop(0)
+                        io.set_bits(ev.mask, ev.value)
+                    Q.append(r.getActualQ())
+                    B.append(r.getActualDigitalOutputBits())
+                    f = self._fault()
+                    if f is not None:
+                        raise f
+                    if r.getRuntimeState() != _PLAYING:
+                        raise ProgramStoppedError(self._not_running_reason())
+                    if not paused:
+                        i += 1
+                        k += 1
+                        done += 1
+                        if progress is not None and done % report_every == 0:
+                            progress("execute", done, total)
+                    c.waitPeriod(t0)
+            # hold the last target until the arm, lagging its targets, has arrived; then a controlled stop
+            t_end = T[-1] if T else 0.0
+            q_last = qs[-1] if T else None
+            n_settle = int(self.settle * rate)
+            for j in range(n_settle + 10):
+                t0 = c.initPeriod()
+                if j < n_settle and q_last is not None:
+                    c.servoJ(q_last, 0.0, 0.0, dt, la, gain)
+                elif j == n_settle:
+                    while pending:
+                        ev = pending.pop(0)
+                        io.set_bits(ev.mask, ev.value)
+                    c.servoStop(self.deceleration)
+                T.append(t_end + (j + 1) * dt)
+                x = r.getActualTCPPose()
+                X.append(x)
+                while pending and pending[0].reached(x, k):
+                    ev = pending.pop(0)
+                    io.set_bits(ev.mask, ev.value)
+                Q.append(r.getActualQ())
+                B.append(r.getActualDigitalOutputBits())
+                c.waitPeriod(t0)
+            if progress is not None:
+                progress("execute", total, total)
+        except DriverError as exc:
+            failure = self._locate(exc, k, pt, pp, plines)
+        except RuntimeError as exc:  # ur_rtde: the socket closed
+            failure = self._locate(ConnectionLostError(f"the connection to {self.host} dropped: {exc}"),
+                                   k, pt, pp, plines)
+        if failure is not None:
+            self._halt(failure)
+            self._safe_off(mask)
+        return (T, X, Q, B), failure
+
+    def _not_running_reason(self) -> str:
+        return ("the program on the robot stopped (runtime state "
+                f"{'STOPPED' if self._r.getRuntimeState() == 1 else self._r.getRuntimeState()}): "
+                "a stop from the dashboard or the pendant")
+
+    @staticmethod
+    def _locate(err: DriverError, k: int, pt, pp, plines) -> DriverError:
+        k = min(max(k, 0), pt.size - 1)
+        pose = None if pp.size == 0 else pp[k]
+        return err.located(float(pt[k]), pose, int(plines[k]))
+
+    def _halt(self, failure: DriverError) -> None:
+        """Bring the arm to rest after a failure (nothing to do when the connection or the program is gone)."""
+        if isinstance(failure, ConnectionLostError) or self._c is None:
+            return
+        try:
+            if self._mode == "stream":
+                self._c.servoStop(self.deceleration)
+            elif self._r.getRuntimeState() in (_PLAYING, _PAUSED) and self._dash is not None:
+                self._dash.stop()
+        except RuntimeError:
+            pass
+        try:
+            end = time.monotonic() + 2.0
+            while time.monotonic() < end and np.abs(self._r.getActualQd()).max() > 1e-4:
+                time.sleep(0.01)
+        except RuntimeError:
+            pass
+
+    def _program(self, job, planned, mask, progress, cancel):
+        from scipy.spatial import cKDTree
+
+        from planner.export import job_program
+
+        r = self._r
+        pt, pp, _, plines, ps = planned
+        text = job_program(job)
+        self._c.stopScript()  # hand the arm from ur_rtde's control script to the job's program
+        tree = cKDTree(pp) if pp.size else None
+        T, X, Q, B = [], [], [], []
+        failure = None
+        k = 0
+        try:
+            try:
+                with socket.create_connection((self.host, 30002), timeout=2.0) as s:
+                    s.sendall(text.encode() if text.endswith("\n") else (text + "\n").encode())
+            except OSError as exc:
+                raise ConnectionLostError(f"cannot send the program to {self.host}:30002: {exc}") from exc
+            end = time.monotonic() + 5.0
+            while r.getRuntimeState() != _PLAYING:
+                f = self._fault()
+                if f is not None:
+                    raise f
+                if time.monotonic() > end:
+                    raise ProgramStoppedError("the controller did not start the program within 5 s (refused)")
+                time.sleep(0.005)
+            ts0 = r.getTimestamp()
+            last_prog = 0.0
+            while True:
+                err = self._stopped(cancel)
+                if err is not None:
+                    raise err
+                ts = r.getTimestamp()
+                x = r.getActualTCPPose()
+                T.append(ts - ts0)
+                X.append(x)
+                Q.append(r.getActualQ())
+                B.append(r.getActualDigitalOutputBits())
+                f = self._fault()
+                if f is not None:
+                    raise f
+                state = r.getRuntimeState()
+                if tree is not None and time.monotonic() - last_prog > 0.1:
+                    last_prog = time.monotonic()
+                    _, idx = tree.query(x[:3])
+                    k = max(k, int(idx))
+                    if progress is not None:
+                        progress("execute", k, pt.size)
+                if state not in (_PLAYING, _PAUSED):
+                    break
+                time.sleep(0.002)
+            # the program ended: at the job's end, or stopped from outside
+            d, _ = distance_to_polyline(np.asarray(X[-1][:3])[None], pp[-1:])
+            if d[0] > 1e-3:
+                raise ProgramStoppedError(self._not_running_reason() + f"; the tool is {1e3 * d[0]:.1f} mm "
+                                          "from the job's last pose")
+            k = pt.size - 1
+            if progress is not None:
+                progress("execute", pt.size, pt.size)
+        except DriverError as exc:
+            failure = self._locate(exc, k, pt, pp, plines)
+        except RuntimeError as exc:
+            failure = self._locate(ConnectionLostError(f"the connection to {self.host} dropped: {exc}"),
+                                   k, pt, pp, plines)
+        if failure is not None:
+            self._halt(failure)
+            self._safe_off(mask)
+        if not isinstance(failure, ConnectionLostError):
+            try:
+                self._c.reuploadScript()  # ur_rtde's control script back, for the next move
+            except RuntimeError:
+                pass
+        return (T, X, Q, B), failure
+
+
+class _Station:
+    """A planned switch of outputs at sample ``k`` of the planned path: made when the ACTUAL TCP reaches the
+    station (passes the plane through it normal to the path, or comes within ``near`` m of it), not when the
+    servo target does: the arm lags its targets by the servo's following error, which is the switch's distance
+    from its station otherwise. ``late`` s after its target was commanded it is made in any case."""
+
+    __slots__ = ("k", "mask", "value", "p", "u", "deadline", "near")
+
+    def __init__(self, k: int, mask: int, value: int, pp: np.ndarray, near: float = 5e-5, late: float = 0.5,
+                 rate: float = 500.0) -> None:
+        self.k, self.mask, self.value = k, int(mask), int(value)
+        k = min(k, pp.shape[0] - 1)
+        self.p = pp[k]
+        back = pp[max(k - 50, 0):k + 1]
+        step = np.diff(back, axis=0)
+        nz = np.flatnonzero(np.linalg.norm(step, axis=1) > 1e-9)
+        u = step[nz[-1]] if nz.size else np.zeros(3)
+        nu = np.linalg.norm(u)
+        self.u = u / nu if nu > 0 else u
+        self.deadline = k + int(late * rate)
+        self.near = near
+
+    def reached(self, x, k: int) -> bool:
+        d = np.asarray(x[:3]) - self.p
+        return bool((self.u @ d) >= 0.0 and np.any(self.u)) or float(d @ d) <= self.near**2 or k >= self.deadline
