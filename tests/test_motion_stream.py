@@ -20,13 +20,11 @@ from planner.motion import (
     SplineEvaluator,
     continuous_rotvec,
     io_window,
-    matrix_to_quaternion,
     plan_feed,
-    rotation_angle,
     sample_poses,
     tool_orientation,
 )
-from planner.rotations import quaternion_to_rotvec
+from planner.rotations import matrix_to_quaternion, quaternion_to_rotvec, rotation_angle
 
 LIM = MotionLimits(speed=1.0, acceleration=2.0, jerk=30.0)
 

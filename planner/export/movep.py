@@ -20,13 +20,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from planner.export.header import ExportError
 from planner.motion.events import ScheduledEvent, schedule_events
 from planner.motion.limits import positive
-from planner.motion.orientation import rotation_angle
 from planner.motion.stream import poses_at_length
+from planner.rotations import rotation_angle, slerp_matrices
 
 _CHECKS = 8
 
@@ -73,9 +72,7 @@ def _deviations(pa, Ra, pb, Rb, pc, Rc) -> tuple[np.ndarray, np.ndarray]:
     dd = np.maximum(np.einsum("mki,mki->mk", d, d), 1e-300)
     lam = np.clip(np.einsum("mki,mki->mk", pc - a, d) / dd, 0.0, 1.0)
     dist = np.linalg.norm(pc - a - lam[..., None] * d, axis=2)
-    w = Rotation.from_matrix(np.einsum("mji,mjk->mik", Ra, Rb)).as_rotvec()  # Ra^T Rb
-    step = Rotation.from_rotvec((lam[..., None] * w[:, None, :]).reshape(-1, 3)).as_matrix()
-    interp = np.einsum("mij,mkjl->mkil", Ra, step.reshape(k, _CHECKS, 3, 3))  # slerp Ra -> Rb
+    interp = slerp_matrices(Ra, Rb, lam)  # (k, C, 3, 3): slerp Ra -> Rb at the chord fractions
     ang = rotation_angle(interp.reshape(-1, 3, 3), Rc.reshape(-1, 3, 3)).reshape(k, _CHECKS)
     return dist, ang
 

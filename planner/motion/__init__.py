@@ -26,13 +26,11 @@ from planner.motion.orientation import (
     ConstantOrientation,
     FrameOrientation,
     orientation_rate,
-    rotation_angle,
     tool_orientation,
 )
 from planner.motion.profile import FeedProfile
 from planner.motion.rotvec import continuous_rotvec, rotvec_from_quaternions
 from planner.motion.stream import RATES, PoseStream, as_transform, poses_at_length, sample_poses, transform_to_pose
-from planner.rotations import matrix_to_quaternion, quaternion_to_matrix, quaternion_to_rotvec  # deprecated here
 
 __all__ = [
     "OUTPUT_PINS",
@@ -58,14 +56,10 @@ __all__ = [
     "io_states",
     "io_window",
     "lower_feed_locally",
-    "matrix_to_quaternion",
     "orientation_rate",
     "plan_feed",
     "poses_at_length",
-    "quaternion_to_matrix",
-    "quaternion_to_rotvec",
     "rotvec_from_quaternions",
-    "rotation_angle",
     "sample_poses",
     "schedule_events",
     "span_bounds",

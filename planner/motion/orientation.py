@@ -22,9 +22,7 @@ from planner.rotations import matrix_to_quaternion, rotation_angle
 
 Orientation = Callable[[np.ndarray], np.ndarray]
 
-# ``rotation_angle`` is planner.rotations.rotation_angle, re-exported here for planner/export/movep.py (deprecated
-# here: import it from planner.rotations).
-__all__ = ["ConstantOrientation", "FrameOrientation", "Orientation", "orientation_rate", "rotation_angle",
+__all__ = ["ConstantOrientation", "FrameOrientation", "Orientation", "orientation_rate",
            "tool_orientation"]
 
 
