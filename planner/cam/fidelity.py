@@ -10,9 +10,9 @@ straight run to an arc. Here every pass is fitted locally:
    last chord's direction at the pass ends. Every tangent lies in the cone of its two chords: no
    overshoot.
 2. Each span is the PH quintic Hermite interpolant of its end points and tangents (C1, local,
-   |dr/du| = 1 at the knots with chord-length knots), the member closest to a PH cubic
-   (:func:`planner.curves.ph_quintic.batch_hermite`); with both tangents along the chord that is the
-   straight chord itself, exactly.
+   |dr/du| = 1 at the knots with chord-length knots), the member of least bending energy among the four
+   that respect the data's plane and symmetries (:func:`planner.curves.ph_quintic.batch_hermite`); with
+   both tangents along the chord that is the straight chord itself, exactly.
 3. The distance of the span from its CAM chord is measured on samples; a span farther than the
    tolerance (or not advancing monotonically along its chord) is split at its midpoint, a new knot on
    the chord with the chord's direction as tangent, and both halves are refitted. Halving repeats
