@@ -221,3 +221,14 @@ def test_a_job_over_the_time_limit_fails_with_the_reason(server):
         assert view["error"]["message"] == "planning took longer than the service's limit of 2 s"
         assert 2.0 <= elapsed < 10.0
         assert c.get("/healthz").json()["workers"] == 1  # a fresh worker took its place
+
+
+def test_the_rest_settings_mirror_plan_settings_one_to_one():
+    from planner.service.schemas import SettingsModel
+    from planner.settings import PlanSettings
+
+    assert list(SettingsModel.model_fields) == list(PlanSettings().to_dict())
+    assert SettingsModel().model_dump() == PlanSettings().to_dict()
+    custom = PlanSettings(path="cam", tolerance=2e-5, robot="ur10e", part_frame=(0.5, 0, 0.1, 0, 0, 1.0),
+                          cut_output=("tool", 1), passes=(0, 3), feed=0.02).checked()
+    assert SettingsModel.model_validate(custom.to_dict()).to_settings().checked() == custom
