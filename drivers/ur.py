@@ -106,11 +106,16 @@ class URDriver:
         A control period that ends this many seconds late stops the run with PeriodOverrunError, s.
     settle : float
         Seconds of recording after the last target (the arm's lag behind the servo targets).
+    deceleration : float
+        servoStop deceleration, rad/s^2.
+    frequency : float
+        The controller's control rate, Hz (500 e-Series, 125 CB-Series): a job is streamed at its planned rate,
+        which must be this.
     """
 
     def __init__(self, host: str, model: str = "ur5e", *, io: str = "rtde", modbus_port: int = 502,
                  lookahead: float = 0.1, gain: float = 300.0, overrun_limit: float = 0.05, settle: float = 0.3,
-                 deceleration: float = 10.0) -> None:
+                 deceleration: float = 10.0, frequency: float = 500.0) -> None:
         if not isinstance(host, str) or not host.strip():
             raise ValueError(f"host must be the controller's address, got {host!r}")
         if io not in ("rtde", "modbus"):
@@ -132,6 +137,7 @@ class URDriver:
         self.overrun_limit = float(overrun_limit)
         self.settle = float(settle)
         self.deceleration = float(deceleration)
+        self.frequency = float(frequency)
         self._r = self._c = self._io = self._dash = None
         self._paused = threading.Event()
         self._stop = threading.Event()
@@ -178,7 +184,7 @@ class URDriver:
         import rtde_control
 
         try:
-            self._c = rtde_control.RTDEControlInterface(self.host)
+            self._c = rtde_control.RTDEControlInterface(self.host, self.frequency)
         except RuntimeError as exc:
             self.close()
             raise NotReadyError(f"the controller at {self.host} refused the control connection: {exc}") from exc
@@ -315,6 +321,9 @@ class URDriver:
         if job.problems:
             raise DriverError(f"the job has {len(job.problems)} unreachable poses (first: {job.problems[0]}); "
                               "it is not executed")
+        if abs(float(job.settings.rate) - self.frequency) > 1e-9:
+            raise DriverError(f"the job was planned at {job.settings.rate:g} Hz, the controller runs at "
+                              f"{self.frequency:g} Hz: plan it with rate={self.frequency:g}")
         if job.start_joints is None:
             raise DriverError("the job has no start joints (no reachable first pose)")
 

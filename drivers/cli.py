@@ -1,0 +1,193 @@
+"""``planner run FILE --robot ur5e --host 127.0.0.2 [--mode stream|program] [--io rtde|modbus] [--sim]``:
+plan a toolpath file (the options of ``planner plan``), execute it on a UR controller with a progress bar,
+print the execution report.
+
+``--sim`` starts a simulated controller (:class:`sim.SimController`) on a free loopback address (or on
+``--host``) and stops it afterwards. Without ``--sim`` the driver connects to ``--host`` only.
+The lead wires :func:`add_run_subcommand` into ``planner.cli``; :func:`main` runs the subcommand alone.
+"""
+
+from __future__ import annotations
+
+import argparse
+import ipaddress
+import random
+import socket
+import sys
+
+from drivers.base import DriverError
+
+_UR_PORTS = (30004, 29999, 30001, 30002, 30003)
+
+
+def _plan_parser() -> argparse.ArgumentParser:
+    from planner.cli import build_parser
+
+    ap = build_parser()
+    for action in ap._subparsers._group_actions:  # the 'plan' subcommand's parser: its options are ours
+        if isinstance(action, argparse._SubParsersAction):
+            return action.choices["plan"]
+    raise RuntimeError("planner.cli has no 'plan' subcommand")
+
+
+def add_run_subcommand(subparsers) -> argparse.ArgumentParser:
+    """Add ``run`` to an argparse subparsers object (``planner``'s); returns its parser."""
+    r = subparsers.add_parser("run", help="plan a toolpath file and execute it on a UR robot (or --sim), "
+                                          "with a progress bar and the execution report")
+    for action in _plan_parser()._actions:
+        if action.dest in ("help", "output", "plot", "progress"):
+            continue
+        r._add_action(action)
+    r.add_argument("--host", help="the controller's address (the only host the driver connects to)")
+    r.add_argument("--mode", choices=["stream", "program"], default="stream",
+                   help="stream: servoJ with the planner's joints at the job's rate (default); program: send the "
+                        "job's URScript program to the script port and watch it run")
+    r.add_argument("--io", choices=["rtde", "modbus"], default="rtde",
+                   help="switch the job's outputs through RTDE (default) or the controller's Modbus server")
+    r.add_argument("--modbus-port", type=int, default=None,
+                   help="Modbus TCP port (default 502; with --sim a free port)")
+    r.add_argument("--sim", action="store_true", help="start a simulated controller on a free loopback address")
+    r.add_argument("--sim-speed", type=float, default=1.0,
+                   help="--sim: simulated seconds per second (program mode only; streaming runs in real time)")
+    r.add_argument("--lookahead", type=float, default=0.1, help="servoJ lookahead time, s (default 0.1)")
+    r.add_argument("--gain", type=float, default=300.0, help="servoJ gain (default 300)")
+    r.add_argument("--progress", action="store_true", help="show the progress bar even when not on a terminal")
+    r.set_defaults(func=cmd_run, robot="ur5e")
+    return r
+
+
+def free_loopback_host(rng: random.Random | None = None) -> str:
+    """A loopback address on which nothing serves the UR ports."""
+    rng = rng or random.Random()
+    for _ in range(200):
+        host = f"127.{rng.randint(100, 250)}.{rng.randint(0, 255)}.{rng.randint(2, 254)}"
+        ok = True
+        for port in _UR_PORTS:
+            with socket.socket() as s:
+                try:
+                    s.bind((host, port))
+                except OSError:
+                    ok = False
+                    break
+        if ok:
+            return host
+    raise DriverError("no free loopback address for a simulated controller")
+
+
+def _free_port(host: str) -> int:
+    with socket.socket() as s:
+        s.bind((host, 0))
+        return s.getsockname()[1]
+
+
+def start_sim(model: str, *, host: str | None = None, modbus: bool = False, speed: float = 1.0):
+    """A started :class:`sim.SimController` (on ``host`` or a free loopback address; Modbus on a free port)."""
+    from sim import SimController
+
+    host = host or free_loopback_host()
+    return SimController(host, model=model, modbus_port=_free_port(host) if modbus else None, speed=speed).start()
+
+
+def execute_job(job, host: str, *, mode: str = "stream", io: str = "rtde", modbus_port: int = 502,
+                progress=None, cancel=None, **driver_options):
+    """Connect a :class:`drivers.ur.URDriver` to ``host``, execute ``job``, disconnect; the ExecutionReport."""
+    from drivers.ur import URDriver
+
+    driver = URDriver(host, job.settings.robot, io=io, modbus_port=modbus_port, **driver_options)
+    driver.connect()
+    try:
+        return driver.execute(job, mode=mode, progress=progress, cancel=cancel)
+    finally:
+        driver.close()
+
+
+def run_demo_on_sim(job, *, mode: str = "program", speed: float = 10.0, progress=None):
+    """Execute a planned job on a simulated controller through real ur_rtde (the end of ``planner demo``).
+
+    Program mode runs the job's URScript in fast-forward (``speed`` simulated seconds per second); stream
+    mode streams servoJ in real time (``speed`` is then 1). Returns the :class:`ExecutionReport`."""
+    sim = start_sim(job.settings.robot, speed=speed if mode == "program" else 1.0)
+    try:
+        return execute_job(job, sim.host, mode=mode, progress=progress)
+    finally:
+        sim.stop()
+
+
+def cmd_run(args: argparse.Namespace) -> int:
+    from planner import plan
+    from planner.cli import _Progress, settings_from_args
+
+    if args.robot in (None, "none"):
+        print("planner run: error: --robot MODEL is needed to execute a job", file=sys.stderr)
+        return 2
+    if not args.sim and not args.host:
+        print("planner run: error: give the controller's address with --host (or --sim)", file=sys.stderr)
+        return 2
+    if args.host:
+        try:
+            ipaddress.ip_address(args.host)
+        except ValueError:
+            print(f"planner run: error: --host must be an IP address, got {args.host!r}", file=sys.stderr)
+            return 2
+    if args.sim and args.mode == "stream" and args.sim_speed != 1.0:
+        print("planner run: error: --sim-speed works in program mode only (streaming runs in real time)",
+              file=sys.stderr)
+        return 2
+    settings = settings_from_args(args)
+    bars = _Progress(args.progress or sys.stderr.isatty())
+    read_options = {k: v for k, v in (("units", args.units), ("machine", args.machine)) if v} or None
+    try:
+        job = plan(args.input, settings, read_options=read_options, progress=bars)
+    finally:
+        bars.close()
+    print(f"planned {args.input}: {job.duration:.2f} s, {len(job.passes)} passes", flush=True)
+    sim = None
+    try:
+        if args.sim:
+            sim = start_sim(settings.robot, host=args.host, modbus=args.io == "modbus", speed=args.sim_speed)
+            host, modbus_port = sim.host, sim.modbus_port
+            print(f"simulated {settings.robot} controller on {host}", flush=True)
+        else:
+            host, modbus_port = args.host, 502
+        if args.modbus_port is not None:
+            modbus_port = args.modbus_port
+        bars = _Progress(args.progress or sys.stderr.isatty())
+        try:
+            report = execute_job(job, host, mode=args.mode, io=args.io, modbus_port=modbus_port, progress=bars,
+                                 lookahead=args.lookahead, gain=args.gain)
+        finally:
+            bars.close()
+    finally:
+        if sim is not None:
+            sim.stop()
+    for line in report.describe():
+        print(line)
+    return 0 if report.ok else 1
+
+
+def main(argv: list[str] | None = None) -> int:
+    """``planner run ...`` alone: ``main(["run", FILE, ...])`` (or without the leading "run")."""
+    from planner.errors import PlannerError
+
+    argv = sys.argv[1:] if argv is None else list(argv)
+    if argv[:1] == ["run"]:
+        argv = argv[1:]
+    ap = argparse.ArgumentParser(prog="planner")
+    sub = ap.add_subparsers(dest="command", required=True)
+    add_run_subcommand(sub)
+    args = ap.parse_args(["run", *argv])
+    try:
+        return args.func(args)
+    except (PlannerError, ValueError) as exc:
+        print(f"planner run: error: {exc}", file=sys.stderr)
+        return 2
+    except DriverError as exc:
+        print(f"planner run: robot error ({exc.kind}): {exc}", file=sys.stderr)
+        return 1
+    except OSError as exc:
+        print(f"planner run: error: {exc}", file=sys.stderr)
+        return 2
+
+
+if __name__ == "__main__":
+    sys.exit(main())
