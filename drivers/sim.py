@@ -1,0 +1,421 @@
+"""Dry runs in-process: the simulated controller's motion model without sockets, as a :class:`RobotDriver`.
+
+:class:`SimDriver` holds one :class:`sim.core.Core` (the simulated controller's state, its control period, its
+one motion model :class:`sim.motion.MotionModel`, its safety and its URScript interpreter) and drives it
+directly, one 2 ms control period per :meth:`sim.core.Core.tick`, as fast as the CPU allows (or paced to
+``speed`` times the wall clock). It executes a job the way :class:`drivers.ur.URDriver` does on a controller:
+
+- "stream": a joint move onto ``job.start_joints`` (``moveJ``: the same joint trajectory planner as the
+  controller's), then one ``servoj`` target per sample of the job's trajectory (the planner's own joints,
+  lookahead and gain as the driver's), through the motion model's servo tracking, then a controlled stop
+  (``servoStop``: ``stopl`` at ``deceleration``) and ``settle`` seconds of recording. Outputs switch at the
+  samples where the trajectory's I/O bits change, as the driver switches them.
+- "program": the same joint move onto the start, then the job's URScript program
+  (:func:`planner.export.job_program`) loaded into the controller core and run by :mod:`sim.urscript`'s
+  interpreter (the one the simulated controller runs for its script ports) until it ends.
+
+So for the same job it records the same trajectory as :class:`sim.SimController` (up to the servo following
+error a real-time client's late commands add; see ``tests/test_drivers_sim.py``), and a dry run means what a
+real run means. The report is :func:`drivers.report.execution_report`, the one every driver returns.
+
+What is not simulated here: the network (no RTDE, dashboard or Modbus: nothing can drop or be late), and a
+period overrun (the loop never misses a period). Faults the controller model raises (a target out of the
+joint limits or unreachable, a joint speed over its limit, a program outside the interpreter's subset) are
+protective stops or runtime errors exactly as on the simulated controller.
+"""
+
+from __future__ import annotations
+
+import math
+import threading
+import time
+
+import numpy as np
+
+from drivers.base import CancelledError, DriverError, NotReadyError, ProtectiveStopError, RobotState
+from drivers.report import ExecutionReport, distance_to_polyline, execution_report, planned_path
+from sim.core import RUNTIME_PAUSED, RUNTIME_PLAYING, RUNTIME_STOPPED, SAFETY_PROTECTIVE_STOP, Core
+from sim.io_state import IOState
+from sim.motion import DT, MotionError, Segment
+
+MODES = ("stream", "program")
+
+
+class ProgramError(DriverError):
+    """The job's program was refused (outside the interpreter's subset) or halted by a runtime error."""
+
+    kind = "program error"
+
+
+def _positive(value, name: str) -> float:
+    try:
+        v = float(value)
+    except (TypeError, ValueError):
+        raise ValueError(f"{name} must be a number, got {value!r}") from None
+    if not v > 0 or math.isnan(v):
+        raise ValueError(f"{name} must be > 0, got {value!r}")
+    return v
+
+
+class SimDriver:
+    """The simulated controller's motion model in-process (see the module doc).
+
+    Parameters
+    ----------
+    model : str
+        UR model (``"ur5e"``, ...), checked against ``job.settings.robot``.
+    speed : float
+        Simulated seconds per wall-clock second; ``math.inf`` (default): as fast as possible. A finite speed
+        paces the run (so that :meth:`pause`, :meth:`stop` and a cancel event act during it as on a robot).
+    q0 : array_like (6,), optional
+        Initial joints, rad (default: the simulated controller's home position).
+    lookahead, gain : float
+        servoj lookahead time (s, 0.03..0.2) and gain (100..2000), as :class:`drivers.ur.URDriver`'s.
+    settle : float
+        Seconds recorded after the controlled stop at the end of a stream, s.
+    deceleration : float
+        Deceleration of the controlled stop (servoStop), m/s^2 of the tool.
+    """
+
+    def __init__(self, model: str = "ur5e", *, speed: float = math.inf, q0=None, lookahead: float = 0.1,
+                 gain: float = 300.0, settle: float = 0.3, deceleration: float = 10.0) -> None:
+        from planner.kinematics import get_model
+
+        self.model = get_model(model).name
+        self.speed = _positive(speed, "speed")
+        self.q0 = None if q0 is None else np.asarray(q0, dtype=float).reshape(6)
+        if not 0.03 <= float(lookahead) <= 0.2:
+            raise ValueError(f"lookahead must be within 0.03..0.2 s, got {lookahead!r}")
+        if not 100.0 <= float(gain) <= 2000.0:
+            raise ValueError(f"gain must be within 100..2000, got {gain!r}")
+        self.lookahead = float(lookahead)
+        self.gain = float(gain)
+        self.settle = float(settle)
+        if not self.settle >= 0:
+            raise ValueError(f"settle must be >= 0 s, got {settle!r}")
+        self.deceleration = _positive(deceleration, "deceleration")
+        self.core: Core | None = None
+        self._paused = threading.Event()
+        self._stop = threading.Event()
+        self._mode: str | None = None
+        self._wall0 = self._sim0 = 0.0
+        #: What the last :meth:`execute` recorded: dict of arrays t (n,) job time s, target_q (n, 6) commanded
+        #: joints, actual_q (n, 6), tcp (n, 6), digital_out (n,).
+        self.recording: dict | None = None
+
+    # ---- connection ---------------------------------------------------------------------------------
+    def connect(self) -> None:
+        """Start the in-process controller (arm at ``q0``, powered, brakes released, no program)."""
+        if self.core is None:
+            self.core = Core(self.model, IOState())
+            if self.q0 is not None:
+                self.core.motion._check_q(self.q0, "q0")
+                self.core.motion.q = self.q0.copy()
+                self.core.motion.servo_target = self.q0.copy()
+                self.core.motion.servo_filtered = self.q0.copy()
+
+    def close(self) -> None:
+        """Drop the in-process controller (the arm's state goes with it)."""
+        self.core = None
+
+    def __enter__(self) -> SimDriver:
+        self.connect()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    def _need(self) -> Core:
+        if self.core is None:
+            raise NotReadyError("the simulated robot is not connected: call connect() first")
+        return self.core
+
+    # ---- state --------------------------------------------------------------------------------------
+    def state(self) -> RobotState:
+        core = self._need()
+        with core.lock:
+            return RobotState(
+                joints=tuple(float(x) for x in core.motion.q), tcp_pose=tuple(float(x) for x in core.tcp_pose()),
+                robot_mode=core.robot_mode, safety_mode=core.safety_mode, runtime_state=core.runtime_state,
+                protective_stop=core.safety_mode == SAFETY_PROTECTIVE_STOP, emergency_stop=False,
+                program_running=core.runtime_state == RUNTIME_PLAYING, digital_out=core.io.digital_out)
+
+    def _fault(self) -> DriverError | None:
+        core = self.core
+        if core.safety_mode == SAFETY_PROTECTIVE_STOP:
+            text = next((m for _, src, m in reversed(core.log) if src == "Safety"), "protective stop")
+            return ProtectiveStopError(text)
+        if core.robot_mode != 7:
+            return NotReadyError(f"the robot is not running (robot mode {core.robot_mode})")
+        return None
+
+    def _check_job(self, job) -> None:
+        robot = job.settings.robot
+        if robot is None:
+            raise DriverError("the job was planned without a robot: plan it with robot=... to execute it")
+        from planner.kinematics import get_model
+
+        if get_model(robot).name != self.model:
+            raise DriverError(f"the job was planned for {robot}, the simulated robot is a {self.model}")
+        if job.problems:
+            raise DriverError(f"the job has {len(job.problems)} unreachable poses (first: {job.problems[0]}); "
+                              "it is not executed")
+        if job.start_joints is None:
+            raise DriverError("the job has no start joints (no reachable first pose)")
+        ticks = 1.0 / (float(job.settings.rate) * DT)
+        if abs(ticks - round(ticks)) > 1e-9:
+            raise DriverError(f"the job's rate {job.settings.rate:g} Hz is not a whole division of the "
+                              f"controller's {1 / DT:g} Hz")
+
+    # ---- the clock ----------------------------------------------------------------------------------
+    def _tick(self, n: int = 1) -> None:
+        """``n`` control periods; paced to the wall clock when ``speed`` is finite."""
+        core = self.core
+        with core.lock:
+            for _ in range(n):
+                core.tick()
+        if math.isfinite(self.speed):
+            ahead = (core.time - self._sim0) / self.speed - (time.perf_counter() - self._wall0)
+            if ahead > 0.002:
+                time.sleep(ahead)
+
+    def _start_clock(self) -> None:
+        self._wall0 = time.perf_counter()
+        self._sim0 = self.core.time
+
+    # ---- motions ------------------------------------------------------------------------------------
+    def move_to_start(self, job, *, speed: float = 0.5, acceleration: float = 0.5) -> None:
+        """A joint move (rad/s, rad/s^2) onto ``job.start_joints`` (the controller's movej)."""
+        self._check_job(job)
+        core = self._need()
+        err = self._fault()
+        if err is not None:
+            raise err
+        q0 = np.asarray(job.start_joints, dtype=float)
+        self._start_clock()
+        with core.lock:
+            try:
+                seg = Segment(q0, _positive(speed, "speed"), _positive(acceleration, "acceleration"))
+                core.motion.plan_joint([seg])
+            except MotionError as exc:
+                core.protective_stop(str(exc))
+        while core.motion.busy:
+            self._tick()
+        err = self._fault()
+        if err is not None:
+            raise type(err)(f"move to the start: {err.reason}", t=0.0, line=int(job.moves[0].line) if job.moves
+                            else None)
+        gap = float(np.abs(core.motion.q - q0).max())
+        if gap > 1e-3:
+            raise DriverError(f"the move to the start ended {gap:.4f} rad from the start joints", t=0.0)
+
+    def pause(self) -> None:
+        """Hold the arm on the path (stream: the target stops advancing; program: the program pauses)."""
+        self._paused.set()
+        core = self.core
+        if self._mode == "program" and core is not None:
+            with core.lock:
+                core.pause()
+
+    def resume(self) -> None:
+        """Continue after :meth:`pause`."""
+        self._paused.clear()
+        core = self.core
+        if self._mode == "program" and core is not None:
+            with core.lock:
+                core.resume()
+
+    def stop(self) -> None:
+        """End the run now with a controlled stop; its report says CancelledError (stopped by the caller)."""
+        self._stop.set()
+
+    def _stopped(self, cancel) -> DriverError | None:
+        if cancel is not None and cancel.is_set():
+            return CancelledError("cancelled by the caller")
+        if self._stop.is_set():
+            return CancelledError("stopped by the caller (driver.stop())")
+        return None
+
+    # ---- execution ----------------------------------------------------------------------------------
+    def execute(self, job, *, mode: str = "stream", progress=None,
+                cancel: threading.Event | None = None) -> ExecutionReport:
+        """Execute ``job`` on the simulated arm and return its report (``report.failure`` on failure).
+
+        DriverError is raised only when the run cannot start (not connected, wrong job, robot not ready);
+        once the arm moves, every failure ends the run with the arm stopped and is returned in the report.
+        """
+        if mode not in MODES:
+            raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
+        self._check_job(job)
+        core = self._need()
+        err = self._fault()
+        if err is not None:
+            raise err
+        self._stop.clear()
+        self._paused.clear()
+        planned = planned_path(job)
+        self.move_to_start(job)
+        mask = 0
+        for v in np.unique(planned[2]):
+            mask |= int(v)
+        if mask:
+            core.io.set_digital_out(mask, 0)
+        self._mode = mode
+        self._start_clock()
+        try:
+            run = self._stream if mode == "stream" else self._program
+            rec, failure = run(job, planned, mask, progress, cancel)
+        finally:
+            self._mode = None
+        t, target, q, x, bits = (np.asarray(a, dtype=float) for a in rec)
+        self.recording = {"t": t, "target_q": target.reshape(-1, 6), "actual_q": q.reshape(-1, 6),
+                          "tcp": x.reshape(-1, 6), "digital_out": bits.astype(np.int64)}
+        return execution_report(job, t, x, q, bits, mode=mode, failure=failure, planned=planned)
+
+    def _sample(self, rec: list, t: float) -> None:
+        core = self.core
+        m = core.motion
+        rec[0].append(t)
+        rec[1].append(m.commanded.copy())
+        rec[2].append(m.q.copy())
+        rec[3].append(core.tcp_pose().copy())
+        rec[4].append(core.io.digital_out)
+
+    @staticmethod
+    def _locate(err: DriverError, k: int, job, planned) -> DriverError:
+        """``err`` at planned sample ``k``: its job time, planned TCP pose p[x, y, z, rx, ry, rz] and source line."""
+        pt, _, _, plines, _ = planned
+        if pt.size == 0:
+            return err
+        k = min(max(k, 0), pt.size - 1)
+        pose = None
+        first = 0
+        for c in job.trajectory().chunks(joints=False):  # only on a failure: the planned pose, rotation included
+            if k < first + len(c):
+                pose = c.poses[k - first]
+                break
+            first += len(c)
+        return err.located(float(pt[k]), pose, int(plines[k]))
+
+    def _halt(self, failure: DriverError, mask: int) -> None:
+        """After a failure: a controlled stop of a moving arm (a faulted one is halted already), outputs off."""
+        core = self.core
+        with core.lock:
+            if self._mode == "program":
+                core.stop_program()
+            elif core.safety_mode != SAFETY_PROTECTIVE_STOP and np.abs(core.motion.qd).max() > 0:
+                core.motion.plan_stop(self.deceleration, linear=True)
+        while core.motion.busy:
+            self._tick()
+        if mask:
+            core.io.set_digital_out(mask, 0)
+
+    def _stream(self, job, planned, mask, progress, cancel):
+        core = self.core
+        m = core.motion
+        pt = planned[0]
+        total = pt.size
+        rate = float(job.settings.rate)
+        ticks = round(1.0 / (rate * DT))
+        dt = 1.0 / rate
+        rec: list[list] = [[], [], [], [], []]
+        failure = None
+        prev_io = 0
+        k = 0
+        report_every = max(1, int(rate // 10))
+        t_last = 0.0
+        try:
+            for chunk in job.trajectory(rate).chunks():
+                qs, ios, times = chunk.joints, chunk.io.tolist(), chunk.times.tolist()
+                i, n = 0, len(times)
+                while i < n:
+                    err = self._stopped(cancel)
+                    if err is not None:
+                        raise err
+                    paused = self._paused.is_set()
+                    if ios[i] != prev_io and not paused:
+                        core.io.set_digital_out(ios[i] ^ prev_io, ios[i])
+                        prev_io = ios[i]
+                    with core.lock:
+                        try:
+                            m.servo(qs[i], dt, self.lookahead, self.gain)
+                        except MotionError as exc:
+                            core.protective_stop(str(exc))
+                    self._tick(ticks)
+                    t_last = times[i]
+                    self._sample(rec, t_last)
+                    f = self._fault()
+                    if f is not None:
+                        raise f
+                    if not paused:
+                        i += 1
+                        k += 1
+                        if progress is not None and k % report_every == 0:
+                            progress("execute", k, total)
+            with core.lock:
+                m.plan_stop(self.deceleration, linear=True)
+            for j in range(int(self.settle * rate)):
+                self._tick(ticks)
+                self._sample(rec, t_last + (j + 1) * dt)
+            if progress is not None:
+                progress("execute", total, total)
+        except DriverError as exc:
+            failure = self._locate(exc, k, job, planned)
+            self._halt(failure, mask)
+        return rec, failure
+
+    def _program(self, job, planned, mask, progress, cancel):
+        from planner.export import job_program
+
+        core = self.core
+        pt, pp = planned[0], planned[1]
+        text = job_program(job)
+        rec: list[list] = [[], [], [], [], []]
+        failure = None
+        k = 0
+        try:
+            with core.lock:
+                started = core.load_program(text)
+            if not started:
+                reason = next((msg for _, src, msg in reversed(core.log) if src == "Program"), "program refused")
+                raise ProgramError(f"the controller refused the job's program: {reason}")
+            t0 = core.time
+            every = max(1, int(0.1 / DT))
+            n = 0
+            while True:
+                err = self._stopped(cancel)
+                if err is not None:
+                    raise err
+                self._tick()
+                n += 1
+                self._sample(rec, core.time - t0)
+                f = self._fault()
+                if f is not None:
+                    raise f
+                if core.runtime_state == RUNTIME_STOPPED:
+                    break
+                if progress is not None and n % every == 0 and pp.size:
+                    _, seg = distance_to_polyline(rec[3][-1][None, :3], pp)
+                    k = max(k, int(seg[0]))
+                    progress("execute", k, pt.size)
+            # the program ended: at the job's end, or halted by a runtime error
+            halted = next((msg for _, src, msg in reversed(core.log) if src == "Program"), "")
+            last = np.asarray(rec[3][-1][:3])[None]
+            d = distance_to_polyline(last, pp[-1:])[0][0] if pp.size else 0.0
+            if halted.startswith("Runtime error") or d > 1e-3:
+                if pp.size:
+                    k = int(distance_to_polyline(last, pp)[1][0])
+                raise ProgramError((halted or "the program ended early") + f"; the tool is {1e3 * d:.1f} mm from "
+                                   "the job's last pose")
+            k = pt.size - 1
+            if progress is not None:
+                progress("execute", pt.size, pt.size)
+        except DriverError as exc:
+            if rec[3] and pp.size and not isinstance(exc, ProgramError):
+                k = int(distance_to_polyline(np.asarray(rec[3][-1][:3])[None], pp)[1][0])
+            failure = self._locate(exc, k, job, planned)
+            self._halt(failure, mask)
+        with core.lock:
+            if core.runtime_state == RUNTIME_PAUSED:
+                core.stop_program()
+        return rec, failure
