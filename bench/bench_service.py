@@ -91,6 +91,7 @@ class Service:
         assert self.proc.stdout is not None
         line = self.proc.stdout.readline().decode()
         if "listening on " not in line:
+            self.proc.kill()
             raise SystemExit(f"the service did not start: {line!r}")
         self.url = line.split("listening on ")[1].split()[0]
         deadline = time.monotonic() + 60
@@ -101,6 +102,7 @@ class Service:
             except httpx.TransportError:
                 pass
             if time.monotonic() > deadline:
+                self.proc.kill()
                 raise SystemExit("the service is not healthy after 60 s")
             time.sleep(0.1)
 

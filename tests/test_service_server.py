@@ -39,15 +39,24 @@ class ServiceProcess:
         self.log = self.folder / "service.log"
 
     def start(self, timeout: float = 60.0) -> ServiceProcess:
+        """Start and wait until healthy; a service that does not come up is killed before the error is raised."""
         out = open(self.log, "ab")  # noqa: SIM115 (kept open for the process)
         self.proc = subprocess.Popen(
             [sys.executable, "-m", "planner.service", "serve", "--host", self.host, "--port", "0", "--workers",
              str(self.workers)], cwd=self.folder, env=self.env, stdout=subprocess.PIPE, stderr=out)
         out.close()
-        assert self.proc.stdout is not None
+        try:
+            self._wait_healthy(timeout)
+        except BaseException:
+            self.proc.kill()
+            self.proc.wait(10)
+            raise
+        return self
+
+    def _wait_healthy(self, timeout: float) -> None:
+        assert self.proc is not None and self.proc.stdout is not None
         line = self.proc.stdout.readline().decode()
         if "listening on " not in line:
-            self.proc.wait(10)
             raise AssertionError(f"the service did not start: {line!r}\n{self.log.read_text()}")
         self.url = line.split("listening on ")[1].split()[0]
         deadline = time.monotonic() + timeout
@@ -55,7 +64,7 @@ class ServiceProcess:
             try:
                 r = httpx.get(self.url + "/healthz", timeout=5)
                 if r.status_code == 200 and r.json()["workers"] == self.workers:
-                    return self
+                    return
             except httpx.TransportError:
                 pass
             if time.monotonic() > deadline or self.proc.poll() is not None:
