@@ -10,11 +10,15 @@ another key is 404 exactly like a job that does not exist; an export of a job th
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
+import gc
 import json
 import re
 import shutil
+import sys
 import threading
+import time
 import uuid
 from collections.abc import AsyncIterator, Iterator
 from pathlib import Path
@@ -33,7 +37,7 @@ from planner.service.config import ServiceConfig
 from planner.service.metrics import Metrics
 from planner.service.schemas import JobCreated, JobList, JobView, ReadOptions, SettingsModel, WaypointJob
 from planner.service.store import Job, now, open_store
-from planner.service.workers import WorkerPool, job_dir, recover, remove_job_files
+from planner.service.workers import Inserter, WorkerPool, job_dir, recover, remove_job_files
 
 API = "/v1"
 _JOB_ID = re.compile(r"^[0-9a-f]{32}$")
@@ -109,16 +113,19 @@ class Service:
         self.engine, self.sessions = open_store(cfg.db_url)
         self.metrics = Metrics()
         self.pool = WorkerPool(self.sessions, cfg, self.metrics)
+        self.inserter = Inserter(self.pool)
         self.plot_lock = threading.Lock()
 
     def start(self) -> dict:
         self.cfg.data_dir.mkdir(parents=True, exist_ok=True)
         (self.cfg.data_dir / "jobs").mkdir(exist_ok=True)
         recovered = recover(self.sessions, self.cfg)
+        self.inserter.start()
         self.pool.start()
         return recovered
 
     def stop(self) -> None:
+        self.inserter.stop()
         self.pool.stop()
         self.engine.dispose()
 
@@ -127,8 +134,9 @@ def _service(request: Request) -> Service:
     return request.app.state.service
 
 
-def principal(request: Request) -> Principal:
-    """The caller: the key of ``Authorization: Bearer`` / ``X-API-Key``, or the development operator."""
+async def principal(request: Request) -> Principal:
+    """The caller: the key of ``Authorization: Bearer`` / ``X-API-Key``, or the development operator (checked in
+    the event loop: one indexed read, no thread hand-over)."""
     svc = _service(request)
     if svc.cfg.dev_no_auth:
         return DEV_PRINCIPAL
@@ -220,6 +228,11 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
         svc = Service(cfg)
         svc.start()
         app.state.service = svc
+        # warm the request path before the first client: worker threads, database connections, validators
+        await asyncio.gather(*[run_in_threadpool(_warm, svc) for _ in range(WARM_THREADS)])
+        gc.collect()
+        gc.freeze()  # the start-up objects (modules, schemas) are never scanned again: no long collection pauses
+        sys.setswitchinterval(SWITCH_INTERVAL)
         try:
             yield
         finally:
@@ -266,13 +279,16 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
                 req = WaypointJob.model_validate_json(body)
             except ValidationError as exc:
                 raise HTTPException(422, _validation_detail(exc, ["body"])) from None
-            job_id = await run_in_threadpool(_create_waypoint_job, svc, who, req)
+            if len(req.waypoints) <= INLINE_WAYPOINTS:  # checked at once: well under a millisecond
+                job_id, row = _waypoint_row(svc, who, req)
+            else:
+                job_id, row = await run_in_threadpool(_waypoint_row, svc, who, req)
+            await asyncio.wrap_future(svc.inserter.submit(row))
         elif ctype.startswith("multipart/form-data"):
             job_id = await _submit_file(svc, who, request)
         else:
             raise HTTPException(415, "send application/json (waypoints) or multipart/form-data (a toolpath file)")
         svc.metrics.count_submitted()
-        svc.pool.wake()
         location = f"{API}/jobs/{job_id}"
         return JSONResponse({"id": job_id, "state": "queued", "location": location}, status_code=202,
                             headers={"Location": location})
@@ -373,6 +389,24 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
     return app
 
 
+#: The interpreter's thread switch interval in the service, s (Python's default 5 ms makes a request that needs the
+#: lock held by a busy thread wait for it; the service's threads mostly wait on I/O).
+SWITCH_INTERVAL = 0.001
+#: Threads (and database connections) made ready at start-up.
+WARM_THREADS = 20
+
+
+def _warm(svc: Service) -> None:
+    from planner.plan import waypoints_toolpath
+
+    with svc.sessions() as s:
+        s.execute(select(1))
+        time.sleep(0.05)  # hold the connection: the others open their own
+    req = WaypointJob.model_validate_json(b'{"waypoints": [[0, 0, 0], [1, 0, 0], [1, 1, 0]]}')
+    waypoints_toolpath(req.waypoints)
+    _checked_settings(req.settings, "waypoints", False, [])
+
+
 def _encoded(first: str, pieces: Iterator[str]) -> Iterator[bytes]:
     yield first.encode("utf-8")
     for piece in pieces:
@@ -402,11 +436,14 @@ def _draw(job, input_name: str, target: Path) -> None:
 
 
 # -- submitting ------------------------------------------------------------------------------------------
-def _insert(svc: Service, job_id: str, who: Principal, **values: Any) -> None:
-    with svc.pool.write_lock, svc.sessions() as s:
-        s.add(Job(id=job_id, owner=who.key_id, state="queued", created_at=now(), stage="", done=0, total=0,
-                  attempts=0, job_bytes=0, **values))
-        s.commit()
+#: JSON jobs up to this many waypoints are checked in the event loop (no thread hand-over); larger ones in a thread.
+INLINE_WAYPOINTS = 2000
+
+
+def _row(job_id: str, who: Principal, **values: Any) -> dict:
+    """The columns of a new queued job."""
+    return dict(id=job_id, owner=who.key_id, state="queued", created_at=now(), stage="", done=0, total=0, attempts=0,
+                job_bytes=0, **values)
 
 
 def _checked_settings(model: SettingsModel, fmt: str, has_axes: bool, prefix: list):
@@ -420,7 +457,8 @@ def _checked_settings(model: SettingsModel, fmt: str, has_axes: bool, prefix: li
     return settings
 
 
-def _create_waypoint_job(svc: Service, who: Principal, req: WaypointJob) -> str:
+def _waypoint_row(svc: Service, who: Principal, req: WaypointJob) -> tuple[str, dict]:
+    """A JSON job checked as the planner will read it: its id and row (422 naming the field if it is bad)."""
     from planner.plan import waypoints_toolpath
 
     n = len(req.waypoints)
@@ -436,9 +474,9 @@ def _create_waypoint_job(svc: Service, who: Principal, req: WaypointJob) -> str:
     settings = _checked_settings(req.settings, "waypoints", req.axes is not None, ["body", "settings"])
     data = json.dumps({"waypoints": req.waypoints, "axes": req.axes, "feeds": req.feeds})
     job_id = uuid.uuid4().hex
-    _insert(svc, job_id, who, input_kind="waypoints", input_name="<waypoints>", input_format="waypoints",
-            input_bytes=len(data), input_json=data, settings=json.dumps(settings.to_dict()), read_options="{}")
-    return job_id
+    return job_id, _row(job_id, who, input_kind="waypoints", input_name="<waypoints>", input_format="waypoints",
+                        input_bytes=len(data), input_json=data, settings=json.dumps(settings.to_dict()),
+                        read_options="{}")
 
 
 async def _submit_file(svc: Service, who: Principal, request: Request) -> str:
@@ -502,6 +540,7 @@ def _create_file_job(svc: Service, who: Principal, job_id: str, upload: UploadFi
     except UnicodeError as exc:
         raise Unprocessable(["body", "file"], f"{name}: not a text file ({exc})") from None
     settings = _checked_settings(settings_model, fmt, toolpath.axes is not None, ["body", "settings"])
-    _insert(svc, job_id, who, input_kind="file", input_name=name, input_format=fmt, input_bytes=size,
-            input_json=None, settings=json.dumps(settings.to_dict()), read_options=json.dumps(read_options))
+    svc.inserter.submit(_row(job_id, who, input_kind="file", input_name=name, input_format=fmt, input_bytes=size,
+                             input_json=None, settings=json.dumps(settings.to_dict()),
+                             read_options=json.dumps(read_options))).result()
     return job_id

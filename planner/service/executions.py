@@ -16,10 +16,10 @@ from planner.service.auth import Principal
 router = APIRouter(tags=["executions"])
 
 
-def _caller(request: Request) -> Principal:
+async def _caller(request: Request) -> Principal:
     from planner.service.app import principal
 
-    return principal(request)
+    return await principal(request)
 
 
 Caller = Annotated[Principal, Depends(_caller)]

@@ -15,8 +15,8 @@ import signal
 import time
 from pathlib import Path
 
-#: Niceness added to worker processes (PLANNER_WORKER_NICE, default 5).
-WORKER_NICE = int(os.environ.get("PLANNER_WORKER_NICE", "5") or 0)
+#: Niceness added to worker processes (PLANNER_WORKER_NICE, default 10).
+WORKER_NICE = int(os.environ.get("PLANNER_WORKER_NICE", "10") or 0)
 #: Seconds between progress messages.
 PROGRESS_EVERY = 0.2
 

@@ -21,9 +21,11 @@ import json
 import logging
 import multiprocessing as mp
 import os
+import queue
 import shutil
 import threading
 import time
+from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
 
@@ -302,6 +304,54 @@ class WorkerPool:
         with self.sessions() as s:
             rows = dict(s.execute(select(Job.state, func.count()).group_by(Job.state)).tuples().all())
         return {state: int(rows.get(state, 0)) for state in STATES}
+
+
+class Inserter(threading.Thread):
+    """The one thread that stores new jobs: every row waiting is committed in one transaction (group commit), so a
+    burst of submissions costs one commit, not one each, and no request thread waits on another's commit."""
+
+    def __init__(self, pool: WorkerPool, batch: int = 200):
+        super().__init__(name="planner-inserter", daemon=True)
+        self.pool = pool
+        self.batch = batch
+        self.queue: queue.SimpleQueue = queue.SimpleQueue()
+
+    def submit(self, row: dict) -> Future:
+        """Store a job row (the columns of :class:`Job`); the future is done once it is committed."""
+        done: Future = Future()
+        self.queue.put((row, done))
+        return done
+
+    def stop(self) -> None:
+        self.queue.put(None)
+        self.join(10.0)
+
+    def run(self) -> None:
+        while True:
+            item = self.queue.get()
+            if item is None:
+                return
+            batch = [item]
+            while len(batch) < self.batch:
+                try:
+                    more = self.queue.get_nowait()
+                except queue.Empty:
+                    break
+                if more is None:
+                    self.queue.put(None)
+                    break
+                batch.append(more)
+            try:
+                with self.pool.write_lock, self.pool.sessions() as s:
+                    s.add_all([Job(**row) for row, _ in batch])
+                    s.commit()
+            except Exception as exc:  # e.g. the database is gone: every waiting request gets the error
+                for _, done in batch:
+                    done.set_exception(exc)
+                continue
+            for _, done in batch:
+                done.set_result(None)
+            self.pool.wake(all_slots=len(batch) > 1)
 
 
 def remove_job_files(cfg: ServiceConfig, job_id: str) -> None:
