@@ -311,6 +311,9 @@ def build_parser() -> argparse.ArgumentParser:
     p.add_argument("--plot", help="write a picture (.png, .svg, .pdf): paths and tool axes, frames, speed, joints, fit")
     p.set_defaults(func=cmd_plan)
     sub.add_parser("sim", help="run the simulated UR controller on a loopback address (planner sim --help)")
+    from planner.service.cli import add_subcommands  # serve, keys (no web imports until they run)
+
+    add_subcommands(sub)
     d = sub.add_parser("demo", help="run the main job on the bundled example")
     d.add_argument("--out", default="out", help="folder for the program and the plot (default: out)")
     d.set_defaults(func=cmd_demo)
