@@ -7,9 +7,9 @@ directly, one 2 ms control period per :meth:`sim.core.Core.tick`, as fast as the
 
 - "stream": a joint move onto ``job.start_joints`` (``moveJ``: the same joint trajectory planner as the
   controller's), then one ``servoj`` target per sample of the job's trajectory (the planner's own joints,
-  lookahead and gain as the driver's), through the motion model's servo tracking, then a controlled stop
-  (``servoStop``: ``stopl`` at ``deceleration``) and ``settle`` seconds of recording. Outputs switch at the
-  samples where the trajectory's I/O bits change, as the driver switches them.
+  lookahead and gain as the driver's), through the motion model's servo tracking; the last target held for
+  ``settle`` seconds, then a controlled stop (``servoStop``: ``stopl`` at ``deceleration``). Each change of the
+  trajectory's I/O bits is switched when the actual TCP reaches its station, by URDriver's own rule.
 - "program": the same joint move onto the start, then the job's URScript program
   (:func:`planner.export.job_program`) loaded into the controller core and run by :mod:`sim.urscript`'s
   interpreter (the one the simulated controller runs for its script ports) until it ends.
@@ -72,7 +72,7 @@ class SimDriver:
     lookahead, gain : float
         servoj lookahead time (s, 0.03..0.2) and gain (100..2000), as :class:`drivers.ur.URDriver`'s.
     settle : float
-        Seconds recorded after the controlled stop at the end of a stream, s.
+        Seconds the last target of a stream is held before the controlled stop, s (URDriver's ``settle``).
     deceleration : float
         Deceleration of the controlled stop (servoStop), m/s^2 of the tool.
     """
@@ -311,9 +311,11 @@ class SimDriver:
             core.io.set_digital_out(mask, 0)
 
     def _stream(self, job, planned, mask, progress, cancel):
+        from drivers.ur import _Station  # URDriver's rule for switching an output at its station
+
         core = self.core
         m = core.motion
-        pt = planned[0]
+        pt, pp = planned[0], planned[1]
         total = pt.size
         rate = float(job.settings.rate)
         ticks = round(1.0 / (rate * DT))
@@ -321,9 +323,17 @@ class SimDriver:
         rec: list[list] = [[], [], [], [], []]
         failure = None
         prev_io = 0
+        pending: list = []  # output switches whose station the actual TCP has not reached yet
         k = 0
         report_every = max(1, int(rate // 10))
-        t_last = 0.0
+        t_last, q_last = 0.0, None
+
+        def switch_reached() -> None:
+            x = rec[3][-1]
+            while pending and pending[0].reached(x, k):
+                ev = pending.pop(0)
+                core.io.set_digital_out(ev.mask, ev.value)
+
         try:
             for chunk in job.trajectory(rate).chunks():
                 qs, ios, times = chunk.joints, chunk.io.tolist(), chunk.times.tolist()
@@ -333,17 +343,18 @@ class SimDriver:
                     if err is not None:
                         raise err
                     paused = self._paused.is_set()
-                    if ios[i] != prev_io and not paused:
-                        core.io.set_digital_out(ios[i] ^ prev_io, ios[i])
-                        prev_io = ios[i]
                     with core.lock:
                         try:
                             m.servo(qs[i], dt, self.lookahead, self.gain)
                         except MotionError as exc:
                             core.protective_stop(str(exc))
+                    if ios[i] != prev_io and not paused:
+                        pending.append(_Station(k, ios[i] ^ prev_io, ios[i], pp))
+                        prev_io = ios[i]
                     self._tick(ticks)
-                    t_last = times[i]
+                    t_last, q_last = times[i], qs[i]
                     self._sample(rec, t_last)
+                    switch_reached()
                     f = self._fault()
                     if f is not None:
                         raise f
@@ -352,11 +363,22 @@ class SimDriver:
                         k += 1
                         if progress is not None and k % report_every == 0:
                             progress("execute", k, total)
-            with core.lock:
-                m.plan_stop(self.deceleration, linear=True)
-            for j in range(int(self.settle * rate)):
+            # hold the last target while the arm, lagging its targets, arrives; then the controlled stop
+            n_settle = int(self.settle * rate)
+            for j in range(n_settle + 10):
+                with core.lock:
+                    if j < n_settle and q_last is not None:
+                        m.servo(q_last, dt, self.lookahead, self.gain)
+                    elif j == n_settle:
+                        while pending:
+                            ev = pending.pop(0)
+                            core.io.set_digital_out(ev.mask, ev.value)
+                        m.plan_stop(self.deceleration, linear=True)
                 self._tick(ticks)
                 self._sample(rec, t_last + (j + 1) * dt)
+                switch_reached()
+            while m.busy:  # the rest of the controlled stop, if any
+                self._tick()
             if progress is not None:
                 progress("execute", total, total)
         except DriverError as exc:

@@ -1,26 +1,24 @@
 """drivers.sim.SimDriver: the simulated controller's motion model in-process, as a RobotDriver.
 
 The demo job (the first pass of the real NX file, placed for a UR5e as ``planner demo`` places it) is run
-in-process, and the same job through real ur_rtde into a SimController child process (servoJ stream as
-drivers.ur.URDriver streams it; the exported program through the script port): the recorded joint paths
-agree to the servo following error (stream) and to round-off (program: no real-time client in the loop)."""
+in-process, and the same job by drivers.ur.URDriver through real ur_rtde (outputs through real pymodbus) into a
+SimController child process: the recorded joint paths agree to the servo following error (stream) and to round-off
+(program: no real-time client in the loop), and so do the two execution reports."""
 
 from __future__ import annotations
 
-import socket
 import threading
 import time
 
 import numpy as np
 import pytest
-import rtde_control
 
 from drivers.base import CancelledError, DriverError, NotReadyError, ProtectiveStopError, RobotDriver
-from drivers.report import execution_report, planned_path
+from drivers.report import planned_path
 from drivers.sim import SimDriver
+from drivers.ur import URDriver
 from planner import PlanSettings, plan
 from planner.cli import DEMO_PART_FRAME, EXAMPLE_CLS, example_path
-from planner.export import job_program
 from sim import recording
 from sim.motion import DT, servo_following_error
 from tests import sim_fixtures
@@ -74,27 +72,27 @@ def test_stream_follows_the_planned_joints(fast_job):
     bound = following_bound(Q)
     assert lag <= 1.01 * bound, (lag, bound)
     assert lag > 0.1 * bound  # the servo lag is modelled, not zero
-    # recorded for the planned duration plus the settle time after the controlled stop
-    assert report.duration == pytest.approx(report.planned_duration + 0.3, abs=2 * DT)
+    # recorded for the planned duration, the 0.3 s hold of the last target and 10 periods of the stop
+    assert report.duration == pytest.approx(report.planned_duration + 0.3 + 10 * DT, abs=2 * DT)
     assert report.max_path_error < 0.5e-3  # at 10 x the feed the servo lag cuts the corners by about 0.2 mm
     assert len(report.io_events) == 2 and all(e.switched for e in report.io_events)
-    # at rest near the job's last joints (servoStop right after the last target, as URDriver does, stops the arm
-    # within the servo lag of it), outputs as the job leaves them (off after the cut)
-    assert np.abs(np.asarray(state.joints) - Q[-1]).max() < bound
+    # at rest at the job's last joints (the last target held until the lagging arm arrived), outputs as the job
+    # leaves them (off after the cut)
+    assert np.abs(np.asarray(state.joints) - Q[-1]).max() < 0.01 * bound
     assert state.digital_out == 0 and state.ready and not state.program_running
 
 
 def test_demo_job_dry_run_meets_the_streaming_targets():
     """The demo job at its own feed, streamed in-process: the issue's targets for the stream through ur_rtde
     (actual TCP within 0.2 mm of the planned path). The tool output's switch lags its station by the servo
-    following distance (the output switches with the target, the arm follows later)."""
+    following distance unless switched when the actual TCP reaches it, as the drivers do: within 1 mm."""
     job = demo_job()
     with SimDriver() as d:
         report = d.execute(job)
     assert report.ok, report.describe()
     assert report.max_path_error < 0.2e-3
     assert all(e.switched for e in report.io_events)
-    assert report.max_io_distance_mm < 2.0
+    assert report.max_io_distance_mm < 1.0
 
 
 def test_program_runs_the_exported_script_within_its_tolerance(fast_job):
@@ -208,49 +206,23 @@ def test_refusals():
         SimDriver(speed=0)
 
 
-# -- the same job on the simulated controller through real ur_rtde -------------------------------------
+# -- the same job on the simulated controller through URDriver (real ur_rtde, outputs through real pymodbus) --
 
-def _stream_ur_rtde(sim, job) -> None:
-    """Stream ``job`` as drivers.ur.URDriver does: moveJ onto the start, one servoJ per sample in an
-    initPeriod/waitPeriod loop, servoStop."""
-    c = rtde_control.RTDEControlInterface(sim.host)
+def _run_urdriver(sim, job, mode: str):
+    driver = URDriver(sim.host, "ur5e", io="modbus", modbus_port=sim.ports["modbus"])
+    driver.connect()
     try:
-        assert c.moveJ([float(x) for x in job.start_joints], 0.5, 0.5)
-        dt = 1.0 / job.settings.rate
-        for chunk in job.trajectory().chunks():
-            for q in chunk.joints.tolist():
-                t0 = c.initPeriod()
-                assert c.servoJ(q, 0.0, 0.0, dt, LOOKAHEAD, GAIN)
-                c.waitPeriod(t0)
-        c.servoStop(10.0)
-        time.sleep(0.3)
-        c.stopScript()
+        return driver.execute(job, mode=mode)
     finally:
-        c.disconnect()
-
-
-def _run_program_ur_rtde(sim, job) -> None:
-    """As URDriver's program mode: moveJ onto the start, then the job's program on the script port."""
-    c = rtde_control.RTDEControlInterface(sim.host)
-    try:
-        assert c.moveJ([float(x) for x in job.start_joints], 0.5, 0.5)
-        c.stopScript()
-    finally:
-        c.disconnect()
-    with socket.create_connection((sim.host, 30002), timeout=3) as s:
-        s.sendall(job_program(job).encode())
-    deadline = time.monotonic() + job.duration + 20
-    time.sleep(0.5)
-    while sim.state()["program"] is not None:
-        assert time.monotonic() < deadline, "the program did not end"
-        time.sleep(0.1)
+        driver.close()
 
 
 def _compare_stream(make_sim, tmp_path, job):
     path = tmp_path / "ctrl.npz"
-    sim = make_sim(record=path)
-    _stream_ur_rtde(sim, job)
+    sim = make_sim(record=path, modbus_port=5020)
+    ur_report = _run_urdriver(sim, job, "stream")
     sim.stop()
+    assert ur_report.ok, ur_report.describe()
     ctrl = recording.load(path)
     with SimDriver() as d:
         report = d.execute(job)
@@ -261,17 +233,17 @@ def _compare_stream(make_sim, tmp_path, job):
     ks = np.array([index.get(q.tobytes(), -1) for q in ctrl.target_q])
     rows = np.flatnonzero(ks >= 0)
     rows = rows[rows >= np.flatnonzero(ks == 1)[0]]  # from the first target that moves (the stream's start)
+    rows = rows[: np.flatnonzero(ks[rows] == len(Q) - 1)[0] + 1]  # to the last target (then the hold)
     assert len(np.unique(ks[rows])) > 0.95 * len(Q)  # (nearly) every target reached the controller
     diff = np.abs(ctrl.actual_q[rows] - rec["actual_q"][ks[rows]]).max()
     bound = following_bound(Q)
     assert diff <= bound, (diff, bound)
-    # the reports agree: the path error and the I/O stations to the following error's length at the tool
-    last = rows[-1] + int(0.3 / DT)
-    ctrl_report = execution_report(job, ks[rows] * DT, ctrl.tcp_pose[rows], ctrl.actual_q[rows],
-                                   ctrl.digital_out[rows], mode="stream")
-    assert last <= len(ctrl.t)
-    assert abs(ctrl_report.max_path_error - report.max_path_error) < 0.05e-3
-    return diff, bound, report, ctrl_report
+    # the two reports agree: the path error, and where the outputs switched along the path
+    assert abs(ur_report.max_path_error - report.max_path_error) < 0.05e-3
+    assert len(ur_report.io_events) == len(report.io_events) == 2
+    for a, b in zip(ur_report.io_events, report.io_events, strict=True):
+        assert a.switched and b.switched and abs(a.actual_s - b.actual_s) < 0.2e-3
+    return diff, bound, report, ur_report
 
 
 def test_stream_records_the_simulated_controllers_trajectory(make_sim, tmp_path):
@@ -282,9 +254,10 @@ def test_stream_records_the_simulated_controllers_trajectory(make_sim, tmp_path)
 
 def _compare_program(make_sim, tmp_path, job):
     path = tmp_path / "ctrl_program.npz"
-    sim = make_sim(record=path)
-    _run_program_ur_rtde(sim, job)
+    sim = make_sim(record=path, modbus_port=5020)
+    ur_report = _run_urdriver(sim, job, "program")
     sim.stop()
+    assert ur_report.ok, ur_report.describe()
     ctrl = recording.load(path)
     t_start = next(t for t, src, text in ctrl.events if src == "Program" and text == "program planner_job started")
     rows = np.flatnonzero(ctrl.t > t_start + 1e-9)
@@ -292,10 +265,11 @@ def _compare_program(make_sim, tmp_path, job):
         report = d.execute(job, mode="program")
         rec = d.recording
     assert report.ok
-    n = min(len(rows), len(rec["t"]))
-    assert n >= len(rec["t"]) - 1
-    np.testing.assert_allclose(ctrl.actual_q[rows[:n]], rec["actual_q"][:n], rtol=0, atol=1e-9)
-    np.testing.assert_array_equal(ctrl.digital_out[rows[:n]], rec["digital_out"][:n])
+    n = len(rec["t"])
+    assert len(rows) >= n
+    np.testing.assert_allclose(ctrl.actual_q[rows[:n]], rec["actual_q"], rtol=0, atol=1e-9)
+    np.testing.assert_array_equal(ctrl.digital_out[rows[:n]], rec["digital_out"])
+    assert abs(ur_report.max_path_error - report.max_path_error) < 0.01e-3
 
 
 def test_program_records_the_simulated_controllers_trajectory(make_sim, tmp_path):
@@ -306,7 +280,7 @@ def test_program_records_the_simulated_controllers_trajectory(make_sim, tmp_path
 def test_whole_demo_job_on_both(make_sim, tmp_path):
     """The demo job at its own feed (62 s of motion, twice in real time)."""
     job = demo_job()
-    diff, bound, report, ctrl_report = _compare_stream(make_sim, tmp_path, job)
-    assert report.max_path_error < 0.2e-3 and ctrl_report.max_path_error < 0.2e-3
+    diff, bound, report, ur_report = _compare_stream(make_sim, tmp_path, job)
+    assert report.max_path_error < 0.2e-3 and ur_report.max_path_error < 0.2e-3
+    assert report.max_io_distance_mm < 1.0 and ur_report.max_io_distance_mm < 1.0
     _compare_program(make_sim, tmp_path, job)
-
