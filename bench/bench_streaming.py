@@ -2,8 +2,9 @@
 
 The demo job (the first pass of the real NX file, placed for a UR5e as ``planner demo`` places it; about
 62 s of motion) is streamed as :class:`drivers.ur.URDriver` streams it: ``moveJ`` onto the start joints, then
-one ``servoJ`` with the planner's joints per 2 ms sample in ur_rtde's ``initPeriod``/``waitPeriod`` loop, then
-``servoStop``; ``--seconds`` streams only the job's first seconds. The simulated controller (a
+one ``servoJ`` with the planner's joints per 2 ms sample in ur_rtde's ``initPeriod``/``waitPeriod`` loop (with
+the ``RTDEReceiveInterface`` reads URDriver makes every period: actual TCP, joints, outputs, safety and runtime
+state), then ``servoStop``; ``--seconds`` streams only the job's first seconds. The simulated controller (a
 :class:`sim.SimController` child process) records what it executed. Reported:
 
 * period: wall time between the starts of consecutive loop iterations (ms): p50, p99, max, and
@@ -69,6 +70,7 @@ def _period_stats(starts: np.ndarray) -> dict:
 
 def run_stream(job, seconds: float, realtime: bool) -> dict:
     import rtde_control
+    import rtde_receive
 
     from drivers.report import execution_report
     from sim import SimController, recording
@@ -84,6 +86,7 @@ def run_stream(job, seconds: float, realtime: bool) -> dict:
         sim.start()
         try:
             c = rtde_control.RTDEControlInterface(sim.host)
+            r = rtde_receive.RTDEReceiveInterface(sim.host)
             try:
                 if not c.moveJ([float(x) for x in job.start_joints], 0.5, 0.5):
                     raise RuntimeError("moveJ onto the start joints failed")
@@ -98,6 +101,10 @@ def run_stream(job, seconds: float, realtime: bool) -> dict:
                         starts[k] = time.perf_counter()
                         if not c.servoJ(targets[k], 0.0, 0.0, PERIOD, LOOKAHEAD, GAIN):
                             raise RuntimeError(f"servoJ refused at sample {k}")
+                        # what URDriver reads every period: the recording and its fault checks
+                        r.getActualTCPPose(), r.getActualQ(), r.getActualDigitalOutputBits()
+                        r.isConnected(), r.getSafetyStatusBits(), r.getSafetyMode(), r.getRobotMode()
+                        r.getRuntimeState()
                         c.waitPeriod(t0)
                 wall = time.perf_counter() - w0
                 cpu_client = (time.process_time() - cpu0) / wall
@@ -109,6 +116,7 @@ def run_stream(job, seconds: float, realtime: bool) -> dict:
             finally:
                 _normal_threads()
                 c.disconnect()
+                r.disconnect()
         finally:
             sim.stop()
         rec = recording.load(rec_path)
