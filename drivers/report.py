@@ -124,21 +124,22 @@ class ExecutionReport:
 
 
 def planned_path(job, rate: float | None = None):
-    """The planned TCP path at the controller rate: times (n,), positions (n, 3) m, io bits (n,), lines (n,)
-    and cumulative arc length (n,) m. Read from the job's one trajectory (no second sampler)."""
+    """The planned TCP path at the controller rate: times (n,) s, poses (n, 6) p[x, y, z, rx, ry, rz] m, rad,
+    io bits (n,), source lines (n,) and cumulative arc length (n,) m. Read from the job's one trajectory (no
+    second sampler)."""
     tr = job.trajectory(rate)
     ts, ps, io, ln = [], [], [], []
     for c in tr.chunks(joints=False):
         ts.append(c.times)
-        ps.append(c.poses[:, :3])
+        ps.append(c.poses)
         io.append(c.io)
         ln.append(c.lines)
     if not ts:
         z = np.zeros(0)
-        return z, np.zeros((0, 3)), np.zeros(0, np.int64), np.zeros(0, np.int64), z
+        return z, np.zeros((0, 6)), np.zeros(0, np.int64), np.zeros(0, np.int64), z
     t = np.concatenate(ts)
     p = np.concatenate(ps)
-    s = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(p, axis=0), axis=1))))
+    s = np.concatenate(([0.0], np.cumsum(np.linalg.norm(np.diff(p[:, :3], axis=0), axis=1))))
     return t, p, np.concatenate(io), np.concatenate(ln), s
 
 
@@ -229,6 +230,7 @@ def execution_report(job, recorded_times, recorded_tcp, recorded_joints, recorde
     if io.size != n:
         raise ValueError(f"recorded_io has {io.size} samples, recorded_times {n}")
     pt, pp, pio, _, ps = planned if planned is not None else planned_path(job)
+    pp = pp[:, :3]
     planned_duration = float(pt[-1] - pt[0]) if pt.size else 0.0
     if n:
         dist, seg = distance_to_polyline(tcp[:, :3], pp)

@@ -49,6 +49,10 @@ _SAFETY_MODES = {1: "NORMAL", 2: "REDUCED", 3: "PROTECTIVE_STOP", 4: "RECOVERY",
                  10: "VALIDATE_JOINT_ID", 11: "UNDEFINED_SAFETY_MODE", 12: "AUTOMATIC_MODE_SAFEGUARD_STOP",
                  13: "SYSTEM_THREE_POSITION_ENABLING_STOP"}
 MODES = ("stream", "program")
+#: ur_rtde interfaces whose connection dropped: never disconnected or destroyed (see URDriver.close).
+_ABANDONED: list = []
+#: Samples converted to Python lists at a time in the streaming loop.
+_SLICE = 2500
 
 
 class ProgramStoppedError(DriverError):
@@ -103,7 +107,9 @@ class URDriver:
     lookahead, gain : float
         servoJ lookahead time (s, 0.03..0.2) and proportional gain (100..2000).
     overrun_limit : float
-        A control period that ends this many seconds late stops the run with PeriodOverrunError, s.
+        Two targets this many seconds apart stop the run with PeriodOverrunError, s. The arm holds its last
+        (planned, on the path) target meanwhile, so a short stall delays the job without leaving the path: the
+        default 0.2 s tolerates the tens of ms a shared virtual machine stalls now and then.
     settle : float
         Seconds of recording after the last target (the arm's lag behind the servo targets).
     deceleration : float
@@ -114,7 +120,7 @@ class URDriver:
     """
 
     def __init__(self, host: str, model: str = "ur5e", *, io: str = "rtde", modbus_port: int = 502,
-                 lookahead: float = 0.1, gain: float = 300.0, overrun_limit: float = 0.05, settle: float = 0.3,
+                 lookahead: float = 0.1, gain: float = 300.0, overrun_limit: float = 0.2, settle: float = 0.3,
                  deceleration: float = 10.0, frequency: float = 500.0) -> None:
         if not isinstance(host, str) or not host.strip():
             raise ValueError(f"host must be the controller's address, got {host!r}")
@@ -142,6 +148,7 @@ class URDriver:
         self._paused = threading.Event()
         self._stop = threading.Event()
         self._mode: str | None = None
+        self._lost = False  # the connection dropped: the ur_rtde interfaces are abandoned on close
 
     # ---- connection ---------------------------------------------------------------------------------
     def connect(self) -> None:
@@ -164,7 +171,11 @@ class URDriver:
         if not remote:
             self.close()
             raise NotReadyError("the robot is not in remote control (switch it to remote control on the pendant)")
-        self._check_state()
+        try:
+            self._check_state()
+        except DriverError:
+            self.close()
+            raise
         self._connect_control()
         try:
             if self.io_kind == "modbus":
@@ -196,6 +207,11 @@ class URDriver:
             setattr(self, name, None)
             if obj is None:
                 continue
+            if self._lost or (name in ("_c", "_r") and not obj.isConnected()):
+                # a dropped ur_rtde interface reconnects (and may abort the process on a broken pipe) when
+                # disconnected or destroyed: it is kept, never touched again
+                _ABANDONED.append(obj)
+                continue
             try:
                 if name == "_c":
                     obj.stopScript()
@@ -205,6 +221,7 @@ class URDriver:
                     obj.close()
             except (RuntimeError, OSError):
                 pass
+        self._lost = False
         if self._dash is not None:
             try:
                 self._dash.disconnect()
@@ -241,7 +258,7 @@ class URDriver:
     def _fault(self) -> DriverError | None:
         """The robot's fault now, as an error without the job's place (None: none)."""
         r = self._r
-        if r is None or not r.isConnected():
+        if r is None or not r.isConnected() or (self._c is not None and not self._c.isConnected()):
             return ConnectionLostError(f"the RTDE connection to {self.host} dropped")
         bits = int(r.getSafetyStatusBits())
         safety = int(r.getSafetyMode())
@@ -360,14 +377,24 @@ class URDriver:
         self._paused.clear()
         cancel = cancel if cancel is not None else threading.Event()
         planned = planned_path(job)
+        whole = None
+        if mode == "stream":  # every target computed before the arm moves: the loop never waits for the planner
+            whole = job.trajectory().collect()
+            bad = np.flatnonzero(~np.isfinite(whole.joints).all(axis=1))
+            if bad.size:
+                k = int(bad[0])
+                raise DriverError("the job has poses without joint positions (unreachable); it is not executed",
+                                  t=whole.times[k], pose=whole.poses[k], line=int(whole.lines[k]))
         self.move_to_start(job)
         mask = self._job_mask(planned[2])
         if mask:
             self._io.set_bits(mask, 0)
         self._mode = mode
         try:
-            run = self._stream if mode == "stream" else self._program
-            rec, failure = run(job, planned, mask, progress, cancel)
+            if mode == "stream":
+                rec, failure = self._stream(job, planned, mask, progress, cancel, whole)
+            else:
+                rec, failure = self._program(job, planned, mask, progress, cancel)
         finally:
             self._mode = None
         return execution_report(job, *rec, mode=mode, failure=failure, planned=planned)
@@ -388,13 +415,13 @@ class URDriver:
 
     def _safe_off(self, mask: int) -> None:
         """Switch the job's outputs off after a failure (best effort: the connection may be gone)."""
-        if mask and self._io is not None:
+        if mask and self._io is not None and not (self._lost and isinstance(self._io, RTDEOutputs)):
             try:
                 self._io.set_bits(mask, 0)
             except (RuntimeError, OSError):
                 pass
 
-    def _stream(self, job, planned, mask, progress, cancel):
+    def _stream(self, job, planned, mask, progress, cancel, whole):
         c, r, io = self._c, self._r, self._io
         pt, pp, _, plines, _ = planned
         total = pt.size
@@ -410,10 +437,10 @@ class URDriver:
         t_last = None
         report_every = max(1, int(rate // 10))
         try:
-            for chunk in job.trajectory(rate).chunks():
-                qs = chunk.joints.tolist()
-                ios = chunk.io.tolist()
-                times = chunk.times.tolist()
+            for a in range(0, whole.times.size, _SLICE):  # Python lists per slice: no numpy per sample
+                qs = whole.joints[a:a + _SLICE].tolist()
+                ios = whole.io[a:a + _SLICE].tolist()
+                times = whole.times[a:a + _SLICE].tolist()
                 i = 0
                 n = len(qs)
                 while i < n:
@@ -428,10 +455,12 @@ class URDriver:
                         raise err
                     paused = self._paused.is_set()
                     q = qs[i]
+                    if not (r.isConnected() and c.isConnected()):  # before servoJ: ur_rtde would reconnect by itself
+                        raise ConnectionLostError(f"the connection to the controller at {self.host} dropped")
                     if not c.servoJ(q, 0.0, 0.0, dt, la, gain):
                         raise self._fault() or ProgramStoppedError(self._not_running_reason())
                     if ios[i] != prev_io and not paused:
-                        pending.append(_Station(k, ios[i] ^ prev_io, ios[i], pp))
+                        pending.append(_Station(k, ios[i] ^ prev_io, ios[i], pp[:, :3]))
                         prev_io = ios[i]
                     T.append(times[i])
                     x = r.getActualTCPPose()
@@ -482,6 +511,8 @@ class URDriver:
         except RuntimeError as exc:  # ur_rtde: the socket closed
             failure = self._locate(ConnectionLostError(f"the connection to {self.host} dropped: {exc}"),
                                    k, pt, pp, plines)
+        if isinstance(failure, ConnectionLostError):
+            self._lost = True
         if failure is not None:
             self._halt(failure)
             self._safe_off(mask)
@@ -525,7 +556,7 @@ class URDriver:
         pt, pp, _, plines, ps = planned
         text = job_program(job)
         self._c.stopScript()  # hand the arm from ur_rtde's control script to the job's program
-        tree = cKDTree(pp) if pp.size else None
+        tree = cKDTree(pp[:, :3]) if pp.size else None
         T, X, Q, B = [], [], [], []
         failure = None
         k = 0
@@ -569,7 +600,7 @@ class URDriver:
                     break
                 time.sleep(0.002)
             # the program ended: at the job's end, or stopped from outside
-            d, _ = distance_to_polyline(np.asarray(X[-1][:3])[None], pp[-1:])
+            d, _ = distance_to_polyline(np.asarray(X[-1][:3])[None], pp[-1:, :3])
             if d[0] > 1e-3:
                 raise ProgramStoppedError(self._not_running_reason() + f"; the tool is {1e3 * d[0]:.1f} mm "
                                           "from the job's last pose")
@@ -581,6 +612,8 @@ class URDriver:
         except RuntimeError as exc:
             failure = self._locate(ConnectionLostError(f"the connection to {self.host} dropped: {exc}"),
                                    k, pt, pp, plines)
+        if isinstance(failure, ConnectionLostError):
+            self._lost = True
         if failure is not None:
             self._halt(failure)
             self._safe_off(mask)

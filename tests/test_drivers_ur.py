@@ -1,0 +1,293 @@
+"""URDriver end to end through real ur_rtde (and real pymodbus) into the simulated controller (sim.SimController):
+the demo pass streamed with servoJ and run as its URScript program, followed within tolerance with the outputs
+switched at their stations; faults (protective stop, the controller dropping, a dashboard stop, cancellation,
+a period overrun) each end the run cleanly with the arm stopped and the reason, time, pose and line reported."""
+
+from __future__ import annotations
+
+import threading
+import time
+
+import dashboard_client
+import numpy as np
+import pytest
+import rtde_receive
+from pymodbus.client import ModbusTcpClient
+
+from drivers.base import (
+    CancelledError,
+    DriverError,
+    PeriodOverrunError,
+    ProtectiveStopError,
+)
+from drivers.report import planned_path
+from drivers.ur import ProgramStoppedError, URDriver
+from planner import PlanSettings, plan
+from planner.trajectory import Chunk, Trajectory
+from tests import sim_fixtures
+
+make_sim = sim_fixtures.make_sim  # fixture
+
+DEMO = "examples/nx_first_pass.cls"
+PART = (0.4, 0.9965, -0.1, 0.0, 0.0, 0.0)
+
+
+def _job(feed_override: float = 1.0):
+    return plan(DEMO, PlanSettings(robot="ur5e", part_frame=PART, cut_output=("standard", 0),
+                                   feed_override=feed_override))
+
+
+@pytest.fixture(scope="module")
+def demo_job():
+    return _job()
+
+
+@pytest.fixture(scope="module")
+def fast_job():
+    """The demo pass at 4x its feed (16 s instead of 62 s): the default suite's streaming job."""
+    return _job(4.0)
+
+
+def _check_followed(job, rep, path_tol: float, io_tol_mm: float = 1.0) -> None:
+    assert rep.ok, rep.describe()
+    assert rep.failure is None and rep.reason == ""
+    assert rep.max_path_error <= path_tol, rep.describe()
+    assert rep.max_path_error > 0.0  # the tracked path was measured, not copied from the plan
+    assert len(rep.io_events) == 2, rep.describe()
+    for ev in rep.io_events:
+        assert ev.switched and ev.distance_mm <= io_tol_mm, rep.describe()
+    assert [e.value for e in rep.io_events] == [True, False]
+    assert rep.duration >= 0.98 * rep.planned_duration
+    assert rep.joint_limit_margin > 0.0
+
+
+def _at_rest(host: str) -> np.ndarray:
+    r = rtde_receive.RTDEReceiveInterface(host)
+    try:
+        time.sleep(0.05)
+        return np.abs(np.asarray(r.getActualQd())).max()
+    finally:
+        r.disconnect()
+
+
+def test_stream_demo_pass_followed_within_0_2_mm_outputs_at_their_stations_through_modbus(make_sim, fast_job):
+    sim = make_sim(modbus_port=sim_fixtures_free_port())
+    seen = []
+    with URDriver(sim.host, "ur5e", io="modbus", modbus_port=sim.modbus_port) as d:
+        rep = d.execute(fast_job, mode="stream", progress=lambda s, n, t: seen.append((s, n, t)))
+    _check_followed(fast_job, rep, 0.2e-3)
+    assert rep.mode == "stream"
+    assert seen[-1][1] == seen[-1][2] and all(s == "execute" for s, _, _ in seen)
+    # the outputs read back through real pymodbus: off after the job
+    with ModbusTcpClient(sim.host, port=sim.modbus_port) as m:
+        assert m.read_holding_registers(1, count=1).registers[0] == 0
+    assert _at_rest(sim.host) < 1e-3
+
+
+@pytest.mark.slow
+def test_stream_demo_pass_at_its_own_feed(make_sim, demo_job):
+    sim = make_sim()
+    with URDriver(sim.host, "ur5e") as d:
+        rep = d.execute(demo_job, mode="stream")
+    _check_followed(demo_job, rep, 0.2e-3)
+
+
+def test_program_mode_followed_within_the_blend_tolerance(make_sim, demo_job):
+    sim = make_sim(speed=20.0)
+    with URDriver(sim.host, "ur5e") as d:
+        rep = d.execute(demo_job, mode="program")
+        assert d.state().runtime_state == 2  # ur_rtde's control script is back for the next move
+    _check_followed(demo_job, rep, demo_job.settings.tolerance)
+    assert rep.mode == "program"
+    assert rep.duration == pytest.approx(rep.planned_duration, rel=0.05)
+
+
+class _TooFast:
+    """The demo job whose servo targets jump by 7 rad on joint 0 after 1 s of the cut, beyond the joint's
+    position limit (+-2 pi): an unreachable target, which the controller must refuse with a protective stop.
+    (The simulator follows a target that merely jumps as fast as the joint speed limits allow.)"""
+
+    def __init__(self, job):
+        self._job = job
+
+    def __getattr__(self, name):
+        return getattr(self._job, name)
+
+    def trajectory(self, rate=None):
+        return _JumpingTrajectory(self._job, self._job.settings.rate if rate is None else rate)
+
+
+class _JumpingTrajectory(Trajectory):
+    def chunks(self, *, joints=None, progress=None):
+        for c in super().chunks(joints=joints, progress=progress):
+            if c.joints is not None and c.kind == "cut":
+                q = c.joints.copy()
+                q[500:, 0] += 7.0
+                c = Chunk(c.move, c.kind, c.pass_index, c.times, c.poses, c.lines, q, c.io, c.final)
+            yield c
+
+
+def test_too_fast_target_protective_stop_with_time_pose_and_line(make_sim, fast_job):
+    sim = make_sim()
+    bad = _TooFast(fast_job)
+    with URDriver(sim.host, "ur5e") as d:
+        rep = d.execute(bad, mode="stream")
+    assert not rep.ok
+    err = rep.failure
+    assert isinstance(err, ProtectiveStopError), rep.describe()
+    assert "protective stop" in err.reason and "PROTECTIVE_STOP" in err.reason
+    # the place: the job time of the bad target (the cut starts after the rapid), its planned pose and line
+    pt, pp, _, lines, _ = planned_path(fast_job)
+    cut0 = fast_job.trajectory().moves()[1]["t_start"]
+    assert cut0 + 0.99 <= err.t <= cut0 + 1.1
+    k = int(round(err.t * fast_job.settings.rate))
+    np.testing.assert_allclose(err.pose, pp[k], atol=1e-9)
+    assert err.line == lines[k] and err.line > 0
+    assert f"line {err.line}" in str(err)
+    assert sim.state()["safety_mode"] == "PROTECTIVE_STOP"
+    assert _at_rest(sim.host) < 1e-6
+    assert sim.state()["digital_out"] & 1 == 0  # the cut's output switched off
+
+
+def _run_in_thread(d: URDriver, job, cancel=None, progress=None):
+    out = {}
+
+    def go():
+        out["rep"] = d.execute(job, mode="stream", cancel=cancel, progress=progress)
+
+    th = threading.Thread(target=go)
+    th.start()
+    return th, out
+
+
+def _wait_streaming(d: URDriver, timeout: float = 30.0) -> None:
+    end = time.monotonic() + timeout
+    while d._mode != "stream" and time.monotonic() < end:
+        time.sleep(0.01)
+    time.sleep(1.5)  # into the cut
+
+
+def test_cancel_from_the_caller_stops_the_arm(make_sim, fast_job):
+    sim = make_sim()
+    cancel = threading.Event()
+    with URDriver(sim.host, "ur5e") as d:
+        th, out = _run_in_thread(d, fast_job, cancel=cancel)
+        _wait_streaming(d)
+        cancel.set()
+        th.join(30)
+        assert not th.is_alive()
+        rep = out["rep"]
+        assert isinstance(rep.failure, CancelledError) and "cancelled by the caller" in rep.reason
+        assert rep.failure.t is not None and 1.0 < rep.failure.t < rep.planned_duration
+        assert d.state().digital_out & 1 == 0
+        assert max(abs(x) for x in d._r.getActualQd()) < 1e-3
+        assert rep.max_path_error < 0.2e-3  # what it did, it did on the path
+
+
+def test_stop_from_the_dashboard_ends_the_run_with_the_reason(make_sim, fast_job):
+    sim = make_sim()
+    with URDriver(sim.host, "ur5e") as d:
+        th, out = _run_in_thread(d, fast_job)
+        _wait_streaming(d)
+        dash = dashboard_client.DashboardClient(sim.host)
+        dash.connect()
+        dash.stop()
+        dash.disconnect()
+        th.join(30)
+        assert not th.is_alive()
+        rep = out["rep"]
+        assert isinstance(rep.failure, ProgramStoppedError), rep.describe()
+        assert "dashboard" in rep.reason and rep.failure.line is not None
+    assert _at_rest(sim.host) < 1e-6
+
+
+_DROP_CHILD = """
+import json, os, threading, time
+from drivers.ur import URDriver
+from tests.sim_fixtures import start_sim
+from tests.test_drivers_ur import _job
+job = _job(4.0)
+sim = start_sim()
+d = URDriver(sim.host, "ur5e")
+d.connect()
+out = {}
+th = threading.Thread(target=lambda: out.update(rep=d.execute(job)))
+th.start()
+while d._mode != "stream":
+    time.sleep(0.01)
+time.sleep(1.5)
+sim.stop()  # the controller goes away mid-stream
+th.join(30)
+rep = out.get("rep")
+d.close()
+f = rep.failure
+print(json.dumps({"alive": th.is_alive(), "host": sim.host, "kind": type(f).__name__, "reason": f.reason,
+                  "t": f.t, "line": f.line, "pose": f.pose, "samples": rep.samples, "error": rep.max_path_error}))
+os._exit(0)  # ur_rtde aborts the process when it destroys interfaces whose connection dropped
+"""
+
+
+def test_controller_dropping_mid_stream_is_reported():
+    """In a child process: ur_rtde 1.6.5 aborts the interpreter at exit (an uncaught boost exception in its
+    destructors) after its connection dropped, whatever the driver does."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    repo = Path(__file__).resolve().parents[1]
+    p = subprocess.run([sys.executable, "-c", _DROP_CHILD], cwd=repo, capture_output=True, text=True, timeout=120)
+    assert p.returncode == 0, p.stderr[-2000:]
+    res = json.loads(p.stdout.strip().splitlines()[-1])
+    assert not res["alive"]
+    assert res["kind"] == "ConnectionLostError" and res["host"] in res["reason"] and "dropped" in res["reason"]
+    assert 1.0 < res["t"] < 16.0 and res["line"] > 0 and len(res["pose"]) == 6
+    assert res["samples"] > 500 and res["error"] < 0.2e-3
+
+
+def test_period_overrun_is_reported(make_sim, fast_job):
+    sim = make_sim()
+    slow = {"done": False}
+
+    def progress(stage, done, total):
+        if done > 1000 and not slow["done"]:
+            slow["done"] = True
+            time.sleep(0.6)  # the caller's callback holds the control loop for 300 periods
+
+    with URDriver(sim.host, "ur5e") as d:  # default limit 0.2 s
+        rep = d.execute(fast_job, mode="stream", progress=progress)
+        assert isinstance(rep.failure, PeriodOverrunError), rep.describe()
+        assert "ms between targets" in rep.reason
+        assert 1.9 < rep.failure.t < 2.2
+        assert max(abs(x) for x in d._r.getActualQd()) < 1e-3
+
+
+def test_refusals_before_moving(make_sim, fast_job):
+    sim = make_sim()
+    with URDriver(sim.host, "ur5e") as d:
+        q0 = d.state().joints
+        with pytest.raises(ValueError, match="mode must be"):
+            d.execute(fast_job, mode="servoL")
+        no_robot = plan(DEMO, PlanSettings(part_frame=PART))
+        with pytest.raises(DriverError, match="without a robot"):
+            d.execute(no_robot)
+        slow_rate = plan(DEMO, PlanSettings(robot="ur5e", part_frame=PART, rate=125.0))
+        with pytest.raises(DriverError, match="125 Hz"):
+            d.execute(slow_rate)
+        np.testing.assert_allclose(d.state().joints, q0, atol=1e-9)  # nothing moved
+    with pytest.raises(ValueError, match="io must be"):
+        URDriver(sim.host, io="serial")
+    dash = dashboard_client.DashboardClient(sim.host)
+    dash.connect()
+    dash.powerOff()
+    dash.disconnect()
+    with pytest.raises(DriverError, match="powered off"):
+        URDriver(sim.host, "ur5e").connect()
+
+
+def sim_fixtures_free_port() -> int:
+    import socket
+
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        return s.getsockname()[1]
