@@ -114,6 +114,8 @@ class URDriver:
         Seconds of recording after the last target (the arm's lag behind the servo targets).
     deceleration : float
         servoStop deceleration, rad/s^2.
+    approach_speed, approach_acceleration : float
+        The joint move onto the job's start joints before a run (:meth:`move_to_start`), rad/s, rad/s^2.
     frequency : float
         The controller's control rate, Hz (500 e-Series, 125 CB-Series): a job is streamed at its planned rate,
         which must be this.
@@ -121,7 +123,8 @@ class URDriver:
 
     def __init__(self, host: str, model: str = "ur5e", *, io: str = "rtde", modbus_port: int = 502,
                  lookahead: float = 0.1, gain: float = 300.0, overrun_limit: float = 0.2, settle: float = 0.3,
-                 deceleration: float = 10.0, frequency: float = 500.0) -> None:
+                 deceleration: float = 10.0, frequency: float = 500.0, approach_speed: float = 0.5,
+                 approach_acceleration: float = 0.5) -> None:
         if not isinstance(host, str) or not host.strip():
             raise ValueError(f"host must be the controller's address, got {host!r}")
         if io not in ("rtde", "modbus"):
@@ -144,6 +147,11 @@ class URDriver:
         self.settle = float(settle)
         self.deceleration = float(deceleration)
         self.frequency = float(frequency)
+        if not (0 < float(approach_speed) <= 3.14 and 0 < float(approach_acceleration) <= 40.0):
+            raise ValueError("approach_speed must be within (0, 3.14] rad/s and approach_acceleration within "
+                             f"(0, 40] rad/s^2, got {approach_speed!r}, {approach_acceleration!r}")
+        self.approach_speed = float(approach_speed)
+        self.approach_acceleration = float(approach_acceleration)
         self._r = self._c = self._io = self._dash = None
         self._paused = threading.Event()
         self._stop = threading.Event()
@@ -385,7 +393,7 @@ class URDriver:
                 k = int(bad[0])
                 raise DriverError("the job has poses without joint positions (unreachable); it is not executed",
                                   t=whole.times[k], pose=whole.poses[k], line=int(whole.lines[k]))
-        self.move_to_start(job)
+        self.move_to_start(job, speed=self.approach_speed, acceleration=self.approach_acceleration)
         mask = self._job_mask(planned[2])
         if mask:
             self._io.set_bits(mask, 0)

@@ -1,0 +1,97 @@
+"""The execution report's figures from recorded samples: distance to the planned path (not time-aligned), I/O
+switches against their stations, joint-limit margin, failures with their place."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+
+from drivers.base import DriverError, ProtectiveStopError
+from drivers.report import distance_to_polyline, execution_report, planned_path
+from planner import PlanSettings, plan
+
+PART = (0.4, 0.9965, -0.1, 0.0, 0.0, 0.0)
+
+
+@pytest.fixture(scope="module")
+def job():
+    return plan("examples/nx_first_pass.cls", PlanSettings(robot="ur5e", part_frame=PART, cut_output=("standard", 0)))
+
+
+def _brute(points, path):
+    a, b = path[:-1], path[1:]
+    d = b - a
+    w = np.clip(np.einsum("nkj,kj->nk", points[:, None] - a[None], d) / np.einsum("kj,kj->k", d, d), 0, 1)
+    return np.linalg.norm(points[:, None] - (a[None] + w[..., None] * d[None]), axis=2).min(axis=1)
+
+
+def test_distance_to_polyline_matches_brute_force():
+    rng = np.random.default_rng(1)
+    s = np.linspace(0, 3 * np.pi, 400)
+    path = np.c_[np.cos(s), np.sin(s), 0.1 * s] * 0.1
+    path = np.repeat(path, 2, axis=0)  # rests (repeated vertices) as at move boundaries
+    pts = path[rng.integers(0, len(path), 300)] + rng.normal(scale=1e-3, size=(300, 3))
+    d, _ = distance_to_polyline(pts, path)
+    np.testing.assert_allclose(d, _brute(pts, path[::2]), atol=1e-12)
+
+
+def test_planned_run_has_no_path_error_and_switches_on_its_stations(job):
+    c = job.trajectory().collect()
+    rep = execution_report(job, c.times, c.poses, c.joints, c.io, mode="replay")
+    assert rep.ok and rep.max_path_error < 1e-12
+    assert rep.planned_duration == pytest.approx(job.trajectory().duration)
+    assert [(e.bit, e.value) for e in rep.io_events] == [(0, True), (0, False)]
+    assert all(e.distance_mm < 1e-9 and e.actual_s == pytest.approx(e.planned_s) for e in rep.io_events)
+    lim = math.tau  # UR5e joints: +-2 pi
+    assert rep.joint_limit_margin == pytest.approx(float(np.min(lim - np.abs(c.joints))))
+
+
+def test_late_but_on_the_path_is_no_path_error_offset_is(job):
+    c = job.trajectory().collect()
+    late = np.concatenate((np.repeat(c.poses[:1], 200, axis=0), c.poses))  # 0.4 s late, same path
+    t = np.arange(len(late)) / 500.0
+    q = np.concatenate((np.repeat(c.joints[:1], 200, axis=0), c.joints))
+    io = np.concatenate((np.zeros(200, np.int64), c.io))
+    rep = execution_report(job, t, late, q, io, mode="replay")
+    assert rep.max_path_error < 1e-12
+    assert rep.duration == pytest.approx(rep.planned_duration + 0.4)
+    off = c.poses.copy()
+    off[:, 2] += 0.3e-3
+    rep = execution_report(job, c.times, off, c.joints, c.io, mode="replay")
+    assert rep.max_path_error == pytest.approx(0.3e-3, rel=1e-3)
+    assert max(e.distance_mm for e in rep.io_events) == pytest.approx(0.3, rel=1e-3)
+
+
+def test_switch_late_by_ten_samples_is_measured_along_the_path(job):
+    c = job.trajectory().collect()
+    io = np.concatenate((np.zeros(10, np.int64), c.io))  # every switch 10 samples (20 ms) late
+    poses = np.concatenate((c.poses, np.repeat(c.poses[-1:], 10, axis=0)))  # the tool rests at the end
+    q = np.concatenate((c.joints, np.repeat(c.joints[-1:], 10, axis=0)))
+    rep = execution_report(job, np.arange(len(io)) / 500.0, poses, q, io, mode="replay")
+    assert rep.io_events[0].distance_mm > 1e-3  # on at the start of the cut (accelerating from rest): it moved on
+    pt, pp, pio, _, ps = planned_path(job)
+    for e in rep.io_events:
+        k = int(round(e.planned_t * 500))
+        moved = np.linalg.norm(pp[min(k + 10, len(pp) - 1), :3] - pp[k, :3]) * 1e3
+        assert e.distance_mm == pytest.approx(moved, abs=1e-9)
+        assert e.actual_t == pytest.approx(e.planned_t + 0.02)
+
+
+def test_missing_switch_and_failure_are_reported(job):
+    c = job.trajectory().collect()
+    n = len(c.times) // 2
+    err = ProtectiveStopError("protective stop (safety mode PROTECTIVE_STOP)", t=c.times[n], pose=c.poses[n],
+                              line=int(c.lines[n]))
+    rep = execution_report(job, c.times[:n], c.poses[:n], c.joints[:n], c.io[:n], mode="stream", failure=err)
+    assert not rep.ok and rep.failure is err and rep.reason.startswith("protective stop")
+    assert [e.switched for e in rep.io_events] == [True, False]
+    text = "\n".join(rep.describe())
+    assert "FAILED" in text and f"source line {err.line}" in text and "not switched" in text
+    assert isinstance(err, DriverError) and err.kind == "protective stop"
+
+
+def test_recorded_arrays_must_agree(job):
+    with pytest.raises(ValueError, match="recorded_io has 2 samples"):
+        execution_report(job, [0.0, 0.1, 0.2], np.zeros((3, 6)), np.zeros((3, 6)), [0, 0], mode="x")
