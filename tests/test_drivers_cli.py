@@ -1,0 +1,42 @@
+"""`planner run` (drivers.cli) against a simulated controller it starts itself, and run_demo_on_sim."""
+
+from __future__ import annotations
+
+import pytest
+
+from drivers.cli import main, run_demo_on_sim
+from planner import PlanSettings, plan
+
+DEMO = "examples/nx_first_pass.cls"
+PART = "0.4,0.9965,-0.1,0,0,0"
+
+
+def test_planner_run_sim_program_mode_prints_the_report(capsys):
+    rc = main(["run", DEMO, "--robot", "ur5e", "--part-frame", PART, "--cut-output", "standard:0", "--sim",
+               "--mode", "program", "--sim-speed", "20", "--io", "modbus"])
+    out = capsys.readouterr().out
+    assert rc == 0, out
+    assert "simulated ur5e controller on 127." in out
+    assert "execution (program): ok" in out
+    assert "I/O: 2 of 2 switches made" in out
+    err_mm = float(out.split("largest distance from the planned path ")[1].split(" mm")[0])
+    assert err_mm <= 0.01  # the program's tolerance, 10 um
+
+
+@pytest.mark.parametrize("args, message", [
+    (["--robot", "ur5e"], "give the controller's address with --host"),
+    (["--robot", "none", "--sim"], "--robot MODEL is needed"),
+    (["--robot", "ur5e", "--host", "robot.local"], "--host must be an IP address"),
+    (["--robot", "ur5e", "--sim", "--sim-speed", "5"], "program mode only"),
+])
+def test_planner_run_refuses_bad_options_before_planning(capsys, args, message):
+    assert main(["run", DEMO, *args]) == 2
+    assert message in capsys.readouterr().err
+
+
+def test_run_demo_on_sim():
+    job = plan(DEMO, PlanSettings(robot="ur5e", part_frame=(0.4, 0.9965, -0.1, 0, 0, 0), cut_output=("standard", 0)))
+    rep = run_demo_on_sim(job)
+    assert rep.ok and rep.mode == "program", rep.describe()
+    assert rep.max_path_error <= job.settings.tolerance
+    assert all(e.switched and e.distance_mm < 1.0 for e in rep.io_events) and len(rep.io_events) == 2
