@@ -284,18 +284,11 @@ class SimDriver:
     @staticmethod
     def _locate(err: DriverError, k: int, job, planned) -> DriverError:
         """``err`` at planned sample ``k``: its job time, planned TCP pose p[x, y, z, rx, ry, rz] and source line."""
-        pt, _, _, plines, _ = planned
+        pt, pp, _, plines, _ = planned
         if pt.size == 0:
             return err
         k = min(max(k, 0), pt.size - 1)
-        pose = None
-        first = 0
-        for c in job.trajectory().chunks(joints=False):  # only on a failure: the planned pose, rotation included
-            if k < first + len(c):
-                pose = c.poses[k - first]
-                break
-            first += len(c)
-        return err.located(float(pt[k]), pose, int(plines[k]))
+        return err.located(float(pt[k]), pp[k], int(plines[k]))
 
     def _halt(self, failure: DriverError, mask: int) -> None:
         """After a failure: a controlled stop of a moving arm (a faulted one is halted already), outputs off."""
@@ -315,7 +308,7 @@ class SimDriver:
 
         core = self.core
         m = core.motion
-        pt, pp = planned[0], planned[1]
+        pt, pp = planned[0], planned[1][:, :3]  # planned positions (planned_path gives whole poses)
         total = pt.size
         rate = float(job.settings.rate)
         ticks = round(1.0 / (rate * DT))
@@ -390,7 +383,7 @@ class SimDriver:
         from planner.export import job_program
 
         core = self.core
-        pt, pp = planned[0], planned[1]
+        pt, pp = planned[0], planned[1][:, :3]  # planned positions (planned_path gives whole poses)
         text = job_program(job)
         rec: list[list] = [[], [], [], [], []]
         failure = None
