@@ -442,6 +442,7 @@ class URDriver:
         prev_io = 0
         pending: list[_Station] = []  # output switches whose station the actual TCP has not reached yet
         k = 0  # sample being commanded (job-wide)
+        ts0 = None
         t_last = None
         report_every = max(1, int(rate // 10))
         try:
@@ -470,7 +471,9 @@ class URDriver:
                     if ios[i] != prev_io and not paused:
                         pending.append(_Station(k, ios[i] ^ prev_io, ios[i], pp[:, :3]))
                         prev_io = ios[i]
-                    T.append(times[i])
+                    if ts0 is None:
+                        ts0 = r.getTimestamp() - times[i]  # the controller's clock, 0 at the job's start
+                    T.append(r.getTimestamp() - ts0)
                     x = r.getActualTCPPose()
                     X.append(x)
                     while pending and pending[0].reached(x, k):
@@ -503,7 +506,7 @@ class URDriver:
                         ev = pending.pop(0)
                         io.set_bits(ev.mask, ev.value)
                     c.servoStop(self.deceleration)
-                T.append(t_end + (j + 1) * dt)
+                T.append(r.getTimestamp() - ts0 if ts0 is not None else t_end + (j + 1) * dt)
                 x = r.getActualTCPPose()
                 X.append(x)
                 while pending and pending[0].reached(x, k):

@@ -293,3 +293,22 @@ def sim_fixtures_free_port() -> int:
     with socket.socket() as s:
         s.bind(("127.0.0.1", 0))
         return s.getsockname()[1]
+
+
+def test_pause_and_resume_hold_the_arm_on_the_path(make_sim):
+    job = _job(8.0)  # 8 s
+    sim = make_sim()
+    with URDriver(sim.host, "ur5e", **FAST) as d:
+        th, out = _run_in_thread(d, job)
+        _wait_streaming(d)
+        d.pause()
+        time.sleep(0.5)  # the arm comes to rest on its last target
+        q1 = np.asarray(d.state().joints)
+        time.sleep(0.5)
+        held = np.abs(np.asarray(d.state().joints) - q1).max()
+        d.resume()
+        th.join(60)
+        rep = out["rep"]
+    assert held < 1e-6
+    _check_followed(job, rep, 0.2e-3)
+    assert rep.duration >= rep.planned_duration + 0.9  # paused for 1 s
