@@ -1,4 +1,14 @@
-"""Robot drivers: stream planned poses to a UR controller (ur_rtde) and drive tool I/O (pymodbus).
+"""Robot drivers: execute planned jobs on UR controllers and report how they followed the plan.
 
-Filled in by the driver-layer issue; the planning core never imports this package.
+- :mod:`drivers.base`: the :class:`~drivers.base.RobotDriver` protocol, :class:`~drivers.base.RobotState` and the
+  :class:`~drivers.base.DriverError` family (the robot's reason with the job's time, pose and source line);
+- :mod:`drivers.ur`: :class:`~drivers.ur.URDriver` on ur_rtde (servoJ streaming of the planner's joints, or the
+  job's URScript program through the script port);
+- :mod:`drivers.modbus_io`: tool I/O through the controller's Modbus server (pymodbus);
+- :mod:`drivers.sim`: :class:`~drivers.sim.SimDriver`, the simulator's motion model in-process (dry runs);
+- :mod:`drivers.report`: :class:`~drivers.report.ExecutionReport`, computed from what a run recorded;
+- :mod:`drivers.cli`: ``planner run``.
+
+The planning core never imports this package; the drivers read the planner's one trajectory
+(``job.trajectory()``), never a second sampler.
 """
