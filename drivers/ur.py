@@ -373,9 +373,9 @@ class URDriver:
                 cancel: threading.Event | None = None) -> ExecutionReport:
         """Execute ``job`` (see the module doc) and return its report (``report.failure`` on failure).
 
-        DriverError is raised only when the run cannot start (not connected, wrong job, robot not ready);
-        once the arm moves, every failure ends the run with the arm stopped and is returned in the report.
-        """
+        DriverError is raised when the run cannot start (not connected, wrong job, robot not ready) or the
+        approach onto the start joints fails (the arm is stopped then); from the job's first target on, every
+        failure ends the run with the arm stopped and the job's outputs off, and is returned in the report."""
         if mode not in MODES:
             raise ValueError(f"mode must be one of {MODES}, got {mode!r}")
         self._check_job(job)

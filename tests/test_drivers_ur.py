@@ -151,20 +151,20 @@ def test_too_fast_target_protective_stop_with_time_pose_and_line(make_sim, fast_
     assert sim.state()["digital_out"] & 1 == 0  # the cut's output switched off
 
 
-def _run_in_thread(d: URDriver, job, cancel=None, progress=None):
+def _run_in_thread(d: URDriver, job, cancel=None, progress=None, mode="stream"):
     out = {}
 
     def go():
-        out["rep"] = d.execute(job, mode="stream", cancel=cancel, progress=progress)
+        out["rep"] = d.execute(job, mode=mode, cancel=cancel, progress=progress)
 
     th = threading.Thread(target=go)
     th.start()
     return th, out
 
 
-def _wait_streaming(d: URDriver, timeout: float = 30.0) -> None:
+def _wait_streaming(d: URDriver, timeout: float = 30.0, mode: str = "stream") -> None:
     end = time.monotonic() + timeout
-    while d._mode != "stream" and time.monotonic() < end:
+    while d._mode != mode and time.monotonic() < end:
         time.sleep(0.01)
     time.sleep(1.5)  # into the cut
 
@@ -312,3 +312,20 @@ def test_pause_and_resume_hold_the_arm_on_the_path(make_sim):
     assert held < 1e-6
     _check_followed(job, rep, 0.2e-3)
     assert rep.duration >= rep.planned_duration + 0.9  # paused for 1 s
+
+
+def test_program_mode_cancel_stops_the_program_and_the_arm(make_sim, demo_job):
+    sim = make_sim(speed=5.0)
+    cancel = threading.Event()
+    with URDriver(sim.host, "ur5e", **FAST) as d:
+        th, out = _run_in_thread(d, demo_job, cancel=cancel, mode="program")
+        _wait_streaming(d, mode="program")
+        cancel.set()
+        th.join(30)
+        rep = out["rep"]
+        assert isinstance(rep.failure, CancelledError), rep.describe()
+        assert 0.0 < rep.failure.t < rep.planned_duration and rep.failure.line is not None
+        assert d.state().digital_out & 1 == 0
+        assert d.state().runtime_state == 2  # ur_rtde's control script is back
+        assert max(abs(x) for x in d._r.getActualQd()) < 1e-3
+    assert rep.max_path_error <= demo_job.settings.tolerance
