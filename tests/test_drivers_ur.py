@@ -329,3 +329,25 @@ def test_program_mode_cancel_stops_the_program_and_the_arm(make_sim, demo_job):
         assert d.state().runtime_state == 2  # ur_rtde's control script is back
         assert max(abs(x) for x in d._r.getActualQd()) < 1e-3
     assert rep.max_path_error <= demo_job.settings.tolerance
+
+
+@pytest.mark.slow
+def test_whole_nx_job_excerpt_program_in_fast_forward(make_sim, tmp_path):
+    """The first 300 lines of the shared NX job (7 passes, 7 rapids, 470 s) as the job's program at 20x: every
+    pass and rapid followed within the program's tolerance, no protective stop, every output switch made."""
+    from planner.cli import DEMO_PART_FRAME
+    from tests.cam_excerpts import NX
+
+    f = tmp_path / "ust_a2_head.cls"
+    f.write_text(NX.head(300))
+    part = tuple(float(x) for x in DEMO_PART_FRAME.split(","))
+    job = plan(f, PlanSettings(path="cam", tolerance=1e-5, part_frame=part, robot="ur5e", feed=0.05,
+                               cut_output=("standard", 0)))
+    assert len(job.passes) == 7 and job.count("rapid") == 7
+    sim = make_sim(speed=20.0)
+    with URDriver(sim.host, "ur5e", **FAST) as d:
+        rep = d.execute(job, mode="program")
+    assert rep.ok, rep.describe()
+    assert rep.max_path_error <= job.settings.tolerance, rep.describe()
+    assert len(rep.io_events) == 14 and all(e.switched for e in rep.io_events)
+    assert rep.duration == pytest.approx(rep.planned_duration, rel=0.02)
