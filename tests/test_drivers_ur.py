@@ -17,6 +17,7 @@ from pymodbus.client import ModbusTcpClient
 from drivers.base import (
     CancelledError,
     DriverError,
+    NotReadyError,
     PeriodOverrunError,
     ProtectiveStopError,
 )
@@ -282,9 +283,15 @@ def test_refusals_before_moving(make_sim, fast_job):
     dash = dashboard_client.DashboardClient(sim.host)
     dash.connect()
     dash.powerOff()
-    dash.disconnect()
-    with pytest.raises(DriverError, match="powered off"):
+    with pytest.raises(NotReadyError, match="powered off"):
         URDriver(sim.host, "ur5e", **FAST).connect()
+    dash.powerOn()
+    with pytest.raises(NotReadyError, match="brakes are locked"):
+        URDriver(sim.host, "ur5e", **FAST).connect()
+    dash.brakeRelease()
+    dash.disconnect()
+    with URDriver(sim.host, "ur5e", **FAST) as d:
+        assert d.state().ready
 
 
 def sim_fixtures_free_port() -> int:
