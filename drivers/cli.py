@@ -21,24 +21,13 @@ from drivers.base import ConnectionLostError, DriverError
 _UR_PORTS = (30004, 29999, 30001, 30002, 30003)
 
 
-def _plan_parser() -> argparse.ArgumentParser:
-    from planner.cli import build_parser
-
-    ap = build_parser()
-    for action in ap._subparsers._group_actions:  # the 'plan' subcommand's parser: its options are ours
-        if isinstance(action, argparse._SubParsersAction):
-            return action.choices["plan"]
-    raise RuntimeError("planner.cli has no 'plan' subcommand")
-
-
 def add_run_subcommand(subparsers) -> argparse.ArgumentParser:
     """Add ``run`` to an argparse subparsers object (``planner``'s); returns its parser."""
     r = subparsers.add_parser("run", help="plan a toolpath file and execute it on a UR robot (or --sim), "
                                           "with a progress bar and the execution report")
-    for action in _plan_parser()._actions:
-        if action.dest in ("help", "output", "plot", "progress"):
-            continue
-        r._add_action(action)
+    from planner.cli import add_plan_options
+
+    add_plan_options(r, outputs=False)
     r.add_argument("--host", help="the controller's address (the only host the driver connects to)")
     r.add_argument("--mode", choices=["stream", "program"], default="stream",
                    help="stream: servoJ with the planner's joints at the job's rate (default); program: send the "

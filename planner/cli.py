@@ -172,8 +172,9 @@ class _Progress:
         self.bars.clear()
 
 
-def cmd_plan(args: argparse.Namespace) -> None:
-    """Plan a toolpath file (every pass, or those of --pass) and print its figures; export and plot it."""
+def cmd_plan(args: argparse.Namespace):
+    """Plan a toolpath file (every pass, or those of --pass) and print its figures; export and plot it.
+    Returns the PlannedJob."""
     from planner.plan import plan
 
     path_in = Path(args.input)
@@ -206,6 +207,7 @@ def cmd_plan(args: argparse.Namespace) -> None:
             print(f"  wrote     {out} ({export(job, out, {'input': path_in.name}, bar)})")
         finally:
             bar.close()
+    return job
 
 
 def warning_lines(warnings: tuple, limit: int = 10) -> list[str]:
@@ -253,27 +255,30 @@ def cmd_demo(args: argparse.Namespace) -> None:
     example = example_path()
     _print_fit(example, _read_points(example, "mm"), ["C1", "C2", "cubic"])
     print()
-    print("Demo 2/2: plan the same pass from the NX CL data file for a UR5e: tool frames about the NX tool")
+    print("Demo 2/3: plan the same pass from the NX CL data file for a UR5e: tool frames about the NX tool")
     print("axes, jerk-limited feed along the exact arc length, 500 Hz poses, inverse kinematics, URScript")
     plan_args = build_parser().parse_args([
-        "plan", str(example_path(EXAMPLE_CLS)), "--robot", "ur5e",
+        "plan", str(example_path(EXAMPLE_CLS)), "--robot", "ur5e", "--cut-output", "standard:0",
         "--part-frame", DEMO_PART_FRAME, "-o", str(out / "demo.script"), "--plot", str(out / "demo.png"),
     ])
-    cmd_plan(plan_args)
+    job = cmd_plan(plan_args)
+    print()
+    print("Demo 3/3: execute the job on a simulated UR5e controller (started on a free loopback address)")
+    print("through the real ur_rtde client: its URScript program in fast-forward, the spray output on")
+    print("standard DO 0 during the cut; the execution report compares the tracked path with the plan")
+    from drivers.cli import run_demo_on_sim
+
+    report = run_demo_on_sim(job)
+    for line in report.describe():
+        print(f"  {line}")
+    if not report.ok:
+        raise SystemExit(1)
 
 
-def build_parser() -> argparse.ArgumentParser:
-    ap = argparse.ArgumentParser(prog="planner", description="Robot tool-path planning with PH curves.")
-    sub = ap.add_subparsers(dest="command", required=True)
-    f = sub.add_parser("fit", help="fit PH spline paths through a waypoint file and report their figures")
-    f.add_argument("input", help="waypoint file: CSV, JSON, APT/CL data or G-code")
-    f.add_argument("--method", choices=["C1", "C2", "cubic", "all"], default="all",
-                   help="C1/C2 PH quintic spline, G1 PH cubic spline, or all three (default)")
-    f.add_argument("--units", choices=["mm", "m", "inch"], default=None,
-                   help="units of a CSV/JSON file (default: mm)")
-    f.set_defaults(func=cmd_fit)
+def add_plan_options(p: argparse.ArgumentParser, *, outputs: bool = True) -> None:
+    """The options of ``planner plan`` (the PlanSettings fields in mm and mm/s, reader options, and with
+    ``outputs`` -o/--plot/--progress) on a parser: ``planner run`` takes the same ones."""
     D = PlanSettings()
-    p = sub.add_parser("plan", help="plan a toolpath file: PH paths, tool frames, timing, robot check, export")
     p.add_argument("input", help="toolpath: APT/CL data, CSV, JSON or 5-axis G-code")
     p.add_argument("--path", choices=list(PATH_MODELS), default=D.path,
                    help="path model: interpolate (C2 PH spline through the points), cam (within --tolerance of the "
@@ -305,15 +310,34 @@ def build_parser() -> argparse.ArgumentParser:
                    help=f"refuse jobs whose trajectory would exceed this many poses (default {D.max_poses:g})")
     p.add_argument("--units", choices=["mm", "m", "inch"], help="units of a CSV/JSON file (default mm)")
     p.add_argument("--machine", help="machine kinematics for 5-axis G-code (e.g. haas-umc-750)")
-    p.add_argument("--progress", action="store_true", help="show progress bars even when not on a terminal")
-    p.add_argument("-o", "--output", help="write the job: .csv / .json trajectory, .script URScript program "
-                   "(movep along the passes within --tolerance, movel between), .job saved plan")
-    p.add_argument("--plot", help="write a picture (.png, .svg, .pdf): paths and tool axes, frames, speed, joints, fit")
+    if outputs:
+        p.add_argument("--progress", action="store_true", help="show progress bars even when not on a terminal")
+        p.add_argument("-o", "--output", help="write the job: .csv / .json trajectory, .script URScript program "
+                       "(movep along the passes within --tolerance, movel between), .job saved plan")
+        p.add_argument("--plot", help="write a picture (.png, .svg, .pdf): paths and tool axes, frames, speed, "
+                       "joints, fit")
+
+
+def build_parser() -> argparse.ArgumentParser:
+    ap = argparse.ArgumentParser(prog="planner", description="Robot tool-path planning with PH curves.")
+    sub = ap.add_subparsers(dest="command", required=True)
+    f = sub.add_parser("fit", help="fit PH spline paths through a waypoint file and report their figures")
+    f.add_argument("input", help="waypoint file: CSV, JSON, APT/CL data or G-code")
+    f.add_argument("--method", choices=["C1", "C2", "cubic", "all"], default="all",
+                   help="C1/C2 PH quintic spline, G1 PH cubic spline, or all three (default)")
+    f.add_argument("--units", choices=["mm", "m", "inch"], default=None,
+                   help="units of a CSV/JSON file (default: mm)")
+    f.set_defaults(func=cmd_fit)
+    p = sub.add_parser("plan", help="plan a toolpath file: PH paths, tool frames, timing, robot check, export")
+    add_plan_options(p)
     p.set_defaults(func=cmd_plan)
     sub.add_parser("sim", help="run the simulated UR controller on a loopback address (planner sim --help)")
     from planner.service.cli import add_subcommands  # serve, keys (no web imports until they run)
 
     add_subcommands(sub)
+    from drivers.cli import add_run_subcommand  # run: plan and execute on a robot (or --sim)
+
+    add_run_subcommand(sub)
     d = sub.add_parser("demo", help="run the main job on the bundled example")
     d.add_argument("--out", default="out", help="folder for the program and the plot (default: out)")
     d.set_defaults(func=cmd_demo)

@@ -246,6 +246,7 @@ def _compare_stream(make_sim, tmp_path, job):
     return diff, bound, report, ur_report
 
 
+@pytest.mark.realtime  # streams through ur_rtde at 500 Hz
 def test_stream_records_the_simulated_controllers_trajectory(make_sim, tmp_path):
     job = demo_job(4.0)
     diff, bound, *_ = _compare_stream(make_sim, tmp_path, job)
@@ -277,6 +278,7 @@ def test_program_records_the_simulated_controllers_trajectory(make_sim, tmp_path
 
 
 @pytest.mark.slow
+@pytest.mark.realtime
 def test_whole_demo_job_on_both(make_sim, tmp_path):
     """The demo job at its own feed (62 s of motion, twice in real time)."""
     job = demo_job()

@@ -34,6 +34,10 @@ PART = (0.4, 0.9965, -0.1, 0.0, 0.0, 0.0)
 #: A quicker approach to the start joints than the driver's careful default (4 rad on joint 1 from HOME).
 FAST = {"approach_speed": 2.0, "approach_acceleration": 3.0}
 
+# Streams at the controller rate: run on their own, after the parallel run (./run test), so that no other
+# test competes for the two cores while the 2 ms loop runs.
+pytestmark = pytest.mark.realtime
+
 
 def _job(feed_override: float = 1.0):
     return plan(DEMO, PlanSettings(robot="ur5e", part_frame=PART, cut_output=("standard", 0),

@@ -23,6 +23,10 @@ AMPLITUDE = np.array([0.3, -0.2, 0.25, 0.2, 0.3, 0.4])  # rad
 FREQUENCY = 0.25  # Hz
 LOOKAHEAD, GAIN = 0.1, 300.0
 
+# Streams at the controller rate: run on their own, after the parallel run (./run test), so that no other
+# test competes for the two cores while the 2 ms loop runs.
+pytestmark = pytest.mark.realtime
+
 
 class StallProbe:
     """A real-time thread sleeping to an absolute 2 ms schedule, as the simulator's loop does: the periods
