@@ -27,7 +27,6 @@ about the axes, so only ``"rmf"`` applies there.
 
 from __future__ import annotations
 
-import math
 from dataclasses import dataclass, fields, replace
 
 import numpy as np
@@ -35,6 +34,7 @@ import numpy as np
 from planner.errors import PlannerError
 from planner.motion.caps import DEFAULT_FLOOR
 from planner.motion.limits import MotionLimits
+from planner.validation import check_in_range
 
 #: Frame methods (spin about the tool axis).
 FRAME_METHODS = ("rmf", "grm", "juttler", "er", "double-reflection")
@@ -226,15 +226,7 @@ def _choice(value, name: str, options: tuple) -> None:
 
 def _number(value, name: str, lo: float, hi: float) -> float:
     """A float in (lo, hi], or PlannerError naming ``name``."""
-    if isinstance(value, bool):
-        raise PlannerError(f"{name} must be a number, got {value!r}")
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise PlannerError(f"{name} must be a number, got {value!r}") from None
-    if not (math.isfinite(x) and lo < x <= hi):
-        raise PlannerError(f"{name} must be in ({lo:g}, {hi:g}], got {x!r}")
-    return x
+    return check_in_range(value, name, lo, hi)
 
 
 def _pose(value, name: str) -> tuple | None:

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from collections.abc import Sequence
 
 import numpy as np
@@ -110,3 +111,16 @@ def check_arc_lengths(s, length: float) -> np.ndarray:
         i = int(np.argmax(bad))
         raise PlannerError(f"arc length s[{i}] = {s[i]} is outside [0, {length}]")
     return np.clip(s, 0.0, length)
+
+
+def check_in_range(value, name: str, lo: float, hi: float, error: type[PlannerError] = PlannerError) -> float:
+    """``value`` as a float in (lo, hi], or ``error`` naming ``name`` (booleans and NaN are refused)."""
+    if isinstance(value, bool):
+        raise error(f"{name} must be a number, got {value!r}")
+    try:
+        x = float(value)
+    except (TypeError, ValueError):
+        raise error(f"{name} must be a number, got {value!r}") from None
+    if not (math.isfinite(x) and lo < x <= hi):
+        raise error(f"{name} must be in ({lo:g}, {hi:g}], got {x!r}")
+    return x

@@ -28,6 +28,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner.errors import PlannerError
+from planner.validation import check_in_range
 
 #: Default corner threshold: consecutive chords turning more than this (degrees) end a pass.
 DEFAULT_CORNER_DEG = 60.0
@@ -238,13 +239,7 @@ class Segmentation:
 
 def check_threshold(value, name: str, lo: float, hi: float) -> float:
     """A float in (lo, hi], or CamInputError naming ``name``."""
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise CamInputError(f"{name} must be a number, got {value!r}") from None
-    if not (math.isfinite(x) and lo < x <= hi):
-        raise CamInputError(f"{name} must be in ({lo:g}, {hi:g}], got {x!r}")
-    return x
+    return check_in_range(value, name, lo, hi, CamInputError)
 
 
 class _Builder:

@@ -36,13 +36,14 @@ def _umask_mode() -> int:
 
 
 @contextlib.contextmanager
-def atomic_text(target) -> Iterator[IO[str]]:
-    """A text file (UTF-8, "\\n" newlines) that appears at ``target`` only when the block completes."""
+def _atomic(target, mode: str, **options) -> Iterator[IO]:
+    """A file opened with ``mode`` that appears at ``target`` (its parent made) only when the block completes;
+    on any failure, the temporary file is removed and an existing target is untouched."""
     out = Path(os.fspath(target))
     out.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent)
     try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as f:
+        with os.fdopen(fd, mode, **options) as f:
             yield f
         os.chmod(tmp, _umask_mode())
         os.replace(tmp, out)
@@ -52,20 +53,15 @@ def atomic_text(target) -> Iterator[IO[str]]:
         raise
 
 
+def atomic_text(target):
+    """A text file (UTF-8, "\\n" newlines) that appears at ``target`` only when the block completes."""
+    return _atomic(target, "w", encoding="utf-8", newline="\n")
+
+
 def write_bytes_atomic(target, data: bytes) -> None:
     """Write ``data`` to ``target`` atomically."""
-    out = Path(os.fspath(target))
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent)
-    try:
-        with os.fdopen(fd, "wb") as f:
-            f.write(data)
-        os.chmod(tmp, _umask_mode())
-        os.replace(tmp, out)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+    with _atomic(target, "wb") as f:
+        f.write(data)
 
 
 @contextlib.contextmanager
