@@ -73,6 +73,7 @@ from planner.io.toolpath import Arc, Event, Toolpath, linearize_arcs, vec3
 _TOKEN = re.compile(r"([A-Z])([^A-Z]*)")
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)\Z")
 _BLOCK = re.compile(r"(?:[A-Z][-+]?(?:\d+\.?\d*|\.\d+))+\Z")
+_EXPONENT = re.compile(r"([A-Za-z])\s*[-+]?(?:\d+\.?\d*|\.\d+)[eE][-+]?\d+")
 _OPER = re.compile(r"^\s*OPER\s*:\s*(.*?)\s*$", re.IGNORECASE)
 _PLANE_NORMAL = {17: (0.0, 0.0, 1.0), 18: (0.0, 1.0, 0.0), 19: (1.0, 0.0, 0.0)}
 _PLANE_WORDS = {17: ("I", "J"), 18: ("I", "K"), 19: ("J", "K")}
@@ -109,6 +110,7 @@ _MODE = {"tcpc": 0, "dwo": 1, "machine": 2}
 
 class _Reader:
     def __init__(self, source: str, units: str, machine: TableTableKinematics | None, dialect: str = "iso"):
+        self.ended: tuple[int, str] | None = None  # (line, "M30"/"M02") once the program has ended
         self.source = source
         self.units, self.scale = unit_scale(units)
         self.default_units = self.units
@@ -222,6 +224,10 @@ class _Reader:
         code = text.replace(" ", "").replace("\t", "").upper()
         if not code:
             return
+        exponent = _EXPONENT.search(text)
+        if exponent:  # X1e3 would read as X1 and an E word: refuse what G-code cannot mean
+            self.fail(line, exponent.group(1).upper(), f"{exponent.group(0)!r} is in exponent notation, which G-code "
+                      "does not have: write the number in full")
         if code[0] == "/":
             self.warn.warn("block-delete blocks", line, "block delete '/' ignored: the block is executed")
             code = code[1:]
@@ -282,6 +288,8 @@ class _Reader:
         if ms is not None:
             for m in ms:
                 self.m_code(line, m, text)
+            if 2.0 in ms or 30.0 in ms:
+                self.ended = (line, "M30" if 30.0 in ms else "M02")
         if gs is not None or other:
             self.update_feed()
         if self.cycle is not None and home is None:
@@ -589,8 +597,11 @@ class _Reader:
                 self.out.event("listing", lineno, "trailer", math.nan, text)
                 continue
             self.block(lineno, text)
+            if self.ended is not None:  # M02 / M30: the program ends here, as the controller does
+                self.after_end(it, f"after {self.ended[1]} (end of program) at line {self.ended[0]}")
+                return
 
-    def after_end(self, it) -> None:
+    def after_end(self, it, where: str = "after the closing %") -> None:
         extra = []
         for lineno, raw in it:
             t = raw.strip()
@@ -598,10 +609,12 @@ class _Reader:
                 continue
             if t.startswith("Tool Path Listing has "):
                 self.out.event("listing", lineno, "trailer", math.nan, t)
+            elif self.ended is not None and (t.startswith(("%", "(", ";")) or not t.strip("%")):
+                continue  # after M30 / M02: the closing % and comments are the program's normal end
             else:
                 extra.append(lineno)
         if extra:
-            self.warn.warn("lines after %", extra[0], f"{len(extra)} non-blank line(s) after the closing % ignored")
+            self.warn.warn("lines after the end", extra[0], f"{len(extra)} non-blank line(s) {where} ignored")
 
     # ------------------------------------------------------------------ finish
     def finish(self) -> Toolpath:

@@ -117,6 +117,29 @@ class _Json:
         return v
 
 
+class _DuplicateKey(Exception):
+    def __init__(self, key: str):
+        self.key = key
+
+
+def _unique_keys(pairs: list) -> dict:
+    """``object_pairs_hook`` of json.loads: an object, refusing a key given twice (json keeps the last silently)."""
+    out: dict = {}
+    for k, v in pairs:
+        if k in out:
+            raise _DuplicateKey(k)
+        out[k] = v
+    return out
+
+
+def _line_of_second(text: str, key: str) -> int | None:
+    """1-based line of the second occurrence of ``"key"`` in the text (where the duplicate is), if any."""
+    token = json.dumps(key)
+    first = text.find(token)
+    second = text.find(token, first + len(token)) if first >= 0 else -1
+    return None if second < 0 else text.count("\n", 0, second) + 1
+
+
 def read_json(
     src,
     *,
@@ -159,9 +182,14 @@ def read_json(
     else:
         raise TypeError(f"expected a path or a text stream, got {type(src).__name__}")
     try:
-        doc = json.loads(text)
+        doc = json.loads(text, object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as exc:
         raise InputFileError(name, exc.lineno, f"column {exc.colno}", f"invalid JSON: {exc.msg}") from None
+    except _DuplicateKey as exc:
+        raise InputFileError(name, _line_of_second(text, exc.key), f"key {exc.key!r}",
+                             "appears twice in one object (which value is meant?)") from None
+    except RecursionError:
+        raise InputFileError(name, None, "structure", "arrays or objects nested too deeply to be a toolpath") from None
     j = _Json(name, text)
     warn = WarningLimiter(name)
 
