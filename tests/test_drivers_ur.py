@@ -175,7 +175,7 @@ def _wait_streaming(d: URDriver, timeout: float = 30.0, mode: str = "stream") ->
 
 
 # Known race (issue 14, open): now and then the output switched off at the cancel is still read as on; rerun
-# at most twice until URDriver's cancel path is fixed, so one flake does not hide the rest of the suite.
+# at most three times until the cancel path is fixed, so one flake does not hide the rest of the suite.
 @pytest.mark.flaky(reruns=3)
 def test_cancel_from_the_caller_stops_the_arm(make_sim, fast_job):
     sim = make_sim()
