@@ -145,6 +145,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         try:
             report = execute_job(job, host, mode=args.mode, io=args.io, modbus_port=modbus_port, progress=bars,
                                  lookahead=args.lookahead, gain=args.gain)
+        except DriverError as exc:  # refused before the run (not ready, no connection): the robot's reason
+            print(f"planner run: robot error ({exc.kind}): {exc}", file=sys.stderr)
+            return 1
         finally:
             bars.close()
     finally:
@@ -177,9 +180,6 @@ def main(argv: list[str] | None = None) -> int:
     except (PlannerError, ValueError) as exc:
         print(f"planner run: error: {exc}", file=sys.stderr)
         return 2
-    except DriverError as exc:
-        print(f"planner run: robot error ({exc.kind}): {exc}", file=sys.stderr)
-        return 1
     except OSError as exc:
         print(f"planner run: error: {exc}", file=sys.stderr)
         return 2

@@ -355,7 +355,7 @@ def main(argv: list[str] | None = None) -> int:
         return sim_main(argv[1:])
     args = build_parser().parse_args(argv)
     try:
-        args.func(args)
+        code = args.func(args)  # a handler may return its exit status (planner run: 1 for a failed execution)
     except PlannerError as exc:
         print(f"planner: error: {exc}", file=sys.stderr)
         return 2
@@ -365,7 +365,7 @@ def main(argv: list[str] | None = None) -> int:
     except NumericalError as exc:
         print(f"planner: internal error: {exc}", file=sys.stderr)
         return 3
-    return 0
+    return code if isinstance(code, int) else 0
 
 
 if __name__ == "__main__":

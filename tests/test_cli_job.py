@@ -157,3 +157,9 @@ def test_planner_sim_passes_its_options_to_the_simulator_and_refuses_remote_host
     assert main(["sim", "--host", "8.8.8.8"]) != 0
     captured = capsys.readouterr()
     assert "8.8.8.8 is not a loopback address" in captured.out + captured.err
+
+
+def test_planner_run_returns_the_run_handlers_exit_status(capsys):
+    # `planner run` through planner's own entry point: a refused run is exit 2, not 0
+    assert main(["run", str(example_path(EXAMPLE_CLS)), "--robot", "none", "--sim"]) == 2
+    assert "--robot MODEL is needed" in capsys.readouterr().err
