@@ -251,7 +251,7 @@ def export(job, out: Path, parameters: dict, progress=None) -> str:
 def cmd_demo(args: argparse.Namespace) -> None:
     """Fit, plan and export the bundled example: a real Siemens NX CLSF pass, placed in a UR5e cell."""
     out = Path(args.out)
-    print("Demo 1/2: PH spline fits through the first pass of a real Siemens NX toolpath (CSV waypoints)")
+    print("Demo 1/3: PH spline fits through the first pass of a real Siemens NX toolpath (CSV waypoints)")
     example = example_path()
     _print_fit(example, _read_points(example, "mm"), ["C1", "C2", "cubic"])
     print()
