@@ -39,8 +39,12 @@ class IOSwitch:
     planned_s: arc length of the planned station along the planned TCP path, m;
     actual_s: arc length along the planned path where the output actually switched (the actual TCP's position
     projected on the path's tangent at the station), m; NaN if it never switched;
-    distance_mm: distance of the actual TCP at the switch from the planned station, mm (NaN if never switched);
-    planned_t, actual_t: job time of the planned and of the actual switch, s (NaN if missing).
+    distance_mm: distance of the actual TCP at the switch from the planned station, mm (NaN if never switched):
+    the switch happened between two recorded samples, so this is the station's distance from the TCP's recorded
+    step between them (a point, for the first sample);
+    planned_t, actual_t: job time of the planned and of the actual switch, s (NaN if missing);
+    resolution_mm: length of that recorded step, mm: how far the TCP moved between the last sample that saw the
+    old state and the first that saw the new one (the sampling's uncertainty about where the switch happened).
     """
 
     bit: int
@@ -50,6 +54,7 @@ class IOSwitch:
     distance_mm: float
     planned_t: float = math.nan
     actual_t: float = math.nan
+    resolution_mm: float = math.nan
 
     @property
     def switched(self) -> bool:
@@ -115,7 +120,8 @@ class ExecutionReport:
                 state = "on " if e.value else "off"
                 if e.switched:
                     lines.append(f"    {bit_name(e.bit)} {state} at s = {e.actual_s:.4f} m "
-                                 f"(planned {e.planned_s:.4f} m, {e.distance_mm:.3f} mm from the station)")
+                                 f"(planned {e.planned_s:.4f} m, {e.distance_mm:.3f} mm from the station; "
+                                 f"sampled every {e.resolution_mm:.3f} mm of travel there)")
                 else:
                     lines.append(f"    {bit_name(e.bit)} {state} planned at s = {e.planned_s:.4f} m: not switched")
             if len(self.io_events) > 8:
@@ -268,9 +274,15 @@ def _io_events(t, tcp, io, pt, pp, pio, ps) -> list[IOSwitch]:
         if k < len(cands):
             used[(b, v)] = k + 1
             j = cands[k]
-            p = tcp[j, :3]
+            a, c = tcp[max(j - 1, 0), :3], tcp[j, :3]
+            step = c - a
+            ls = float(np.dot(step, step))
+            u = 0.0 if ls == 0.0 else float(np.clip(np.dot(station - a, step) / ls, 0.0, 1.0))
+            p = a + u * step  # the TCP's recorded step between the old state and the new, nearest the station
+            tj = float(t[max(j - 1, 0)] + u * (t[j] - t[max(j - 1, 0)]))
             out.append(IOSwitch(b, v, float(ps[i]), float(ps[i] + np.dot(p - station, tan)),
-                                float(np.linalg.norm(p - station) * 1e3), float(pt[i]), float(t[j])))
+                                float(np.linalg.norm(p - station) * 1e3), float(pt[i]), tj,
+                                float(math.sqrt(ls) * 1e3)))
         else:
             out.append(IOSwitch(b, v, float(ps[i]), math.nan, math.nan, float(pt[i]), math.nan))
     return out

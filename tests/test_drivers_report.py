@@ -74,9 +74,12 @@ def test_switch_late_by_ten_samples_is_measured_along_the_path(job):
     pt, pp, pio, _, ps = planned_path(job)
     for e in rep.io_events:
         k = int(round(e.planned_t * 500))
-        moved = np.linalg.norm(pp[min(k + 10, len(pp) - 1), :3] - pp[k, :3]) * 1e3
-        assert e.distance_mm == pytest.approx(moved, abs=1e-9)
-        assert e.actual_t == pytest.approx(e.planned_t + 0.02)
+        # the switch is seen first at sample k + 10; the last sample with the old state is k + 9: the station
+        # is behind that step, so its nearest point is the step's start
+        a, b = pp[min(k + 9, len(pp) - 1), :3], pp[min(k + 10, len(pp) - 1), :3]
+        assert e.distance_mm == pytest.approx(np.linalg.norm(a - pp[k, :3]) * 1e3, abs=1e-9)
+        assert e.resolution_mm == pytest.approx(np.linalg.norm(b - a) * 1e3, abs=1e-9)
+        assert e.actual_t == pytest.approx(e.planned_t + 0.018)
 
 
 def test_missing_switch_and_failure_are_reported(job):
