@@ -191,17 +191,23 @@ def bending_energies(A: np.ndarray) -> np.ndarray:
     g = np.stack((_dot(A0, A0), _dot(A0, A1), _dot(A0, A2), _dot(A1, A1), _dot(A1, A2), _dot(A2, A2)))
     A0i, A1i = A0[_IPERM] * _ISIGN, A1[_IPERM] * _ISIGN  # A_j i
     h = np.stack((_dot(A0i, A1), _dot(A0i, A2), _dot(A1i, A2)))
-    s, d, x, y = _E_S @ g, _E_D @ g, _E_X @ g, _E_H @ h
+    return _energies_from_products(g, h, _GL_W, _E_S, _E_D, _E_X, _E_H)
+
+
+def _energies_from_products(g, h, w, Ms, Md, Mx, Mh) -> np.ndarray:
+    """4 int kappa^2 sigma dt (M,) by the Gauss rule (w, Ms, Md, Mx, Mh) of :func:`_energy_matrices` from the
+    inner products g (6, M) and h (3, M) of A0, A1, A2 (see :func:`bending_energies`)."""
+    s, d, x, y = Ms @ g, Md @ g, Mx @ g, Mh @ h
     num = s * d
     num -= x * x
     num -= y * y
     np.maximum(num, 0.0, out=num)  # |A|^2 |A'_perp|^2 >= 0 but for round-off
     s3 = s * s
     s3 *= s
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         f = num / s3
     f[~(s3 > 0)] = np.inf
-    return 4.0 * (_GL_W @ f)
+    return 4.0 * (w @ f)
 
 
 def _least_energy_member(dp, base, a0, a2, r0, r1) -> np.ndarray:
@@ -251,22 +257,12 @@ def _least_energy_member(dp, base, a0, a2, r0, r1) -> np.ndarray:
     hh = np.stack((-0.75 * e + 0.25 * V0, e, -0.75 * e - 0.25 * V2)).reshape(3, 4 * n)
     # screening: the energies by the 2 x 4-node rule from the inner products; a candidate below 1 / _SCREEN of
     # the other three is taken, elsewhere the full rule decides
-    sv, dv, xv, yv = _L_S @ g, _L_D @ g, _L_X @ g, _L_H @ hh
-    num = sv * dv
-    num -= xv * xv
-    num -= yv * yv
-    np.maximum(num, 0.0, out=num)  # >= 0 but for round-off
-    sv3 = sv * sv
-    sv3 *= sv
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        fv = num / sv3
-    fv[~(sv3 > 0)] = np.inf
-    est = (_GL3_W @ fv).reshape(4, n)
+    est = _energies_from_products(g, hh, _GL3_W, _L_S, _L_D, _L_X, _L_H).reshape(4, n)
     # ties (a straight segment and the same line with stops, both of zero energy) go to the least CC measure
     # |A0 - 2 A1 + A2|^2 (FGMS 2008): _TIE of it, made dimensionless by (|d0| + |d1|)^2, joins the energy
     cc = (g[0] + 4.0 * g[3] + g[5] - 4.0 * g[1] + 2.0 * g[2] - 4.0 * g[4]).reshape(4, n)
     tie = _TIE / (r0 + r1) ** 2
-    est = 4.0 * est + tie * cc
+    est = est + tie * cc
     best = np.argmin(est, axis=0)
     cols = np.arange(n)
     others = est.copy()
@@ -275,10 +271,10 @@ def _least_energy_member(dp, base, a0, a2, r0, r1) -> np.ndarray:
     if bad.size:  # the candidates within _SCREEN of the best estimate, by the full rule
         k, col = np.nonzero(est[:, bad] < _SCREEN * est[best[bad], bad])
         seg = bad[col]
-        j, sign = k // 2, 1.0 - 2.0 * (k % 2)
-        m = _member(a0[:, seg], a2d[j, :, seg].T, Q[j, :, seg].T, sign * c0[j, seg], sign * s0[j, seg])
+        kc = k * n + seg  # the candidates' columns of g, hh
         E = np.full((4, bad.size), np.inf)
-        E[k, col] = bending_energies(m) + tie[seg] * ((m[0] - 2.0 * m[1] + m[2]) ** 2).sum(axis=0)
+        E[k, col] = _energies_from_products(g[:, kc], hh[:, kc], _GL_W, _E_S, _E_D, _E_X, _E_H) \
+            + tie[seg] * cc.reshape(-1)[kc]
         best[bad] = np.argmin(E, axis=0)
     j, fl = best // 2, best % 2
     sign = 1.0 - 2.0 * fl
