@@ -113,3 +113,16 @@ def test_upload_a_clsf_file_for_a_robot_and_a_refused_input(server, browser):
     wait(d, lambda d: d.find_element("id", "error").text != "")
     assert d.find_element("id", "error").text == "waypoints: waypoint 1: duplicates waypoint 0 (consecutive points " \
                                                   "must differ)"
+
+
+def test_the_docs_page_renders_from_the_service_alone(server, browser):
+    """Swagger UI draws the API (OpenAPI 3.1) with every resource loaded from the service: no CDN needed."""
+    d = browser
+    d.get(server.url + "/docs")
+    wait(d, lambda d: "planner service" in d.find_element("css selector", ".swagger-ui .info .title").text, 60)
+    wait(d, lambda d: len(d.find_elements("css selector", ".opblock-summary-path")) >= 8, 30)
+    paths = {e.get_attribute("data-path") for e in d.find_elements("css selector", ".opblock-summary-path")}
+    assert {"/v1/jobs", "/v1/jobs/{job_id}/executions", "/v1/executions/{execution_id}"} <= paths
+    loaded = d.execute_script("return performance.getEntriesByType('resource').map(e => e.name)")
+    assert loaded and all(u.startswith(server.url + "/") for u in loaded), loaded
+    assert not d.find_elements("css selector", ".swagger-ui .errors-wrapper")

@@ -189,6 +189,28 @@ def test_openapi_schema_documents_both_bodies_and_the_docs_page(server):
     assert docs.status_code == 200 and "swagger" in docs.text.lower()
 
 
+def test_the_docs_page_and_its_assets_come_from_the_service_itself(server):
+    import re
+
+    with server.client() as c:
+        html = c.get("/docs").text
+        urls = re.findall(r"""(?:src|href)\s*=\s*["']([^"']+)["']""", html) + re.findall(r"url:\s*'([^']+)'", html)
+        assert "/openapi.json" in urls
+        assets = [u for u in urls if u != "/openapi.json"]
+        assert sorted(assets) == ["/docs/assets/favicon-32x32.png", "/docs/assets/swagger-ui-bundle.js",
+                                  "/docs/assets/swagger-ui.css"], urls
+        assert "cdn" not in html.lower() and "https://" not in html and "http://" not in html
+        got = {u: c.get(u) for u in assets}
+        assert c.get("/redoc").status_code == 404  # its page would load its script from a CDN
+        assert c.get("/docs/assets/index.html").status_code == 404  # a fixed list of files
+        assert c.get("/docs/assets/..%2F..%2F__init__.py").status_code == 404
+    js, css = got["/docs/assets/swagger-ui-bundle.js"], got["/docs/assets/swagger-ui.css"]
+    assert js.status_code == 200 and js.headers["content-type"].startswith("text/javascript")
+    assert len(js.content) > 500_000 and b"SwaggerUIBundle" in js.content
+    assert css.status_code == 200 and css.headers["content-type"].startswith("text/css") and b".swagger-ui" in css.content
+    assert got["/docs/assets/favicon-32x32.png"].content[:8] == b"\x89PNG\r\n\x1a\n"
+
+
 def test_request_larger_than_the_limit_is_413(server):
     n = 100_000  # about 2.5 MB of JSON, above this server's 2 MB
     body = json.dumps({"waypoints": [[i * 1e-3, 0.0, 0.0] for i in range(n)]})

@@ -238,7 +238,7 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
         finally:
             await run_in_threadpool(svc.stop)
 
-    app = FastAPI(title="planner service", version="1", lifespan=lifespan,
+    app = FastAPI(title="planner service", version="1", lifespan=lifespan, docs_url=None, redoc_url=None,
                   description="Path jobs for robot tool-orientation planning: submit waypoints or a toolpath file, "
                               "watch the job, download the trajectory (CSV, JSON), the URScript program and the plot.")
     app.add_middleware(BodyLimit, limit=cfg.max_request_bytes)
@@ -383,6 +383,9 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
         return app.openapi_schema
 
     app.openapi = openapi  # type: ignore[method-assign]  # the JSON body is parsed by hand (two content types)
+    from planner.service.docs import add_docs
+
+    add_docs(app)
     from planner.service.executions import router as executions_router
 
     app.include_router(executions_router, prefix=API)
