@@ -148,8 +148,8 @@ def _member(a0, a2d, Q, c0, s0) -> np.ndarray:
 def _energy_matrices(nodes: int, pieces: int = 1) -> tuple[np.ndarray, ...]:
     """Weights (K,) of the composite Gauss-Legendre rule on [0, 1] (``pieces`` equal pieces, ``nodes`` each) and
     the matrices that map the inner products of A0, A1, A2 to sigma = |A|^2, |A'|^2 and sigma' / 2 = <A, A'>
-    (K, 6 products g00 g01 g02 g11 g12 g22), and to <A i, A'> (K, 3 products h01 h02 h12, h_jk = <A_j i, A_k>
-    = -h_kj) at the K nodes."""
+    (stacked: 3K, 6 products g00 g01 g02 g11 g12 g22), and to <A i, A'> (K, 3 products h01 h02 h12,
+    h_jk = <A_j i, A_k> = -h_kj) at the K nodes."""
     x, wx = np.polynomial.legendre.leggauss(nodes)
     t = ((0.5 * (x + 1.0))[None] + np.arange(pieces)[:, None]).ravel() / pieces
     w = np.tile(wx, pieces) / (2.0 * pieces)
@@ -166,14 +166,14 @@ def _energy_matrices(nodes: int, pieces: int = 1) -> tuple[np.ndarray, ...]:
     Mh = np.zeros((nodes, 3))
     for q, (j, k) in enumerate(((0, 1), (0, 2), (1, 2))):  # <A i, A'> = sum b_j db_k h_jk, h_kj = -h_jk
         Mh[:, q] = b[:, j] * db[:, k] - b[:, k] * db[:, j]
-    return w, Ms, Md, Mx, Mh
+    return w, np.vstack((Ms, Md, Mx)), Mh  # one product for s, d, x: one temporary, not three (page faults)
 
 
-_GL_W, _E_S, _E_D, _E_X, _E_H = _energy_matrices(_GL_NODES, _GL_PIECES)
+_FULL_RULE = _energy_matrices(_GL_NODES, _GL_PIECES)
 #: The screening rule of _least_energy_member (2 x 4 nodes): a candidate whose estimate is below 1 / _SCREEN of
 #: the others' is taken without the full rule (on 1e5 rough random planar data: no difference from the full
 #: rule; a 3-node rule with a factor 3 differed on 1 %).
-_GL3_W, _L_S, _L_D, _L_X, _L_H = _energy_matrices(4, 2)
+_SCREEN_RULE = _energy_matrices(4, 2)
 _SCREEN = 10.0
 #: Weight of the CC measure that breaks ties of the bending energy (see _least_energy_member).
 _TIE = 1e-9
@@ -191,22 +191,29 @@ def bending_energies(A: np.ndarray) -> np.ndarray:
     g = np.stack((_dot(A0, A0), _dot(A0, A1), _dot(A0, A2), _dot(A1, A1), _dot(A1, A2), _dot(A2, A2)))
     A0i, A1i = A0[_IPERM] * _ISIGN, A1[_IPERM] * _ISIGN  # A_j i
     h = np.stack((_dot(A0i, A1), _dot(A0i, A2), _dot(A1i, A2)))
-    return _energies_from_products(g, h, _GL_W, _E_S, _E_D, _E_X, _E_H)
+    return _energies_from_products(g, h, _FULL_RULE)
 
 
-def _energies_from_products(g, h, w, Ms, Md, Mx, Mh) -> np.ndarray:
-    """4 int kappa^2 sigma dt (M,) by the Gauss rule (w, Ms, Md, Mx, Mh) of :func:`_energy_matrices` from the
-    inner products g (6, M) and h (3, M) of A0, A1, A2 (see :func:`bending_energies`)."""
-    s, d, x, y = Ms @ g, Md @ g, Mx @ g, Mh @ h
-    num = s * d
-    num -= x * x
-    num -= y * y
-    np.maximum(num, 0.0, out=num)  # |A|^2 |A'_perp|^2 >= 0 but for round-off
-    s3 = s * s
-    s3 *= s
+def _energies_from_products(g, h, rule) -> np.ndarray:
+    """4 int kappa^2 sigma dt (M,) by a Gauss ``rule`` of :func:`_energy_matrices` from the inner products
+    g (6, M) and h (3, M) of A0, A1, A2 (see :func:`bending_energies`)."""
+    w, Msdx, Mh = rule
+    k = w.size
+    sdx = Msdx @ g
+    s, d, x = sdx[:k], sdx[k:2 * k], sdx[2 * k:]
+    y = Mh @ h
+    d *= s
+    x *= x
+    d -= x
+    y *= y
+    d -= y
+    num = np.maximum(d, 0.0, out=d)  # |A|^2 |A'_perp|^2 >= 0 but for round-off
+    x[...] = s
+    x *= s
+    x *= s  # sigma^3
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        f = num / s3
-    f[~(s3 > 0)] = np.inf
+        f = np.divide(num, x, out=y)
+    f[~(x > 0)] = np.inf
     return 4.0 * (w @ f)
 
 
@@ -257,7 +264,7 @@ def _least_energy_member(dp, base, a0, a2, r0, r1) -> np.ndarray:
     hh = np.stack((-0.75 * e + 0.25 * V0, e, -0.75 * e - 0.25 * V2)).reshape(3, 4 * n)
     # screening: the energies by the 2 x 4-node rule from the inner products; a candidate below 1 / _SCREEN of
     # the other three is taken, elsewhere the full rule decides
-    est = _energies_from_products(g, hh, _GL3_W, _L_S, _L_D, _L_X, _L_H).reshape(4, n)
+    est = _energies_from_products(g, hh, _SCREEN_RULE).reshape(4, n)
     # ties (a straight segment and the same line with stops, both of zero energy) go to the least CC measure
     # |A0 - 2 A1 + A2|^2 (FGMS 2008): _TIE of it, made dimensionless by (|d0| + |d1|)^2, joins the energy
     cc = (g[0] + 4.0 * g[3] + g[5] - 4.0 * g[1] + 2.0 * g[2] - 4.0 * g[4]).reshape(4, n)
@@ -273,7 +280,7 @@ def _least_energy_member(dp, base, a0, a2, r0, r1) -> np.ndarray:
         seg = bad[col]
         kc = k * n + seg  # the candidates' columns of g, hh
         E = np.full((4, bad.size), np.inf)
-        E[k, col] = _energies_from_products(g[:, kc], hh[:, kc], _GL_W, _E_S, _E_D, _E_X, _E_H) \
+        E[k, col] = _energies_from_products(g[:, kc], hh[:, kc], _FULL_RULE) \
             + tie[seg] * cc.reshape(-1)[kc]
         best[bad] = np.argmin(E, axis=0)
     j, fl = best // 2, best % 2
