@@ -9,7 +9,7 @@ limits of the settings (``max_poses``, ``max_points``) or leaves the range of an
 (:data:`MAX_COORDINATE`, :data:`MIN_FEED`, :data:`MAX_FEED`).
 
 The estimate is a lower bound of the work: every span at its feed (capped by the speed limit), without the
-acceleration phases; the real count is at most a few samples per move longer.
+acceleration phases, and every dwell's seconds; the real count is at most a few samples per move longer.
 """
 
 from __future__ import annotations
@@ -91,6 +91,11 @@ def _arc_points(toolpath, tolerance: float) -> int:
     return int(min(total, 1e18))
 
 
+def _dwells(toolpath) -> list:
+    """The dwell events of positive, finite length (the tool waits that many seconds)."""
+    return [e for e in toolpath.events if e.kind == "dwell" and math.isfinite(e.value) and e.value > 0.0]
+
+
 def estimate(toolpath, settings) -> Budget:
     """The :class:`Budget` of a toolpath under checked, resolved settings (see :func:`check_budget`)."""
     p = toolpath.points
@@ -101,7 +106,7 @@ def estimate(toolpath, settings) -> Budget:
     v = np.where(rapid, settings.rapid_speed, np.minimum(f, settings.limits.speed))
     with np.errstate(divide="ignore", over="ignore", invalid="ignore"):
         t = seg / v
-    seconds = float(np.sum(t)) if t.size else 0.0
+    seconds = (float(np.sum(t)) if t.size else 0.0) + sum(e.value for e in _dwells(toolpath))
     points = len(p) + _arc_points(toolpath, settings.arc_tolerance)
     return Budget(float(seg.sum()) if seg.size else 0.0, seconds, seconds * settings.rate, points)
 
@@ -153,7 +158,12 @@ def check_budget(toolpath, settings) -> Budget:
         v = np.where(toolpath.rapid[1:], settings.rapid_speed, np.minimum(cut_v, settings.limits.speed))
         i = int(np.argmax(seg / v)) + 1
         share = seg[i - 1] / v[i - 1] * settings.rate
-        if share >= 0.5 * b.poses:
+        waits = _dwells(toolpath)
+        longest = max(waits, key=lambda e: e.value, default=None)
+        if longest is not None and longest.value * settings.rate >= 0.5 * b.poses:
+            cause = (f"{toolpath.source} line {longest.line}: a dwell of {longest.value:.3g} s would need "
+                     f"{longest.value * settings.rate:.3g} poses")
+        elif share >= 0.5 * b.poses:
             cause = f"{_where(toolpath, i)}: {seg[i - 1]:.3g} m at {v[i - 1]:.3g} m/s would need {share:.3g} poses"
         elif b.length > 100.0:
             cause = f"the path is {b.length:.3g} m long: are the units right? (the file says {toolpath.units})"

@@ -21,7 +21,7 @@ import numpy as np
 
 from planner.cam.fidelity import PassFit
 from planner.cam.moves import Reconfiguration
-from planner.cam.passes import CutPass, RapidMove, Reorientation, Segmentation, Skipped
+from planner.cam.passes import CutPass, Dwell, RapidMove, Reorientation, Segmentation, Skipped
 from planner.errors import PlannerError
 from planner.io.toolpath import Toolpath
 from planner.motion.profile import FeedProfile
@@ -32,7 +32,7 @@ if TYPE_CHECKING:
     from planner.trajectory import Trajectory
 
 #: What a move carries out: a record of the file, or a change of the arm configuration the planner adds.
-MoveItem = CutPass | RapidMove | Reorientation | Skipped | Reconfiguration
+MoveItem = CutPass | RapidMove | Reorientation | Dwell | Skipped | Reconfiguration
 #: Version of the saved-job format (:meth:`PlannedJob.save`); a file of another version is refused.
 JOB_FILE_VERSION = 1
 _MAGIC = b"planner-job\n"
@@ -125,9 +125,11 @@ class PlannedMove:
     Attributes
     ----------
     kind : str
-        "cut", "rapid", "reorientation", "reconfiguration" or "skipped".
-    item : CutPass, RapidMove, Reorientation, Reconfiguration or Skipped
+        "cut", "rapid", "reorientation", "reconfiguration", "dwell" or "skipped".
+    item : CutPass, RapidMove, Reorientation, Reconfiguration, Dwell or Skipped
         What the file asks for (a Reconfiguration: what the planner adds to change the arm configuration).
+        A dwell holds the tool at rest at ``point`` in ``start_frame`` for ``item.seconds`` (no profile:
+        nothing moves; its duration is the dwell's).
     path : PHSpline or None
         The path in the part frame (None for moves in place).
     frames : AxisField or TurningFrames or None
@@ -135,7 +137,7 @@ class PlannedMove:
         reconfiguration (its poses come from forward kinematics of its joints).
     profile : FeedProfile or None
         Time law: arc length (or angle, for a turn; fraction of the joint move, for a reconfiguration)
-        against time; None for skipped moves.
+        against time; None for skipped moves and dwells.
     start_frame, end_frame : ndarray (3, 3)
         Tool frame (part frame; column 2 the approach axis) at the start and end.
     point : ndarray (3,)
@@ -159,6 +161,9 @@ class PlannedMove:
 
     @property
     def duration(self) -> float:
+        """Time of the move, s (a dwell: its seconds at rest)."""
+        if self.kind == "dwell":
+            return float(self.item.seconds)
         return 0.0 if self.profile is None else float(self.profile.duration)
 
     @property
@@ -262,7 +267,7 @@ class PlannedJob:
         return None if self.settings.robot is None else not self.problems
 
     def count(self, kind: str) -> int:
-        """Number of moves of a kind ("cut", "rapid", "reorientation", "reconfiguration", "skipped")."""
+        """Number of moves of a kind ("cut", "rapid", "reorientation", "reconfiguration", "dwell", "skipped")."""
         return sum(1 for m in self.moves if m.kind == kind)
 
     @property
@@ -316,6 +321,8 @@ class PlannedJob:
             "rapids": self.count("rapid"),
             "reorientations": self.count("reorientation"),
             "skipped": self.count("skipped"),
+            "dwells": self.count("dwell"),
+            "dwell_s": float(sum(m.duration for m in self.moves if m.kind == "dwell")),
             "corners": self.corners,
             "cut_length_mm": 1e3 * sum(p.length for p in self.passes),
             "duration_s": self.duration,
@@ -369,7 +376,9 @@ class PlannedJob:
         worst = sorted(self.passes, key=lambda p: -p.max_deviation)[:3 if self.settings.path == "cam" else 0]
         lines = [
             f"{s['source']}: {s['points']} points -> {s['passes']} passes, {s['rapids']} rapids, "
-            f"{s['reorientations']} reorientations, {s['skipped']} skipped; {s['corners']} corners "
+            f"{s['reorientations']} reorientations, {s['skipped']} skipped"
+            + (f", {s['dwells']} dwells ({s['dwell_s']:.3g} s)" if s["dwells"] else "")
+            + f"; {s['corners']} corners "
             f"> {self.settings.corner_deg:g} deg",
             self._path_line(s),
             *["  worst     " + "; ".join(f"pass {p.index} (lines {p.first_line}-{p.last_line}) "

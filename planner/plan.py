@@ -46,7 +46,7 @@ from planner.cam.axes import (
 )
 from planner.cam.fidelity import PassFit, fit_passes
 from planner.cam.moves import rapid_frames, straight_path, turn_frames, turn_profile
-from planner.cam.passes import CutPass, RapidMove, Reorientation, Segmentation, split_passes
+from planner.cam.passes import CutPass, Dwell, RapidMove, Reorientation, Segmentation, split_passes
 from planner.errors import PlannerError
 from planner.frames.tool_field import PathToolField, path_tool_field
 from planner.job import PassReport, PlannedJob, PlannedMove
@@ -349,7 +349,7 @@ def _tool_z(axes: np.ndarray | None, n: int, source: str) -> np.ndarray:
 def _where(source: str, item) -> str:
     if isinstance(item, CutPass):
         return f"{source} lines {item.first_line}-{item.last_line} ({item.describe()})"
-    if isinstance(item, RapidMove | Reorientation):
+    if isinstance(item, RapidMove | Reorientation | Dwell):
         return f"{source} line {item.line} ({item.kind})"
     return source
 
@@ -389,6 +389,7 @@ def _plan_moves(tp, seg: Segmentation, fits, s: PlanSettings, fit_share: float, 
     moves: list[PlannedMove] = []
     reports: list[PassReport] = []
     frame: np.ndarray | None = None  # tool frame at the end of the previous move
+    leading: list[int] = []  # dwells before the first move
     t_frames = t_law = 0.0
     cut_limits = MotionLimits(s.limits.speed, s.limits.acceleration, s.limits.jerk)
     tic = time.perf_counter()
@@ -453,11 +454,20 @@ def _plan_moves(tp, seg: Segmentation, fits, s: PlanSettings, fit_share: float, 
                 turn = turn_profile(fr.angle, s.turn_limits) if fr.angle > 0.0 else None
                 frame = transport(fr.end, z1)
                 moves.append(PlannedMove("reorientation", item, None, fr, turn, start, frame, item.point.copy()))
+            elif isinstance(item, Dwell):  # the tool at rest where the previous move ended, for the dwell's time
+                F = frame if frame is not None else frame_with_axis(-CAM_DEFAULT_AXIS, np.array([1.0, 0.0, 0.0]))
+                if frame is None:
+                    leading.append(len(moves))  # before any motion: it takes the first move's start frame below
+                moves.append(PlannedMove("dwell", item, None, None, None, F, F, item.point.copy()))
             else:  # Skipped: nothing moves
                 F = frame if frame is not None else frame_with_axis(-CAM_DEFAULT_AXIS, np.array([1.0, 0.0, 0.0]))
                 moves.append(PlannedMove("skipped", item, None, None, None, F, F, item.point.copy()))
         except PlannerError as exc:
             raise PlannerError(f"{_where(tp.source, item)}: {exc}") from exc
+    first = next((m for m in moves if m.kind not in ("dwell", "skipped")), None)
+    if first is not None:
+        for k in leading:
+            moves[k] = replace(moves[k], start_frame=first.start_frame, end_frame=first.start_frame)
     tic = time.perf_counter()
     cut_items = [m.item for m in moves if isinstance(m.item, CutPass)]
     if fields:

@@ -2,15 +2,17 @@
 
 Exports (CSV, JSON, URScript), the plot, the drivers, the simulator and the service take a
 :class:`Trajectory` (``job.trajectory()``) and read it chunk by chunk: one :class:`Chunk` per moving move
-(cut, rapid, turn, change of arm configuration) with, per sample, the time, the TCP pose, the robot's joints
-(with a robot), the tool I/O state, and the move, pass and source line it carries out. Memory is bounded by
-one move's samples: a whole NX job is millions of poses.
+(cut, rapid, turn, change of arm configuration) or dwell with, per sample, the time, the TCP pose, the
+robot's joints (with a robot), the tool I/O state, and the move, pass and source line it carries out. Memory is
+bounded by one move's samples: a whole NX job is millions of poses.
 
 Every move starts and ends at rest. Move k is sampled at its local times 0, 1/rate, ...,
 (n_k - 1)/rate with n_k = ceil(duration_k * rate): the first sample at or after its end is the first
 sample of the next move (the same pose), so the tool rests less than one sample period at each move
-boundary and the job clock ticks uniformly. The rotation vectors are continuous over the whole job. The
-joints follow one inverse-kinematics branch from one change of the arm configuration to the next (the one
+boundary and the job clock ticks uniformly. A dwell is a move like the others whose poses all equal the
+pose where the move before it ended: ceil(seconds * rate) sample periods at rest (the output of
+``cut_output`` is off there: it is on during cuts only). The rotation vectors are continuous over the whole
+job. The joints follow one inverse-kinematics branch from one change of the arm configuration to the next (the one
 the planner's reachability check chose); a change (a "reconfiguration" move, in a rapid) is a joint move: its
 chunk carries its joints, and its poses are their forward kinematics.
 """
@@ -42,7 +44,7 @@ class Chunk:
     move : int
         Index of the move in ``PlannedJob.moves``.
     kind : str
-        "cut", "rapid", "reorientation" or "reconfiguration".
+        "cut", "rapid", "reorientation", "reconfiguration" or "dwell" (the tool at rest: every pose the same).
     pass_index : int
         Pass number of a cut, -1 otherwise.
     times : ndarray (k,)
@@ -260,6 +262,10 @@ def _pose_chunks(job, rate: float, piece: int = CHUNK_SAMPLES):
                     lines = m.item.lines[np.minimum(ps.span + 1, len(m.item) - 1)]
                 else:
                     lines = np.full(b - a, m.item.line)
+            elif m.kind == "dwell":  # the tool at rest: the job clock advances, the pose stays
+                R = np.broadcast_to(Rb @ m.start_frame, (b - a, 3, 3))
+                pos = np.broadcast_to(Rb @ m.point + pb, (b - a, 3))
+                lines = np.full(b - a, m.item.line)
             else:  # a turn in place
                 angle = m.profile.s(np.arange(a, b) / rate)
                 R = np.matmul(Rb, m.frames.frames(angle))

@@ -14,6 +14,7 @@ from planner.cam.moves import Reconfiguration
 from planner.cam.passes import (
     CamInputError,
     CutPass,
+    Dwell,
     RapidMove,
     Reorientation,
     Segmentation,
@@ -25,6 +26,7 @@ __all__ = [
     "AxisField",
     "CamInputError",
     "CutPass",
+    "Dwell",
     "PassFit",
     "RapidMove",
     "Reconfiguration",

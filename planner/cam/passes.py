@@ -12,6 +12,9 @@ walks a :class:`~planner.io.Toolpath` once, in file order, and returns the moves
   approach), planned at rapid speed, never smoothed into a cut.
 - :class:`Reorientation`: the tool turns in place from one axis to another (an axis jump or flip at a
   pass boundary, or a zero-length move that only changes the axis).
+- :class:`Dwell`: the tool waits at rest where it is (APT ``DELAY``/``DWELL``, G-code ``G04``, the dwell of a
+  drilling cycle at the hole bottom) for the record's seconds; a pass ends before it and the next starts
+  after it, at the same point.
 - :class:`Skipped`: a move with nothing to do (a pass whose points all coincide, a zero-length rapid),
   kept with the reason and its source lines so that nothing is dropped silently.
 
@@ -73,7 +76,7 @@ class CutPass:
         Tool number in use (NaN if the file names none).
     start_reason, end_reason : str
         Why the pass starts and ends: "start", "rapid", "corner", "tool change", "operation",
-        "axis jump", "reorientation", "end".
+        "axis jump", "reorientation", "dwell", "end".
     start_corner_deg, end_corner_deg : float
         Turning angle (degrees) of the corner the pass starts or ends at (NaN if not a corner).
     merged : int
@@ -187,6 +190,30 @@ class Reorientation:
 
 
 @dataclass(frozen=True, eq=False)
+class Dwell:
+    """The tool waits at rest where it is, for ``seconds`` (a dwell record of the file).
+
+    Attributes
+    ----------
+    point : ndarray (3,)
+        Where (part frame, metres): the point the tool reached before the record.
+    seconds : float
+        How long, s (> 0).
+    line : int
+        Source line of the dwell record.
+    name : str
+        How the file names it ("G04", "G82", "CYCLE/DRILL,DWELL", ...).
+    """
+
+    point: np.ndarray
+    seconds: float
+    line: int
+    name: str = ""
+
+    kind = "dwell"
+
+
+@dataclass(frozen=True, eq=False)
 class Skipped:
     """A move of the file that asks for no motion, kept with the reason.
 
@@ -215,7 +242,8 @@ class Segmentation:
     Attributes
     ----------
     moves : tuple
-        :class:`CutPass`, :class:`RapidMove`, :class:`Reorientation` and :class:`Skipped` in order.
+        :class:`CutPass`, :class:`RapidMove`, :class:`Reorientation`, :class:`Dwell` and :class:`Skipped` in
+        order.
     corners : int
         Corners sharper than the threshold found inside cutting runs (each one split a pass).
     corner_deg, axis_jump_deg : float
@@ -334,6 +362,15 @@ def _modal_labels(tp) -> tuple[list[str], np.ndarray, np.ndarray, np.ndarray]:
     return op_at, tool_at, op_start[:n], tool_start[:n]
 
 
+def _dwells(tp) -> dict[int, list]:
+    """{event index: dwell events there} for the dwells of positive, finite length (a dwell of 0 s is no wait)."""
+    out: dict[int, list] = {}
+    for e in tp.events:
+        if e.kind == "dwell" and math.isfinite(e.value) and e.value > 0.0:
+            out.setdefault(max(int(e.index), 0), []).append(e)
+    return out
+
+
 def split_passes(
     toolpath,
     *,
@@ -397,6 +434,9 @@ def split_passes(
     b = _Builder(tp, op_at, tool_at)
     corners = 0
     counts = {"merged": 0, "axis_jumps": 0, "zero_rapids": 0, "degenerate": 0}
+    dwells = _dwells(tp)
+    for e in dwells.pop(0, ()):  # before any motion: where the tool starts
+        b.moves.append(Dwell(P[0].copy(), e.value, e.line, e.name))
     b.open(0, "start")
     has_dir = False  # the open pass has a nonzero chord (so a corner can be measured)
     lines = tp.lines.tolist()
@@ -404,6 +444,12 @@ def split_passes(
     for i in range(1, n):
         step = ax_step[i]
         line = lines[i]
+        if i in dwells:  # the tool waits at the point it has reached: the pass stops there and goes on after
+            k = b.idx[-1]
+            b.close("dwell")
+            b.moves += [Dwell(P[k].copy(), e.value, e.line, e.name) for e in dwells.pop(i)]
+            b.open(k, "dwell")
+            has_dir = False
         if rapid[i] or tool_start[i]:
             reason = "rapid" if rapid[i] else "tool change"
             b.close(reason)
@@ -458,6 +504,8 @@ def split_passes(
         b.idx.append(i)
         has_dir = True
     b.close("end")
+    b.moves += [Dwell(P[-1].copy(), e.value, e.line, e.name) for k in sorted(dwells) for e in dwells[k]]
     counts["degenerate"] = b.degenerate
+    counts["dwells"] = sum(1 for m in b.moves if isinstance(m, Dwell))
     return Segmentation(tuple(b.moves), corners, corner_deg, axis_jump_deg, tp.source, counts)
 

@@ -19,6 +19,8 @@ work). The program is one statement per ``movep`` target, rapid and turn:
   angular speed to the plan's (the time setting takes precedence over v and a);
 - each turn in place as ``movel`` to the same point with ``t`` = the planned duration of the turn
   (movel's v is a tool speed in m/s, which a pure rotation does not have);
+- each dwell (G04, a drilling cycle's dwell at the hole bottom) as ``sleep(t)``: the arm stands still at the
+  pose the move before ended at (every move before it ends with r = 0);
 - comments: what generated the program and the job's parameters, each pass, rapid and turn with
   its source lines, and the file's operation, tool-change, spindle, coolant, INSERT and machine
   records where they occur. With ``cut_output`` set, that output is switched on before and off after
@@ -60,7 +62,7 @@ class ProgramMove:
     move : int
         Index of the move in ``PlannedJob.moves``.
     kind : str
-        "cut", "rapid", "reorientation" or "reconfiguration".
+        "cut", "rapid", "reorientation", "reconfiguration" or "dwell".
     pass_index : int
         Pass number of a cut, -1 otherwise.
     first_line, last_line : int
@@ -104,6 +106,13 @@ def _turn_pose(m, Tb: np.ndarray, angle: float) -> np.ndarray:
     return transform_to_pose(T)
 
 
+def _hold_pose(m, Tb: np.ndarray) -> np.ndarray:
+    """TCP pose (6,) in the base frame of a move in place at its start frame (a dwell)."""
+    T = np.eye(4)
+    T[:3, :3], T[:3, 3] = Tb[:3, :3] @ m.start_frame, Tb[:3, :3] @ m.point + Tb[:3, 3]
+    return transform_to_pose(T)
+
+
 def plan_job_program(job, *, tolerance: float | None = None, angle_tolerance: float = math.radians(1.0),
                      progress=None) -> tuple[ProgramMove, ...]:
     """The moves of a whole-job program (see the module doc), skipped records left out.
@@ -128,6 +137,10 @@ def plan_job_program(job, *, tolerance: float | None = None, angle_tolerance: fl
     for k, m in enumerate(job.moves):
         if progress is not None and k % 25 == 0:
             progress("script", k, len(job.moves))
+        if m.kind == "dwell":  # the tool waits where it is
+            at = _hold_pose(m, Tb)
+            out.append(ProgramMove(k, "dwell", -1, m.line, m.line, m.line, None, at, at, 0.0, m.duration, 0.0))
+            continue
         if m.profile is None:  # skipped records and zero turns: nothing moves
             continue
         if m.kind == "cut":
@@ -234,8 +247,9 @@ def job_program(
         "movep_targets": int(sum(p.s.size - 1 for p in plans)),
         "movep_deviation_m": max((p.deviation for p in plans), default=0.0),
         "movep_angle_deviation_deg": math.degrees(max((p.angle_deviation for p in plans), default=0.0)),
-        "movel_moves": sum(1 for m in moves if m.plan is None and m.kind != "reconfiguration"),
+        "movel_moves": sum(1 for m in moves if m.plan is None and m.kind not in ("reconfiguration", "dwell")),
         "movej_reconfigurations": sum(1 for m in moves if m.kind == "reconfiguration"),
+        "dwells": sum(1 for m in moves if m.kind == "dwell"),
         "start_joints_rad": [float(x) for x in q0],
     }
     if parameters is not None and "program" in parameters:
@@ -287,6 +301,10 @@ def job_program(
             lines.append(comment(f"rapid, line {m.first_line}: {1e3 * dist:.3f} mm, tool axis turns "
                                  f"{math.degrees(m.turn):.3f} deg"))
             lines.append(f"  movel({pose(m.target)}, a={num(a)}, v={num(m.speed)}{timing}, r={num(0.0)})")
+        elif m.kind == "dwell":
+            lines.append(comment(f"dwell, line {m.first_line} ({job.moves[m.move].item.name}): the tool waits "
+                                 f"{m.duration:.6g} s"))
+            lines.append(f"  sleep({num(m.duration)})")
         else:
             lines.append(comment(f"turn in place, line {m.first_line}: {math.degrees(m.turn):.3f} deg in "
                                  f"{m.duration:.3f} s"))

@@ -21,8 +21,9 @@ JSON layout (one object; the keys come in this order, so a streaming parser meet
 
 Poses are p[x, y, z, rx, ry, rz] of the TCP in the robot base frame (m, rotation vector, continuous over the
 job, so |r| may exceed pi); the joint columns come with a robot; ``io`` (the digital output bits, see
-:data:`planner.trajectory.IO_BIT_OFFSET`) when the job switches an output; ``pass`` is -1 on rapids, turns and
-changes of the arm configuration; ``line`` is the source line of the record the sample carries out (for
+:data:`planner.trajectory.IO_BIT_OFFSET`) when the job switches an output; ``pass`` is -1 on rapids, turns, dwells
+and changes of the arm configuration; a dwell's rows (kind "dwell" in JSON and in ``moves``) repeat one pose while
+the time advances; ``line`` is the source line of the record the sample carries out (for
 waypoint arrays: the waypoint index).
 """
 
