@@ -160,3 +160,18 @@ def test_the_budget_counts_the_dwells_and_names_an_absurd_one(tmp_path):
     path = _file(tmp_path, "long.nc", "G21 G90\nG01 X0 Y0 Z0 F600\nG01 X10\nG04 P10000.\nG01 X20\n")
     with pytest.raises(BudgetError, match=r"long.nc line 4: a dwell of 1e\+04 s would need 5e\+06 poses"):
         plan(path, PlanSettings(path="cam", max_poses=1e6))
+
+
+def test_apt_delay_and_dwell_records(tmp_path):
+    text = ("FEDRAT/MMPM,600\nGOTO/0,0,0\nDELAY/1.5\nGOTO/10,0,0\nSPINDL/RPM,3000,CLW\nDELAY/100,REV\n"
+            "GOTO/20,0,0\nDWELL/0.25\nDELAY\n")
+    job = plan(_file(tmp_path, "delay.apt", text), PlanSettings(path="cam", rate=RATE))
+    d = [m for m in job.moves if m.kind == "dwell"]
+    assert [(m.item.name, m.line) for m in d] == [("DELAY", 3), ("DELAY", 6), ("DWELL", 8)]
+    assert [m.item.seconds for m in d] == pytest.approx([1.5, 2.0, 0.25])  # 100 rev at 50 rev/s
+    assert np.allclose([m.point for m in d], np.array([[0, 0, 0], [10, 0, 0], [20, 0, 0]]) * MM)
+    assert [e.name for e in job.toolpath.events_of("machine")] == ["DELAY"]  # a bare DELAY: an operator pause
+    from planner.io import InputFileError
+
+    with pytest.raises(InputFileError, match=r"line 3.*DELAY.*spindle speed"):
+        plan(_file(tmp_path, "rev.apt", "GOTO/0,0,0\nGOTO/1,0,0\nDELAY/5,REV\n"), PlanSettings(path="cam"))

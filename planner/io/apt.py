@@ -52,7 +52,9 @@ Events (kept, see :data:`~planner.io.toolpath.EVENT_KINDS`)
     ``TOOL PATH/`` (operation), ``END-OF-PATH``, ``LOAD/TOOL``, ``LOADTL``, ``SELECT/TOOL``,
     ``TLDATA``, ``CUTTER``, ``SPINDL``, ``COOLNT``, ``CUTCOM``, ``INSERT``, ``PPRINT``, ``PARTNO``,
     ``MACHIN``, ``MULTAX``, ``TRNTYP``, ``CYCLE`` (its holes expanded), ``GOHOME``, ``CSI_SET_*`` and other ``CSI_*``
-    vendor records, ``STOP``, ``OPSTOP``, ``DELAY``, ``FINI`` (reading stops there).
+    vendor records, ``STOP``, ``OPSTOP``, ``FINI`` (reading stops there); ``DELAY/t`` or ``DWELL/t`` (seconds),
+    ``DELAY/n,REV`` (spindle revolutions at the last SPINDL speed): a ``dwell`` event, the tool waits in place
+    (a bare ``DELAY`` is an operator pause: a ``machine`` event).
 Ignored by design
     ``PAINT/`` (display only), ``$$`` comments (to the end of the line; a comment ending in ``$``
     swallows the numeric continuation lines after it, as Pro/CLfile writes commented-out records),
@@ -99,7 +101,7 @@ _FEED_UNITS = {  # feed word -> (length unit, per: "min", "s" or "rev")
 _LENGTH = {"mm": 1e-3, "inch": 0.0254}
 _UNIT_WORDS = {"MM": "mm", "INCH": "inch", "INCHES": "inch", "IN": "inch", "CM": "cm", "M": "m"}
 _MACHINE_WORDS = frozenset(
-    {"STOP", "OPSTOP", "OPSKIP", "DELAY", "CLRSRF", "AUTOPS", "CLAMP", "SEQNO", "END", "ORIGIN", "ROTABL",
+    {"STOP", "OPSTOP", "OPSKIP", "CLRSRF", "AUTOPS", "CLAMP", "SEQNO", "END", "ORIGIN", "ROTABL",
      "RETRCT", "PREFUN", "AUXFUN", "PITCH", "HEAD", "MODE", "SELCTL", "TOOLNO", "OPERATION"}
 )  # fmt: skip
 _NUMERIC_START = frozenset("0123456789+-.")
@@ -153,6 +155,8 @@ class _Reader:
             "LOADTL": self.tool("tool_change"),
             "SELECT": self.tool("tool_select"),
             "SPINDL": self.spindl,
+            "DELAY": self.delay,
+            "DWELL": self.delay,
             "COOLNT": self.simple("coolant"),
             "CUTCOM": self.simple("cutcom"),
             "INSERT": self.simple("insert", keep_body=True),
@@ -414,6 +418,28 @@ class _Reader:
             speed = rpm * 2.0 * math.pi / 60.0
             self.spindle_rps = rpm / 60.0
         self.out.event("spindle", line, ",".join(words), speed, f"{major}/{body.strip()}")
+
+    def delay(self, line: int, major: str, body: str) -> None:
+        """DELAY/t or DWELL/t (seconds), DELAY/n,REV (spindle revolutions): the tool waits in place (a ``dwell``
+        event); a DELAY without a value is kept as a ``machine`` event (an operator pause, no time)."""
+        b = body.strip()
+        text = f"{major}/{b}" if b else major
+        if not b:
+            self.out.event("machine", line, major, math.nan, text)
+            return
+        parts = [p.strip() for p in b.split(",")]
+        if len(parts) > 2 or (len(parts) == 2 and parts[1].upper() not in ("REV", "REVS", "SEC", "SECS")):
+            self.fail(line, f"{major} record", f"expected {major}/seconds or {major}/revolutions,REV, got {text!r}")
+        value = self.numbers(line, major, parts[0])[0]
+        if not (math.isfinite(value) and value >= 0.0):
+            self.fail(line, f"field 1 of {major}", f"the dwell must be a time >= 0, got {parts[0]!r}", 1)
+        seconds = value
+        if len(parts) == 2 and parts[1].upper().startswith("REV"):
+            if not (self.spindle_rps > 0.0):
+                self.fail(line, f"field 2 of {major}", "a dwell in spindle revolutions needs a spindle speed "
+                          "(SPINDL/rpm) before it", 2)
+            seconds = value / self.spindle_rps
+        self.out.event("dwell", line, major, seconds, text)
 
     def cycle(self, line: int, major: str, body: str) -> None:
         """CYCLE/...: a canned cycle whose GOTOs are holes (see :meth:`hole`); CYCLE/OFF ends it."""
