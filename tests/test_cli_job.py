@@ -83,11 +83,11 @@ def test_cli_plan_csv_trajectory(tmp_path):
     [
         (["plan", "missing.apt"], "missing.apt"),
         (["plan", "EXAMPLE", "--pass", "7"], "passes: nx_first_pass.cls has passes 0..0, not 7"),
-        (["plan", "EXAMPLE", "--pass", "x"], "--pass must be pass numbers K[,K...], 'longest' or 'all'"),
-        (["plan", "EXAMPLE", "--part-frame", "1,2,3"], "--part-frame must be six"),
+        (["plan", "EXAMPLE", "--pass", "x"], "--pass x: must be pass numbers K[,K...], 'longest' or 'all'"),
+        (["plan", "EXAMPLE", "--part-frame", "1,2,3"], "--part-frame 1,2,3: must be six numbers"),
         (["plan", "EXAMPLE", "-o", "x.docx"], "unknown output type"),
         (["plan", "EXAMPLE", "-o", "x.script"], "needs the reachability check: give --robot MODEL"),
-        (["plan", "EXAMPLE", "--feed", "nan"], "feed must be in"),
+        (["plan", "EXAMPLE", "--feed", "nan"], "--feed nan: must be at least 0.001 mm/s"),
         (["plan", "EXAMPLE", "--axes", "path", "--path", "cam", "--frame", "juttler"], "frame='juttler' needs"),
         (["plan", "EXAMPLE", "--robot", "ur99"], "ur99"),
     ],
@@ -98,6 +98,7 @@ def test_cli_errors_are_one_line_with_exit_code_2(argv, message, capsys, tmp_pat
     assert main(argv) == 2
     err = capsys.readouterr().err
     assert err.startswith("planner: error:") and message in err and "Traceback" not in err
+    assert err.count("\n") == 1, err
 
 
 def test_cli_plans_a_whole_multi_pass_file(tmp_path, capsys):

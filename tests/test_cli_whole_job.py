@@ -256,9 +256,9 @@ def test_whole_job_script_is_refused_naming_pass_and_line(nx_excerpt, tmp_path, 
     [
         (["-o", "job.docx"], "-o job.docx: unknown output type"),
         (["--robot", "none", "-o", "job.script"], "needs the reachability check: give --robot MODEL"),
-        (["--pass", "everything"], "--pass must be pass numbers K[,K...], 'longest' or 'all'"),
+        (["--pass", "everything"], "--pass everything: must be pass numbers K[,K...], 'longest' or 'all'"),
         (["--plot", "job.xyz"], "--plot job.xyz: unknown image type '.xyz'"),
-        (["--cut-output", "spray"], "--cut-output must be KIND:PIN"),
+        (["--cut-output", "spray"], "--cut-output spray: must be KIND:PIN"),
         (["-o", "INPUT"], "is the input file; refusing to overwrite it"),
     ],
 )

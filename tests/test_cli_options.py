@@ -1,0 +1,121 @@
+"""Every numeric option of ``planner plan`` / ``run`` is checked in the user's units, named as typed, before the
+input file is read: one line on stderr, exit 2 (issue 17)."""
+
+from __future__ import annotations
+
+import argparse
+
+import pytest
+
+from planner.cli import Number, _numeric_options, build_parser, main, settings_from_args
+from planner.errors import PlannerError
+from planner.settings import PlanSettings
+
+OPTIONS = {o.flag: o for o in _numeric_options()}
+#: A file that does not exist: an option refused before reading names the option, not the missing file.
+MISSING = "no-such-dir/no-such-file.csv"
+
+
+def _subparser(name: str) -> argparse.ArgumentParser:
+    ap = build_parser()
+    sub = next(a for a in ap._actions if isinstance(a, argparse._SubParsersAction))
+    return sub.choices[name]
+
+
+def _numeric_flags(name: str) -> set[str]:
+    flags = set()
+    for a in _subparser(name)._actions:
+        if a.option_strings and a.type in (Number, float, int):
+            flags.add(max(a.option_strings, key=len))
+    return flags
+
+
+def test_every_numeric_option_of_plan_run_and_fit_has_a_range():
+    plan_flags, run_flags, fit_flags = _numeric_flags("plan"), _numeric_flags("run"), _numeric_flags("fit")
+    assert {"--feed", "--tolerance", "--rate", "--max-poses"} <= plan_flags
+    assert {"--lookahead", "--gain", "--sim-speed", "--modbus-port"} <= run_flags
+    assert plan_flags | run_flags | fit_flags <= set(OPTIONS), (plan_flags | run_flags | fit_flags) - set(OPTIONS)
+
+
+def _bad_values():
+    for o in _numeric_options():
+        below = o.lo - 1.0 if o.lo_closed else o.lo
+        yield o.flag, str(int(below)) if o.flag == "--modbus-port" else f"{below:g}"
+        if o.hi is not None:
+            above = o.hi + 1.0 if o.flag == "--modbus-port" else o.hi * 10.0
+            yield o.flag, str(int(above)) if o.flag == "--modbus-port" else f"{above:g}"
+        if o.flag != "--modbus-port":  # an int option: argparse itself refuses nan
+            yield o.flag, "nan"
+            yield o.flag, "-inf"
+
+
+@pytest.mark.parametrize("flag, text", list(_bad_values()))
+def test_a_bad_value_is_refused_by_its_option_in_user_units(flag, text, capsys):
+    opt = OPTIONS[flag]
+    command = "run" if flag in _numeric_flags("run") - _numeric_flags("plan") else "plan"
+    argv = [command, MISSING, f"{flag}={text}"]
+    if command == "run":
+        argv += ["--robot", "ur5e", "--sim", "--mode", "program"]
+    assert main(argv) == 2
+    out, err = capsys.readouterr()
+    assert err.count("\n") == 1 and err.startswith(f"planner: error: {flag} {text}: must be "), err
+    if opt.unit:
+        assert f"{opt.unit} and" in err or "finite" in err, err
+    assert "no-such-file" not in err and "planning" not in out  # refused before the file was touched
+
+
+def test_the_feed_message_of_the_issue():
+    err = _refusal(["plan", MISSING, "--feed", "-5"])
+    assert err == "planner: error: --feed -5: must be at least 0.001 mm/s and at most 10000 mm/s\n"
+    err = _refusal(["plan", MISSING, "--tolerance", "-0.5"])
+    assert err == "planner: error: --tolerance -0.5: must be > 0 mm and at most 1000 mm\n"
+
+
+def _refusal(argv):
+    import contextlib
+    import io
+
+    buf = io.StringIO()
+    with contextlib.redirect_stderr(buf), contextlib.redirect_stdout(io.StringIO()):
+        assert main(argv) == 2
+    return buf.getvalue()
+
+
+PLAN_OPTIONS = [o for o in _numeric_options() if o.dest in vars(_subparser("plan").parse_args([MISSING]))]
+
+
+@pytest.mark.parametrize("opt", PLAN_OPTIONS, ids=lambda o: o.flag)
+def test_the_ends_of_every_plan_range_are_valid_settings(opt):
+    """The CLI range is the settings' range in the user's units (or inside it): both ends pass PlanSettings."""
+    p = _subparser("plan")
+    ends = [opt.hi] + ([opt.lo] if opt.lo_closed else [opt.lo + (opt.hi - opt.lo) * 1e-9])
+    for x in ends:
+        args = p.parse_args([MISSING, f"{opt.flag}={x!r}"])
+        s = settings_from_args(args)
+        assert isinstance(s, PlanSettings)
+    if not opt.lo_closed:  # an open lower end that the settings refuse too
+        args = p.parse_args([MISSING, f"{opt.flag}={opt.lo!r}"])
+        with pytest.raises(PlannerError, match=f"^{opt.flag} "):
+            settings_from_args(args)
+
+
+def test_settings_in_si_from_user_units():
+    args = _subparser("plan").parse_args([MISSING, "--feed", "20", "--tolerance", "0.02", "--rapid-speed", "300"])
+    s = settings_from_args(args)
+    assert s.feed == pytest.approx(0.02, rel=1e-15) and s.tolerance == pytest.approx(2e-5, rel=1e-15)
+    assert s.rapid_speed == pytest.approx(0.3, rel=1e-15)
+
+
+@pytest.mark.parametrize("argv, message", [
+    (["--feed", "abc"], "planner plan: error: argument --feed: invalid number value: 'abc'"),
+    (["--path", "sideways"], "planner plan: error: argument --path: invalid choice: 'sideways'"),
+    (["--cut-output", "standard:8"], "planner: error: --cut-output standard:8: standard outputs have pins 0..7"),
+    (["--cut-output", "valve:1"], "planner: error: --cut-output valve:1: unknown output kind 'valve'"),
+    (["--pass", "-1"], "planner: error: --pass -1: pass numbers start at 0"),
+    (["--part-frame", "0,0,0,0,0,1e308"], "planner: error: --part-frame 0,0,0,0,0,1e308: the rotation vector"),
+    (["--part-frame", "0,0,0,0,nan,0"], "planner: error: --part-frame 0,0,0,0,nan,0: ry (number 5) must be finite"),
+    (["--tcp", "0,0,6e3,0,0,0"], "planner: error: --tcp 0,0,6e3,0,0,0: z = 6000 m is beyond any robot cell"),
+])
+def test_other_options_refused_in_one_line(argv, message):
+    err = _refusal(["plan", MISSING, *argv])
+    assert err.startswith(message) and err.count("\n") == 1, err
