@@ -138,6 +138,9 @@ class Number(float):
         x.text = text.strip()
         return x
 
+    def __reduce__(self):  # pickled (a saved job's settings) as the plain float it is
+        return (float, (float(self),))
+
 
 Number.__name__ = "number"  # argparse: "invalid number value: 'abc'"
 
@@ -206,12 +209,13 @@ def settings_from_args(args: argparse.Namespace) -> PlanSettings:
     check_numeric_options(args)
     d = PlanSettings()
     return PlanSettings(
-        path=args.path, tolerance=args.tolerance / 1e3, corner_deg=args.corner, axis_jump_deg=args.axis_jump,
-        axes=args.axes, frame=args.frame, feed=args.feed / 1e3, feed_override=args.feed_override,
-        rapid_speed=args.rapid_speed / 1e3, rate=args.rate, robot=None if args.robot in (None, "none") else args.robot,
+        path=args.path, tolerance=args.tolerance / 1e3, corner_deg=float(args.corner),
+        axis_jump_deg=float(args.axis_jump), axes=args.axes, frame=args.frame, feed=args.feed / 1e3,
+        feed_override=float(args.feed_override), rapid_speed=args.rapid_speed / 1e3, rate=float(args.rate),
+        robot=None if args.robot in (None, "none") else args.robot,
         part_frame=_pose(args.part_frame, "--part-frame"), tcp=_pose(args.tcp, "--tcp"),
         feed_floor=d.feed_floor, cut_output=_output(args.cut_output), passes=_passes(args.pass_index),
-        max_poses=args.max_poses,
+        max_poses=float(args.max_poses),
     ).checked()
 
 

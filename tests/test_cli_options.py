@@ -119,3 +119,16 @@ def test_settings_in_si_from_user_units():
 def test_other_options_refused_in_one_line(argv, message):
     err = _refusal(["plan", MISSING, *argv])
     assert err.startswith(message) and err.count("\n") == 1, err
+
+
+def test_settings_hold_plain_floats_that_pickle():
+    """The typed text stays with the option: a saved job's settings are plain floats (a job file loads back)."""
+    import pickle
+
+    args = _subparser("plan").parse_args([MISSING, "--corner", "45", "--rate", "125", "--max-poses", "1e6",
+                                          "--feed-override", "0.5", "--axis-jump", "30"])
+    s = settings_from_args(args)
+    for name in ("corner_deg", "rate", "max_poses", "feed_override", "axis_jump_deg", "feed", "tolerance"):
+        assert type(getattr(s, name)) is float, name
+    assert pickle.loads(pickle.dumps(s)) == s
+    assert type(pickle.loads(pickle.dumps(Number("2.5")))) is float

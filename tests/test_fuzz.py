@@ -1,0 +1,342 @@
+"""Fuzz suite of issue 17: mutated versions of every input format, and option values, through ``planner plan``.
+
+The contract, for any input file and any options, checked through ``planner.cli.main([...])`` in-process (and a
+few examples through a subprocess, where stderr is the real one):
+
+- exit 0 with a valid, complete output at ``-o`` (parsed back: every row finite, as many poses as reported,
+  times increasing; a URScript program compiled by the simulator's parser; a saved job loaded back), or
+- exit 2 (the user's mistake) or 3 (a numerical failure of ours) with exactly one line on stderr and nothing
+  written: the output directory holds the input file alone (no partial file, no temporary file);
+- never a traceback (an exception escaping ``main``), never a hang (a per-example deadline).
+
+Inputs: the bundled examples (examples/), the heads of the verbatim excerpts of the shared CAM files
+(tests/data: NX CLSF, SolidWorks APT, NX G-code for a Haas UMC-750), a Sinumerik 840D program (.mpf) and JSON
+waypoints built from the example CSV; mutations: truncation, byte flips, NaN/inf/1e308/1e-300/huge fields,
+coordinates scaled by 1e-6..1e6, duplicated, deleted and swapped lines.
+
+Bounded so the default run takes well under a minute. ``HYPOTHESIS_PROFILE=fuzz`` selects the long profile
+(many more examples per format, a longer deadline per example): ``./run fuzz``.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import io
+import json
+import math
+import os
+import re
+import signal
+import subprocess
+import sys
+import tempfile
+import traceback
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from planner.cli import main
+
+ROOT = Path(__file__).resolve().parents[1]
+DATA = Path(__file__).resolve().parent / "data"
+
+#: The long profile (``./run fuzz``): selected by HYPOTHESIS_PROFILE=fuzz.
+FUZZ = os.environ.get("HYPOTHESIS_PROFILE") == "fuzz"
+settings.register_profile("fuzz", deadline=None, max_examples=1000, print_blob=True,
+                          suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+if FUZZ:
+    settings.load_profile("fuzz")
+#: Examples per input format: default suite, long profile.
+EXAMPLES = 1000 if FUZZ else 12
+#: Wall-clock limit of one planner run (s): a run past it is a hang. Generous: 2 shared cores, other tests beside.
+DEADLINE = 60.0 if FUZZ else 30.0
+#: Every fuzz run is capped at this many poses (unless the options draw a smaller cap): the default 2e8 is a valid
+#: job of minutes of writing, not a hang, and not what the fuzz is for.
+MAX_POSES = "300000"
+
+
+def _head(path: Path, n: int) -> bytes:
+    return b"".join(path.read_bytes().splitlines(keepends=True)[:n])
+
+
+SINUMERIK = b"""%_N_PART_MPF
+;$PATH=/_N_MPF_DIR
+; NX post, Sinumerik 840D
+N10 DEF REAL _camtolerance
+N20 DEF REAL _X0=10, _Z_HOME=300
+N30 _camtolerance=.02
+N40 G40 G17 G710 G94 G90 G60 G601 FNORM
+N50 CYCLE800(1,"TC1",0,57,0,0,0,0,0,0,0,0,0,-1,100,1)
+N60 CYCLE832(_camtolerance,_ORI_FINISH,1)
+N70 SUPA G0 Z=_Z_HOME D0
+N80 TRAFOOF
+N100 MSG("ROUGHING ; FLOOR")
+N110 T="MILL_10" ; tool by name
+N120 M6
+N140 S5000 M3
+N150 G0 X=_X0 Y=2*5 Z=_X0/2
+N160 G1 Z=-1 F=100*2
+N170 X=IC(20) Y=(_X0-5)*2 G64
+N180 G2 X=_X0+30 Y=20 CR=10
+N190 G3 X40 Y40 I=AC(40) J=AC(30)
+N200 R1=SQRT(POT(3)+POT(4)) R2=7 DIV 2 R3=7 MOD 2
+N210 G1 X=40+R1*R2 Y=40-R3 F=300
+N230 X=ROUND(SIN(30)*100) Y=ATAN2(1,1)
+N240 G0 Z50
+N250 M30
+"""
+
+
+def _json_seed() -> bytes:
+    """The example CSV's waypoints as JSON (rows shape, one point per line so that line mutations bite)."""
+    rows = [r for r in (ROOT / "examples" / "nx_first_pass.csv").read_text().splitlines()
+            if r and not r.startswith("#") and r[0] in "-0123456789"]
+    pts = [[float(x) for x in r.split(",")] for r in rows]
+    body = ",\n".join(f'  {{"x": {p[0]!r}, "y": {p[1]!r}, "z": {p[2]!r}, "i": {p[3]!r}, "j": {p[4]!r}, '
+                      f'"k": {p[5]!r}' + (', "feed": 600' if k == 0 else "") + "}" for k, p in enumerate(pts))
+    return ('{"units": "mm", "feed_units": "mm/min", "points": [\n' + body + "\n]}\n").encode()
+
+
+#: name -> (file name, bytes, options every run of it gets)
+SEEDS = {
+    "csv": ("nx_first_pass.csv", (ROOT / "examples" / "nx_first_pass.csv").read_bytes(), []),
+    "cls": ("nx_first_pass.cls", (ROOT / "examples" / "nx_first_pass.cls").read_bytes(), []),
+    "clsf": ("ust_a2.cls", _head(DATA / "nx_clsf_ust_a2_excerpt.cls", 90), []),
+    "apt": ("boss.apt", _head(DATA / "solidworks_cam_apt_boss_excerpt.apt", 90), []),
+    "gcode": ("haas.nc", _head(DATA / "nx2022_haas_umc750_excerpt.txt", 110), ["--machine", "haas-umc-750"]),
+    "mpf": ("part.mpf", SINUMERIK, []),
+    "json": ("points.json", _json_seed(), []),
+}
+
+NASTY = ["nan", "NaN", "inf", "-inf", "1e308", "-1e308", "1e-300", "-1e-300", "0", "-0", "0.0", "1e999", "9" * 400,
+         "", "-", ".", "1e3", "1E-3", "0x1F", "1_000", "\u0661\u0662", "12.5.3", "+-1", "1,5", '"5"', "null",
+         "true", "[]", "{}"]
+#: Number tokens (a coordinate, a feed, an axis component) the field and scale mutations act on.
+NUMBER = re.compile(rb"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
+
+fraction = st.floats(min_value=0.0, max_value=1.0, allow_nan=False)
+mutation = st.one_of(
+    st.tuples(st.just("truncate"), fraction),
+    st.tuples(st.just("flip"), fraction, st.integers(0, 255)),
+    st.tuples(st.just("field"), fraction, st.integers(0, 12), st.sampled_from(NASTY)),
+    st.tuples(st.just("scale"), fraction, fraction, st.sampled_from([1e-6, 1e-3, -1.0, 10.0, 1e3, 1e6])),
+    st.tuples(st.just("duplicate"), fraction, st.integers(1, 40)),
+    st.tuples(st.just("delete"), fraction, st.integers(1, 40)),
+    st.tuples(st.just("swap"), fraction, fraction),
+)
+
+
+def mutate(data: bytes, ops) -> bytes:
+    """``data`` with the mutations ``ops`` applied in turn (positions are fractions of the current size)."""
+    for op in ops:
+        lines = data.splitlines(keepends=True) or [b""]
+        at = min(int(op[1] * len(lines)), len(lines) - 1)
+        if op[0] == "truncate":
+            data = data[:int(op[1] * len(data))]
+        elif op[0] == "flip" and data:
+            k = min(int(op[1] * len(data)), len(data) - 1)
+            data = data[:k] + bytes([op[2]]) + data[k + 1:]
+        elif op[0] == "field":
+            found = list(NUMBER.finditer(lines[at]))
+            if found:
+                m = found[op[2] % len(found)]
+                lines[at] = lines[at][:m.start()] + op[3].encode() + lines[at][m.end():]
+            data = b"".join(lines)
+        elif op[0] == "scale":
+            lo, hi = sorted((at, min(int(op[2] * len(lines)), len(lines) - 1)))
+            for i in range(lo, hi + 1):
+                lines[i] = NUMBER.sub(lambda m, f=op[3]: _scaled(m.group(), f), lines[i])
+            data = b"".join(lines)
+        elif op[0] == "duplicate":
+            data = b"".join(lines[:at + 1] + lines[at:at + op[2]] + lines[at + 1:])
+        elif op[0] == "delete":
+            data = b"".join(lines[:at] + lines[at + op[2]:])
+        elif op[0] == "swap":
+            j = min(int(op[2] * len(lines)), len(lines) - 1)
+            lines[at], lines[j] = lines[j], lines[at]
+            data = b"".join(lines)
+    return data
+
+
+def _scaled(token: bytes, factor: float) -> bytes:
+    if b"." not in token:  # G/M/N codes, line numbers and flags stay; coordinates and feeds have a point
+        return token
+    return repr(float(token) * factor).encode()
+
+
+# option values: valid ones, edge ones and bad ones (the bad ones must be refused in one line)
+OPTION_VALUES = {
+    "--feed": ["0.001", "5", "50", "250", "10000", "-5", "0", "nan", "1e400", "1e-9", "abc"],
+    "--tolerance": ["0.001", "0.01", "0.1", "2", "1000", "0", "-1", "inf"],
+    "--rate": ["125", "500", "0.5", "1e-9", "10000", "0", "1e7"],
+    "--corner": ["1", "30", "60", "180", "0", "200"],
+    "--axis-jump": ["1", "45", "90", "91"],
+    "--feed-override": ["0.5", "1", "10", "11", "0", "-1"],
+    "--rapid-speed": ["10", "250", "10000", "0.0001", "-1"],
+    "--max-poses": ["1", "1000", "50000", "0", "1e13"],
+    "--path": ["auto", "interpolate", "cam", "bogus"],
+    "--axes": ["auto", "file", "approach", "fixed", "path", "bogus"],
+    "--frame": ["rmf", "grm", "juttler", "er", "double-reflection"],
+    "--units": ["mm", "m", "inch"],
+    "--pass": ["0", "1", "2,3", "longest", "all", "-1", "99", "x"],
+    "--cut-output": ["standard:0", "tool:1", "tool:2", "spray"],
+    "--machine": ["haas-umc-750", "bogus"],
+}
+options = st.lists(st.sampled_from(sorted(OPTION_VALUES)), max_size=4, unique=True).flatmap(
+    lambda flags: st.tuples(*[st.tuples(st.just(f), st.sampled_from(OPTION_VALUES[f])) for f in flags]))
+outputs = st.sampled_from([".csv", ".csv", ".json", ".json", ".job", ".script", ".txt"])
+
+
+class Hang(BaseException):
+    """A planner run past the deadline (BaseException: no ``except Exception`` in the planner swallows it)."""
+
+
+@contextlib.contextmanager
+def deadline(seconds: float):
+    def alarm(signum, frame):
+        raise Hang(f"no answer within {seconds:g} s")
+
+    old = signal.signal(signal.SIGALRM, alarm)
+    signal.setitimer(signal.ITIMER_REAL, seconds)
+    try:
+        yield
+    finally:
+        signal.setitimer(signal.ITIMER_REAL, 0.0)
+        signal.signal(signal.SIGALRM, old)
+
+
+def run_in_process(argv: list[str]) -> tuple[int, str, str]:
+    """``planner.cli.main(argv)``: (exit status, stdout, stderr); an escaping exception or a hang fails the test."""
+    out, err = io.StringIO(), io.StringIO()
+    with (contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), warnings.catch_warnings(),
+          np.errstate(all="ignore"), deadline(DEADLINE)):
+        warnings.simplefilter("ignore")  # reader warnings are printed by the CLI; checked below on stdout
+        try:
+            rc = main(argv)
+        except Hang as exc:
+            pytest.fail(f"hang: planner {' '.join(argv)}: {exc}")
+        except BaseException:  # noqa: BLE001 - the contract: nothing escapes main
+            pytest.fail(f"traceback from planner {' '.join(argv)}:\n{traceback.format_exc()}")
+    return rc, out.getvalue(), err.getvalue()
+
+
+def check_output(path: Path, stdout: str) -> None:
+    """The output file at ``path`` is valid and complete (parsed back whole)."""
+    suffix = path.suffix
+    if suffix == ".csv":
+        text = path.read_text()
+        assert text.endswith("\n")
+        rows = [r for r in text.splitlines() if not r.startswith("#")]
+        header = rows[0].split(",")
+        assert header[:7] == ["t", "x", "y", "z", "rx", "ry", "rz"], header
+        cols = [r.split(",") for r in rows[1:]]
+        assert cols and all(len(c) == len(header) for c in cols)
+        pose = np.array([[float(x) for x in c[:7]] for c in cols])
+        _check_samples(pose, stdout, path)
+    elif suffix == ".json":
+        doc = json.loads(path.read_text())
+        assert doc["format"] == "planner-trajectory/1"
+        assert doc["columns"][:7] == ["t", "x", "y", "z", "rx", "ry", "rz"]
+        samples = doc["samples"]
+        assert doc["parameters"]["samples"] == len(samples)
+        assert all(len(s) == len(doc["columns"]) for s in samples)
+        _check_samples(np.array([s[:7] for s in samples], dtype=float), stdout, path)
+    elif suffix == ".job":
+        from planner.job import load_job
+
+        job = load_job(path)
+        assert f"wrote     {path} ({path.stat().st_size} bytes)" in stdout
+        assert math.isfinite(job.duration) and job.duration >= 0.0
+    elif suffix == ".script":
+        from sim.urscript import compile_program
+
+        text = path.read_text()
+        assert text.startswith("def ") and text.rstrip().endswith("end")
+        assert compile_program(text)  # every statement in the exporter's subset, numbers parsed
+    else:
+        raise AssertionError(f"exit 0 with an output type the planner has no writer for: {path.name}")
+
+
+def _check_samples(pose: np.ndarray, stdout: str, path: Path) -> None:
+    assert pose.ndim == 2 and pose.shape[1] == 7 and len(pose) >= 1
+    assert np.isfinite(pose).all(), "non-finite pose in the output"
+    assert np.all(np.diff(pose[:, 0]) > 0.0), "times not increasing"
+    m = re.search(rf"wrote     {re.escape(str(path))} \((\d+) poses", stdout)
+    assert m and int(m.group(1)) == len(pose), "the output holds fewer poses than reported"
+
+
+def check_contract(input_path: Path, argv: list[str], out: Path, rc: int, stdout: str, stderr: str) -> None:
+    cmd = f"planner {' '.join(argv)}"
+    left = sorted(p.name for p in out.parent.iterdir())
+    assert "Traceback" not in stderr + stdout, cmd
+    assert "encountered in" not in stdout, f"a numpy warning reached the user: {cmd}\n{stdout}"
+    if rc == 0:
+        assert left == sorted({input_path.name, out.name}), f"{cmd}: files left {left}"
+        assert stderr == "", f"{cmd}: exit 0 with stderr {stderr!r}"
+        check_output(out, stdout)
+    else:
+        assert rc in (2, 3), f"{cmd}: exit {rc}\n{stderr}"
+        assert stderr.count("\n") == 1 and stderr.endswith("\n"), f"{cmd}: stderr is not one line:\n{stderr}"
+        prefix = "planner: error: " if rc == 2 else "planner: internal error: "
+        assert stderr.startswith(prefix) or (rc == 2 and stderr.startswith("planner plan: error: ")), stderr
+        assert left == [input_path.name], f"{cmd}: exit {rc} and files left {left}"
+
+
+def _fuzz_one(fmt: str, ops, opts, suffix: str) -> None:
+    name, seed, fixed = SEEDS[fmt]
+    data = mutate(seed, ops)
+    with tempfile.TemporaryDirectory(prefix="fuzz-") as tmp:
+        src = Path(tmp) / name
+        src.write_bytes(data)
+        out = Path(tmp) / f"out{suffix}"
+        flags = dict(opts)
+        argv = ["plan", str(src), *fixed, "--max-poses", flags.pop("--max-poses", MAX_POSES), "-o", str(out)]
+        for flag, value in flags.items():
+            if flag == "--machine" and "--machine" in fixed:
+                continue
+            argv += [f"{flag}={value}"]
+        if suffix == ".script":
+            argv += ["--robot", "ur5e", "--part-frame", "0.4,0.9965,-0.1,0,0,0"]
+        rc, stdout, stderr = run_in_process(argv)
+        check_contract(src, argv, out, rc, stdout, stderr)
+
+
+FUZZ_SETTINGS = settings(max_examples=EXAMPLES, deadline=None, derandomize=not FUZZ,
+                         suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+
+
+@pytest.mark.parametrize("fmt", sorted(SEEDS))
+@FUZZ_SETTINGS
+@given(ops=st.lists(mutation, min_size=1, max_size=4), opts=options, suffix=outputs)
+def test_mutated_inputs_keep_the_contract(fmt, ops, opts, suffix):
+    _fuzz_one(fmt, ops, opts, suffix)
+
+
+@pytest.mark.parametrize("fmt", sorted(SEEDS))
+def test_every_seed_plans_unmutated(fmt):
+    """The seeds themselves plan (exit 0): the mutations start from valid inputs."""
+    _fuzz_one(fmt, [], (), ".csv")
+
+
+@pytest.mark.parametrize("fmt, ops, opts, suffix", [
+    ("csv", [("field", 0.5, 0, "1e308")], (), ".json"),
+    ("cls", [("truncate", 0.55)], (), ".csv"),
+    ("gcode", [("scale", 0.3, 0.9, 1e6)], (), ".csv"),
+    ("json", [("field", 0.3, 2, "nan")], (("--units", "m"),), ".csv"),
+    ("apt", [("duplicate", 0.4, 3)], (("--feed", "-5"),), ".csv"),
+])
+def test_through_a_subprocess(fmt, ops, opts, suffix):
+    """A few through ``python -m planner.cli``: stderr is the process's own (warnings, tracebacks, exit status)."""
+    name, seed, fixed = SEEDS[fmt]
+    with tempfile.TemporaryDirectory(prefix="fuzz-") as tmp:
+        src = Path(tmp) / name
+        src.write_bytes(mutate(seed, ops))
+        out = Path(tmp) / f"out{suffix}"
+        argv = ["plan", str(src), *fixed, "--max-poses", MAX_POSES, "-o", str(out), *[f"{k}={v}" for k, v in opts]]
+        p = subprocess.run([sys.executable, "-m", "planner.cli", *argv], capture_output=True, text=True,
+                           timeout=DEADLINE + 30, cwd=tmp, env={**os.environ, "PYTHONWARNINGS": "default"})
+        check_contract(src, argv, out, p.returncode, p.stdout, p.stderr)
