@@ -210,6 +210,9 @@ class PlannedJob:
         Why the arm starts on another configuration than the one of least joint travel ("" if not).
     warnings : tuple of str
         What the reader and the planner warned about, one line each, naming the place.
+    placement : Placement or None
+        With ``part_frame="auto"``: the frame found and its margins (:mod:`planner.cam.placement`); the
+        settings carry the frame.
     """
 
     source: str
@@ -224,6 +227,7 @@ class PlannedJob:
     start_joints: np.ndarray | None = None
     start_note: str = ""
     warnings: tuple = ()
+    placement: object = None
 
     # -- figures -------------------------------------------------------------------------------
     @property
@@ -340,6 +344,11 @@ class PlannedJob:
         }
         if self.settings.robot is not None:
             out["robot"] = self.settings.robot
+            if self.placement is not None:
+                out["part_frame_auto"] = {"part_frame": list(self.placement.part_frame),
+                                          "option": self.placement.option,
+                                          "singularity_margin": self.placement.singularity_margin,
+                                          "joint_margin_deg": math.degrees(self.placement.joint_margin)}
             out["reachable"] = not self.problems
             out["unreachable_passes"] = [p.index for p in self.passes if p.reachable is False]
             out["slowed_passes"] = [p.index for p in self.passes if p.feed_caps]
@@ -387,6 +396,8 @@ class PlannedJob:
             f"  motion    {s['duration_s']:.1f} s, planned in {s['planning_s']:.2f} s",
         ]
         if self.settings.robot is not None:
+            if self.placement is not None:
+                lines.append(f"  placed    {self.placement.describe()}")
             if self.slowed:
                 n = len(self.slowed)
                 lines.append(f"  slowed    feed lowered for the joint speed limits on {n} stretch{'es' * (n > 1)}")

@@ -229,7 +229,19 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
     if progress is not None:
         progress("moves", len(seg.moves), len(seg.moves))
     timings["plan"] = time.perf_counter() - t_plan
-    job = PlannedJob(tp.source, s, tp, seg, tuple(moves), tuple(reports), timings, warnings=tuple(caught))
+    placement = None
+    if isinstance(s.part_frame, str):  # "auto": the part placed for the robot, then checked like any frame
+        from planner.cam.placement import place_part
+
+        assert s.robot is not None  # PlanSettings.checked() refuses "auto" without a robot
+        if progress is not None:
+            progress("place", 0, 1)
+        tic = time.perf_counter()
+        placement = place_part(moves, s.robot, s.tcp, source=tp.source)
+        timings["place"] = time.perf_counter() - tic
+        s = replace(s, part_frame=placement.part_frame)
+    job = PlannedJob(tp.source, s, tp, seg, tuple(moves), tuple(reports), timings, warnings=tuple(caught),
+                     placement=placement)
     if s.robot is not None:
         from planner.cam.reach import check_job
 
@@ -246,7 +258,7 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
                            feed_caps=caps.get(r.index, ()), duration=duration[r.index]) for r in reports]
         moves = _with_reconfigurations(moves, reach.reconfigurations, s)
         job = PlannedJob(tp.source, s, tp, seg, tuple(moves), tuple(reports), timings, tuple(reach.problems),
-                         tuple(reach.slowed), reach.start_joints, reach.start_note, tuple(caught))
+                         tuple(reach.slowed), reach.start_joints, reach.start_note, tuple(caught), placement)
         if progress is not None:
             progress("reach", 1, 1)
     return job

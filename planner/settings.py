@@ -93,8 +93,11 @@ class PlanSettings:
     robot : str or None
         UR model ("ur3e", "ur5e", "ur10e", "ur16e", "ur20") for inverse kinematics, joint limits and the
         programs; None (default) plans without a robot.
-    part_frame : tuple (6,) or None
-        The part (CAM) frame in the robot base frame, p[x, y, z, rx, ry, rz] (m, rotation vector).
+    part_frame : tuple (6,), "auto" or None
+        The part (CAM) frame in the robot base frame, p[x, y, z, rx, ry, rz] (m, rotation vector); "auto"
+        (with a robot) places the part for it: the translation and turn about the base z with the largest
+        singularity and joint-limit margin over the job (:mod:`planner.cam.placement`), the planned job's
+        settings then carry the frame found (reusable as the value).
     tcp : tuple (6,) or None
         The tool centre point in the flange frame.
     feed_floor : float
@@ -130,7 +133,7 @@ class PlanSettings:
     joint_limits: MotionLimits = DEFAULT_JOINT_LIMITS
     rate: float = 500.0
     robot: str | None = None
-    part_frame: tuple | None = None
+    part_frame: tuple | str | None = None
     tcp: tuple | None = None
     feed_floor: float = DEFAULT_FLOOR
     reach_step: float = 2e-3
@@ -162,7 +165,14 @@ class PlanSettings:
             if not isinstance(getattr(s, name), MotionLimits):
                 kind = type(getattr(s, name)).__name__
                 raise PlannerError(f"{name} must be a planner.motion.MotionLimits, got {kind}")
-        poses = {name: _pose(getattr(s, name), name) for name in ("part_frame", "tcp")}
+        auto = isinstance(s.part_frame, str) and s.part_frame == "auto"
+        if isinstance(s.part_frame, str) and not auto:
+            raise PlannerError(f"part_frame must be 6 numbers (x, y, z, rx, ry, rz in m, rad), a 4x4 transform, 'auto' "
+                               f"or None; got {s.part_frame!r}")
+        if auto and s.robot is None:
+            raise PlannerError("part_frame='auto' places the part for a robot: set robot (e.g. robot='ur5e')")
+        poses = {name: _pose(getattr(s, name), name) for name in (("tcp",) if auto else ("part_frame", "tcp"))}
+        poses.setdefault("part_frame", "auto")
         if s.robot is not None:
             from planner.kinematics import get_model
 
