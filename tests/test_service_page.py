@@ -5,6 +5,7 @@ the downloads, a refused input's message; the screenshot is checked to show the 
 from __future__ import annotations
 
 import io
+import json
 import shutil
 from pathlib import Path
 
@@ -21,7 +22,8 @@ CHROMEDRIVER = shutil.which("chromedriver") or "/usr/bin/chromedriver"
 
 @pytest.fixture(scope="module")
 def server(tmp_path_factory):
-    s = ServiceProcess(tmp_path_factory.mktemp("page"), workers=1).start()
+    robots = {"sim": {"sim": True, "sim_speed": 20, "approach_speed": 2.0, "approach_acceleration": 3.0}}
+    s = ServiceProcess(tmp_path_factory.mktemp("page"), workers=1, env={"PLANNER_ROBOTS": json.dumps(robots)}).start()
     yield s
     assert s.stop() == 0, s.log.read_text()
 
@@ -41,6 +43,12 @@ def browser():
     driver = webdriver.Chrome(service=Service(executable_path=CHROMEDRIVER), options=options)
     yield driver
     driver.quit()
+
+
+def _executions(client):
+    r = client.get("/v1/executions")
+    assert r.status_code == 200, r.text
+    return r.json()["executions"]
 
 
 def wait(driver, condition, timeout: float = 90.0):
@@ -90,8 +98,8 @@ def test_paste_waypoints_watch_the_job_and_see_the_plot(server, browser, tmp_pat
     colours = len(np.unique(region.reshape(-1, 3), axis=0))
     assert colours > 200, f"the plot region has only {colours} colours"
     assert (region.min(axis=2) < 128).mean() > 0.005  # lines and text drawn on it
-    d.find_element("id", "execute").click()
-    wait(d, lambda d: "not yet available" in d.find_element("id", "execute-result").text)
+    d.find_element("id", "execute").click()  # planned without a robot: the API's refusal on the page
+    wait(d, lambda d: "planned without a robot model" in d.find_element("id", "execute-result").text)
 
 
 def test_upload_a_clsf_file_for_a_robot_and_a_refused_input(server, browser):
@@ -106,6 +114,24 @@ def test_upload_a_clsf_file_for_a_robot_and_a_refused_input(server, browser):
     assert until_done(d) == "done", d.find_element("id", "job-error").text
     assert "ur5e: every move reachable" in d.find_element("id", "summary").text
     wait(d, lambda d: len(d.find_elements("id", "download-script")) == 1)
+    # run it on the simulated robot (program mode, fast-forward): progress, then the execution report
+    assert d.find_element("id", "exec-robot").text.strip() == "sim (simulated)"
+    d.find_element("id", "execute").click()
+    wait(d, lambda d: d.find_element("id", "exec-state").text in ("starting", "running", "done"), 30)
+    seen = set()
+    wait(d, lambda d: seen.add((d.find_element("id", "exec-state").text,
+                                d.find_element("id", "exec-stage").text)) or
+         d.find_element("id", "exec-state").text in ("done", "failed", "cancelled"), 120)
+    assert d.find_element("id", "exec-state").text == "done", d.find_element("id", "execute-result").text
+    assert any(state == "running" and "execute" in stage for state, stage in seen), seen
+    report = d.find_element("id", "exec-report").text
+    job_id = d.find_element("id", "job-id").text
+    with server.client() as c:
+        runs = [e for e in _executions(c) if e["job_id"] == job_id]
+    assert len(runs) == 1 and runs[0]["state"] == "done"
+    assert report.splitlines() == runs[0]["report"]["describe"]
+    assert report.startswith("execution (program): ok")
+    assert float(d.find_element("id", "exec-progress").get_attribute("value")) == 1.0
     # a refused input: the API's 422 message, naming the field, on the page
     d.find_element("id", "tab-points").click()
     d.find_element("id", "points").send_keys("0, 0, 0\n0, 0, 0\n100, 0, 0")

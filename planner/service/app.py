@@ -34,6 +34,7 @@ from starlette.datastructures import UploadFile
 from planner.errors import PlannerError
 from planner.service.auth import DEV_PRINCIPAL, Principal, authenticate
 from planner.service.config import ServiceConfig
+from planner.service.execution_runs import Executions
 from planner.service.metrics import Metrics
 from planner.service.schemas import JobCreated, JobList, JobView, ReadOptions, SettingsModel, WaypointJob
 from planner.service.store import Job, now, open_store
@@ -115,16 +116,19 @@ class Service:
         self.pool = WorkerPool(self.sessions, cfg, self.metrics)
         self.inserter = Inserter(self.pool)
         self.plot_lock = threading.Lock()
+        self.executions = Executions(self.sessions, cfg, self.pool.write_lock)
 
     def start(self) -> dict:
         self.cfg.data_dir.mkdir(parents=True, exist_ok=True)
         (self.cfg.data_dir / "jobs").mkdir(exist_ok=True)
         recovered = recover(self.sessions, self.cfg)
+        recovered["executions_failed"] = self.executions.recover()
         self.inserter.start()
         self.pool.start()
         return recovered
 
     def stop(self) -> None:
+        self.executions.shutdown()
         self.inserter.stop()
         self.pool.stop()
         self.engine.dispose()

@@ -1,19 +1,27 @@
-"""Robot executions (issue 14's driver layer): the seam of the routes, answering 501 until the drivers land.
-
-``POST /v1/jobs/{id}/executions`` will run a done job on a robot the operator configured (by name; a request
-never carries a host), one execution per robot at a time; ``GET /v1/executions/{id}`` its progress and report.
-Only keys of the ``operator`` role may execute: a planner key gets 403 already.
+"""Robot executions: ``POST /v1/jobs/{id}/executions`` runs a done job on a robot the operator configured
+(:class:`planner.service.config.RobotConfig`, by name: a request never carries a host), one execution per robot at
+a time; ``GET /v1/executions/{id}`` shows its state, progress and the execution report's figures (or the failure's
+reason, job time, pose and source line); ``DELETE /v1/executions/{id}`` stops it (the arm stopped within a
+second); ``GET /v1/robots`` lists the configured robots. Only keys of the ``operator`` role may execute or stop.
+The runs themselves: :mod:`planner.service.execution_runs`.
 """
 
 from __future__ import annotations
 
+import json
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, HTTPException, Request
+from fastapi import APIRouter, Depends, HTTPException, Query, Request
+from fastapi.responses import JSONResponse
+from sqlalchemy import select
 
 from planner.service.auth import Principal
+from planner.service.execution_runs import STOP_GRACE, RobotBusy
+from planner.service.schemas import ExecutionCreated, ExecutionList, ExecutionRequest, ExecutionView, RobotList
+from planner.service.store import ACTIVE_EXECUTION_STATES, Execution
 
 router = APIRouter(tags=["executions"])
+API = "/v1"
 
 
 async def _caller(request: Request) -> Principal:
@@ -24,26 +32,126 @@ async def _caller(request: Request) -> Principal:
 
 Caller = Annotated[Principal, Depends(_caller)]
 
-NOT_YET = "robot executions are not yet available in this service (the driver layer is being added)"
-
 
 def require_operator(who: Principal) -> None:
     if who.role != "operator":
         raise HTTPException(403, "running a job on a robot needs a key of the operator role")
 
 
-@router.post("/jobs/{job_id}/executions", status_code=202, responses={403: {"description": "not an operator key"},
-                                                                      501: {"description": "not yet available"}})
-def create_execution(request: Request, job_id: str, who: Caller) -> None:
-    """Run a done job on a configured robot (not yet available: 501)."""
+def _unprocessable(loc: list, msg: str) -> HTTPException:
+    return HTTPException(422, [{"loc": loc, "msg": msg, "type": "value_error"}])
+
+
+def execution_view(row: Execution) -> dict:
+    """The JSON of ``GET /v1/executions/{id}``."""
+    error = None
+    if row.error is not None:
+        error = {"kind": row.error_kind or "", "reason": row.error, "t": row.error_t,
+                 "pose": None if row.error_pose is None else json.loads(row.error_pose), "line": row.error_line}
+    return {"id": row.id, "job_id": row.job_id, "robot": row.robot, "mode": row.mode, "state": row.state,
+            "created_at": row.created_at, "started_at": row.started_at, "finished_at": row.finished_at,
+            "progress": {"stage": row.stage, "done": row.done, "total": row.total},
+            "report": None if row.report is None else json.loads(row.report), "error": error, "note": row.note,
+            "links": {"self": f"{API}/executions/{row.id}", "job": f"{API}/jobs/{row.job_id}"}}
+
+
+def own_execution(request: Request, who: Principal, execution_id: str) -> Execution:
+    """The caller's execution, or 404 (also for another key's: its existence is not revealed)."""
+    from planner.service.app import _JOB_ID, _service
+
+    if _JOB_ID.match(execution_id):
+        with _service(request).sessions() as s:
+            row = s.scalars(select(Execution).where(Execution.id == execution_id,
+                                                    Execution.owner == who.key_id)).first()
+        if row is not None:
+            return row
+    raise HTTPException(404, f"no execution {execution_id}")
+
+
+@router.post("/jobs/{job_id}/executions", status_code=202, response_model=ExecutionCreated,
+             responses={403: {"description": "not an operator key"}, 404: {"description": "no such job of this key"},
+                        409: {"description": "job not done, planned without a robot, or the robot is busy"},
+                        422: {"description": "unknown robot, or a robot of another model"}})
+def create_execution(request: Request, job_id: str, body: ExecutionRequest, who: Caller) -> JSONResponse:
+    """Run a done job on a configured robot (by name), in "stream" (servoJ) or "program" (URScript) mode."""
     from planner.service.app import _service, own_job
+    from planner.service.workers import job_dir
 
     require_operator(who)
-    own_job(_service(request), who, job_id)
-    raise HTTPException(501, NOT_YET)
+    svc = _service(request)
+    job = own_job(svc, who, job_id)
+    robot = svc.cfg.robot(body.robot)
+    if robot is None:
+        names = ", ".join(r.name for r in svc.cfg.robots)
+        raise _unprocessable(["body", "robot"], f"no robot named {body.robot!r} in this service's configuration "
+                                                f"(configured: {names})")
+    if job.state != "done" or not job.job_file:
+        raise HTTPException(409, f"job {job_id} is {job.state}; only a done job can be executed")
+    model = json.loads(job.settings).get("robot")
+    if not model:
+        raise HTTPException(409, f"job {job_id} was planned without a robot model (settings.robot); plan it for "
+                                 "the robot to execute it")
+    if robot.model is not None and robot.model != model:
+        raise _unprocessable(["body", "robot"], f"robot {robot.name!r} is a {robot.model}; job {job_id} is planned "
+                                                f"for a {model}")
+    try:
+        execution_id = svc.executions.create(who.key_id, job.id, str(job_dir(svc.cfg, job.id) / job.job_file), robot,
+                                             body.mode)
+    except RobotBusy:
+        raise HTTPException(409, f"robot {robot.name!r} is busy with another execution; one execution per robot "
+                                 "at a time") from None
+    location = f"{API}/executions/{execution_id}"
+    return JSONResponse({"id": execution_id, "state": "starting", "location": location}, status_code=202,
+                        headers={"Location": location})
 
 
-@router.get("/executions/{execution_id}", responses={501: {"description": "not yet available"}})
-def get_execution(execution_id: str, who: Caller) -> None:
-    """An execution's progress and report (not yet available: 501)."""
-    raise HTTPException(501, NOT_YET)
+@router.get("/executions", response_model=ExecutionList)
+def list_executions(request: Request, who: Caller, limit: Annotated[int, Query(ge=1, le=500)] = 50,
+                    job_id: Annotated[str | None, Query(max_length=32, description="only this job's")] = None
+                    ) -> dict:
+    """The caller's executions, newest first."""
+    from planner.service.app import _service
+
+    q = select(Execution).where(Execution.owner == who.key_id)
+    if job_id is not None:
+        q = q.where(Execution.job_id == job_id)
+    with _service(request).sessions() as s:
+        rows = list(s.scalars(q.order_by(Execution.seq.desc()).limit(limit)))
+    return {"executions": [execution_view(r) for r in rows]}
+
+
+@router.get("/executions/{execution_id}", response_model=ExecutionView,
+            responses={404: {"description": "no such execution of this key"}})
+def get_execution(request: Request, execution_id: str, who: Caller) -> dict:
+    """An execution's state, progress, report figures and failure (reason, job time, pose, source line)."""
+    return execution_view(own_execution(request, who, execution_id))
+
+
+@router.delete("/executions/{execution_id}", response_model=ExecutionView,
+               responses={403: {"description": "not an operator key"},
+                          404: {"description": "no such execution of this key"},
+                          409: {"description": "the execution has ended"}})
+def stop_execution(request: Request, execution_id: str, who: Caller) -> dict:
+    """Stop an execution: the arm is brought to rest (controlled stop) and the job's outputs switched off; answers
+    once the execution has ended (a few seconds at most)."""
+    from planner.service.app import _service
+
+    require_operator(who)
+    row = own_execution(request, who, execution_id)
+    if row.state not in ACTIVE_EXECUTION_STATES:
+        raise HTTPException(409, f"execution {execution_id} is {row.state}; only a running one can be stopped")
+    svc = _service(request)
+    if svc.executions.stop(row.id):
+        svc.executions.wait(row.id, STOP_GRACE + 5.0)
+    return execution_view(own_execution(request, who, execution_id))
+
+
+@router.get("/robots", response_model=RobotList)
+def list_robots(request: Request, who: Caller) -> dict:
+    """The robots jobs can be executed on: name, model (null: a simulated robot of the job's model), simulated,
+    busy."""
+    from planner.service.app import _service
+
+    svc = _service(request)
+    return {"robots": [{"name": r.name, "model": r.model, "simulated": r.simulated, "mode_default": "stream",
+                        "busy": svc.executions.busy(r.name)} for r in svc.cfg.robots]}

@@ -102,8 +102,19 @@ PAGE = r"""<!doctype html>
       <div id="job-error" style="color: var(--bad)"></div>
       <div id="downloads"></div>
       <pre id="summary" class="hidden"></pre>
-      <button id="execute" type="button" class="hidden">Run on the simulated robot</button>
-      <span id="execute-result"></span>
+      <div id="run" class="hidden">
+        <div class="row" style="grid-template-columns: 1fr 1fr auto auto; align-items: end">
+          <div><label for="exec-robot">robot</label><select id="exec-robot"><option>sim</option></select></div>
+          <div><label for="exec-mode">mode</label><select id="exec-mode"><option value="program">program (URScript)</option>
+            <option value="stream">stream (servoJ)</option></select></div>
+          <button id="execute" type="button">Run on the robot</button>
+          <button id="exec-stop" type="button" class="hidden">Stop</button>
+        </div>
+        <div>execution: <b id="exec-state"></b> <span id="exec-stage"></span></div>
+        <progress id="exec-progress" max="1" value="0"></progress>
+        <div id="execute-result" style="color: var(--bad)"></div>
+        <pre id="exec-report" class="hidden"></pre>
+      </div>
       <img id="plot" alt="plot of the planned job">
     </div>
   </section>
@@ -111,7 +122,7 @@ PAGE = r"""<!doctype html>
 <script>
 "use strict";
 const $ = (id) => document.getElementById(id);
-let current = null, timer = null, devMode = false;
+let current = null, timer = null, devMode = false, execution = null, execTimer = null;
 $("apikey").value = localStorage.getItem("planner-key") || "";
 $("apikey").addEventListener("change", () => { localStorage.setItem("planner-key", $("apikey").value); listJobs(); });
 
@@ -212,7 +223,9 @@ function show(id) {
   $("job-id").textContent = id;
   $("plot").style.display = "none"; $("plot").removeAttribute("src");
   $("summary").classList.add("hidden"); $("downloads").innerHTML = ""; $("job-error").textContent = "";
-  $("execute").classList.add("hidden"); $("execute-result").textContent = "";
+  $("run").classList.add("hidden"); $("execute-result").textContent = ""; $("exec-report").classList.add("hidden");
+  $("exec-state").textContent = ""; $("exec-stage").textContent = ""; $("exec-progress").value = 0;
+  $("exec-stop").classList.add("hidden"); execution = null; if (execTimer) clearTimeout(execTimer);
   if (timer) clearTimeout(timer);
   poll();
 }
@@ -241,7 +254,8 @@ async function poll() {
     a.onclick = (ev) => { ev.preventDefault(); download(v.links[fmt], `${stem}.${fmt}`).catch((e) => { $("job-error").textContent = e.message; }); };
     $("downloads").appendChild(a);
   }
-  $("execute").classList.remove("hidden");
+  $("run").classList.remove("hidden");
+  listRobots();
   try {
     const blob = await (await api(v.links.plot)).blob();
     if (id !== current) return;
@@ -253,13 +267,56 @@ $("cancel").onclick = async () => {
   try { await api("/v1/jobs/" + current, {method: "DELETE"}); } catch (e) { $("job-error").textContent = e.message; }
   poll();
 };
-$("execute").onclick = async () => {
+async function listRobots() {
   try {
-    await api(`/v1/jobs/${current}/executions`, {method: "POST", body: JSON.stringify({robot: "sim"}),
-                                                  headers: {"Content-Type": "application/json"}});
-    $("execute-result").textContent = "started";
+    const robots = (await (await api("/v1/robots")).json()).robots;
+    const sel = $("exec-robot"), keep = sel.value;
+    sel.innerHTML = "";
+    for (const r of robots) {
+      const o = document.createElement("option");
+      o.value = r.name; o.textContent = r.name + (r.simulated ? " (simulated)" : " (" + r.model + ")") + (r.busy ? ", busy" : "");
+      sel.appendChild(o);
+    }
+    if (robots.some((r) => r.name === keep)) sel.value = keep;
+  } catch (e) { /* no key yet */ }
+}
+$("execute").onclick = async () => {
+  $("execute-result").textContent = ""; $("exec-report").classList.add("hidden");
+  try {
+    const r = await api(`/v1/jobs/${current}/executions`, {method: "POST",
+      body: JSON.stringify({robot: $("exec-robot").value, mode: $("exec-mode").value}),
+      headers: {"Content-Type": "application/json"}});
+    execution = (await r.json()).id;
+    pollExecution();
   } catch (e) { $("execute-result").textContent = e.message; }
 };
+$("exec-stop").onclick = async () => {
+  try { await api("/v1/executions/" + execution, {method: "DELETE"}); } catch (e) { $("execute-result").textContent = e.message; }
+};
+async function pollExecution() {
+  const id = execution;
+  if (!id) return;
+  let v;
+  try { v = await (await api("/v1/executions/" + id)).json(); } catch (e) { $("execute-result").textContent = e.message; return; }
+  if (id !== execution) return;
+  const active = ["starting", "running", "stopping"].includes(v.state);
+  $("exec-state").textContent = v.state;
+  $("exec-state").className = "state-" + v.state;
+  $("exec-stage").textContent = v.progress.total ? `(${v.progress.stage} ${v.progress.done}/${v.progress.total})` : `(${v.progress.stage})`;
+  $("exec-progress").value = v.state === "done" ? 1 : (v.progress.total ? v.progress.done / v.progress.total : 0);
+  $("exec-stop").classList.toggle("hidden", !active);
+  $("execute").disabled = active;
+  if (active) { execTimer = setTimeout(pollExecution, 300); return; }
+  if (v.error) {
+    const e = v.error, where = [];
+    if (e.t !== null) where.push(`t = ${e.t.toFixed(3)} s`);
+    if (e.line !== null) where.push(`source line ${e.line}`);
+    if (e.pose) where.push("pose p[" + e.pose.map((x) => x.toFixed(4)).join(", ") + "]");
+    $("execute-result").textContent = `${e.kind}: ${e.reason}` + (where.length ? ` (${where.join(", ")})` : "");
+  }
+  if (v.report) { $("exec-report").textContent = v.report.describe.join("\n"); $("exec-report").classList.remove("hidden"); }
+  listRobots();
+}
 async function listJobs() {
   try {
     const page = await (await api("/v1/jobs?limit=20")).json();

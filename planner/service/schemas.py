@@ -141,3 +141,60 @@ class JobCreated(BaseModel):
 class JobList(BaseModel):
     jobs: list[JobView]
     next_cursor: int | None
+
+
+class ExecutionRequest(Strict):
+    """Run a done job on a configured robot."""
+
+    robot: str = Field(max_length=32, description="a robot name from the service's configuration (GET /v1/robots)")
+    mode: Literal["stream", "program"] = Field(
+        default="stream", description="stream: servoJ with the planner's joints at the job's rate; program: the "
+                                      "job's URScript program on the controller")
+
+
+class ExecutionCreated(BaseModel):
+    id: str
+    state: str
+    location: str
+
+
+class ExecutionError(BaseModel):
+    kind: str
+    reason: str
+    t: float | None = Field(description="job time of the failure, s")
+    pose: list[float] | None = Field(description="planned TCP pose there, p[x, y, z, rx, ry, rz] (m, rad)")
+    line: int | None = Field(description="source line of the toolpath being carried out")
+
+
+class ExecutionView(BaseModel):
+    """An execution as ``GET /v1/executions/{id}`` shows it."""
+
+    id: str
+    job_id: str
+    robot: str
+    mode: str
+    state: str
+    created_at: float
+    started_at: float | None
+    finished_at: float | None
+    progress: Progress
+    report: dict | None
+    error: ExecutionError | None
+    note: str | None
+    links: dict
+
+
+class ExecutionList(BaseModel):
+    executions: list[ExecutionView]
+
+
+class RobotView(BaseModel):
+    name: str
+    model: str | None
+    simulated: bool
+    mode_default: str
+    busy: bool
+
+
+class RobotList(BaseModel):
+    robots: list[RobotView]

@@ -18,6 +18,7 @@ from sqlalchemy import (
     Text,
     create_engine,
     event,
+    text,
 )
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, sessionmaker
@@ -28,6 +29,11 @@ from planner.service.config import ROLES  # noqa: F401  (re-exported: the roles 
 STATES = ("queued", "running", "done", "failed", "cancelled")
 #: States a job never leaves.
 FINAL_STATES = ("done", "failed", "cancelled")
+#: Execution states: starting (process, controller, approach), running, stopping (a stop was asked), and the ends.
+EXECUTION_STATES = ("starting", "running", "stopping", "done", "failed", "cancelled")
+#: States in which an execution holds its robot (at most one per robot: a partial unique index).
+ACTIVE_EXECUTION_STATES = ("starting", "running", "stopping")
+_ACTIVE = text("state IN ('starting', 'running', 'stopping')")
 #: The owner of jobs in development mode (PLANNER_DEV_NO_AUTH=1).
 DEV_OWNER = "dev"
 
@@ -80,6 +86,36 @@ class Job(Base):
     note: Mapped[str | None] = mapped_column(Text, nullable=True)  # e.g. "re-run after a restart of the service"
 
     __table_args__ = (Index("ix_jobs_owner_seq", "owner", "seq"), Index("ix_jobs_state_seq", "state", "seq"))
+
+
+class Execution(Base):
+    """A run of a done job on a configured robot (times are Unix seconds; the report is JSON of its figures)."""
+
+    __tablename__ = "executions"
+    seq: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
+    id: Mapped[str] = mapped_column(String(32), unique=True)
+    job_id: Mapped[str] = mapped_column(String(32))
+    owner: Mapped[str] = mapped_column(String(32))
+    robot: Mapped[str] = mapped_column(String(32))  # a configured robot's name
+    mode: Mapped[str] = mapped_column(String(16))  # "stream" or "program"
+    state: Mapped[str] = mapped_column(String(16))
+    created_at: Mapped[float] = mapped_column(Float)
+    started_at: Mapped[float | None] = mapped_column(Float, nullable=True)  # the run itself (after the approach)
+    finished_at: Mapped[float | None] = mapped_column(Float, nullable=True)
+    stage: Mapped[str] = mapped_column(String(32), default="")
+    done: Mapped[int] = mapped_column(Integer, default=0)
+    total: Mapped[int] = mapped_column(Integer, default=0)
+    report: Mapped[str | None] = mapped_column(Text, nullable=True)  # JSON of the ExecutionReport's figures
+    error_kind: Mapped[str | None] = mapped_column(String(32), nullable=True)  # DriverError.kind, interrupted, internal
+    error: Mapped[str | None] = mapped_column(Text, nullable=True)  # the robot's reason
+    error_t: Mapped[float | None] = mapped_column(Float, nullable=True)  # job time of the failure, s
+    error_pose: Mapped[str | None] = mapped_column(Text, nullable=True)  # JSON p[x, y, z, rx, ry, rz], m, rad
+    error_line: Mapped[int | None] = mapped_column(Integer, nullable=True)  # source line being carried out
+    note: Mapped[str | None] = mapped_column(Text, nullable=True)
+
+    __table_args__ = (Index("ix_executions_owner_seq", "owner", "seq"),
+                      Index("ux_executions_robot_active", "robot", unique=True, sqlite_where=_ACTIVE,
+                            postgresql_where=_ACTIVE))
 
 
 def make_engine(url: str) -> Engine:

@@ -1,0 +1,240 @@
+"""Executions through a real service (uvicorn on 127.0.0.1, API keys) into real simulated controllers: the
+configured "sim" robot (a SimController started per execution, program mode in fast-forward) and "cell", a
+SimController this module starts on its own loopback address (the service knows it only by name). The report's
+figures, one execution per robot, refusals, a stop that brings the arm to rest within a second, and an execution
+interrupted by a crash of the service."""
+
+from __future__ import annotations
+
+import json
+import threading
+import time
+
+import numpy as np
+import pytest
+import rtde_receive
+
+from tests.sim_fixtures import start_sim
+from tests.test_service_server import ServiceProcess, wait_state
+
+DEMO = "examples/nx_first_pass.cls"
+PART = [0.4, 0.9965, -0.1, 0.0, 0.0, 0.0]
+#: The demo pass at 4x its feed (16 s of motion), outputs on standard[0] while cutting.
+SETTINGS = {"robot": "ur5e", "part_frame": PART, "cut_output": ["standard", 0], "feed_override": 4.0}
+FAST = {"approach_speed": 2.0, "approach_acceleration": 3.0}
+ENDED = ("done", "failed", "cancelled")
+
+
+@pytest.fixture(scope="module")
+def cell():
+    sim = start_sim(model="ur5e")
+    yield sim
+    sim.stop()
+
+
+def _robots(cell) -> str:
+    return json.dumps({"sim": {"sim": True, "sim_speed": 10, **FAST},
+                       "cell": {"host": cell.host, "model": "ur5e", **FAST},
+                       "big": {"host": "127.0.0.1", "model": "ur10e"}})
+
+
+@pytest.fixture(scope="module")
+def server(tmp_path_factory, cell):
+    s = ServiceProcess(tmp_path_factory.mktemp("executions"), workers=1, dev=False,
+                       env={"PLANNER_ROBOTS": _robots(cell)}).start()
+    s.operator = s.keys("create", "--name", "cell operator", "--role", "operator").split("key ")[1].split()[0]
+    s.other = s.keys("create", "--name", "other operator", "--role", "operator").split("key ")[1].split()[0]
+    s.planner = s.keys("create", "--name", "cam station", "--role", "planner").split("key ")[1].split()[0]
+    yield s
+    assert s.stop() == 0, s.log.read_text()
+
+
+@pytest.fixture(scope="module")
+def op(server):
+    with server.client(server.operator) as c:
+        yield c
+
+
+@pytest.fixture(scope="module")
+def demo_job(op):
+    """A done job of the demo pass for the ur5e (its id)."""
+    with open(DEMO, "rb") as f:
+        r = op.post("/v1/jobs", files={"file": ("nx_first_pass.cls", f)}, data={"settings": json.dumps(SETTINGS)})
+    assert r.status_code == 202, r.text
+    view = wait_state(op, r.json()["id"])
+    assert view["state"] == "done", view["error"]
+    return view
+
+
+def wait_execution(client, execution_id: str, states=ENDED, timeout: float = 120.0) -> dict:
+    deadline = time.monotonic() + timeout
+    while True:
+        r = client.get(f"/v1/executions/{execution_id}")
+        assert r.status_code == 200, r.text
+        view = r.json()
+        if view["state"] in states:
+            return view
+        if time.monotonic() > deadline:
+            raise AssertionError(f"execution {execution_id} still {view['state']} after {timeout} s: {view}")
+        time.sleep(0.05)
+
+
+def _busy(client) -> dict[str, bool]:
+    return {r["name"]: r["busy"] for r in client.get("/v1/robots").json()["robots"]}
+
+
+def test_program_on_the_simulated_robot_follows_the_plan_and_holds_the_robot(op, demo_job):
+    job_id = demo_job["id"]
+    r = op.post(f"/v1/jobs/{job_id}/executions", json={"robot": "sim", "mode": "program"})
+    assert r.status_code == 202, r.text
+    eid = r.json()["id"]
+    assert r.headers["location"] == f"/v1/executions/{eid}"
+    # one execution per robot: a second one is refused while the first runs; another robot is free
+    again = op.post(f"/v1/jobs/{job_id}/executions", json={"robot": "sim", "mode": "program"})
+    assert again.status_code == 409 and "busy" in again.json()["detail"]
+    assert _busy(op) == {"sim": True, "cell": False, "big": False}
+    seen = []
+    while (v := op.get(f"/v1/executions/{eid}").json())["state"] not in ENDED:
+        seen.append((v["state"], v["progress"]["done"], v["progress"]["total"]))
+        time.sleep(0.05)
+    assert v["state"] == "done", v
+    assert v["robot"] == "sim" and v["mode"] == "program" and v["job_id"] == job_id and v["error"] is None
+    running = [(d, t) for s, d, t in seen if s == "running" and t > 0]
+    assert running and all(0 <= d <= t for d, t in running), seen  # progress shown while it ran
+    assert v["progress"]["done"] == v["progress"]["total"] > 0
+    assert v["created_at"] <= v["started_at"] <= v["finished_at"]
+    rep = v["report"]
+    assert rep["ok"] and rep["failure"] is None and rep["mode"] == "program"
+    # followed within the program's blend tolerance, measured (not zero), outputs at their stations
+    assert 0.0 < rep["max_path_error_m"] < 0.2e-3, rep["describe"]
+    assert rep["io_switches_planned"] == rep["io_switches_made"] == 2
+    assert [e["value"] for e in rep["io_events"]] == [True, False]
+    assert all(e["output"] == "standard[0]" and e["distance_mm"] < 1.0 for e in rep["io_events"])
+    assert rep["max_io_distance_mm"] == max(e["distance_mm"] for e in rep["io_events"])
+    assert rep["planned_duration_s"] == pytest.approx(demo_job["summary"]["duration_s"], abs=0.01)
+    assert 0.95 * rep["planned_duration_s"] <= rep["duration_s"] <= 1.1 * rep["planned_duration_s"]
+    assert rep["samples"] > 100 and rep["joint_limit_margin_rad"] > 0
+    assert rep["path_length_m"] == pytest.approx(0.318, abs=0.01)
+    assert rep["describe"][0] == "execution (program): ok"
+    # the robot is free again, and the execution is listed
+    assert _busy(op)["sim"] is False
+    assert [e["id"] for e in op.get("/v1/executions", params={"job_id": job_id}).json()["executions"]][0] == eid
+
+
+def test_refusals_name_the_problem(server, op, demo_job):
+    job_id = demo_job["id"]
+    url = f"/v1/jobs/{job_id}/executions"
+    with server.client(server.planner) as planner:
+        r = planner.post(url, json={"robot": "sim"})
+        assert r.status_code == 403 and "operator" in r.json()["detail"]
+        assert planner.get("/v1/robots").status_code == 200
+    with server.client(server.other) as other:  # another key: neither the job nor its executions exist for it
+        assert other.post(url, json={"robot": "sim"}).status_code == 404
+        mine = op.get("/v1/executions").json()["executions"]
+        if mine:
+            assert other.get(f"/v1/executions/{mine[0]['id']}").status_code == 404
+            assert other.delete(f"/v1/executions/{mine[0]['id']}").status_code == 404
+        assert other.get("/v1/executions").json()["executions"] == []
+    r = op.post(url, json={"robot": "lab"})
+    assert r.status_code == 422
+    assert r.json()["detail"] == [{"loc": ["body", "robot"], "type": "value_error",
+                                   "msg": "no robot named 'lab' in this service's configuration (configured: sim, "
+                                          "cell, big)"}]
+    r = op.post(url, json={"robot": "cell", "host": "10.0.0.9"})  # a request never carries a host
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "host"]
+    r = op.post(url, json={"robot": "cell", "mode": "teach"})
+    assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "mode"]
+    r = op.post(url, json={"robot": "big"})
+    assert r.status_code == 422
+    assert r.json()["detail"][0]["msg"] == f"robot 'big' is a ur10e; job {job_id} is planned for a ur5e"
+    # a job planned without a robot, and a job that is not done
+    r = op.post("/v1/jobs", json={"waypoints": [[0, 0, 0], [0.1, 0.05, 0], [0.2, 0, 0]]})
+    bare = wait_state(op, r.json()["id"])
+    r = op.post(f"/v1/jobs/{bare['id']}/executions", json={"robot": "sim"})
+    assert r.status_code == 409 and "planned without a robot model" in r.json()["detail"]
+    t = np.linspace(0, 60 * np.pi, 20_000)
+    r = op.post("/v1/jobs", json={"waypoints": np.c_[0.1 * np.cos(t) + 1e-4 * t, 0.1 * np.sin(t),
+                                                     2e-4 * t].round(7).tolist(), "settings": {"robot": "ur5e"}})
+    slow = r.json()["id"]
+    r = op.post(f"/v1/jobs/{slow}/executions", json={"robot": "sim"})
+    assert r.status_code == 409 and r.json()["detail"].startswith(f"job {slow} is ")
+    op.delete(f"/v1/jobs/{slow}")
+    assert op.get("/v1/executions/0123").status_code == 404
+    assert not any(_busy(op).values())  # nothing refused was started
+
+
+@pytest.mark.realtime
+def test_stop_brings_the_arm_to_rest_within_a_second(op, demo_job, cell):
+    r = op.post(f"/v1/jobs/{demo_job['id']}/executions", json={"robot": "cell", "mode": "stream"})
+    assert r.status_code == 202, r.text
+    eid = r.json()["id"]
+    view = wait_execution(op, eid, states=("running",) + ENDED, timeout=60)
+    assert view["state"] == "running", view
+    watch = rtde_receive.RTDEReceiveInterface(cell.host)
+    try:
+        deadline = time.monotonic() + 30
+        while op.get(f"/v1/executions/{eid}").json()["progress"]["done"] < 1500:  # 3 s into the pass
+            assert time.monotonic() < deadline
+            time.sleep(0.05)
+        assert np.abs(watch.getActualQd()).max() > 0.01  # moving
+        rest: dict = {}
+
+        def watch_rest() -> None:
+            t_end = time.monotonic() + 10
+            while time.monotonic() < t_end:
+                if np.abs(watch.getActualQd()).max() < 1e-3:
+                    rest["t"] = time.monotonic()
+                    return
+                time.sleep(0.002)
+
+        asked = time.monotonic()
+        th = threading.Thread(target=watch_rest)
+        th.start()
+        r = op.delete(f"/v1/executions/{eid}")
+        th.join(15)
+        assert r.status_code == 200, r.text
+        assert "t" in rest and rest["t"] - asked < 1.0, f"arm at rest {rest.get('t', np.inf) - asked:.3f} s after"
+        time.sleep(0.3)
+        assert np.abs(watch.getActualQd()).max() < 1e-3  # and stays there
+        assert watch.getActualDigitalOutputBits() & 1 == 0  # the job's output off
+    finally:
+        watch.disconnect()
+    view = r.json()
+    assert view["state"] == "cancelled", view
+    assert view["note"] == "stopped by the operator"
+    err = view["error"]
+    assert err["kind"] == "cancelled" and "cancelled by the caller" in err["reason"]
+    assert 2.5 < err["t"] < view["report"]["planned_duration_s"]
+    assert len(err["pose"]) == 6 and all(np.isfinite(err["pose"])) and isinstance(err["line"], int)
+    rep = view["report"]
+    assert rep["ok"] is False and rep["failure"] == err and rep["mode"] == "stream"
+    assert rep["max_path_error_m"] < 0.2e-3  # what it did, it did on the path
+    assert op.delete(f"/v1/executions/{eid}").status_code == 409  # it has ended
+    assert _busy(op)["cell"] is False
+
+
+@pytest.mark.realtime
+def test_a_crash_of_the_service_fails_the_execution_it_interrupted(tmp_path, cell):
+    s = ServiceProcess(tmp_path, workers=1, env={"PLANNER_ROBOTS": _robots(cell)}).start()
+    try:
+        with s.client() as c:
+            with open(DEMO, "rb") as f:
+                r = c.post("/v1/jobs", files={"file": ("nx_first_pass.cls", f)},
+                           data={"settings": json.dumps(SETTINGS)})
+            job = wait_state(c, r.json()["id"])
+            eid = c.post(f"/v1/jobs/{job['id']}/executions", json={"robot": "cell"}).json()["id"]
+            assert wait_execution(c, eid, states=("running",) + ENDED, timeout=60)["state"] == "running"
+        s.kill()
+        s.start()
+        with s.client() as c:
+            view = c.get(f"/v1/executions/{eid}").json()
+            assert view["state"] == "failed" and view["error"]["kind"] == "interrupted", view
+            assert "not started again" in view["error"]["reason"]
+            assert _busy(c)["cell"] is False
+            # the robot can be used again: the next execution runs to its end
+            again = c.post(f"/v1/jobs/{job['id']}/executions", json={"robot": "cell", "mode": "program"})
+            assert again.status_code == 202, again.text
+            done = wait_execution(c, again.json()["id"])
+            assert done["state"] == "done" and done["report"]["ok"], done
+    finally:
+        s.stop()
