@@ -106,6 +106,8 @@ _REFUSED_CYCLES = {
 #: The drilling axis word and its index for the planes G17, G18, G19.
 _DRILL_WORD = {17: ("Z", 2), 18: ("Y", 1), 19: ("X", 0)}
 _MODE = {"tcpc": 0, "dwo": 1, "machine": 2}
+#: A linear axis word in an ISO block (a block that moves the tool, for Sinumerik's MCALL).
+_MOVES_AXES = re.compile(r"[XYZ][-+.\d]")
 
 
 class _Reader:
@@ -195,12 +197,15 @@ class _Reader:
     def block(self, line: int, text: str) -> None:
         if self.sinumerik is not None:
             self.sinumerik_dwell = False
+            raw = text
             text = self.sinumerik.translate(line, text)
             n0 = self.out.count
             if text:
                 self.iso_block(line, text)
             if self.vector is not None:
                 self.apply_vector(line, n0)
+            for name, cyc in self.sinumerik.cycles_after(_MOVES_AXES.search(text) is not None):
+                self.drill_here(line, raw, name, cyc)
             return
         self.iso_block(line, text)
 
@@ -441,6 +446,25 @@ class _Reader:
             if moves:
                 pos[:] = moves[-1][0]
 
+    def drill_here(self, line: int, text: str, name: str, cyc: DrillCycle) -> None:
+        """One hole of a Sinumerik drilling cycle at the tool's position (levels absolute along the plane's
+        drilling axis), expanded like G81: clearance, feed to depth, dwell, retract."""
+        k = _DRILL_WORD[self.plane][1]
+        pos = self.pos
+        if any(v != v for v in pos):
+            self.fail(line, name, f"{name}: the hole position is not known (after SUPA/G53 give X, Y and Z)")
+        normal = [0.0, 0.0, 0.0]
+        normal[k] = 1.0
+        hole = list(pos)
+        hole[k] = 0.0
+        moves, bottom = hole_moves(tuple(pos), hole, normal, cyc)
+        for j, (q, rapid) in enumerate(moves):
+            self.emit(line, q, rapid)
+            if j == bottom and cyc.dwell > 0.0:
+                self.out.event("dwell", line, name, cyc.dwell, text.strip())
+        if moves:
+            pos[:] = moves[-1][0]
+
     def emit(self, line: int, xyz, rapid: bool, rot_given: bool = False) -> None:
         """Append one point (program frame, metres) with the modal rotary state."""
         out = self.out
@@ -497,6 +521,9 @@ class _Reader:
                     self.fail(line, w, f"machine {self.machine.name!r} has no {w} axis (its rotary axes are "
                               f"{'/'.join(self.rot_words)})")  # fmt: skip
                 continue
+            if self.sinumerik is not None and self.sinumerik.frame is not None:
+                self.fail(line, w, f"rotary word {w} ({raw}) in a CYCLE800 swivel plane: the plane already sets the "
+                          "tool axis; reset the swivel (CYCLE800()) before turning rotary axes")  # fmt: skip
             k = 0 if w == self.rot_words[0] else 1
             if home == 28:
                 self.angles[k] = 0.0

@@ -18,9 +18,19 @@ Read
     at the block's end point, modal; a block with a vector and no position turns the tool in place);
     ``G70``/``G700`` inch and ``G71``/``G710`` metric (the Sinumerik meaning); ``G4 F<s>`` /
     ``G4 S<rev>`` dwell (a ``dwell`` event; F is not the feed there).
+Swivel planes and drilling cycles
+    ``CYCLE800(_FR, _TC, _ST, _MODE, _X0, _Y0, _Z0, _A, _B, _C, _X1, _Y1, _Z1, ...)`` axis by axis (``_MODE`` bits
+    7-6 = 0; bits 1-0, 3-2, 5-4 name the axes of the rotations by _A, _B, _C: 01 X, 10 Y, 11 Z, e.g. 57 X-Y-Z,
+    27 Z-Y-X), new (``_ST`` units digit 0) or additive (1): the following blocks are in the swivelled frame,
+    p_part = X0 + R (X1 + p) with R the rotations each about the axis already turned, and the tool along its z,
+    until ``CYCLE800()`` (or every offset and angle 0) resets it; ``_FR`` != 0 retracts to a machine position (the
+    next point is a rapid once X, Y and Z are known), ``_FR=0`` keeps the tool where it is. ``CYCLE81(RTP, RFP,
+    SDIS, DP, DPR)`` and ``CYCLE82(..., DTB)`` at the current position, or after every block that moves under
+    ``MCALL CYCLE8x(...)`` until ``MCALL``: expanded like G81/G82 (rapid to RFP + SDIS, feed to DP or RFP - DPR
+    at the modal F, DTB dwell, rapid out to RFP + SDIS, then to RTP), along the plane's drilling axis.
 Kept as events (no motion)
     ``MSG("text")`` (``insert``); ``CYCLE832(tol, ...)`` (``setting``, value = tolerance in metres);
-    ``CYCLE800(...)`` with every offset and angle 0 (``frame``: the swivel reset); ``TRAORI``,
+    ``CYCLE800`` frames (``frame``); ``TRAORI``,
     ``TRAFOOF`` (``frame``); ``SUPA``/``G53``/``G153`` blocks (``home``: the named axes are in machine
     coordinates, unknown in the part frame, as ISO ``G53``; their values are not evaluated);
     ``G500``, ``G505..G599`` (``frame``); settings without geometry (``setting``): ``FNORM FLIN FCUB
@@ -30,8 +40,10 @@ Kept as events (no motion)
     and ``TRANS``/``ROT``/``SCALE``/``MIRROR`` without values (frame resets); ``PROC name``
     (``partno``); ``M17``/``RET`` (``end``).
 Refused, naming the line and the construct (they change the geometry in ways not read here)
-    ``CYCLE800`` with a non-zero offset or angle (the swivelled frame), other ``CYCLExxx(...)``
-    technology cycles and ``MCALL`` of one, ``TURN=n`` with n != 0, ``TRANS/ATRANS/ROT/AROT/SCALE/
+    ``CYCLE800`` by solid angle, projection angle or rotary axis positions (direct: needs the machine's
+    kinematics data), with another ``_ST`` units digit or an ``_MODE`` naming no axis sequence (the parameter
+    named); ``CYCLE83``-``CYCLE89`` (by name) and other ``CYCLExxx(...)`` technology cycles, called or with
+    ``MCALL``; a rotary axis word under a swivel plane; ``TURN=n`` with n != 0, ``TRANS/ATRANS/ROT/AROT/SCALE/
     ASCALE/MIRROR/AMIRROR`` with values, ``G58/G59`` (programmable offsets), ``CIP CT AR= AP= RP=
     POLAR I1= J1= K1=``, tool orientation words ``A2 B2 C2 A4 B4 C4 A5 B5 C5 LEAD TILT THETA``, ``ORIRESET(angles)``,
     a vector without TRAORI or with a component missing, vectors mixed with rotary angles in one program,
@@ -46,6 +58,9 @@ import re
 from collections.abc import Callable
 from typing import NoReturn
 
+import numpy as np
+
+from planner.io.cycles import DrillCycle
 from planner.io.errors import InputFileError
 
 #: Sinumerik markers that select the dialect in a file whose name does not (``dialect="auto"``).
@@ -57,8 +72,15 @@ SNIFF = re.compile(
 _SETTINGS = frozenset(
     "FNORM FLIN FCUB COMPOF COMPCAD COMPCURV COMPSURF SOFT BRISK DRIVE FFWON FFWOF G60 G601 G602 G603 G64 G641 "
     "G642 G643 G644 G645 G9 G450 G451 UPATH SPATH ORIWKS ORIMKS ORIAXES ORIVECT ORICONO ORISON ORISOF CUT2D "
-    "CUT2DF CUT3DC CUT3DF CUT3DFF CFC CFTCP CFIN STOPRE WAITM G25 G26 DIAMOF MCALL ORIEULER ORIRPY".split()
+    "CUT2DF CUT3DC CUT3DF CUT3DFF CFC CFTCP CFIN STOPRE WAITM G25 G26 DIAMOF ORIEULER ORIRPY".split()
 )
+#: Drilling cycles read (called alone: at the current position; with MCALL: after every block that moves).
+_DRILL_CYCLES = frozenset({"CYCLE81", "CYCLE82"})
+#: Drilling cycles refused by name (their moves depend on parameters the reader does not model).
+_REFUSED_DRILL_CYCLES = {"CYCLE83": "deep-hole drilling with degression", "CYCLE84": "rigid tapping",
+                         "CYCLE840": "tapping with compensating chuck", "CYCLE85": "boring with a retract feed",
+                         "CYCLE86": "boring with spindle orientation", "CYCLE87": "boring with a stop",
+                         "CYCLE88": "boring with a stop", "CYCLE89": "boring with a dwell"}
 _FRAME_RESETS = frozenset("TRANS ATRANS ROT AROT SCALE ASCALE MIRROR AMIRROR".split())
 _FRAME_WORDS = frozenset({"TRAORI", "TRAFOOF", "G500"})
 _FLOW = frozenset("IF ELSE ENDIF WHILE ENDWHILE FOR ENDFOR LOOP ENDLOOP REPEAT UNTIL GOTOF GOTOB GOTO GOTOC "
@@ -319,6 +341,12 @@ class Sinumerik:
         self.tool_name = ""
         self.traori = False
         self.vector: dict[str, float] = {}
+        #: The CYCLE800 swivel frame (rotation (3, 3), origin (3,) in metres): program -> part frame; None: none.
+        self.frame: tuple[np.ndarray, np.ndarray] | None = None
+        #: The modal cycle of MCALL (name, DrillCycle), run after every block that moves; None: none.
+        self.mcall: tuple[str, DrillCycle] | None = None
+        #: Drilling cycles called in this block (run at the position the block reaches).
+        self.run_now: list[tuple[str, DrillCycle]] = []
 
     def fail(self, line: int, construct: str, problem: str) -> NoReturn:
         """Refuse ``construct`` at ``line``: the message reads ``"<file> line <n>, <construct>: <problem>"``."""
@@ -360,6 +388,9 @@ class Sinumerik:
         if head == "DEF":
             self.define(line, text)
             return ""
+        if head == "MCALL":
+            self.modal_call(line, words, text)
+            return ""
         if head == "PROC":
             self.r.out.event("partno", line, " ".join(words[1:2]), math.nan, text)
             return ""
@@ -391,6 +422,129 @@ class Sinumerik:
                 self.fail(line, "A3", "tool vector A3/B3/C3 is zero")
             self.r.vector = (i / n, j / n, k / n)
         return "".join(iso)
+
+    # ------------------------------------------------------------------ CYCLE800, drilling cycles
+    def swivel(self, line: int, args: str, text: str) -> None:
+        """CYCLE800(_FR, _TC, _ST, _MODE, _X0, _Y0, _Z0, _A, _B, _C, _X1, _Y1, _Z1, _DIR, _FR_I, ...): the swivel
+        frame p_part = X0 + R (X1 + p) for the following blocks (R: rotations axis by axis, each about the axis
+        already turned, sequence from _MODE); CYCLE800() or one with every offset and angle 0 resets it."""
+        out = self.r.out
+        parts = [p.strip() for p in _split_commas(args)] if args.strip() else []
+
+        def value(k: int, pname: str) -> float:
+            return 0.0 if k >= len(parts) or not parts[k] else self.eval(line, f"CYCLE800 {pname}", parts[k])
+
+        geo = [value(4 + k, n) for k, n in enumerate(("_X0", "_Y0", "_Z0", "_A", "_B", "_C", "_X1", "_Y1", "_Z1"))]
+        fr = value(0, "_FR")
+        if fr not in (0.0, 1.0, 2.0, 4.0, 5.0) and parts:
+            self.fail(line, "CYCLE800 _FR", f"CYCLE800 _FR={fr:g}: not a retract mode (0, 1, 2, 4, 5)")
+        reset = not any(v != 0.0 for v in geo)
+        rot, org = np.eye(3), np.zeros(3)
+        if not reset:
+            st = value(2, "_ST")
+            mode = value(3, "_MODE")
+            if st != int(st) or int(st) % 10 not in (0, 1):
+                self.fail(line, "CYCLE800 _ST", f"CYCLE800 _ST={st:g}: only a new (units digit 0) or additive (1) "
+                          "swivel plane is read")  # fmt: skip
+            m = int(mode) if mode == int(mode) and 0 <= mode < 256 else -1
+            kind = m >> 6 if m >= 0 else -1
+            if kind != 0:
+                what = {1: "by solid angle", 2: "by projection angle", 3: "direct (rotary axis positions: the plane "
+                        "depends on the machine's kinematics data)"}.get(kind, "of an unknown mode")  # fmt: skip
+                self.fail(line, "CYCLE800 _MODE", f"CYCLE800 _MODE={mode:g}: a swivel {what} is not read; only axis "
+                          "by axis (_MODE bits 7-6 = 0, e.g. 57: X, Y, Z or 27: Z, Y, X) is")  # fmt: skip
+            seq = [(m >> (2 * j)) & 3 for j in range(3)]
+            if 0 in seq or len(set(seq)) != 3:
+                self.fail(line, "CYCLE800 _MODE", f"CYCLE800 _MODE={mode:g}: bits 0-5 name no axis sequence (each pair "
+                          "01 X, 10 Y, 11 Z, all three different)")  # fmt: skip
+            s = self.r.scale
+            rot = np.eye(3)
+            for axis, angle in zip(seq, geo[3:6], strict=True):
+                rot = rot @ _axis_rotation(axis - 1, math.radians(angle))
+            org = s * np.array(geo[0:3]) + rot @ (s * np.array(geo[6:9]))
+            if int(st) % 10 == 1 and self.frame is not None:  # additive: in the plane already swivelled
+                r0, o0 = self.frame
+                rot, org = r0 @ rot, o0 + r0 @ org
+        if self.frame is None and reset:
+            out.event("frame", line, "CYCLE800", math.nan, text)
+            return
+        # the tool stays where it is (or was retracted by the cycle: _FR != 0, a machine position): its
+        # coordinates in the new frame
+        r0, o0 = self.frame if self.frame is not None else (np.eye(3), np.zeros(3))
+        pos = self.r.pos
+        if fr != 0.0 or any(v != v for v in pos):
+            pos[:] = [math.nan] * 3
+            self.r.pending_rapid = True
+        else:
+            pos[:] = (rot.T @ (r0 @ np.array(pos) + o0 - org)).tolist()
+        k = out.count
+        out.set_frame(k, rot, org)
+        out.set_axis(k, 0.0, 0.0, 1.0, False)  # the tool along the plane's z (the cycle aligns it)
+        self.frame = None if reset else (rot, org)
+        out.event("frame", line, "CYCLE800", math.nan, text)
+
+    def drill_cycle(self, line: int, name: str, args: str) -> DrillCycle:
+        """CYCLE81(RTP, RFP, SDIS, DP, DPR) / CYCLE82(RTP, RFP, SDIS, DP, DPR, DTB): absolute levels along the drilling
+        axis of the plane (retract plane, reference plane, its safety distance, depth DP or DPR below RFP)."""
+        parts = [p.strip() for p in _split_commas(args)]
+        names = ("RTP", "RFP", "SDIS", "DP", "DPR", "DTB")[: 6 if name == "CYCLE82" else 5]
+        if len(parts) > len(names):
+            self.fail(line, name, f"{name} takes {len(names)} parameters ({', '.join(names)}), got {len(parts)}")
+        v: dict[str, float] = {}
+        for k, pname in enumerate(names):
+            if k < len(parts) and parts[k]:
+                v[pname] = self.eval(line, f"{name} {pname}", parts[k])
+        for pname in ("RTP", "RFP"):
+            if pname not in v:
+                self.fail(line, f"{name} {pname}", f"{name}: {pname} is not given")
+        s = self.r.scale
+        clear = v["RFP"] + abs(v.get("SDIS", 0.0))
+        if "DPR" in v:  # the relative depth wins over DP, as on the control
+            bottom = v["RFP"] - abs(v["DPR"])
+        elif "DP" in v:
+            bottom = v["DP"]
+        else:
+            self.fail(line, f"{name} DP", f"{name}: neither the depth DP nor DPR is given")
+        if v["RTP"] < clear:
+            self.fail(line, f"{name} RTP", f"{name}: the retract plane RTP={v['RTP']:g} is below the reference plane "
+                      f"plus the safety distance ({clear:g})")  # fmt: skip
+        dwell = v.get("DTB", 0.0)
+        if dwell < 0.0:
+            self.fail(line, f"{name} DTB", f"{name}: DTB={dwell:g}: a dwell in spindle revolutions is not read")
+        cyc = DrillCycle(name=name, line=line, clearance=clear * s, bottom=bottom * s, retract=v["RTP"] * s,
+                         dwell=dwell)
+        problem = cyc.problem()
+        if problem:
+            self.fail(line, name, f"{name}: {problem}")
+        return cyc
+
+    def modal_call(self, line: int, words: list[str], text: str) -> None:
+        """``MCALL CYCLE81(...)``: the cycle runs after every following block that moves; ``MCALL`` alone ends it."""
+        out = self.r.out
+        if len(words) == 1:
+            self.mcall = None
+            out.event("cycle", line, "MCALL", math.nan, text)
+            return
+        call = _CALL.fullmatch(words[1].upper()) if len(words) == 2 else None
+        if call is None:
+            self.fail(line, "MCALL", f"MCALL {' '.join(words[1:])}: expected MCALL and one cycle call, e.g. MCALL "
+                      "CYCLE81(RTP, RFP, SDIS, DP, DPR)")  # fmt: skip
+        cname = call.group(1)
+        if cname not in _DRILL_CYCLES:
+            what = _REFUSED_DRILL_CYCLES.get(cname, "a cycle whose moves are not in the program")
+            self.fail(line, cname, f"MCALL {cname}(...) ({what}) is not read: post the holes as G81-G89 or explicit "
+                      "moves (CYCLE81 and CYCLE82 are read)")  # fmt: skip
+        w = words[1]
+        self.mcall = (cname, self.drill_cycle(line, cname, w[w.index("(") + 1 : w.rindex(")")]))
+        out.event("cycle", line, cname, math.nan, text)
+
+    def cycles_after(self, moved: bool) -> list[tuple[str, DrillCycle]]:
+        """The drilling cycles to run at the position the block reached: those it called, and the modal one
+        if the block moved."""
+        run, self.run_now = self.run_now, []
+        if moved and self.mcall is not None:
+            run.append(self.mcall)
+        return run
 
     def define(self, line: int, text: str) -> None:
         m = re.match(r"\s*DEF\s+(REAL|INT|BOOL|CHAR|STRING\s*\[\s*\d+\s*\]|AXIS|FRAME)\s+(.*)$", text, re.IGNORECASE)
@@ -621,18 +775,11 @@ class Sinumerik:
             out.event("setting", line, "CYCLE832", tol, text)
             return []
         if name == "CYCLE800":
-            parts = _split_commas(args)
-            geo = parts[4:13]
-            vals = []
-            for p in geo:
-                p = p.strip()
-                vals.append(0.0 if not p else self.eval(line, "CYCLE800", p))
-            if any(v != 0.0 for v in vals):
-                shown = ", ".join(f"{k}={v:g}" for k, v in zip(("X0", "Y0", "Z0", "A", "B", "C", "X1", "Y1", "Z1"),
-                                                                vals, strict=False) if v != 0.0)
-                self.fail(line, "CYCLE800", f"CYCLE800 swivels the working plane ({shown}): the swivelled frame is "
-                          "not read; post the operation with TRAORI and tool vectors or rotary angles")  # fmt: skip
-            out.event("frame", line, "CYCLE800", math.nan, text)
+            self.swivel(line, args, text)
+            return []
+        if name in _DRILL_CYCLES:
+            self.run_now.append((name, self.drill_cycle(line, name, args)))
+            out.event("cycle", line, name, math.nan, text)
             return []
         if name in ("WORKPIECE", "FGROUP", "FGREF", "SOFTA", "BRISKA"):
             out.event("setting", line, name, math.nan, text)
@@ -651,11 +798,23 @@ class Sinumerik:
                 self.fail(line, name, f"{name}({args.strip()}) moves the frame: not read")
             out.event("frame", line, name, math.nan, text)
             return []
+        if name in _REFUSED_DRILL_CYCLES:
+            self.fail(line, name, f"{name}(...) ({_REFUSED_DRILL_CYCLES[name]}) is not read: post the holes as G81-G89 "
+                      "or explicit moves (CYCLE81 and CYCLE82 are read)")  # fmt: skip
         if name.startswith("CYCLE") or name.startswith("POCKET") or name.startswith("SLOT") or name == "MCALL":
             self.fail(line, name, f"{name}(...): a Sinumerik technology cycle whose moves are not in the program; "
                       "post it as explicit moves")  # fmt: skip
         self.fail(line, name, f"{name}(...): a call the reader does not know; its moves are not in the program")
         return []
+
+
+def _axis_rotation(axis: int, angle: float) -> np.ndarray:
+    """Rotation (3, 3) by ``angle`` (rad) about coordinate axis 0 (X), 1 (Y) or 2 (Z), right-handed."""
+    c, s = math.cos(angle), math.sin(angle)
+    i, j = [(1, 2), (2, 0), (0, 1)][axis]
+    R = np.eye(3)
+    R[i, i], R[i, j], R[j, i], R[j, j] = c, -s, s, c
+    return R
 
 
 def _split_commas(text: str) -> list[str]:
