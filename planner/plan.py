@@ -281,8 +281,12 @@ def _select_passes(tp, seg: Segmentation, passes):
     rapid[0] = False
     def sub(a):
         return (None if a is None else a[rows])
+    # the dwells at the selected points stay (the tool waits there as in the whole job)
+    at = {int(r): k for k, r in enumerate(rows)}
+    dwells = tuple(replace(e, index=at[e.index - 1] + 1) for e in tp.events
+                   if e.kind == "dwell" and e.index - 1 in at)
     return type(tp)(tp.points[rows], sub(tp.axes), sub(tp.axis_given), tp.feeds[rows], rapid, tp.lines[rows],
-                    (), tp.units, tp.source, sub(tp.rotary))
+                    dwells, tp.units, tp.source, sub(tp.rotary))
 
 
 def check_read_options(fmt: str, options: dict) -> None:

@@ -175,3 +175,11 @@ def test_apt_delay_and_dwell_records(tmp_path):
 
     with pytest.raises(InputFileError, match=r"line 3.*DELAY.*spindle speed"):
         plan(_file(tmp_path, "rev.apt", "GOTO/0,0,0\nGOTO/1,0,0\nDELAY/5,REV\n"), PlanSettings(path="cam"))
+
+
+def test_selected_passes_keep_their_dwells(tmp_path):
+    path = _file(tmp_path, "sel.apt", APT_DWELL)
+    job = plan(path, PlanSettings(path="cam", passes=(1,), rate=RATE))
+    assert [m.kind for m in job.moves] == ["cut", "dwell"]  # the plunge of hole 2 and its dwell
+    (d,) = [m for m in job.moves if m.kind == "dwell"]
+    assert d.line == 5 and d.item.seconds == 0.5 and np.allclose(d.point, np.array([20, 0, -10]) * MM)
