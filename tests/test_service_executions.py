@@ -15,7 +15,7 @@ import pytest
 import rtde_receive
 
 from tests.sim_fixtures import start_sim
-from tests.test_service_server import ServiceProcess, wait_state
+from tests.test_service_server import ServiceProcess, wait_state, wait_until
 
 DEMO = "examples/nx_first_pass.cls"
 PART = [0.4, 0.9965, -0.1, 0.0, 0.0, 0.0]
@@ -83,7 +83,7 @@ def _busy(client) -> dict[str, bool]:
     return {r["name"]: r["busy"] for r in client.get("/v1/robots").json()["robots"]}
 
 
-def test_program_on_the_simulated_robot_follows_the_plan_and_holds_the_robot(op, demo_job):
+def test_program_on_the_simulated_robot_follows_the_plan_and_holds_the_robot(server, op, demo_job):
     job_id = demo_job["id"]
     r = op.post(f"/v1/jobs/{job_id}/executions", json={"robot": "sim", "mode": "program"})
     assert r.status_code == 202, r.text
@@ -93,6 +93,7 @@ def test_program_on_the_simulated_robot_follows_the_plan_and_holds_the_robot(op,
     again = op.post(f"/v1/jobs/{job_id}/executions", json={"robot": "sim", "mode": "program"})
     assert again.status_code == 409 and "busy" in again.json()["detail"]
     assert _busy(op) == {"sim": True, "cell": False, "big": False}
+    wait_until(lambda: len(server.children("planner-exec")) == 1, 10, "the execution's own process")
     seen = []
     while (v := op.get(f"/v1/executions/{eid}").json())["state"] not in ENDED:
         seen.append((v["state"], v["progress"]["done"], v["progress"]["total"]))
@@ -116,8 +117,9 @@ def test_program_on_the_simulated_robot_follows_the_plan_and_holds_the_robot(op,
     assert rep["samples"] > 100 and rep["joint_limit_margin_rad"] > 0
     assert rep["path_length_m"] == pytest.approx(0.318, abs=0.01)
     assert rep["describe"][0] == "execution (program): ok"
-    # the robot is free again, and the execution is listed
+    # the robot is free again, its process (and the simulated controller it started) gone; the execution is listed
     assert _busy(op)["sim"] is False
+    assert server.children("planner-exec") == []
     assert [e["id"] for e in op.get("/v1/executions", params={"job_id": job_id}).json()["executions"]][0] == eid
 
 

@@ -282,3 +282,31 @@ def test_cancel_a_queued_job(server, client):
     assert client.delete(f"/v1/jobs/{first}").json()["state"] == "cancelled"
     view = client.get(f"/v1/jobs/{second}").json()
     assert view["state"] == "cancelled" and view["attempts"] == 0 and view["started_at"] is None
+
+
+def _maps(pid: int) -> str:
+    return Path(f"/proc/{pid}/maps").read_text()
+
+
+def test_plots_are_drawn_outside_the_service_process(server, client):
+    """The picture is drawn by the service's drawing process: matplotlib is never loaded into the process that
+    answers requests; requests that arrive while it is drawn share one drawing and get the same bytes."""
+    import concurrent.futures
+
+    r = client.post("/v1/jobs", json={"waypoints": [[0, 0, 0], [0.1, 0.05, 0], [0.2, 0, 0.01], [0.3, 0.02, 0]]})
+    job_id = wait_state(client, r.json()["id"])["id"]
+
+    def get(_):
+        with server.client() as c:
+            return c.get(f"/v1/jobs/{job_id}/plot.png")
+
+    with concurrent.futures.ThreadPoolExecutor(4) as ex:
+        answers = list(ex.map(get, range(4)))
+    assert all(a.status_code == 200 and a.headers["content-type"] == "image/png" for a in answers)
+    assert answers[0].content[:8] == b"\x89PNG\r\n\x1a\n" and len(answers[0].content) > 20_000
+    assert len({a.content for a in answers}) == 1
+    assert "matplotlib" not in _maps(server.proc.pid)  # no matplotlib extension module mapped in the service
+    drawers = server.children("planner-plot")
+    assert len(drawers) == 1 and "matplotlib" in _maps(drawers[0])  # the drawing process
+    assert all("matplotlib" not in _maps(p) for p in server.worker_pids())  # planning workers do not plot
+    assert client.get(f"/v1/jobs/{job_id}/plot.png").content == answers[0].content  # kept, not drawn again

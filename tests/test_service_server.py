@@ -75,13 +75,26 @@ class ServiceProcess:
         headers = {"Authorization": f"Bearer {key}"} if key else {}
         return httpx.Client(base_url=self.url, headers=headers, timeout=60)
 
-    def worker_pids(self) -> list[int]:
-        """The service's child processes (its planning workers)."""
+    def children(self, name: str | None = None) -> list[int]:
+        """The service's child processes (named ``name`` in /proc/PID/comm: planner-work, planner-plot,
+        planner-exec)."""
         assert self.proc is not None
         pids: list[int] = []
         for task in Path(f"/proc/{self.proc.pid}/task").iterdir():
             pids += [int(x) for x in (task / "children").read_text().split()]
-        return [p for p in pids if "resource_tracker" not in Path(f"/proc/{p}/cmdline").read_text()]
+        out = []
+        for p in pids:
+            try:
+                comm = Path(f"/proc/{p}/comm").read_text().strip()
+            except OSError:  # ended meanwhile
+                continue
+            if name is None or comm == name:
+                out.append(p)
+        return out
+
+    def worker_pids(self) -> list[int]:
+        """The service's planning worker processes."""
+        return self.children("planner-work")
 
     def kill(self) -> None:
         """SIGKILL, as a crash (the workers die with it: PR_SET_PDEATHSIG)."""

@@ -17,7 +17,6 @@ import json
 import re
 import shutil
 import sys
-import threading
 import time
 import uuid
 from collections.abc import AsyncIterator, Iterator
@@ -36,6 +35,7 @@ from planner.service.auth import DEV_PRINCIPAL, Principal, authenticate
 from planner.service.config import ServiceConfig
 from planner.service.execution_runs import Executions
 from planner.service.metrics import Metrics
+from planner.service.plots import Plotter
 from planner.service.schemas import JobCreated, JobList, JobView, ReadOptions, SettingsModel, WaypointJob
 from planner.service.store import Job, now, open_store
 from planner.service.workers import Inserter, WorkerPool, job_dir, recover, remove_job_files
@@ -115,7 +115,7 @@ class Service:
         self.metrics = Metrics()
         self.pool = WorkerPool(self.sessions, cfg, self.metrics)
         self.inserter = Inserter(self.pool)
-        self.plot_lock = threading.Lock()
+        self.plotter = Plotter()
         self.executions = Executions(self.sessions, cfg, self.pool.write_lock)
 
     def start(self) -> dict:
@@ -125,10 +125,12 @@ class Service:
         recovered["executions_failed"] = self.executions.recover()
         self.inserter.start()
         self.pool.start()
+        self.plotter.start()
         return recovered
 
     def stop(self) -> None:
         self.executions.shutdown()
+        self.plotter.stop()
         self.inserter.stop()
         self.pool.stop()
         self.engine.dispose()
@@ -362,16 +364,17 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
     @app.get(f"{API}/jobs/{{job_id}}/plot.png", tags=["exports"], response_class=FileResponse,
              responses={200: {"content": {"image/png": {}}}, 404: {"description": "no such job of this key"},
                         409: {"description": "job not done"}})
-    def plot(request: Request, job_id: str, who: Caller) -> FileResponse:
-        """The picture ``planner plan --plot x.png`` draws (drawn once, then kept beside the saved job)."""
+    async def plot(request: Request, job_id: str, who: Caller) -> FileResponse:
+        """The picture ``planner plan --plot x.png`` draws (drawn once, in the drawing process, then kept beside the
+        saved job)."""
         svc = _service(request)
         row = own_job(svc, who, job_id)
-        target = job_dir(svc.cfg, row.id) / f"plot.{row.attempts}.png"
+        if row.state != "done" or not row.job_file:
+            raise HTTPException(409, f"job {row.id} is {row.state}; exports exist once it is done")
+        folder = job_dir(svc.cfg, row.id)
+        target = folder / f"plot.{row.attempts}.png"
         if not target.exists():
-            job = _load_done(svc, row)
-            with svc.plot_lock:  # matplotlib's pyplot is not thread-safe
-                if not target.exists():
-                    _draw(job, row.input_name, target)
+            await asyncio.wrap_future(svc.plotter.draw(str(folder / row.job_file), row.input_name, str(target)))
         return FileResponse(target, media_type="image/png")
 
     def openapi() -> dict:
@@ -426,20 +429,6 @@ def _load_done(svc: Service, row: Job):
     if row.state != "done" or not row.job_file:
         raise HTTPException(409, f"job {row.id} is {row.state}; exports exist once it is done")
     return load_job(job_dir(svc.cfg, row.id) / row.job_file)
-
-
-def _draw(job, input_name: str, target: Path) -> None:
-    """The CLI's plot (same title), written atomically."""
-    import io
-
-    from planner.export import write_bytes_atomic
-    from planner.plot import plot_job
-
-    s = job.summary()
-    buf = io.BytesIO()
-    plot_job(job, buf, title=(f"{input_name}: {s['passes']} pass{'es' * (s['passes'] != 1)}, "
-                              f"{s['cut_length_mm']:.0f} mm of cut, {s['duration_s']:.1f} s"))
-    write_bytes_atomic(target, buf.getvalue())
 
 
 # -- submitting ------------------------------------------------------------------------------------------

@@ -123,9 +123,10 @@ def _cancelled():
 
 def execution_main(control, results, parent_pid: int, task: dict) -> None:
     """The process: ``control`` (service -> here: "stop"), ``results`` (here -> service: messages)."""
-    from planner.service.worker_process import _die_with_parent
+    from planner.service.worker_process import _die_with_parent, name_process
 
     _die_with_parent(parent_pid)
+    name_process("planner-exec")
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C goes to the service, which stops its executions
     cancel = threading.Event()
 

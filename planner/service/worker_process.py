@@ -21,6 +21,15 @@ WORKER_NICE = int(os.environ.get("PLANNER_WORKER_NICE", "10") or 0)
 PROGRESS_EVERY = 0.2
 
 
+def name_process(name: str) -> None:
+    """Linux: the process's name in ``ps`` and ``/proc/PID/comm`` (at most 15 bytes): planner-work, planner-plot,
+    planner-exec."""
+    with contextlib.suppress(Exception):
+        import ctypes
+
+        ctypes.CDLL("libc.so.6", use_errno=True).prctl(15, name.encode()[:15] + b"\0", 0, 0, 0)  # PR_SET_NAME
+
+
 def _die_with_parent(parent_pid: int) -> None:
     """Linux: the kernel kills this process when the service dies (even by SIGKILL)."""
     with contextlib.suppress(Exception):
@@ -97,6 +106,7 @@ def run_task(task: dict, send) -> None:
 def worker_main(conn, parent_pid: int) -> None:
     """The worker's loop: a task dict in, messages out, until the pipe closes or None arrives."""
     _die_with_parent(parent_pid)
+    name_process("planner-work")
     with contextlib.suppress(OSError):
         os.nice(WORKER_NICE)  # batch work: the service's requests come first on a busy machine
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C goes to the service, which stops its workers

@@ -1,0 +1,97 @@
+"""Plots drawn in a process of their own, never in the service process (matplotlib is slow to import, holds a
+global lock and would stall the event loop's threads): :class:`Plotter` keeps one spawned process
+(``concurrent.futures.ProcessPoolExecutor``) that loads a saved job and writes the picture ``planner plan --plot``
+draws, atomically, beside the saved job. Requests for a picture being drawn share its future.
+
+Kept free of web and database imports (the drawing process imports only the planner).
+"""
+
+from __future__ import annotations
+
+import multiprocessing as mp
+import os
+import threading
+from concurrent.futures import Future, ProcessPoolExecutor
+from concurrent.futures.process import BrokenProcessPool
+
+
+def _start(parent_pid: int) -> None:
+    """In the drawing process: die with the service, yield to requests, and import matplotlib now (not on the
+    first picture)."""
+    from planner.service.worker_process import WORKER_NICE, _die_with_parent, name_process
+
+    _die_with_parent(parent_pid)
+    name_process("planner-plot")
+    try:
+        os.nice(WORKER_NICE)
+    except OSError:
+        pass
+    import matplotlib
+
+    matplotlib.use("Agg")
+    import matplotlib.pyplot  # noqa: F401
+
+    import planner.plot  # noqa: F401
+
+
+def draw(job_path: str, input_name: str, target: str) -> int:
+    """The CLI's plot of the saved job at ``job_path`` (same title) written atomically to ``target``; its bytes."""
+    import io
+
+    from planner.export import write_bytes_atomic
+    from planner.job import load_job
+    from planner.plot import plot_job
+
+    job = load_job(job_path)
+    s = job.summary()
+    buf = io.BytesIO()
+    plot_job(job, buf, title=(f"{input_name}: {s['passes']} pass{'es' * (s['passes'] != 1)}, "
+                              f"{s['cut_length_mm']:.0f} mm of cut, {s['duration_s']:.1f} s"))
+    write_bytes_atomic(target, buf.getvalue())
+    return len(buf.getvalue())
+
+
+class Plotter:
+    """One drawing process; :meth:`draw` gives a future of the target's size (shared while it is drawn)."""
+
+    def __init__(self) -> None:
+        self._lock = threading.Lock()
+        self._pool: ProcessPoolExecutor | None = None
+        self._inflight: dict[str, Future] = {}
+
+    def start(self) -> None:
+        with self._lock:
+            self._pool = self._new_pool()
+        self._pool.submit(os.getpid)  # start the process (and its imports) now
+
+    def _new_pool(self) -> ProcessPoolExecutor:
+        return ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn"), initializer=_start,
+                                   initargs=(os.getpid(),))
+
+    def stop(self) -> None:
+        with self._lock:
+            pool, self._pool = self._pool, None
+        if pool is not None:
+            pool.shutdown(wait=True, cancel_futures=True)
+
+    def draw(self, job_path: str, input_name: str, target: str) -> Future:
+        """Draw the picture of the saved job into ``target`` (unless it is being drawn already)."""
+        with self._lock:
+            running = self._inflight.get(target)
+            if running is not None:
+                return running
+            if self._pool is None:
+                raise RuntimeError("the plotter is stopped")
+            try:
+                future = self._pool.submit(draw, job_path, input_name, target)
+            except BrokenProcessPool:  # the drawing process died (e.g. killed for memory): a new one
+                self._pool.shutdown(wait=False)
+                self._pool = self._new_pool()
+                future = self._pool.submit(draw, job_path, input_name, target)
+            self._inflight[target] = future
+        future.add_done_callback(lambda _f: self._forget(target))
+        return future
+
+    def _forget(self, target: str) -> None:
+        with self._lock:
+            self._inflight.pop(target, None)
