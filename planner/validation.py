@@ -3,6 +3,8 @@
 from __future__ import annotations
 
 import math
+import numbers
+import warnings
 from collections.abc import Sequence
 
 import numpy as np
@@ -13,11 +15,132 @@ from planner.errors import PlannerError, WaypointError
 DUPLICATE_RTOL = 1e-12
 
 
+class ArgumentError(PlannerError):
+    """A bad argument of a public function of the planner's API.
+
+    Attributes
+    ----------
+    argument : str
+        The argument at fault, with the index of a bad element when there is one (``"t[3]"``).
+    """
+
+    def __init__(self, argument: str, message: str):
+        self.argument = argument
+        super().__init__(f"{argument}: {message}")
+
+
+def _described(value) -> str:
+    """What a bad value is, for a message (short)."""
+    if value is None:
+        return "None"
+    if isinstance(value, str | bytes):
+        return f"the string {value[:40]!r}"
+    if isinstance(value, bool | np.bool_):
+        return f"the boolean {bool(value)}"
+    if isinstance(value, complex | np.complexfloating):
+        return f"the complex number {value!r}"
+    if isinstance(value, int) and abs(value) > 2**1023:
+        return f"an integer of {len(str(abs(value)))} digits, beyond the float range"
+    if isinstance(value, numbers.Real):
+        return repr(value)
+    return f"a {type(value).__name__}"
+
+
+def as_floats(value, name: str) -> np.ndarray:
+    """``value`` as a float ndarray (any shape), or :class:`ArgumentError` naming ``name`` when it holds anything
+    but real numbers: strings, complex numbers, booleans, None, other objects, ragged nesting, integers beyond the
+    float range. Finite values and shapes are the caller's to check."""
+    if isinstance(value, str | bytes):
+        raise ArgumentError(name, f"must be numbers, got {_described(value)}")
+    try:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            a = np.asarray(value)
+    except (ValueError, TypeError, OverflowError):
+        raise ArgumentError(name, "must be numbers in a rectangular array (rows of equal length)") from None
+    kind = a.dtype.kind
+    if kind in "fiu":
+        return a.astype(float, copy=False)
+    if kind == "c":
+        raise ArgumentError(name, "must be real numbers, got complex numbers")
+    if kind == "b":
+        raise ArgumentError(name, "must be numbers, got booleans")
+    if kind in "US":
+        raise ArgumentError(name, f"must be numbers, got strings ({a.flat[0]!r:.40} ...)" if a.size else
+                            "must be numbers, got strings")
+    if kind == "O":
+        bad = next((x for x in a.flat if not isinstance(x, numbers.Real) or isinstance(x, bool | np.bool_)), None)
+        if bad is None:
+            try:
+                return a.astype(float)
+            except (OverflowError, TypeError, ValueError):
+                bad = next((x for x in a.flat if isinstance(x, int) and abs(x) > 2**1023), a.flat[0])
+        raise ArgumentError(name, f"must be numbers, got {_described(bad)}")
+    raise ArgumentError(name, f"must be numbers, got an array of {a.dtype}")
+
+
+def finite_floats(value, name: str, shape: tuple | None = None, *, min_rows: int = 0) -> np.ndarray:
+    """``value`` as a finite float ndarray, or :class:`ArgumentError` naming ``name`` (and the index of the first
+    NaN or inf). ``shape``: the required shape, None for any length on an axis (``(None, 3)``), or a tuple of
+    such shapes of which one must match (``((3,), (None, 3))``); ``min_rows``: the least length of axis 0."""
+    a = as_floats(value, name)
+    if shape is not None:
+        shapes = shape if shape and isinstance(shape[0], tuple) else (shape,)
+        if not any(len(sh) == a.ndim and all(w is None or w == n for w, n in zip(sh, a.shape, strict=True))
+                   for sh in shapes):
+            want = " or ".join("(" + ", ".join("n" if w is None else str(w) for w in sh) + ("," if len(sh) == 1
+                               else "") + ")" for sh in shapes)
+            raise ArgumentError(name, f"must have shape {want}, got {a.shape}")
+    if a.ndim and a.shape[0] < min_rows:
+        raise ArgumentError(name, f"needs at least {min_rows} rows, got {a.shape[0]}")
+    bad = ~np.isfinite(a)
+    if bad.any():
+        i = np.unravel_index(int(np.argmax(bad)), a.shape)
+        raise ArgumentError(name + "".join(f"[{j}]" for j in i), f"must be finite, got {a[i]!r}")
+    return a
+
+
+def as_float(value, name: str, *, finite: bool = True) -> float:
+    """One real number as a float, or :class:`ArgumentError` naming ``name`` (strings, complex numbers, booleans,
+    None, arrays of other sizes, integers beyond the float range; NaN and inf unless ``finite`` is False)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real | np.ndarray):
+        raise ArgumentError(name, f"must be a number, got {_described(value)}")
+    a = as_floats(value, name)
+    if a.size != 1:
+        raise ArgumentError(name, f"must be a single number, got an array of shape {a.shape}")
+    x = float(a.reshape(()))
+    if finite and not math.isfinite(x):
+        raise ArgumentError(name, f"must be finite, got {x!r}")
+    return x
+
+
+def as_int(value, name: str, lo: int | None = None, hi: int | None = None) -> int:
+    """An integer (Python or numpy, not a boolean) within [lo, hi], or :class:`ArgumentError` naming ``name``."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Integral):
+        raise ArgumentError(name, f"must be an integer, got {_described(value)}")
+    k = int(value)
+    if (lo is not None and k < lo) or (hi is not None and k > hi):
+        raise ArgumentError(name, f"must be an integer in {lo if lo is not None else '-inf'}.."
+                                  f"{hi if hi is not None else 'inf'}, got {k}")
+    return k
+
+
+def has_attributes(obj, name: str, what: str, *attributes: str):
+    """``obj`` if it has every attribute named (duck typing), else :class:`ArgumentError`: ``name must be what``."""
+    missing = [a for a in attributes if not hasattr(obj, a)]
+    if missing:
+        raise ArgumentError(name, f"must be {what}, got {_described(obj)}")
+    return obj
+
+
 def _as_rows(data, what: str, dim: int) -> np.ndarray:
     """Convert ``data`` to a float array (n, dim), naming the first malformed row on failure."""
     try:
-        arr = np.asarray(data, dtype=float)
-    except (ValueError, TypeError):
+        arr = as_floats(data, what)
+    except ArgumentError:
+        if isinstance(data, str | bytes) or not isinstance(data, Sequence | np.ndarray):
+            raise WaypointError(f"{what} must be an array of numbers of shape (n, {dim}), got "
+                                f"{_described(data)}") from None
         arr = None
     if arr is not None and arr.size == 0:
         arr = arr.reshape(0, dim)
@@ -28,9 +151,9 @@ def _as_rows(data, what: str, dim: int) -> np.ndarray:
             raise WaypointError(f"{what} must be a sequence of {dim}-vectors, got {type(data).__name__}")
         for i, row in enumerate(data):
             try:
-                r = np.asarray(row, dtype=float)
-            except (ValueError, TypeError) as exc:
-                raise WaypointError(f"{what} row is not numeric ({exc})", i) from None
+                r = as_floats(row, what)
+            except ArgumentError as exc:
+                raise WaypointError(f"{what} row is not numeric ({str(exc).partition(': ')[2]})", i) from None
             if r.shape != (dim,):
                 raise WaypointError(f"{what} row must have {dim} coordinates, got {np.shape(row)}", i)
         raise WaypointError(f"{what} must be an array of shape (n, {dim})")
@@ -90,9 +213,9 @@ def check_tangents(tangents, n: int, *, dim: int = 3) -> np.ndarray:
 def check_vector(v, name: str, dim: int = 3, nonzero: bool = False) -> np.ndarray:
     """A single finite vector of length ``dim`` named ``name`` in error messages."""
     try:
-        a = np.asarray(v, dtype=float)
-    except (ValueError, TypeError):
-        raise WaypointError(f"{name} must be a numeric {dim}-vector, got {v!r}") from None
+        a = as_floats(v, name)
+    except ArgumentError:
+        raise WaypointError(f"{name} must be a numeric {dim}-vector, got {_described(v)}") from None
     if a.shape != (dim,):
         raise WaypointError(f"{name} must have shape ({dim},), got {a.shape}")
     if not np.isfinite(a).all():
@@ -105,7 +228,7 @@ def check_vector(v, name: str, dim: int = 3, nonzero: bool = False) -> np.ndarra
 def check_arc_lengths(s, length: float) -> np.ndarray:
     """Arc lengths s (n,) as floats clipped to [0, length]; values beyond round-off outside it, or not
     finite, raise naming the index (``arc length s[i] = ... is outside [0, L]``)."""
-    s = np.atleast_1d(np.asarray(s, dtype=float))
+    s = np.atleast_1d(as_floats(s, "s"))
     bad = ~np.isfinite(s) | (s < -1e-12 * length) | (s > length * (1 + 1e-12))
     if bad.any():
         i = int(np.argmax(bad))
@@ -119,8 +242,8 @@ def check_in_range(value, name: str, lo: float, hi: float, error: type[PlannerEr
         raise error(f"{name} must be a number, got {value!r}")
     try:
         x = float(value)
-    except (TypeError, ValueError):
-        raise error(f"{name} must be a number, got {value!r}") from None
+    except (TypeError, ValueError, OverflowError):
+        raise error(f"{name} must be a number, got {_described(value)}") from None
     if not (math.isfinite(x) and lo < x <= hi):
         raise error(f"{name} must be in ({lo:g}, {hi:g}], got {x!r}")
     return x

@@ -50,6 +50,7 @@ from numpy.polynomial import polynomial as P
 
 from planner.curves.dp_cubic import DPCubic
 from planner.errors import NoSolutionError, PlannerError
+from planner.validation import ArgumentError, as_floats
 
 #: Relative tolerance for "parallel" directions and for accepting polynomial roots as real.
 ROOT_RTOL = 1e-10
@@ -63,9 +64,9 @@ class HermiteDataError(PlannerError):
 
 def _point(v, name: str) -> complex:
     try:
-        a = np.asarray(v, dtype=float)
-    except (TypeError, ValueError):
-        raise HermiteDataError(f"{name} must be a numeric 2-vector, got {v!r}") from None
+        a = as_floats(v, name)
+    except ArgumentError as exc:
+        raise HermiteDataError(f"{name} must be a numeric 2-vector: {str(exc).partition(': ')[2]}") from None
     if a.shape != (2,):
         raise HermiteDataError(f"{name} must have shape (2,), got {a.shape}")
     if not np.isfinite(a).all():

@@ -16,7 +16,7 @@ from planner.curves.ph_cubic import batch_g1
 from planner.curves.spline import PHSpline
 from planner.curves.tangents import chord_knots, cubic_spline_slopes
 from planner.errors import NoSolutionError
-from planner.validation import check_tangents, check_waypoints
+from planner.validation import as_int, check_tangents, check_waypoints
 
 #: Maximum number of times one span between waypoints is halved looking for PH cubic data.
 MAX_SPLITS = 12
@@ -61,7 +61,7 @@ def fit_ph_cubic_spline(waypoints, tangents=None, *, max_splits: int = MAX_SPLIT
     origin = np.arange(p.shape[0] - 1)  # waypoint span of each piece
     A = np.zeros((p.shape[0] - 1, 2, 4))
     todo = np.arange(p.shape[0] - 1)  # pieces still to solve
-    for level in range(max_splits + 1):
+    for level in range(as_int(max_splits, "max_splits", 0, 64) + 1):
         t_unit = tans / np.linalg.norm(tans, axis=1, keepdims=True)
         dp = pts[todo + 1] - pts[todo]
         cand, ok = batch_g1(dp, t_unit[todo], t_unit[todo + 1])

@@ -21,7 +21,12 @@ from planner.curves.ph_core import (
     invert_arc_length,
 )
 from planner.errors import PlannerError
-from planner.validation import check_arc_lengths, check_vector
+from planner.validation import as_int, check_arc_lengths, check_vector, finite_floats
+
+
+def _params(t) -> np.ndarray:
+    """Curve parameters t as a finite float array (n,) (a scalar is one sample); ArgumentError names ``t``."""
+    return np.atleast_1d(finite_floats(t, "t", ((), (None,))))
 
 
 @dataclass(frozen=True, eq=False)
@@ -87,25 +92,24 @@ class PHSegment:
     # -- evaluation --------------------------------------------------------------------------
     def points(self, t) -> np.ndarray:
         """Points r(t), shape (n, 3)."""
-        return bernstein.evaluate(self.control_points, np.atleast_1d(t))
+        return bernstein.evaluate(self.control_points, _params(t))
 
     def derivative(self, t, order: int = 1) -> np.ndarray:
         """Derivative of the given order (1..degree) with respect to t, shape (n, 3)."""
-        if not 1 <= order <= self.degree:
-            raise PlannerError(f"order must be 1..{self.degree}, got {order}")
+        order = as_int(order, "order", 1, self.degree)
         c = self.control_points
         for _ in range(order):
             c = bernstein.derivative(c)
-        return bernstein.evaluate(c, np.atleast_1d(t))
+        return bernstein.evaluate(c, _params(t))
 
     def speed(self, t) -> np.ndarray:
         """Parametric speed sigma(t) = |r'(t)| (metres per unit t), shape (n,); a polynomial."""
-        return bernstein.evaluate(self.sigma_coeffs, np.atleast_1d(t))
+        return bernstein.evaluate(self.sigma_coeffs, _params(t))
 
     def arc_length(self, t0=0.0, t1=1.0):
         """Exact arc length from t0 to t1 (vectorized over either), metres."""
         S = arc_length_coeffs(self.sigma_coeffs)
-        a, b = np.broadcast_arrays(np.asarray(t0, float), np.asarray(t1, float))
+        a, b = np.broadcast_arrays(finite_floats(t0, "t0"), finite_floats(t1, "t1"))
         val = bernstein.evaluate(S, np.ravel(b)) - bernstein.evaluate(S, np.ravel(a))
         return val.reshape(a.shape) if a.ndim else float(val[0])
 
@@ -130,4 +134,4 @@ class PHSegment:
 
     def quaternion(self, t) -> np.ndarray:
         """The quaternion polynomial A(t), shape (n, 4)."""
-        return bernstein.evaluate(self.A, np.atleast_1d(t))
+        return bernstein.evaluate(self.A, _params(t))

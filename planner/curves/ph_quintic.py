@@ -19,7 +19,7 @@ import numpy as np
 
 from planner.curves.ph_curve import PHSegment
 from planner.errors import PlannerError
-from planner.validation import check_vector
+from planner.validation import ArgumentError, check_vector, finite_floats
 
 # ---------------------------------------------------------------------------------------------
 # C1 Hermite interpolation (Farouki's family with two free angles)
@@ -297,8 +297,12 @@ def hermite_rows(dp, d0, d1, a0, a2, r0, r1, angles=None, root_scale=None) -> np
     if angles is None:
         A = _least_energy_member(dp, base, a0, a2, r0, r1)
     else:
-        phi0 = np.broadcast_to(np.asarray(angles[0], dtype=float), (n,))
-        delta = np.broadcast_to(np.asarray(angles[1], dtype=float), (n,)) - phi0
+        ang = finite_floats(angles, "angles", ((2,), (2, None)))
+        if ang.ndim == 2 and ang.shape[1] not in (1, n):
+            raise ArgumentError("angles", f"must be (phi0, phi2), each one angle or one per segment ({n}), "
+                                          f"got shape {ang.shape}")
+        phi0 = np.broadcast_to(ang[0], (n,))
+        delta = np.broadcast_to(ang[1], (n,)) - phi0
         a2d = _times_e_i(a2, np.cos(delta), np.sin(delta))
         Q = sqrt_rot(base + 10.0 * _i_product(a0, a2d))[0]  # Farouki: (3A0+4A1+3A2) i (..)* = alpha
         A = _member(a0, a2d, Q, np.cos(phi0), np.sin(phi0))

@@ -27,7 +27,15 @@ from planner.curves.dp_cubic import DPCubic
 from planner.curves.dp_ph_hermite import HermiteDataError, dp_ph_hermite
 from planner.curves.tangents import chord_knots, cubic_spline_slopes
 from planner.errors import NoSolutionError, PlannerError, WaypointError
-from planner.validation import check_arc_lengths, check_tangents, check_waypoints
+from planner.validation import (
+    ArgumentError,
+    as_float,
+    as_floats,
+    as_int,
+    check_arc_lengths,
+    check_tangents,
+    check_waypoints,
+)
 
 #: Waypoints given in 3-D must share z to this fraction of the path's extent.
 Z_RTOL = 1e-9
@@ -225,8 +233,8 @@ class PlanarPHSpline:
 # -- fitting --------------------------------------------------------------------------------------
 def _planar_input(waypoints, z) -> tuple[np.ndarray, float]:
     try:
-        arr = np.asarray(waypoints, dtype=float)
-    except (TypeError, ValueError):
+        arr = as_floats(waypoints, "waypoints")
+    except ArgumentError:
         arr = None
     dim = arr.shape[1] if arr is not None and arr.ndim == 2 and arr.shape[1] in (2, 3) else 3
     p = check_waypoints(waypoints, dim=dim)
@@ -380,8 +388,8 @@ def fit_planar_ph_spline(
             raise WaypointError("the estimated tangent vanishes (the path reverses here); give tangents", i)
     else:
         m = _planar_tangents(tangents, n)
-    if not (isinstance(max_depth, int) and max_depth >= 0):
-        raise PlannerError(f"max_depth must be a nonnegative integer, got {max_depth!r}")
+    max_depth = as_int(max_depth, "max_depth", 0, 64)
+    max_length_ratio = as_float(max_length_ratio, "max_length_ratio")
     if not max_length_ratio > 1.0:
         raise PlannerError(f"max_length_ratio must exceed 1, got {max_length_ratio!r}")
     segments: list[DPCubic] = []

@@ -21,20 +21,33 @@ from __future__ import annotations
 import numpy as np
 
 from planner.curves.rational_ph import DualFormError, RationalPH
+from planner.validation import ArgumentError, as_float, as_floats
 
 _ONE = np.array([1.0, 0.0, 0.0, 0.0])
 
 
+#: Largest magnitude of a family parameter: their fourth powers must stay within the float range.
+MAX_PARAMETER = 1e60
+
+
 def _finite(name: str, *vals: float) -> None:
-    for v in vals:
-        if not np.isfinite(v):
-            raise DualFormError(f"{name}: parameters must be finite, got {vals}")
+    for k, v in enumerate(vals):
+        try:
+            x = as_float(v, f"{name} parameter {k + 1}")
+        except ArgumentError as exc:
+            raise DualFormError(str(exc)) from None
+        if abs(x) > MAX_PARAMETER:
+            raise DualFormError(f"{name}: parameter {k + 1} = {x!r} is beyond {MAX_PARAMETER:g} (its powers overflow)")
 
 
 def _quat(q, name: str) -> np.ndarray:
-    a = np.asarray(q, dtype=float)
-    if a.shape != (4,) or not np.isfinite(a).all():
-        raise DualFormError(f"{name} must be a finite quaternion (scalar, i, j, k), got {q!r}")
+    try:
+        a = as_floats(q, name)
+    except ArgumentError as exc:
+        raise DualFormError(str(exc)) from None
+    if a.shape != (4,) or not np.isfinite(a).all() or np.abs(a).max() > MAX_PARAMETER:
+        raise DualFormError(f"{name} must be a finite quaternion (scalar, i, j, k) of entries within "
+                            f"{MAX_PARAMETER:g}, got {a.tolist() if a.size <= 8 else a.shape}")
     return a
 
 

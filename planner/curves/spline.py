@@ -27,7 +27,7 @@ from planner.curves.ph_quintic import PHQuintic, hermite_rows, sqrt_rot
 from planner.curves.ph_spline_c2 import solve_c2
 from planner.curves.tangents import slopes_rows
 from planner.errors import PlannerError
-from planner.validation import check_tangents, check_vector, checked_waypoint_steps
+from planner.validation import as_int, check_tangents, check_vector, checked_waypoint_steps, finite_floats
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,8 +107,9 @@ class PHSpline:
 
     # -- evaluation ----------------------------------------------------------------------------
     def locate(self, u) -> tuple[np.ndarray, np.ndarray]:
-        """Segment index (n,) and local parameter t (n,) of global parameters u (n,)."""
-        u = np.atleast_1d(np.asarray(u, dtype=float))
+        """Segment index (n,) and local parameter t (n,) of global parameters u (n,) (finite; beyond the knots the
+        end segments extend). ArgumentError names a bad ``u``."""
+        u = np.atleast_1d(finite_floats(u, "u", ((), (None,))))
         k = np.clip(np.searchsorted(self.knots, u, side="right") - 1, 0, self.n_segments - 1)
         h = self.knots[k + 1] - self.knots[k]
         return k, (u - self.knots[k]) / h
@@ -165,7 +166,7 @@ class PHSpline:
 
     def quaternion_at_segment(self, k, t) -> np.ndarray:
         """A(t) (n, 4) of segments k (n,) at local parameters t (n,) in [0, 1] (no search for the segment)."""
-        return np.stack(self.quaternion_rows(k, np.asarray(t, dtype=float)), axis=1)
+        return np.stack(self.quaternion_rows(k, finite_floats(t, "t")), axis=1)
 
     def _derivative_t(self, k, t, order):
         """d^order r / dt^order of segments k (n,) at local parameters t (n,), by Horner's rule."""
@@ -183,8 +184,7 @@ class PHSpline:
 
     def derivative(self, u, order: int = 1) -> np.ndarray:
         """Derivative d^order r / du^order, shape (n, 3) (right-sided at knots)."""
-        if not 1 <= order <= 5:
-            raise PlannerError(f"order must be 1..5, got {order}")
+        order = as_int(order, "order", 1, 5)
         k, t = self.locate(u)
         h = self.knots[k + 1] - self.knots[k]
         return self._derivative_t(k, t, order) / h[:, None] ** order
@@ -220,7 +220,7 @@ class PHSpline:
         Newton on each segment's arc-length polynomial from a cubic Hermite guess of the inverse
         (:class:`~planner.curves.arc_evaluator.SplineEvaluator`, built once per spline).
         """
-        return self._evaluator(np.asarray(s, dtype=float))
+        return self._evaluator(np.atleast_1d(finite_floats(s, "s", ((), (None,)))))
 
     @cached_property
     def _evaluator(self):
@@ -274,7 +274,7 @@ class PHSpline:
         left = np.vstack((cp[:1, 0], cp[:, -1]))
         right = np.vstack((cp[:, 0], cp[-1:, -1]))
         idx = slice(None) if self.waypoint_index is None else self.waypoint_index
-        w = np.asarray(waypoints, float)
+        w = finite_floats(waypoints, "waypoints", (len(left[idx]), 3))
         return np.maximum(np.linalg.norm(left[idx] - w, axis=1), np.linalg.norm(right[idx] - w, axis=1))
 
 
