@@ -10,12 +10,14 @@ from __future__ import annotations
 import numpy as np
 
 from planner import bernstein
+from planner.frames.validation import has_curve
 from planner.rotations import quaternion_to_matrix
+from planner.validation import finite_floats
 
 
 def quaternion_values(A: np.ndarray, t: np.ndarray) -> np.ndarray:
     """A(t) (n, 4) from Bernstein coefficients A (m, 4) (m = 3 for quintics, 2 for cubics)."""
-    return bernstein.evaluate(A, np.atleast_1d(np.asarray(t, dtype=float)))
+    return bernstein.evaluate(A, np.atleast_1d(finite_floats(t, "t")))
 
 
 def er_frames(curve, t) -> np.ndarray:
@@ -27,4 +29,6 @@ def er_frames(curve, t) -> np.ndarray:
         Columns: unit tangent A i A* / |A|^2, then A j A* / |A|^2 and A k A* / |A|^2 spanning the normal
         plane; right-handed and orthonormal to round-off.
     """
+    has_curve(curve)
+    t = np.atleast_1d(finite_floats(t, "t", ((), (None,))))
     return quaternion_to_matrix(quaternion_values(curve.A, t))

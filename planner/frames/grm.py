@@ -53,6 +53,7 @@ from planner.frames.grm_orbits import (
 )
 from planner.frames.rmf import RMFAngle, check_start_frame, normal_angle, turn_normals
 from planner.frames.rmf_batch import PathRMFAngles
+from planner.validation import as_int, finite_floats
 
 #: Collocation nodes for the 7 equations of (24): Chebyshev points of [0, 1].
 _COLLOC = 0.5 - 0.5 * np.cos((2 * np.arange(7) + 1) * np.pi / 14)
@@ -162,13 +163,13 @@ class GRMFrame:
 
     def angle(self, t) -> np.ndarray:
         """psi_R(t) - psi_R(0) + start_angle (rad), modulo 2 pi: the frame's angle against the ER frame."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
+        t = np.atleast_1d(finite_floats(t, "t"))
         ang = 2.0 * np.arctan2(bernstein.evaluate(self.a, t), bernstein.evaluate(self.b, t))
         return self.start_angle + ang - 2.0 * np.arctan2(self.a[0], self.b[0])
 
     def frames(self, t) -> np.ndarray:
         """GRM frames (n, 3, 3) at parameters t (n,): the rational rotation of eq. (11), normalized."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
+        t = np.atleast_1d(finite_floats(t, "t"))
         return turn_normals(er_frames(self.curve, t), self.angle(t))
 
     def with_start(self, start) -> GRMFrame:
@@ -438,6 +439,7 @@ def grm(curve, weight: str | Callable = "twist", *, grid: int = 11) -> GRMFrame:
     GRMFrame
         Use ``.with_start(F0)`` to start from another frame.
     """
+    grid = as_int(grid, "grid", 2, 1000)
     if getattr(curve, "A", None) is None or np.shape(curve.A) != (3, 4):
         raise PlannerError("grm needs a PH quintic (quaternion coefficients A of shape (3, 4))")
     if not callable(weight) and weight not in WEIGHTS:

@@ -34,6 +34,7 @@ from planner import quaternion as quat
 from planner.frames import validation as val
 from planner.frames.validation import FrameDataError
 from planner.rotations import matrix_to_quaternion, quaternion_to_matrix
+from planner.validation import finite_floats
 
 _ONE = np.array([1.0, 0.0, 0.0, 0.0])
 
@@ -104,7 +105,7 @@ def rational_coefficients(phi, psi, w0=1.0, w1=1.0, rho=0.0,
     """
     if r2_weights not in R2_WEIGHTS:
         raise FrameDataError(f"must be one of {R2_WEIGHTS}, got {r2_weights!r}", "r2_weights")
-    args = (np.asarray(v, dtype=float) for v in (phi, psi, w0, w1, rho))
+    args = (val._floats(v, name) for v, name in ((phi, "phi"), (psi, "psi"), (w0, "w0"), (w1, "w1"), (rho, "rho")))
     phi, psi, w0, w1, rho = np.broadcast_arrays(*args)
     theta = phi * np.cos(psi)
     zero = np.zeros_like(phi)
@@ -221,7 +222,7 @@ class ExactArcMotion:
 
     def quaternion(self, t) -> np.ndarray:
         """Unit quaternions (n, 4) of the frames at t (n,), signs continuous in t."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
+        t = np.atleast_1d(finite_floats(t, "t"))
         return self._eval(self._stack((self,)), np.zeros(t.shape, int), t)[0]
 
     def frames(self, t) -> np.ndarray:
@@ -230,7 +231,7 @@ class ExactArcMotion:
 
     def angular_velocity(self, t) -> np.ndarray:
         """Angular velocity (n, 3) (rad per unit t) at t (n,), seed eq. (11); equals c x c'."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
+        t = np.atleast_1d(finite_floats(t, "t"))
         return self._eval(self._stack((self,)), np.zeros(t.shape, int), t)[1]
 
     def axis(self, t) -> np.ndarray:
@@ -239,7 +240,7 @@ class ExactArcMotion:
 
     def arc_angle(self, t) -> np.ndarray:
         """Angle alpha(t) (n,) turned along the arc at t (rad)."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
+        t = np.atleast_1d(finite_floats(t, "t"))
         return _turned_angle(t, self.phi, self.w0, self.w1, self.uniform)[0]
 
 
@@ -296,7 +297,7 @@ class RationalArcMotion:
 
     def quaternion(self, t) -> np.ndarray:
         """The polynomial quaternion R(t) (n, 4) (not normalized; |R(0)| = w0^2, |R(1)| = w1^2)."""
-        return bernstein.evaluate(self.coeffs, np.atleast_1d(np.asarray(t, dtype=float)))
+        return bernstein.evaluate(self.coeffs, np.atleast_1d(finite_floats(t, "t")))
 
     def frames(self, t) -> np.ndarray:
         """Frames (n, 3, 3) at t (n,); column ``axis_column`` is the moving axis (on the arc)."""
@@ -304,7 +305,7 @@ class RationalArcMotion:
 
     def angular_velocity(self, t) -> np.ndarray:
         """Angular velocity (n, 3) (rad per unit t): 2 vec(R' R*) / |R|^2 (seed eq. 7)."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
+        t = np.atleast_1d(finite_floats(t, "t"))
         return self._eval(self._stack((self,)), np.zeros(t.shape, int), t)[1]
 
     def axis(self, t) -> np.ndarray:
@@ -313,7 +314,7 @@ class RationalArcMotion:
 
     def arc_angle(self, t) -> np.ndarray:
         """Angle alpha(t) (n,) turned along the arc at t (rad), the argument of R1 (eq. 13)."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
+        t = np.atleast_1d(finite_floats(t, "t"))
         return _turned_angle(t, self.phi, self.w0, self.w1, False)[0]
 
     def exact(self) -> ExactArcMotion:
@@ -411,6 +412,7 @@ def arc_motion(start, axis, angle, *, start_frame=None, axis_column: int = 2, w0
     -------
     RationalArcMotion
     """
+    start, axis = (val.vector3(v, name) for v, name in ((start, "start"), (axis, "axis")))
     a = val.unit_vectors(np.reshape(start, (1, 3)), "start")[0]
     u = val.unit_vectors(np.reshape(axis, (1, 3)), "axis")[0]
     phi = val.finite_scalar(angle, "angle")

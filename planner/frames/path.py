@@ -30,8 +30,10 @@ from planner.frames.grm import grm_many
 from planner.frames.ph_cubic_rmm import ph_cubic_spline_rmm
 from planner.frames.rmf import check_start_frame
 from planner.frames.rmf_batch import PathRMFAngles
+from planner.frames.validation import has_path
 from planner.protocols import Path
 from planner.rotations import quaternion_to_matrix
+from planner.validation import finite_floats
 
 METHODS = ("rmf", "grm", "er", "juttler", "double-reflection")
 
@@ -106,7 +108,7 @@ class PathFrames:
 
     def quaternions(self, u, unit: bool = True) -> np.ndarray:
         """Quaternions (n, 4) (scalar first, unit unless ``unit=False``) of the frames at parameters u (n,)."""
-        u = np.atleast_1d(np.asarray(u, dtype=float))
+        u = np.atleast_1d(finite_floats(u, "u"))
         k, t, ang = self.base_angle(u)
         if self.stations.size:
             ang = ang + np.interp(self.path.arc_length(u), self.stations, self.corrections)
@@ -183,6 +185,9 @@ def frame_field(
         uniform twist between consecutive prescriptions.
     weight : GRM objective (method "grm" only), see :func:`planner.frames.grm.grm`.
     """
+    has_path(path)
+    if not isinstance(method, str) or method not in METHODS:
+        raise PlannerError(f"method must be one of {METHODS}, got {method!r}")
     if method in ("juttler", "double-reflection"):
         if closed or prescribed:
             raise PlannerError(f"closed paths and prescribed rolls are supported for {METHODS[:3]}, not {method!r}")
@@ -268,7 +273,7 @@ class MotionFrames:
     start: np.ndarray
 
     def frames(self, u) -> np.ndarray:
-        u = np.atleast_1d(np.asarray(u, dtype=float))
+        u = np.atleast_1d(finite_floats(u, "u"))
         if self.method == "juttler":
             return self.motion.frames(u)
         order = np.argsort(u, kind="stable")  # double reflection runs along the sorted samples

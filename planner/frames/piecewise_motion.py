@@ -33,6 +33,7 @@ from planner.frames.quaternion_scan import cumulative_left_product
 from planner.frames.spherical_arc import SphericalArcs
 from planner.frames.validation import FrameDataError
 from planner.rotations import matrix_to_quaternion, quaternion_to_matrix
+from planner.validation import finite_floats
 
 #: Largest gap (rad) accepted between the end of one arc and the start of the next.
 JOINT_TOL = 1e-9
@@ -106,7 +107,7 @@ class PiecewiseArcMotion:
 
     def locate(self, t) -> tuple[np.ndarray, np.ndarray]:
         """Segment indices (n,) and local parameters u (n,) in [0, 1] of parameter values t (n,)."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
+        t = np.atleast_1d(finite_floats(t, "t"))
         lo, hi = self.knots[0], self.knots[-1]
         slack = 1e-12 * max(1.0, abs(lo), abs(hi))
         bad = ~np.isfinite(t) | (t < lo - slack) | (t > hi + slack)

@@ -20,6 +20,8 @@ from planner import bernstein
 from planner import quaternion as qt
 from planner.errors import PlannerError
 from planner.frames.er import er_frames, quaternion_values
+from planner.frames.validation import has_curve
+from planner.validation import finite_floats
 
 _GL_NODES, _GL_WEIGHTS = np.polynomial.legendre.leggauss(16)
 _GL6_NODES, _GL6_WEIGHTS = np.polynomial.legendre.leggauss(6)
@@ -85,7 +87,7 @@ class RMFAngle:
 
     def __call__(self, t) -> np.ndarray:
         """psi(t) - psi(0) at parameters t (n,) in [0, 1]."""
-        t = np.atleast_1d(np.asarray(t, dtype=float))
+        t = np.atleast_1d(finite_floats(t, "t"))
         M = self.edges.size - 1
         k = np.clip((t * M).astype(int), 0, M - 1)
         a = self.edges[k]
@@ -99,7 +101,7 @@ class RMFAngle:
         Cheaper than the call for dense sorted samples (6 instead of 16 rate evaluations per sample);
         the intervals are shorter than the panels, so the sum stays exact to round-off.
         """
-        t = np.atleast_1d(np.asarray(t, dtype=float))
+        t = np.atleast_1d(finite_floats(t, "t"))
         if t.size < 2 or np.any(np.diff(t) < 0) or np.diff(t).max() > 1.0 / (self.edges.size - 1):
             return self(t)
         half = 0.5 * np.diff(t)
@@ -152,7 +154,8 @@ def rmf_frames(curve, t, start=None) -> np.ndarray:
         Columns: unit tangent, then the two rotation-minimizing normal-plane vectors; orthonormal and
         right-handed to round-off. The angle about the tangent is exact to about 1e-15 rad.
     """
-    t = np.atleast_1d(np.asarray(t, dtype=float))
+    has_curve(curve)
+    t = np.atleast_1d(finite_floats(t, "t", ((), (None,))))
     psi0 = 0.0
     if start is not None:
         er0 = er_frames(curve, [0.0])[0]

@@ -31,6 +31,7 @@ from planner.frames.piecewise_motion import PiecewiseArcMotion
 from planner.frames.spherical_biarc import fit_spherical_biarcs
 from planner.frames.validation import FrameDataError
 from planner.rotations import matrix_to_quaternion, quaternion_to_matrix
+from planner.validation import finite_floats
 
 #: Gauss-Legendre order of each quadrature panel.
 GL_ORDER = 16
@@ -99,7 +100,7 @@ class ExactSphericalRMM:
     spin_start: np.ndarray
 
     def _locate(self, t):
-        t = np.atleast_1d(np.asarray(t, dtype=float))
+        t = np.atleast_1d(finite_floats(t, "t"))
         lo, hi = self.panels[0], self.panels[-1]
         slack = 1e-12 * max(1.0, abs(lo), abs(hi))
         bad = ~np.isfinite(t) | (t < lo - slack) | (t > hi + slack)

@@ -19,8 +19,9 @@ from scipy.interpolate import CubicSpline
 
 from planner.errors import PlannerError, WaypointError
 from planner.frames.spherical_rmm import exact_spherical_rmm, rational_spherical_rmm
+from planner.frames.validation import has_path
 from planner.protocols import Path
-from planner.validation import check_tangents
+from planner.validation import check_tangents, finite_floats
 
 #: Neighbouring tool axes more than this far apart (degrees) are a flip, not a smooth tilt.
 FLIP_DEG = 90.0
@@ -55,12 +56,12 @@ class ToolFrames:
 
     def axis(self, u) -> np.ndarray:
         """The interpolated tool axis (n, 3) at global parameters u."""
-        c = self.axis_spline(np.atleast_1d(np.asarray(u, dtype=float)))
+        c = self.axis_spline(np.atleast_1d(finite_floats(u, "u")))
         return c / np.linalg.norm(c, axis=1, keepdims=True)
 
     def frames(self, u) -> np.ndarray:
         """Tool frames (n, 3, 3) at global parameters u (n,): columns x, y, z (z = tool axis)."""
-        return self.motion.frames(np.atleast_1d(np.asarray(u, dtype=float)))
+        return self.motion.frames(np.atleast_1d(finite_floats(u, "u")))
 
     def at_length(self, s) -> np.ndarray:
         """Tool frames at arc lengths s (n,) from the start of the path (metres)."""
@@ -129,6 +130,7 @@ def tool_frames(path, axes, method: str = "exact", *, start=None, tol: float = 1
     ToolAxisWarning
         An axis within 5 degrees of the direction of travel (naming the waypoint).
     """
+    has_path(path)
     if method not in METHODS:
         raise PlannerError(f"method must be one of {METHODS}, got {method!r}")
     a = _check_axes(path, axes)

@@ -9,6 +9,7 @@ import numpy as np
 from planner import quaternion as quat
 from planner.errors import PlannerError
 from planner.rotations import quaternion_to_matrix
+from planner.validation import ArgumentError, as_float, as_floats
 
 #: Tolerance on |v| - 1 for data that must be unit vectors, and on F^T F - I for frames.
 UNIT_TOL = 1e-9
@@ -34,7 +35,7 @@ class FrameDataError(PlannerError):
 
 def vectors(data, name: str, n: int | None = None) -> np.ndarray:
     """``data`` as a finite float array of shape (n, 3); raise naming the first bad row."""
-    a = np.asarray(data, dtype=float)
+    a = _floats(data, name)
     if a.ndim != 2 or a.shape[1] != 3:
         raise FrameDataError(f"expected an array of shape (n, 3), got shape {a.shape}", name)
     if n is not None and a.shape[0] != n:
@@ -42,6 +43,46 @@ def vectors(data, name: str, n: int | None = None) -> np.ndarray:
     if not np.isfinite(a).all():
         i = int(np.argmax(~np.isfinite(a).all(axis=1)))
         raise FrameDataError(f"is not finite ({a[i]})", name, i)
+    return a
+
+
+def _floats(data, name: str) -> np.ndarray:
+    """Real numbers as a float array, or FrameDataError naming ``name`` (strings, complex, None, objects)."""
+    try:
+        return as_floats(data, name)
+    except ArgumentError as exc:
+        raise FrameDataError(str(exc).partition(": ")[2], name) from None
+
+
+def _float(value, name: str) -> float:
+    """One real number (NaN and inf pass: the caller checks), or FrameDataError naming ``name``."""
+    try:
+        return as_float(value, name, finite=False)
+    except ArgumentError as exc:
+        raise FrameDataError(str(exc).partition(": ")[2], name) from None
+
+
+def has_curve(curve, name: str = "curve"):
+    """``curve`` if it is a PH curve (has the quaternion coefficients ``A``), else FrameDataError."""
+    if not hasattr(curve, "A"):
+        raise FrameDataError(f"must be a PH curve (PHQuintic, PHCubic or a PH spline), got {type(curve).__name__}",
+                             name)
+    return curve
+
+
+def has_path(path, name: str = "path"):
+    """``path`` if it is a PH spline (fit_ph_spline / fit_ph_cubic_spline), else FrameDataError."""
+    if not all(hasattr(path, a) for a in ("A", "knots", "locate", "waypoint_knots")):
+        raise FrameDataError(f"must be a PH spline (fit_ph_spline or fit_ph_cubic_spline), got "
+                             f"{type(path).__name__}", name)
+    return path
+
+
+def vector3(data, name: str) -> np.ndarray:
+    """One vector of shape (3,) of real numbers (finite values are the caller's to check)."""
+    a = _floats(data, name)
+    if a.shape != (3,):
+        raise FrameDataError(f"expected a vector of shape (3,), got shape {a.shape}", name)
     return a
 
 
@@ -78,7 +119,7 @@ def frame(data, name: str, axis: np.ndarray | None = None, axis_column: int = 0,
     Raises FrameDataError naming ``name`` when the shape is wrong, the matrix is not finite, not
     orthonormal, left-handed, or its axis column differs from ``axis`` by more than ``tol``.
     """
-    f = np.asarray(data, dtype=float)
+    f = _floats(data, name)
     if f.shape != (3, 3):
         raise FrameDataError(f"expected a (3, 3) frame (columns = frame vectors), got shape {f.shape}", name)
     if not np.isfinite(f).all():
@@ -99,10 +140,7 @@ def frame(data, name: str, axis: np.ndarray | None = None, axis_column: int = 0,
 
 def positive_scalar(value, name: str) -> float:
     """A finite number > 0."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise FrameDataError(f"must be a number, got {value!r}", name) from None
+    v = _float(value, name)
     if not np.isfinite(v) or v <= 0:
         raise FrameDataError(f"must be finite and > 0, got {v!r}", name)
     return v
@@ -110,10 +148,7 @@ def positive_scalar(value, name: str) -> float:
 
 def finite_scalar(value, name: str) -> float:
     """A finite number."""
-    try:
-        v = float(value)
-    except (TypeError, ValueError):
-        raise FrameDataError(f"must be a number, got {value!r}", name) from None
+    v = _float(value, name)
     if not np.isfinite(v):
         raise FrameDataError(f"must be finite, got {v!r}", name)
     return v
