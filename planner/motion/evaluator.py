@@ -25,6 +25,10 @@ def evaluator_for(path) -> SplineEvaluator:
 
 def span_bounds(path) -> np.ndarray:
     """Arc length (m) at every user waypoint of a path (the span ends): 0 first, the length last."""
+    if not hasattr(path, "length"):
+        from planner.motion.limits import MotionInputError
+
+        raise MotionInputError("path", f"must be a path (a PH spline from fit_ph_spline), got {type(path).__name__}")
     L = float(path.length)
     wk = getattr(path, "waypoint_knots", None)
     if wk is None:

@@ -14,7 +14,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from planner.motion.limits import MotionInputError, nonnegative
+from planner.motion.limits import MotionInputError, nonnegative, real
 
 #: Digital outputs per kind on a UR e-Series controller: 8 standard (DO0..7), 8 configurable, 2 tool.
 OUTPUT_PINS = {"standard": 8, "configurable": 8, "tool": 2}
@@ -78,6 +78,7 @@ def io_window(s_on: float, s_off: float, pin: int, *, output: str = "standard", 
     ``lead_time`` applies to switching on and, unless ``off_lead_time`` is given, to switching off
     (a valve that takes that long to respond both ways).
     """
+    s_on, s_off = real(s_on, "s_on"), real(s_off, "s_off")
     if not s_on < s_off:
         raise MotionInputError("s_off", f"must be after s_on ({s_on}), got {s_off}")
     off = lead_time if off_lead_time is None else off_lead_time

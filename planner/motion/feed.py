@@ -21,6 +21,20 @@ from planner.motion.evaluator import span_bounds
 from planner.motion.limits import MotionInputError, MotionLimits, positive
 from planner.motion.orientation import Orientation, orientation_rate
 from planner.motion.profile import FeedProfile
+from planner.validation import ArgumentError, as_floats
+
+
+def _feeds(values, name: str) -> np.ndarray:
+    """Feeds as floats, m/s: NaN (unknown: the job's feed) passes, inf and non-numbers are refused by name."""
+    try:
+        f = as_floats(values, name)
+    except ArgumentError as exc:
+        raise MotionInputError(name, f"{str(exc).partition(': ')[2]} (NaN for the job's feed)") from None
+    bad = np.isinf(f)
+    if bad.any():
+        i = np.unravel_index(int(np.argmax(bad)), f.shape)
+        raise MotionInputError(name + "".join(f"[{j}]" for j in i), f"must be finite or NaN, got {f[i]}")
+    return f
 
 
 def span_feeds_from_point_feeds(feeds) -> np.ndarray:
@@ -29,7 +43,7 @@ def span_feeds_from_point_feeds(feeds) -> np.ndarray:
     ``planner.io.Toolpath.feeds[i]`` is the feed of the move into point i, so span i (from point i
     to point i + 1) runs at ``feeds[i + 1]``; NaN (unknown) stays NaN (the job's feed applies).
     """
-    f = np.asarray(feeds, dtype=float)
+    f = _feeds(feeds, "feeds")
     if f.ndim != 1 or f.size < 2:
         raise MotionInputError("feeds", f"expected one feed per point (n >= 2,), got shape {f.shape}")
     return f[1:].copy()
@@ -52,10 +66,7 @@ def _span_commands(feed: float, limits: MotionLimits, span_feeds, n_spans: int) 
     if span_feeds is None:
         f = np.full(n_spans, feed)
     else:
-        try:
-            f = np.asarray(span_feeds, dtype=float)
-        except (TypeError, ValueError):
-            raise MotionInputError("span_feeds", "must be numeric (NaN for the job's feed)") from None
+        f = _feeds(span_feeds, "span_feeds")
         if f.shape != (n_spans,):
             raise MotionInputError("span_feeds", f"expected one feed per span, shape ({n_spans},), got {f.shape}")
         bad = np.isinf(f) | (f <= 0.0)

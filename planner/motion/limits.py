@@ -8,6 +8,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.errors import PlannerError
+from planner.validation import ArgumentError, as_float, as_floats
 
 
 class MotionInputError(PlannerError):
@@ -24,12 +25,18 @@ class MotionInputError(PlannerError):
         super().__init__(f"{parameter}: {message}")
 
 
+def real(value, name: str) -> float:
+    """One real number (NaN and inf pass), or MotionInputError naming ``name`` (strings, complex numbers,
+    booleans, None, arrays of other sizes, integers beyond the float range)."""
+    try:
+        return as_float(value, name, finite=False)
+    except ArgumentError as exc:
+        raise MotionInputError(name, str(exc).partition(": ")[2]) from None
+
+
 def positive(value, name: str) -> float:
     """``value`` as a float, or MotionInputError naming ``name`` unless finite and > 0."""
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise MotionInputError(name, f"must be a number, got {value!r}") from None
+    x = real(value, name)
     if not math.isfinite(x) or x <= 0.0:
         raise MotionInputError(name, f"must be finite and > 0, got {x}")
     return x
@@ -37,10 +44,7 @@ def positive(value, name: str) -> float:
 
 def nonnegative(value, name: str) -> float:
     """``value`` as a float, or MotionInputError naming ``name`` unless finite and >= 0."""
-    try:
-        x = float(value)
-    except (TypeError, ValueError):
-        raise MotionInputError(name, f"must be a number, got {value!r}") from None
+    x = real(value, name)
     if not math.isfinite(x) or x < 0.0:
         raise MotionInputError(name, f"must be finite and >= 0, got {x}")
     return x
@@ -82,9 +86,9 @@ class MotionLimits:
 def finite_array(values, name: str, shape: tuple | None = None) -> np.ndarray:
     """A float array, MotionInputError naming ``name`` and the first bad index if not finite."""
     try:
-        a = np.asarray(values, dtype=float)
-    except (TypeError, ValueError):
-        raise MotionInputError(name, "must be numeric") from None
+        a = as_floats(values, name)
+    except ArgumentError as exc:
+        raise MotionInputError(name, str(exc).partition(": ")[2]) from None
     if shape is not None and a.shape != shape:
         raise MotionInputError(name, f"expected shape {shape}, got {a.shape}")
     bad = ~np.isfinite(a)

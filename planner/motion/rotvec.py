@@ -16,9 +16,20 @@ from __future__ import annotations
 
 import numpy as np
 
+from planner.motion.limits import MotionInputError
 from planner.rotations import matrix_to_quaternion, quaternion_to_rotvec
+from planner.validation import ArgumentError, finite_floats
 
 __all__ = ["continuous_quaternions", "continuous_rotvec", "rotvec_from_quaternions", "unwrap_rotvec"]
+
+
+def _rows(values, name: str, row: tuple | None = None) -> np.ndarray:
+    """Finite rows of the given shape ``(n, *row)`` (or one value when ``row`` is None), or MotionInputError."""
+    try:
+        a = finite_floats(values, name, None if row is None else (None, *row))
+    except ArgumentError as exc:
+        raise MotionInputError(exc.argument, str(exc).partition(": ")[2]) from None
+    return a
 
 
 def continuous_quaternions(q: np.ndarray, previous: np.ndarray | None = None) -> np.ndarray:
@@ -75,7 +86,7 @@ def rotvec_from_quaternions(q: np.ndarray, previous_q: np.ndarray | None = None,
     Returns the rotation vectors and the sign-continuous quaternions. ``previous_q`` and
     ``previous_r`` are those of the sample before q[0] (to continue an earlier chunk).
     """
-    q = continuous_quaternions(q, previous_q)
+    q = continuous_quaternions(_rows(q, "q", (4,)), None if previous_q is None else _rows(previous_q, "previous_q"))
     r = quaternion_to_rotvec(q)
     # away from w = -1 the map is smooth and close samples stay close: unwrap only where it can matter
     shifted = previous_r is not None and float(np.linalg.norm(previous_r)) > 1.5 * np.pi
@@ -99,4 +110,4 @@ def continuous_rotvec(R: np.ndarray, previous_q: np.ndarray | None = None,
     (r, q) : ndarray (n, 3), ndarray (n, 4)
         The rotation vectors and the sign-continuous quaternions.
     """
-    return rotvec_from_quaternions(matrix_to_quaternion(R), previous_q, previous_r)
+    return rotvec_from_quaternions(matrix_to_quaternion(_rows(R, "R", (3, 3))), previous_q, previous_r)

@@ -42,9 +42,20 @@ def as_transform(value, name: str) -> np.ndarray:
     return a.copy()
 
 
+#: Highest sampling rate of a pose stream, Hz (controllers run at 125-500 Hz; beyond this it is a mistake).
+MAX_RATE = 1e6
+
+
+def _check_path(path) -> None:
+    """MotionInputError unless ``path`` is a path (a PH spline: ``length``, ``parameter_at_length``, ``points``)."""
+    if not all(hasattr(path, a) for a in ("length", "parameter_at_length", "points")):
+        raise MotionInputError("path", f"must be a path (a PH spline from fit_ph_spline), got {type(path).__name__}")
+
+
 def transform_to_pose(T: np.ndarray) -> np.ndarray:
     """UR pose (6,) of a rigid transform (4, 4), rotation angle in [0, pi]."""
-    r, _ = continuous_rotvec(np.asarray(T, float)[None, :3, :3])
+    T = finite_array(T, "T", (4, 4))
+    r, _ = continuous_rotvec(T[None, :3, :3])
     return np.concatenate((T[:3, 3], r[0]))
 
 
@@ -172,6 +183,9 @@ def sample_poses(
     PoseStream
     """
     rate = positive(rate, "rate")
+    if rate > MAX_RATE:
+        raise MotionInputError("rate", f"must be at most {MAX_RATE:g} Hz, got {rate:g}")
+    _check_path(path)
     if not isinstance(profile, FeedProfile):
         raise MotionInputError("profile", f"must be a FeedProfile, got {type(profile).__name__}")
     if abs(float(getattr(path, "length", np.nan)) - profile.length) > 1e-9 * max(profile.length, 1.0):
@@ -244,7 +258,14 @@ def poses_at_length(path, orientation, s, *, base=None) -> tuple[np.ndarray, np.
 
     The rotation vectors are continuous along s (for sparse points such as move targets).
     """
-    s = finite_array(np.atleast_1d(s), "s")
+    s = finite_array(s, "s")
+    if s.ndim > 1:
+        raise MotionInputError("s", f"must be arc lengths of shape (n,), got {s.shape}")
+    s = np.atleast_1d(s)
+    _check_path(path)
+    if not (callable(orientation) or hasattr(orientation, "at_parameter")):
+        raise MotionInputError("orientation",
+                               f"must be a callable s -> (n, 3, 3) frames, got {type(orientation).__name__}")
     Tb = as_transform(base, "base")
     if hasattr(path, "sigma_coeffs"):
         ev = evaluator_for(path)
