@@ -23,7 +23,13 @@ The baseline (in the same run): the same poller on a plain Python thread that se
 i.e. what the measurement itself adds on this machine. ``rows()`` of bench/bench_ik.py (one-pose IK for
 the 2 ms loop) is printed too when present.
 
-Run: python bench/bench_sim.py [--seconds 60]
+A second table: the CPU time per 2 ms control period of the simulator's core running the planner's
+exported whole-job program (the demo job's ``job_program``: the URScript interpreter, the motion model,
+the controller's period bookkeeping; in-process, no sockets), against an idle core (no program) measured
+in the same run. It bounds how fast a program runs in fast-forward: ``2 ms / (us per period)`` times
+real time on one core (tests/test_whole_job_program.py runs an hour of motion at 150x).
+
+Run: python bench/bench_sim.py [--seconds 60] [--program-only]
 """
 
 from __future__ import annotations
@@ -214,12 +220,55 @@ def run_baseline(seconds: float) -> dict:
     return out
 
 
+def _core_cpu_per_period(text: str | None, periods: int) -> tuple[float, int]:
+    """CPU seconds per control period of a fresh Core running ``text`` (None: idle) for up to ``periods``."""
+    from sim.core import Core
+    from sim.io_state import IOState
+
+    core = Core("ur5e", IOState())
+    if text is not None and not core.load_program(text):
+        raise RuntimeError(f"the simulator refused the program: {list(core.log)[-1:]}")
+    t0 = time.process_time()
+    n = 0
+    while n < periods and (text is None or core.program is not None):
+        core.tick()
+        n += 1
+    cpu = time.process_time() - t0
+    if core.safety_mode != 1:
+        raise RuntimeError(f"protective stop while running the program: {list(core.log)[-1:]}")
+    return cpu / max(n, 1), n
+
+
+def run_program() -> list[list[object]]:
+    """Rows of the program table: the demo job's whole-job program against an idle core."""
+    from planner import PlanSettings, plan
+    from planner.export import job_program
+
+    repo = Path(__file__).resolve().parents[1]
+    job = plan(repo / "examples" / "nx_first_pass.cls",
+               PlanSettings(robot="ur5e", part_frame=(0.4, 0.9965, -0.1, 0.0, 0.0, 0.0), cut_output=("standard", 0)))
+    text = job_program(job)
+    per, n = _core_cpu_per_period(text, 10**7)
+    idle, _ = _core_cpu_per_period(None, 20000)
+    return [[f"demo job program ({text.count(chr(10))} lines, {n * PERIOD:.0f} s of motion)", f"{per * 1e6:.1f}",
+             f"{PERIOD / per:.0f}", f"{per / idle:.2f}"],
+            ["baseline: idle core (no program)", f"{idle * 1e6:.1f}", f"{PERIOD / idle:.0f}", "1.00"]]
+
+
+PROGRAM_HEADERS = ["core running", "CPU us per 2 ms period", "x real time (one core)", "ratio to idle"]
+
+
 def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(description=__doc__.split("\n")[0])
     ap.add_argument("--seconds", type=float, default=60.0, help="measurement time per configuration (s)")
     ap.add_argument("--no-realtime", action="store_true",
                     help="leave this process's threads (poller, ur_rtde's receive threads) at normal priority")
+    ap.add_argument("--program-only", action="store_true", help="only the program table (no RTDE measurement)")
     args = ap.parse_args(argv)
+    if args.program_only:
+        print("The simulator's core running the planner's whole-job program (in-process)")
+        print_table(PROGRAM_HEADERS, run_program())
+        return 0
     global REALTIME
     REALTIME = not args.no_realtime
     rows = []
@@ -238,6 +287,9 @@ def main(argv: list[str] | None = None) -> int:
     print_table(["configuration", "period p50 ms", "p99 ms", "max ms", "|p99 - 2| ms", "<= 0.5 ms",
                  "missed (client)", "late ticks (sim)", "machine stalls (periods)", "CPU % per sim",
                  "baseline p99 / p99"], rows)
+    print()
+    print("The simulator's core running the planner's whole-job program (in-process)")
+    print_table(PROGRAM_HEADERS, run_program())
     try:
         import bench_ik
     except ImportError:

@@ -1,6 +1,8 @@
 """``python -m sim --host 127.0.0.2 --model ur5e [--modbus-port 5020] [--speed 1.0] [--record FILE]``.
 
-Runs a simulated UR controller until Ctrl-C; prints where it serves.
+Runs a simulated UR controller until Ctrl-C (or ``quit``); prints where it serves. Lines typed on stdin
+act on the controller as a person at the cell would (:data:`COMMANDS`): press or release the emergency
+stop, switch between local and remote control, show the state.
 """
 
 from __future__ import annotations
@@ -8,9 +10,64 @@ from __future__ import annotations
 import argparse
 import signal
 import sys
+import threading
 import time
 
 from sim.controller import SimController, SimError
+
+COMMANDS = {
+    "estop": "press the teach pendant's emergency stop ('estop system': the cell's emergency stop input)",
+    "release": "release the emergency stop (then power on and brake release through the dashboard)",
+    "local": "switch to local control (the dashboard refuses motion commands, the script ports programs)",
+    "remote": "switch to remote control",
+    "state": "print the controller's modes, joints and last messages",
+    "help": "list the commands",
+    "quit": "stop the controller and exit",
+}
+
+
+def command(sim: SimController, line: str) -> str:
+    """Carry out one console line on ``sim``; the text to print. Unknown lines get the command list."""
+    words = line.split()
+    if not words:
+        return ""
+    name, args = words[0].lower(), words[1:]
+    if name == "estop":
+        kind = args[0].lower() if args else "robot"
+        if kind not in ("robot", "system"):
+            return f"estop: say 'estop' or 'estop system', not {line.strip()!r}"
+        sim.press_emergency_stop(kind)
+        return f"emergency stop pressed ({kind}): the arm is stopped and powered off"
+    if name == "release":
+        if sim.release_emergency_stop():
+            return "emergency stop released: power on and release the brakes (dashboard) to continue"
+        return "no emergency stop is pressed"
+    if name in ("local", "remote"):
+        sim.set_remote_control(name == "remote")
+        return f"{name} control"
+    if name == "state":
+        st = sim.state()
+        q = ", ".join(f"{x:.4f}" for x in st["q"])
+        msgs = "\n".join(f"  {t:9.3f} {src}: {text}" for t, src, text in st["log"][-5:])
+        return (f"robot {st['robot_mode']}, safety {st['safety_mode']}, program {st['runtime_state']} "
+                f"({st['program']}), {'remote' if st['remote_control'] else 'local'} control\n"
+                f"  joints [{q}] rad" + (f"\n{msgs}" if msgs else ""))
+    if name == "quit":
+        sim.stop()
+        return "stopped"
+    return "\n".join(f"  {k:8s} {v}" for k, v in COMMANDS.items())
+
+
+def _console(sim: SimController) -> None:
+    for line in sys.stdin:
+        try:
+            out = command(sim, line)
+        except SimError as exc:
+            out = f"error: {exc}"
+        if out:
+            print(out, flush=True)
+        if not sim.running:
+            return
 
 
 def main(argv: list[str] | None = None) -> int:
@@ -22,19 +79,23 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--speed", type=float, default=1.0, help="simulated seconds per wall-clock second")
     ap.add_argument("--record", default=None, help="write a recording (.npz or .csv) when stopped")
     ap.add_argument("--allow-remote", action="store_true", help="allow a non-loopback --host")
+    ap.add_argument("--local-control", action="store_true", help="start in local control mode (the pendant's)")
     args = ap.parse_args(argv)
     try:
         sim = SimController(args.host, args.model, None if args.no_modbus else args.modbus_port, args.speed,
-                            args.record, allow_remote=args.allow_remote).start()
+                            args.record, allow_remote=args.allow_remote,
+                            remote_control=not args.local_control).start()
     except (ValueError, SimError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     print(f"simulated {sim.model} on {sim.host}: RTDE 30004, dashboard 29999, script 30001-30003"
-          + (f", Modbus {sim.ports.get('modbus')}" if sim.ports.get("modbus") else "") + " (Ctrl-C stops)")
+          + (f", Modbus {sim.ports.get('modbus')}" if sim.ports.get("modbus") else "")
+          + " (Ctrl-C stops; type 'help' for commands)", flush=True)
     signal.signal(signal.SIGTERM, lambda *_: sim.stop())
+    threading.Thread(target=_console, args=(sim,), name="console", daemon=True).start()
     try:
         while sim.running:
-            time.sleep(0.5)
+            time.sleep(0.2)
     except KeyboardInterrupt:
         pass
     finally:

@@ -57,11 +57,16 @@ class SimController:
     realtime : bool
         Run the child's threads SCHED_FIFO where the system allows it (its control loop highest), so
         that a loaded machine does not delay the 500 Hz loop.
+    remote_control : bool
+        Start in remote control mode (True, what a cell run from a computer uses) or in local control
+        mode (False: the pendant is in control; the dashboard's ``is in remote control`` says false and
+        it refuses to load or play programs, power on or release the brakes; the script ports refuse
+        programs). See :meth:`set_remote_control`.
     """
 
     def __init__(self, host: str = "127.0.0.2", model: str = "ur5e", modbus_port: int | None = 5020,
                  speed: float = 1.0, record=None, *, allow_remote: bool = False,
-                 startup_timeout: float = 20.0, realtime: bool = True) -> None:
+                 startup_timeout: float = 20.0, realtime: bool = True, remote_control: bool = True) -> None:
         from planner.kinematics import get_model
 
         self.host = check_host(host, allow_remote)
@@ -78,6 +83,9 @@ class SimController:
         self.allow_remote = allow_remote
         self.startup_timeout = startup_timeout
         self.realtime = realtime
+        if not isinstance(remote_control, bool):
+            raise ValueError(f"remote_control must be True or False, got {remote_control!r}")
+        self.remote_control = remote_control
         self.proc: subprocess.Popen | None = None
         self.ports: dict = {}
         self._lock = threading.Lock()
@@ -97,6 +105,8 @@ class SimController:
             cmd.append("--allow-remote")
         if not self.realtime:
             cmd.append("--no-realtime")
+        if not self.remote_control:
+            cmd.append("--local-control")
         env = dict(os.environ)
         env["PYTHONPATH"] = str(_REPO) + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
         # the child's stderr goes to a file (a pipe nobody reads could fill up and stall the child)
@@ -115,13 +125,13 @@ class SimController:
                 return self
 
     def _readline(self, timeout: float) -> str | None:
-        proc = self.proc
-        if timeout <= 0:
+        out = self.proc.stdout if self.proc is not None else None
+        if out is None or timeout <= 0:
             return None
-        r, _, _ = select.select([proc.stdout], [], [], timeout)
+        r, _, _ = select.select([out], [], [], timeout)
         if not r:
             return None
-        line = proc.stdout.readline()
+        line = out.readline()
         return line if line else None
 
     def _stop_and_collect(self) -> str:
@@ -146,7 +156,8 @@ class SimController:
         if proc is None or proc.returncode is not None:
             return
         try:
-            proc.stdin.close()  # the child exits on EOF (writing its recording first)
+            if proc.stdin is not None:
+                proc.stdin.close()  # the child exits on EOF (writing its recording first)
         except OSError:
             pass
         try:
@@ -159,13 +170,15 @@ class SimController:
                 self._signal(signal.SIGKILL)
                 proc.wait(5.0)
         self._signal(signal.SIGKILL)  # anything left in its group
-        for f in (proc.stdout,):
+        if proc.stdout is not None:
             try:
-                f.close()
+                proc.stdout.close()
             except OSError:
                 pass
 
     def _signal(self, sig: int) -> None:
+        if self.proc is None:
+            return
         try:
             os.killpg(self.proc.pid, sig)
         except (ProcessLookupError, PermissionError):
@@ -183,11 +196,12 @@ class SimController:
 
     # ---- queries -----------------------------------------------------------------------------
     def _ask(self, req: dict, timeout: float = 5.0) -> dict:
-        if not self.running:
+        stdin = self.proc.stdin if self.proc is not None else None
+        if stdin is None or not self.running:
             raise SimError(f"simulated controller on {self.host} is not running")
         with self._lock:
-            self.proc.stdin.write(json.dumps(req) + "\n")
-            self.proc.stdin.flush()
+            stdin.write(json.dumps(req) + "\n")
+            stdin.flush()
             line = self._readline(timeout)
         if line is None:
             raise SimError(f"simulated controller on {self.host} did not answer {req}")
@@ -203,6 +217,26 @@ class SimController:
     def set_digital_in(self, mask: int, value: int) -> None:
         """Drive the simulated digital inputs (bits 0-7 standard, 8-15 configurable, 16-17 tool)."""
         self._ask({"cmd": "set_digital_in", "mask": int(mask), "value": int(value)})
+
+    def press_emergency_stop(self, kind: str = "robot") -> None:
+        """Press the emergency stop: ``"robot"`` (the teach pendant's button: safety mode
+        ROBOT_EMERGENCY_STOP) or ``"system"`` (the cell's emergency stop input: SYSTEM_EMERGENCY_STOP). The
+        arm stops at once, the program stops and the arm is powered off (robot mode POWER_OFF)."""
+        if kind not in ("robot", "system"):
+            raise ValueError(f"kind must be 'robot' or 'system', got {kind!r}")
+        self._ask({"cmd": "emergency_stop", "pressed": True, "kind": kind})
+
+    def release_emergency_stop(self) -> bool:
+        """Release the emergency stop (safety mode NORMAL again; the arm stays powered off until the
+        dashboard's ``power on`` and ``brake release``). False when none was pressed."""
+        return bool(self._ask({"cmd": "emergency_stop", "pressed": False})["ok"])
+
+    def set_remote_control(self, on: bool) -> None:
+        """Switch between remote (True) and local (False) control, as on the teach pendant."""
+        if not isinstance(on, bool):
+            raise ValueError(f"on must be True or False, got {on!r}")
+        self._ask({"cmd": "remote_control", "on": on})
+        self.remote_control = on
 
 
 @atexit.register

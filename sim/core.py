@@ -7,9 +7,18 @@ holding :attr:`Core.lock`; the tick thread holds it for the whole tick, so a pro
 data package's inputs together.
 
 Modes and bits follow the RTDE guide and ur_rtde 1.6.5 (include/ur_rtde/rtde_control_interface.h):
-robot_mode 3 POWER_OFF, 5 IDLE, 7 RUNNING; safety_mode 1 NORMAL, 3 PROTECTIVE_STOP; runtime_state
-1 STOPPED, 2 PLAYING, 4 PAUSED; robot_status_bits bit 0 power on, bit 1 program running;
-safety_status_bits bit 0 normal mode, bit 2 protective stopped, bit 10 stopped due to safety.
+robot_mode 3 POWER_OFF, 5 IDLE, 7 RUNNING; safety_mode 1 NORMAL, 3 PROTECTIVE_STOP, 6
+SYSTEM_EMERGENCY_STOP, 7 ROBOT_EMERGENCY_STOP; runtime_state 1 STOPPED, 2 PLAYING, 4 PAUSED;
+robot_status_bits bit 0 power on, bit 1 program running; safety_status_bits bit 0 normal mode, bit 2
+protective stopped, bit 5 system emergency stopped, bit 6 robot emergency stopped, bit 7 emergency
+stopped, bit 10 stopped due to safety.
+
+Faults: a protective stop (a motion beyond the limits, an unreachable target, ``protective_stop()``)
+halts the arm, stops the program 0.1 s later and is cleared with the dashboard's ``unlock protective
+stop`` no sooner than 5 s after it; an emergency stop (:meth:`Core.press_emergency_stop`) halts the arm,
+stops the program and cuts the arm's power (robot mode POWER_OFF) until it is released and the arm
+powered on and its brakes released again. In local control mode (:attr:`Core.remote_control` False, the
+pendant's choice) the script ports refuse programs and the dashboard refuses what would start motion.
 """
 
 from __future__ import annotations
@@ -28,6 +37,8 @@ from sim.urscript import URScriptProgram, compile_program
 
 ROBOT_POWER_OFF, ROBOT_IDLE, ROBOT_RUNNING = 3, 5, 7
 SAFETY_NORMAL, SAFETY_PROTECTIVE_STOP = 1, 3
+SAFETY_SYSTEM_EMERGENCY_STOP, SAFETY_ROBOT_EMERGENCY_STOP = 6, 7
+EMERGENCY_STOPS = (SAFETY_SYSTEM_EMERGENCY_STOP, SAFETY_ROBOT_EMERGENCY_STOP)
 RUNTIME_STOPPED, RUNTIME_PLAYING, RUNTIME_PAUSED = 1, 2, 4
 JOINT_POWER_OFF, JOINT_RUNNING, JOINT_IDLE = 239, 253, 255
 #: Seconds (simulated) after a protective stop before it may be unlocked, as on the controller.
@@ -35,7 +46,7 @@ UNLOCK_DELAY = 5.0
 #: Simulated seconds between a protective stop (safety bits set, arm halted) and the program's end.
 PROGRAM_STOP_DELAY = 0.1
 MODE_NAMES = {3: "POWER_OFF", 5: "IDLE", 7: "RUNNING"}
-SAFETY_NAMES = {1: "NORMAL", 3: "PROTECTIVE_STOP"}
+SAFETY_NAMES = {1: "NORMAL", 3: "PROTECTIVE_STOP", 6: "SYSTEM_EMERGENCY_STOP", 7: "ROBOT_EMERGENCY_STOP"}
 RUNTIME_NAMES = {1: "STOPPED", 2: "PLAYING", 4: "PAUSED"}
 
 
@@ -63,6 +74,7 @@ class Core:
         self.steps = 0
         self.robot_mode = ROBOT_RUNNING
         self.safety_mode = SAFETY_NORMAL
+        self.remote_control = True  # the pendant's local / remote control switch
         self.runtime_state = RUNTIME_STOPPED
         self.program: ControlScript | URScriptProgram | None = None
         self.program_name = "<unnamed>"
@@ -78,10 +90,10 @@ class Core:
         self.outbox: list[tuple[str, str, int]] = []  # text messages for RTDE clients
         self.input_time: dict[str, float] = {}
         self.watchdog: tuple[str, float] | None = None
-        self._history = collections.deque(maxlen=1000)
+        self._history: collections.deque[np.ndarray] = collections.deque(maxlen=1000)
         self._tcp_cache: tuple[int, np.ndarray, np.ndarray] | None = None
-        self._prev_T: np.ndarray | None = None
         self._speed = np.zeros(6)
+        self._speed_step = -1
         self._program_stop_at: float | None = None
 
     # ---- reported state ----------------------------------------------------------------------
@@ -98,26 +110,49 @@ class Core:
     def safety_status_bits(self) -> int:
         if self.safety_mode == SAFETY_PROTECTIVE_STOP:
             return (1 << 2) | (1 << 10)
+        if self.safety_mode == SAFETY_ROBOT_EMERGENCY_STOP:
+            return (1 << 6) | (1 << 7) | (1 << 10)
+        if self.safety_mode == SAFETY_SYSTEM_EMERGENCY_STOP:
+            return (1 << 5) | (1 << 7) | (1 << 10)
         return 1
 
     @property
     def speed_scaling(self) -> float:
         return self.io.speed_slider if self.runtime_state == RUNTIME_PLAYING else 1.0
 
-    def _tcp_matrix(self) -> np.ndarray:
-        if self._tcp_cache is None or self._tcp_cache[0] != self.steps:
+    def _tcp_offset(self) -> np.ndarray | None:
+        tcp = self.motion.tcp
+        return tcp if np.any(tcp) else None
+
+    def _tcp(self) -> tuple[int, np.ndarray, np.ndarray]:
+        """(period, TCP transform (4, 4), TCP pose (6,)) of the current joints, cached per period."""
+        cache = self._tcp_cache
+        if cache is None or cache[0] != self.steps:
             m = self.motion
-            tcp = m.tcp if np.any(m.tcp) else None
-            self._tcp_cache = (self.steps, forward_matrix(m.model, m.q, tcp), forward(m.model, m.q, tcp))
-        return self._tcp_cache[1]
+            tcp = self._tcp_offset()
+            cache = (self.steps, forward_matrix(m.model, m.q, tcp), forward(m.model, m.q, tcp))
+            self._tcp_cache = cache
+        return cache
+
+    def _tcp_matrix(self) -> np.ndarray:
+        return self._tcp()[1]
 
     def tcp_pose(self) -> np.ndarray:
-        """TCP pose p[x, y, z, rx, ry, rz] of the current joints (cached per period)."""
-        self._tcp_matrix()
-        return self._tcp_cache[2]
+        """TCP pose p[x, y, z, rx, ry, rz] of the current joints (computed on demand, cached per period)."""
+        return self._tcp()[2]
 
     def tcp_speed(self) -> np.ndarray:
-        """TCP speed [v, omega] (base frame) over the last period."""
+        """TCP speed [v, omega] (base frame) over the last period (computed on demand, cached per period)."""
+        if self._speed_step != self.steps:
+            self._speed_step = self.steps
+            if len(self._history) >= 2:
+                T = forward_matrix(self.motion.model, np.vstack([self._history[-2], self._history[-1]]),
+                                   self._tcp_offset())
+                v = (T[1, :3, 3] - T[0, :3, 3]) / DT
+                W = (T[1, :3, :3] - T[0, :3, :3]) @ T[1, :3, :3].T / DT
+                self._speed = np.array([v[0], v[1], v[2], W[2, 1], W[0, 2], W[1, 0]])
+            else:
+                self._speed = np.zeros(6)
         return self._speed
 
     def tool_gravity(self) -> np.ndarray:
@@ -129,7 +164,7 @@ class Core:
 
     def tcp_changed(self) -> None:
         self._tcp_cache = None
-        self._prev_T = None
+        self._speed_step = -1
 
     def q_history(self, steps: int) -> np.ndarray:
         """Actual joints ``steps`` periods ago (0 = now)."""
@@ -149,6 +184,8 @@ class Core:
         """Enter the protective stop: the arm halts, the program stops, the safety bits say why."""
         self.motion.halt()
         self.motion.fault = None
+        if self.safety_mode in EMERGENCY_STOPS:
+            return  # the emergency stop has stopped everything already
         if self.safety_mode != SAFETY_PROTECTIVE_STOP:
             self.safety_mode = SAFETY_PROTECTIVE_STOP
             self.protective_stop_time = self.time
@@ -166,6 +203,41 @@ class Core:
         self.safety_mode = SAFETY_NORMAL
         self.message("Protective stop released", source="Safety", level=3)
         return None
+
+    def press_emergency_stop(self, kind: str = "robot") -> None:
+        """The emergency stop button: ``"robot"`` (the teach pendant's) or ``"system"`` (the cell's safety
+        input). The arm stops at once, the program stops and the arm's power is cut (robot mode POWER_OFF)."""
+        if kind not in ("robot", "system"):
+            raise ValueError(f"emergency stop kind must be 'robot' or 'system', got {kind!r}")
+        mode = SAFETY_ROBOT_EMERGENCY_STOP if kind == "robot" else SAFETY_SYSTEM_EMERGENCY_STOP
+        if self.safety_mode == mode:
+            return
+        self.motion.halt()
+        self.motion.fault = None
+        self._program_stop_at = None
+        self.safety_mode = mode
+        what = "teach pendant emergency stop button" if kind == "robot" else "system emergency stop input"
+        self.message(f"Emergency stop: the {what} is pressed; the arm is stopped and powered off",
+                     source="Safety", level=0)
+        self._end_program("program stopped by the emergency stop")
+        self.robot_mode = ROBOT_POWER_OFF
+
+    def release_emergency_stop(self) -> bool:
+        """Release the emergency stop button: the safety mode returns to NORMAL; the arm stays powered off
+        (power on and brake release restart it). False when no emergency stop is pressed."""
+        if self.safety_mode not in EMERGENCY_STOPS:
+            return False
+        self.safety_mode = SAFETY_NORMAL
+        self.message("Emergency stop released: power the arm on and release its brakes to continue",
+                     source="Safety", level=1)
+        return True
+
+    def set_remote_control(self, on: bool) -> None:
+        """The pendant's switch between local and remote control (a running program keeps running)."""
+        on = bool(on)
+        if on != self.remote_control:
+            self.remote_control = on
+            self.message(f"Control mode: {'remote' if on else 'local'}", source="Controller", level=3)
 
     def runtime_error(self, text: str) -> None:
         """A program's runtime error: the program halts (the arm stops), with an exception message."""
@@ -193,8 +265,17 @@ class Core:
             self.motion.halt()
         self._end_program("program stopped")
 
-    def load_program(self, text: str) -> bool:
-        """A program arrives on a script port: it replaces the running one, or is refused whole."""
+    def load_program(self, text: str, port: int | None = None) -> bool:
+        """A program arrives on a script port: it replaces the running one, or is refused whole.
+
+        In local control mode the script ports take no program: it is refused and the running one is left
+        alone."""
+        if not self.remote_control:
+            head = text.split("\n", 1)[0].strip()[:60]
+            where = f" on port {port}" if port is not None else ""
+            self.message(f"Script refused{where}: the robot is in local control mode ({head!r})",
+                         source="Program", level=1)
+            return False
         self.stop_program()
         try:
             prog = parse_program(text)
@@ -206,7 +287,8 @@ class Core:
                          source="Program", level=1)
             return False
         if self.safety_mode != SAFETY_NORMAL:
-            self.message(f"Program {prog.name} not started: robot is in protective stop", source="Program", level=1)
+            self.message(f"Program {prog.name} not started: robot is in {SAFETY_NAMES.get(self.safety_mode)}",
+                         source="Program", level=1)
             return False
         if prog.is_control_script:
             self.program = ControlScript(self, prog)
@@ -264,13 +346,9 @@ class Core:
                 self._end_program("program stopped by the RTDE watchdog")
         self.time = round(self.time + DT, 9)
         self.steps += 1
-        T = self._tcp_matrix()
-        if self._prev_T is not None:
-            v = (T[:3, 3] - self._prev_T[:3, 3]) / DT
-            W = (T[:3, :3] - self._prev_T[:3, :3]) @ T[:3, :3].T / DT
-            self._speed = np.array([v[0], v[1], v[2], W[2, 1], W[0, 2], W[1, 0]])
-        self._prev_T = T
-        self._history.append(self.motion.q.copy())
+        # the motion model replaces its joint vector every period (never changes it in place): no copy;
+        # the TCP pose and speed are computed when asked (RTDE packages, recorder), not every period
+        self._history.append(self.motion.q)
         if self.recorder is not None:
             self.recorder.sample(self)
 
@@ -281,7 +359,7 @@ class Core:
         self.robot_mode = ROBOT_POWER_OFF
 
     def power_on(self) -> None:
-        if self.robot_mode == ROBOT_POWER_OFF:
+        if self.robot_mode == ROBOT_POWER_OFF and self.safety_mode not in EMERGENCY_STOPS:
             self.robot_mode = ROBOT_IDLE
 
     def brake_release(self) -> None:
@@ -308,6 +386,7 @@ class Core:
             "tcp_pose": self.tcp_pose().tolist(),
             "robot_mode": MODE_NAMES.get(self.robot_mode),
             "safety_mode": SAFETY_NAMES.get(self.safety_mode),
+            "remote_control": self.remote_control,
             "runtime_state": RUNTIME_NAMES.get(self.runtime_state),
             "program": self.program_name if self.program is not None else None,
             "digital_out": self.io.digital_out,

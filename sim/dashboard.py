@@ -4,6 +4,13 @@ Replies follow Universal Robots' dashboard server documentation for e-Series as 
 them (ur_rtde 1.6.5 src/dashboard_client.cpp compares ``Stopped``, ``Starting program``,
 ``Pausing program``, ``Protective stop releasing``, ``Loading program:``; Universal Robots' client
 library lists the expected patterns of the rest). Commands are matched case-insensitively.
+
+In local control mode (the pendant is the single point of control) the commands that would load or
+start programs, power or release the arm, or clear its stops are refused with the controller's
+`LOCAL_REFUSAL`; queries still answer (``is in remote control`` says ``false``). Which commands: the
+e-Series dashboard documentation and Universal Robots' ROS driver documentation (remote control is
+needed to power on, release the brakes, load and start programs, and restart after a protective or
+emergency stop), and what URSim answers in local mode.
 """
 
 from __future__ import annotations
@@ -18,6 +25,12 @@ GREETING = "Connected: Universal Robots Dashboard Server"
 SERIAL_NUMBER = "20235500001"
 VERSION = ".".join(str(v) for v in CONTROLLER_VERSION)
 POLYSCOPE_VERSION = f"URSoftware {VERSION} (Jul 27 2021)"
+#: The controller's reply to a command it takes only in remote control mode, while in local control mode.
+LOCAL_REFUSAL = ("Command is not allowed due to safety reasons, please switch robot to Remote Control mode "
+                 "and reconnect to port 29999")
+#: Commands refused in local control mode (lower case; ``load`` covers ``load <program>``).
+REMOTE_ONLY = ("load", "load installation", "play", "stop", "pause", "power on", "power off", "brake release",
+               "unlock protective stop", "restart safety", "shutdown")
 
 
 class DashboardServer:
@@ -84,6 +97,8 @@ class DashboardServer:
         with core.lock:
             if cmd == "quit":
                 return "Disconnected", True
+            if not core.remote_control and (cmd in REMOTE_ONLY or cmd.startswith("load ")):
+                return LOCAL_REFUSAL, False
             if cmd == "shutdown":
                 core.power_off()
                 return "Shutting down", True
@@ -131,7 +146,7 @@ class DashboardServer:
             if cmd.startswith("addtolog"):
                 return ("Added log message" if arg else "No log message to add"), False
             if cmd == "is in remote control":
-                return "true", False
+                return ("true" if core.remote_control else "false"), False
             if cmd == "polyscopeversion":
                 return POLYSCOPE_VERSION, False
             if cmd == "version":

@@ -65,6 +65,7 @@ import threading
 from collections.abc import Callable, Sequence
 
 from pymodbus.constants import ExcCodes
+from pymodbus.datastore import ModbusServerContext
 from pymodbus.pdu import ExceptionResponse, ModbusPDU
 from pymodbus.pdu.bit_message import ReadCoilsRequest, ReadDiscreteInputsRequest, WriteSingleCoilRequest
 from pymodbus.pdu.decoders import DecodePDU
@@ -165,7 +166,7 @@ class _URMap:
                 return ExcCodes.ILLEGAL_ADDRESS
         elif function_code != 2:
             writing = set_values is not None and function_code in _WRITE_FC
-            n = len(set_values) if writing else count
+            n = len(set_values) if set_values is not None and writing else count
             allowed = self.writable if writing else self.readable
             if not all(a in allowed for a in range(address, address + n)):
                 return ExcCodes.ILLEGAL_ADDRESS
@@ -179,7 +180,7 @@ class _URMap:
             with self.io.locked():
                 if function_code in _COIL_FC:
                     if set_values is not None and function_code in _WRITE_FC:
-                        if (exc := self._write_coils(address, list(set_values))) is not None:
+                        if (exc := self._write_coils(address, [bool(v) for v in set_values])) is not None:
                             return exc
                     self._refresh_bits(registers, start_address)
                 elif function_code == 2:
@@ -283,7 +284,7 @@ def _strict_read(base: type[ModbusPDU]) -> type[ModbusPDU]:
         def decode(self, data: bytes) -> None:
             self.address, self.count = struct.unpack(">HH", data[:4])
 
-        async def datastore_update(self, context: object, device_id: int) -> ModbusPDU:
+        async def datastore_update(self, context: ModbusServerContext, device_id: int) -> ModbusPDU:
             if not 1 <= self.count <= self.MAX_COUNT:
                 return ExceptionResponse(self.function_code, ExcCodes.ILLEGAL_VALUE)
             return await super().datastore_update(context, device_id)
@@ -300,7 +301,7 @@ class _StrictWriteCoil(WriteSingleCoilRequest):
         self.address, self.raw_value = struct.unpack(">HH", data[:4])
         self.bits = [self.raw_value == 0xFF00]
 
-    async def datastore_update(self, context: object, device_id: int) -> ModbusPDU:
+    async def datastore_update(self, context: ModbusServerContext, device_id: int) -> ModbusPDU:
         if self.raw_value not in (0xFF00, 0x0000):
             return ExceptionResponse(self.function_code, ExcCodes.ILLEGAL_VALUE)
         return await super().datastore_update(context, device_id)
@@ -310,7 +311,7 @@ def _refused_pdu(function_code: int) -> type[ModbusPDU]:
     """A request class for ``function_code`` that UR's server does not offer: answered with exception 1."""
 
     class Refused(ModbusPDU):
-        async def datastore_update(self, context: object, device_id: int) -> ModbusPDU:
+        async def datastore_update(self, context: ModbusServerContext, device_id: int) -> ModbusPDU:
             return ExceptionResponse(self.function_code, ExcCodes.ILLEGAL_FUNCTION)
 
     Refused.function_code = function_code
@@ -432,7 +433,11 @@ class ModbusServerThread:
         server.decoder.register(_StrictWriteCoil)
         if not await server.listen():
             raise OSError(f"cannot listen on {self.host}:{self.port} (port in use, or not an address of this host)")
+        # pymodbus keeps its listener in ``transport`` (typed as a transport): the asyncio.Server that
+        # loop.create_server returned
         listener = server.transport
+        if not isinstance(listener, asyncio.Server):
+            raise OSError(f"Modbus on {self.host}:{self.port}: pymodbus gave no TCP listener ({type(listener)})")
         try:
             self.port = listener.sockets[0].getsockname()[1]
             self._ready.set()

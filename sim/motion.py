@@ -21,20 +21,25 @@ servo
     ``lookahead_time / 2``) and the joints follow the filtered target with a first-order tracking
     loop of time constant ``SERVO_GAIN_TIME / gain``. For a target moving at most ``v`` rad/s the
     following error is therefore at most ``v * (lookahead_time / 2 + SERVO_GAIN_TIME / gain)``
-    (:func:`servo_following_error`); joint speed and acceleration are clamped to the limits (a target
-    that jumps is followed as fast as the limits allow; a target outside the joint position limits is
-    a protective stop).
+    (:func:`servo_following_error`). When following the targets would take a joint beyond its speed
+    limit or beyond `JOINT_ACCEL_MAX` (a target that jumps away from the arm, or a stream faster than
+    the joints can go) the arm stops with a protective stop, as the controller's safety system stops it;
+    so does a target outside the joint position limits.
 speed
     ``speedj`` / ``speedl``: joint (or tool) speeds ramped to the target at the given acceleration.
 
 Protective stop: the model sets :attr:`MotionModel.fault` (a message) and halts when a target is out
-of the joint position limits or unreachable, when a trajectory would exceed the joint speed limits,
-or when a servo / speed command asks for more than the joint speed limits. The controller core turns
-the fault into the protective-stop safety state.
+of the joint position limits or unreachable, when a trajectory would exceed the joint speed limits
+(``URModel.speed_limits``) or the joint acceleration limit `JOINT_ACCEL_MAX` (a move's ``v`` or ``a``
+too high, a linear move through a singularity), or when a servo / speed command asks for more. A
+trajectory runs up to its first sample beyond a limit and stops there; a command that exceeds a limit
+from its first period does not move the arm. The controller core turns the fault into the
+protective-stop safety state.
 """
 
 from __future__ import annotations
 
+import bisect
 import math
 from dataclasses import dataclass, field
 
@@ -44,8 +49,12 @@ from scipy.spatial.transform import Rotation, Slerp
 from planner.kinematics import UnreachableError, forward, forward_matrix, get_model, inverse_path, wrap_angle
 
 DT = 0.002  # control period (s), 500 Hz
-#: Joint acceleration limit (rad/s^2) used where a command gives none (servo): ur_rtde's upper bound.
+#: Joint acceleration limit (rad/s^2) of every joint, beyond which the arm stops with a protective stop.
+#: UR publishes no acceleration limits (``planner.kinematics`` models none); this is the bound the controller
+#: accepts in a move command, as ur_rtde 1.6.5 checks it (UR_JOINT_ACCELERATION_MAX, rtde_control_interface.h).
 JOINT_ACCEL_MAX = 40.0
+#: Relative tolerance on the joint acceleration limit before a protective stop (sampled trajectories).
+ACCEL_TOLERANCE = 1e-3
 #: Tracking time constant scale of servoj: tau = SERVO_GAIN_TIME / gain (gain 300 -> 33 ms).
 SERVO_GAIN_TIME = 10.0
 #: Length (m) one radian of tool rotation counts for in a linear move's path length.
@@ -98,8 +107,10 @@ class Trajectory:
     fault: str | None = None
 
 
-def _time_law(d: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
-    """Times (s) at the path grid ``d`` of the fastest rest-to-rest profile under vmax(d), amax(d)."""
+def _time_law(d: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Times (s) and speeds at the path grid ``d`` of the fastest rest-to-rest profile under vmax(d), amax(d).
+
+    Between grid points the speed squared is linear in the path parameter: constant acceleration."""
     n = len(d)
     ds = np.diff(d)
     v = vmax.astype(float).copy()
@@ -116,7 +127,7 @@ def _time_law(d: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> np.ndarray:
             v[i] = lim
     vs = v[:-1] + v[1:]
     dt = np.divide(2.0 * ds, vs, out=np.zeros_like(ds), where=vs > 0)
-    return np.concatenate([[0.0], np.cumsum(dt)])
+    return np.concatenate([[0.0], np.cumsum(dt)]), v
 
 
 def _blend_points(W: np.ndarray, radii: np.ndarray, lengths: np.ndarray, d: np.ndarray):
@@ -157,12 +168,22 @@ def _path_grid(lengths: np.ndarray, segs: list[Segment]):
     return d, v, a
 
 
-def _sample_times(t: np.ndarray, d: np.ndarray) -> np.ndarray:
-    """Path parameter at every control period DT, 2 DT, ..., ending exactly at the path's end."""
+def _sample_times(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> np.ndarray:
+    """Path parameter at every control period DT, 2 DT, ..., ending exactly at the path's end.
+
+    Exact for the profile of :func:`_time_law` (constant acceleration between its grid points), so that the
+    samples' second differences are the profile's acceleration (a linear interpolation in time would put the
+    acceleration of a whole grid interval into single periods)."""
     T = float(t[-1])
     K = max(1, math.ceil(T / DT - 1e-9))
     tk = np.minimum(np.arange(1, K + 1) * DT, T)
-    return np.interp(tk, t, d)
+    i = np.clip(np.searchsorted(t, tk, side="right") - 1, 0, len(t) - 2)
+    h = t[i + 1] - t[i]
+    tau = np.minimum(tk - t[i], h)
+    acc = np.divide(v[i + 1] - v[i], h, out=np.zeros_like(h), where=h > 0)
+    dk = d[i] + v[i] * tau + 0.5 * acc * tau * tau
+    dk[-1] = d[-1]
+    return np.minimum(dk, d[-1])
 
 
 def _starts(dk: np.ndarray, lengths: np.ndarray) -> list[int]:
@@ -232,8 +253,7 @@ class MotionModel:
         """Index of the path entry being executed (for async progress), -1 when idle."""
         if self.traj is None or self.mode != "trajectory":
             return -1
-        k = int(self.index)
-        return max(0, int(np.searchsorted(self.traj.starts, k, side="right")) - 1)
+        return max(0, bisect.bisect_right(self.traj.starts, int(self.index)) - 1)
 
     # ---- commands ----------------------------------------------------------------------------
     def halt(self) -> None:
@@ -259,19 +279,39 @@ class MotionModel:
                 f"[{self.lower[j]:.4f}, {self.upper[j]:.4f}]"
             )
 
-    def _check_speeds(self, q: np.ndarray) -> int:
-        """First sample index whose step from the previous exceeds the joint speed limits, or -1."""
-        prev = np.vstack([self.q, q[:-1]])
-        over = np.abs(q - prev) > self.qd_max * DT * (1.0 + SPEED_TOLERANCE)
+    def _check_limits(self, q: np.ndarray, what: str, accel: bool = True) -> tuple[int, str | None]:
+        """First sample of ``q`` (K, 6), played from rest at the current joints, beyond the joint speed limits
+        or (``accel``) the acceleration limit, and why; (-1, None) when none is."""
+        P = np.vstack([self.q, self.q, q])
+        V = np.diff(P, axis=0) / DT  # speed reached at each sample (0: at rest before the move)
+        speed = np.abs(V[1:]) > self.qd_max * (1.0 + SPEED_TOLERANCE)
+        if accel:
+            acc = np.abs(np.diff(V, axis=0)) / DT > JOINT_ACCEL_MAX * (1.0 + ACCEL_TOLERANCE)
+            over = speed | acc
+        else:
+            over = speed
         bad = np.flatnonzero(over.any(axis=1))
-        return int(bad[0]) if len(bad) else -1
+        if not len(bad):
+            return -1, None
+        k = int(bad[0])
+        v = V[k + 1]
+        if speed[k].any():
+            j = int(np.argmax(np.abs(v) / self.qd_max))
+            return k, (f"{what}: joint {j} speed {abs(v[j]):.3f} rad/s beyond its limit {self.qd_max[j]:.3f} rad/s")
+        a = np.abs(V[k + 1] - V[k]) / DT
+        j = int(np.argmax(a))
+        return k, f"{what}: joint {j} acceleration {a[j]:.1f} rad/s^2 beyond the limit {JOINT_ACCEL_MAX:g} rad/s^2"
 
-    def _start(self, traj: Trajectory) -> Trajectory:
-        k = self._check_speeds(traj.q)
+    def _start(self, traj: Trajectory, what: str = "move", accel: bool = True) -> Trajectory:
+        k, why = self._check_limits(traj.q, what, accel)
+        out = np.flatnonzero(((traj.q < self.lower) | (traj.q > self.upper)).any(axis=1))
+        if len(out) and (k < 0 or out[0] < k):
+            k = int(out[0])
+            j = int(np.flatnonzero((traj.q[k] < self.lower) | (traj.q[k] > self.upper))[0])
+            why = f"{what}: joint {j} position limit reached"
         if k >= 0:
-            j = int(np.argmax(np.abs(traj.q[k] - (traj.q[k - 1] if k else self.q)) / self.qd_max))
             traj.q = traj.q[:k]
-            traj.fault = traj.fault or f"joint {j} speed limit {self.qd_max[j]:.3f} rad/s exceeded"
+            traj.fault = traj.fault or why
         if len(traj.q) == 0:
             traj.q = self.q[None].copy()
         self.traj = traj
@@ -291,11 +331,11 @@ class MotionModel:
         if lengths.sum() <= 0.0:
             return self._start(Trajectory(self.q[None].copy(), [0] * len(segs)))
         d, v, a = _path_grid(lengths, segs)
-        t = _time_law(d, v, a)
-        dk = _sample_times(t, d)
+        t, vt = _time_law(d, v, a)
+        dk = _sample_times(t, d, vt)
         q, _, _ = _blend_points(W, np.array([s.r for s in segs]), lengths, dk)
         q[-1] = W[-1]
-        return self._start(Trajectory(q, _starts(dk, lengths)))
+        return self._start(Trajectory(q, _starts(dk, lengths)), "movej")
 
     def plan_linear(self, segs: list[Segment]) -> Trajectory:
         """Plan and start a (blended) linear tool move through ``segs`` (targets are TCP poses)."""
@@ -318,8 +358,8 @@ class MotionModel:
         if lengths.sum() <= 0.0:
             return self._start(Trajectory(self.q[None].copy(), [0] * len(segs)))
         d, v, a = _path_grid(lengths, segs)
-        t = _time_law(d, v, a)
-        dk = _sample_times(t, d)
+        t, vt = _time_law(d, v, a)
+        dk = _sample_times(t, d, vt)
         pos, seg, frac = _blend_points(poses[:, :3], np.array([s.r for s in segs]), lengths, dk)
         rot = np.empty((len(dk), 3))
         for i in range(len(segs)):
@@ -344,7 +384,7 @@ class MotionModel:
             # the last sample is the target: take the branch nearest the tracked path (exact pose)
             q[-1] = q_end + 2 * np.pi * np.round((q[-1] - q_end) / (2 * np.pi))
         traj = Trajectory(q if len(q) else self.q[None].copy(), _starts(dk, lengths), fault)
-        return self._start(traj)
+        return self._start(traj, "movel")
 
     def plan_stop(self, decel: float, linear: bool = False) -> Trajectory:
         """Decelerate to rest (stopj / stopl): joint speeds scaled down together at ``decel``.
@@ -366,7 +406,7 @@ class MotionModel:
         K = max(1, math.ceil(T / DT - 1e-9))
         tk = np.minimum(np.arange(1, K + 1) * DT, T)[:, None]
         q = self.q + qd * tk - 0.5 * (qd / T) * tk**2
-        return self._start(Trajectory(q, [0]))
+        return self._start(Trajectory(q, [0]), "stop", accel=False)
 
     def servo(self, q_target, t: float, lookahead: float, gain: float) -> None:
         """servoj: track ``q_target``; ``t`` is the client's command period (s)."""
@@ -417,43 +457,52 @@ class MotionModel:
     def step(self, fraction: float = 1.0) -> None:
         """Advance one control period (``fraction`` < 1: the speed slider slows trajectories)."""
         q_old, qd_old = self.q, self.qd
-        if self.mode == "trajectory":
-            tr = self.traj
-            self.index = min(self.index + fraction, len(tr.q))
+        tr = self.traj
+        if self.mode == "trajectory" and tr is not None:
+            n = len(tr.q)
+            self.index = min(self.index + fraction, n)
             k = self.index - 1.0  # sample 0 is at t = DT
             if k < 0:
                 q_new = self._origin + self.index * (tr.q[0] - self._origin)
             else:
                 i = int(k)
-                if i >= len(tr.q) - 1:
-                    q_new = tr.q[-1].copy()
+                w = k - i
+                if i >= n - 1:
+                    q_new = tr.q[-1]
+                elif w == 0.0:
+                    q_new = tr.q[i]  # a row of the planned samples: never changed in place
                 else:
-                    w = k - i
                     q_new = tr.q[i] + w * (tr.q[i + 1] - tr.q[i])
             self._set(q_new, q_old, qd_old)
-            if self.index >= len(tr.q):
+            if self.index >= n:
                 self.mode = "idle"
                 self.qd = np.zeros(6)
                 if tr.fault:
                     self.fault = tr.fault
                     self.halt()
+            # planned samples lie within the joint position limits (checked, or convex combinations of
+            # targets that are): no per-period check
+            return
         elif self.mode == "servo":
             self._servo_age += 1
             a_f = 1.0 - math.exp(-DT / (0.5 * self.servo_lookahead))
             self.servo_filtered = self.servo_filtered + a_f * (self.servo_target - self.servo_filtered)
             a_t = 1.0 - math.exp(-DT * self.servo_gain / SERVO_GAIN_TIME)
             qd = a_t * (self.servo_filtered - q_old) / DT
-            qd = np.clip(qd, qd_old - JOINT_ACCEL_MAX * DT, qd_old + JOINT_ACCEL_MAX * DT)
-            qd = np.clip(qd, -self.qd_max, self.qd_max)
+            why = self._servo_excess(qd, qd_old)
+            if why is not None:
+                self.fault = why
+                self.halt()
+                return
             self._set(q_old + qd * DT, q_old, qd_old)
         elif self.mode == "speed":
             if self.speed_linear:
                 J = self.jacobian()
                 cur = self._tool_speed
                 dv = self.speed_target - cur
-                n = float(np.linalg.norm(dv[:3]))
+                dv_norm = float(np.linalg.norm(dv[:3]))
                 lim = self.speed_accel * DT
-                cur = cur + (dv if n <= lim else dv * (lim / n))
+                cur = cur + (dv if dv_norm <= lim else dv * (lim / dv_norm))
                 self._tool_speed = cur
                 qd = np.linalg.lstsq(J, cur, rcond=None)[0]
                 over = np.flatnonzero(np.abs(qd) > self.qd_max * (1.0 + SPEED_TOLERANCE))
@@ -474,6 +523,22 @@ class MotionModel:
             self.q = np.clip(self.q, self.lower, self.upper)
             self.fault = f"joint {int(out[0])} position limit reached"
             self.halt()
+
+    def _servo_excess(self, qd: np.ndarray, qd_old: np.ndarray) -> str | None:
+        """Why following the servo target this period takes a joint beyond its limits (None: it does not)."""
+        over_v = np.abs(qd) > self.qd_max * (1.0 + SPEED_TOLERANCE)
+        acc = np.abs(qd - qd_old) / DT
+        over_a = acc > JOINT_ACCEL_MAX * (1.0 + ACCEL_TOLERANCE)
+        if not (over_v.any() or over_a.any()):
+            return None
+        gap = self.servo_target - self.q
+        if over_v.any():
+            j = int(np.argmax(np.abs(qd) / self.qd_max))
+            what = f"speed {abs(qd[j]):.3f} rad/s beyond its limit {self.qd_max[j]:.3f} rad/s"
+        else:
+            j = int(np.argmax(acc))
+            what = f"acceleration {acc[j]:.1f} rad/s^2 beyond the limit {JOINT_ACCEL_MAX:g} rad/s^2"
+        return f"servoj: joint {j} {what} to follow its target ({gap[j]:+.4f} rad from the actual position)"
 
     def _set(self, q_new: np.ndarray, q_old: np.ndarray, qd_old: np.ndarray) -> None:
         self.q = q_new

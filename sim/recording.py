@@ -177,7 +177,7 @@ def plot(rec: Recording, out: str | os.PathLike, title: str = "Simulated UR: pla
     err = np.degrees(rec.target_q - rec.actual_q)
     for j in range(6):
         ax2.plot(rec.t, err[:, j], lw=0.8, label=f"q{j}")
-    stops = rec.t[np.flatnonzero(np.diff(rec.safety_mode) != 0) + 1] if len(rec.t) > 1 else []
+    stops: np.ndarray = rec.t[np.flatnonzero(np.diff(rec.safety_mode) != 0) + 1] if len(rec.t) > 1 else np.zeros(0)
     for ts in stops:
         ax2.axvline(ts, color="r", lw=0.8)
     ax2.set_xlabel("time (s)")

@@ -2,8 +2,9 @@
 
 Each connection's stream is cut into programs (:class:`sim.programs.ProgramFramer`); every whole
 program replaces the running one (:meth:`sim.core.Core.load_program`), which runs ur_rtde's control
-script and refuses anything it cannot run whole. The state streams a real controller also sends on
-these ports (primary, secondary, real-time packages) are not served: ur_rtde never reads them.
+script and refuses anything it cannot run whole, and every program in local control mode. The state
+streams a real controller also sends on these ports (primary, secondary, real-time packages) are not
+served: ur_rtde never reads them.
 """
 
 from __future__ import annotations
@@ -49,6 +50,7 @@ class ScriptServer:
 
     def _serve(self, sock: socket.socket) -> None:
         framer = ProgramFramer()
+        port = sock.getsockname()[1]
         try:
             while True:
                 try:
@@ -59,7 +61,7 @@ class ScriptServer:
                     return
                 for text in framer.feed(chunk):
                     with self.core.lock:
-                        self.core.load_program(text)
+                        self.core.load_program(text, port)
         finally:
             if sock in self._clients:
                 self._clients.remove(sock)

@@ -10,7 +10,9 @@ client's process would deadlock). The child
   (no drift); each tick advances ``speed`` control periods of simulated time (fractions carried over)
   and sends the data packages due;
 * reads JSON commands, one per line, on stdin (``{"cmd": "state"}``, ``{"cmd": "set_digital_in",
-  "mask": m, "value": v}``, ``{"cmd": "stop"}``) and answers each with one JSON line on stdout;
+  "mask": m, "value": v}``, ``{"cmd": "emergency_stop", "pressed": true, "kind": "robot"}``,
+  ``{"cmd": "remote_control", "on": false}``, ``{"cmd": "stop"}``) and answers each with one JSON line
+  on stdout;
 * runs SCHED_FIFO where the system allows it (``--no-realtime``: not), the loop highest;
 * exits when stdin closes (the parent is gone) or on SIGTERM, writing its recording first.
 """
@@ -45,6 +47,9 @@ class Loop:
         self.speed = speed
         self.stop = threading.Event()
         self.late = 0  # ticks skipped because the loop fell more than one period behind
+        # most periods simulated in one wall-clock period when fast-forwarding (at speed <= 1 every missed
+        # period is integrated: simulated time follows the wall clock)
+        self.max_batch = int(4 * speed) if speed > 1 else 1 << 30
         self.thread = threading.Thread(target=self.run, name="control-loop", daemon=True)
 
     def run(self) -> None:
@@ -72,6 +77,10 @@ class Loop:
             owed += self.speed * max(behind, 1)
             n = int(owed + 1e-9)
             owed -= n
+            if n > self.max_batch:
+                # fast-forward faster than this machine can simulate: simulated time falls behind the asked
+                # speed instead of bursts of catch-up ticks that would hold the core (and its clients) for long
+                n, owed = self.max_batch, 0.0
             start = time.perf_counter()
             with core.lock:
                 for _ in range(n):
@@ -94,6 +103,23 @@ def _commands(core: Core, io, stop: threading.Event) -> None:
             elif cmd == "set_digital_in":
                 io.set_digital_in(int(req["mask"]), int(req["value"]))
                 reply = {"ok": True}
+            elif cmd == "emergency_stop":
+                pressed = req["pressed"]
+                if not isinstance(pressed, bool):
+                    raise ValueError(f"emergency_stop: 'pressed' must be true or false, got {pressed!r}")
+                with core.lock:
+                    if pressed:
+                        core.press_emergency_stop(str(req.get("kind", "robot")))
+                        reply = {"ok": True}
+                    else:
+                        reply = {"ok": core.release_emergency_stop()}
+            elif cmd == "remote_control":
+                on = req["on"]
+                if not isinstance(on, bool):
+                    raise ValueError(f"remote_control: 'on' must be true or false, got {on!r}")
+                with core.lock:
+                    core.set_remote_control(on)
+                reply = {"ok": True}
             elif cmd == "stop":
                 reply = {"ok": True}
                 print(json.dumps(reply), flush=True)
@@ -115,6 +141,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--record", default=None)
     ap.add_argument("--allow-remote", action="store_true")
     ap.add_argument("--no-realtime", action="store_true", help="no SCHED_FIFO priorities")
+    ap.add_argument("--local-control", action="store_true", help="start in local control mode")
     args = ap.parse_args(argv)
     host = check_host(args.host, args.allow_remote)
     if not args.speed > 0:
@@ -136,23 +163,21 @@ def main(argv: list[str] | None = None) -> int:
 
         recorder = Recorder(args.record)
     core = Core(args.model, io, recorder)
+    core.remote_control = not args.local_control
     rtde = RTDEServer(core, host)
     dash = DashboardServer(core, host)
     script = ScriptServer(core, host)
     modbus = None
     if args.modbus_port is not None:
-        try:
-            from sim.modbus import ModbusServerThread
-        except ImportError:
-            ModbusServerThread = None
-        if ModbusServerThread is not None:
-            def pose():
-                with core.lock:
-                    return core.tcp_pose().tolist()
+        from sim.modbus import ModbusServerThread  # pymodbus: a dependency; asked for Modbus, fail loudly without
 
-            modbus = ModbusServerThread(io, host, args.modbus_port, tcp_pose=pose, allow_remote=args.allow_remote)
-            modbus.start()
-            modbus.wait_ready(10.0)
+        def pose():
+            with core.lock:
+                return core.tcp_pose().tolist()
+
+        modbus = ModbusServerThread(io, host, args.modbus_port, tcp_pose=pose, allow_remote=args.allow_remote)
+        modbus.start()
+        modbus.wait_ready(10.0)
     # everything allocated so far (modules, tables) out of the cyclic collector's reach: a full
     # collection over it would stall the 500 Hz loop for milliseconds
     gc.collect()

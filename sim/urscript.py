@@ -106,11 +106,13 @@ def _eval(node: ast.expr, env: dict, line: int):
         return {"True": True, "False": False}.get(node.id, env.get(node.id))
     if isinstance(node, ast.List):
         return [_eval(e, env, line) for e in node.elts]
-    if isinstance(node, ast.Subscript):
+    if isinstance(node, ast.Subscript) and isinstance(node.slice, ast.Tuple):  # p[...], checked when compiled
         return Pose(float(_eval(e, env, line)) for e in node.slice.elts)
     if isinstance(node, ast.UnaryOp):
         v = _eval(node.operand, env, line)
         return -v if isinstance(node.op, ast.USub) else v
+    if not isinstance(node, ast.BinOp):  # _check_expr admits nothing else
+        raise _err(line, f"unsupported expression {ast.unparse(node)!r}")
     left, right = _eval(node.left, env, line), _eval(node.right, env, line)
     try:
         if isinstance(node.op, ast.Add):
@@ -136,13 +138,14 @@ def _statement(text: str, line: int, names: set[str]) -> Statement:
     if len(tree.body) != 1:
         raise _err(line, f"cannot compile {text!r}")
     node = tree.body[0]
-    if isinstance(node, ast.Assign) and len(node.targets) == 1 and isinstance(node.targets[0], ast.Name):
+    target = node.targets[0] if isinstance(node, ast.Assign) and len(node.targets) == 1 else None
+    if isinstance(node, ast.Assign) and isinstance(target, ast.Name):
         _check_expr(node.value, names, line)
-        names.add(node.targets[0].id)
-        return Statement(line, "assign", node.targets[0].id, expr=node.value)
-    if not (isinstance(node, ast.Expr) and isinstance(node.value, ast.Call) and isinstance(node.value.func, ast.Name)):
+        names.add(target.id)
+        return Statement(line, "assign", target.id, expr=node.value)
+    call = node.value if isinstance(node, ast.Expr) else None
+    if not (isinstance(call, ast.Call) and isinstance(call.func, ast.Name)):
         raise _err(line, f"unsupported statement {text!r}")
-    call = node.value
     name = call.func.id
     if name == "textmsg":
         for a in call.args:
@@ -244,11 +247,12 @@ class URScriptProgram:
             self.wait_periods -= 1
             return
         if self.blocked:
-            k = self.motion.progress()
-            while self._progress < k and self.pending:
-                self._progress += 1
-                for st in self.pending.pop(0):
-                    self._run_simple(st)
+            if self.pending:
+                k = self.motion.progress()
+                while self._progress < k and self.pending:
+                    self._progress += 1
+                    for st in self.pending.pop(0):
+                        self._run_simple(st)
             if self.motion.busy:
                 return
             for group in self.pending:
@@ -270,6 +274,8 @@ class URScriptProgram:
         """Run a non-move statement; True if it blocks (the rest waits for a later period)."""
         m = self.motion
         if st.kind == "assign":
+            if st.expr is None:
+                raise ProgramError(f"line {st.line}: assignment to {st.name} without a value")
             self.env[st.name] = _eval(st.expr, self.env, st.line)
             return False
         if st.name == "textmsg":

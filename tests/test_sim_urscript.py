@@ -75,16 +75,17 @@ def test_exported_movep_program_runs_along_its_path(make_sim, tmp_path, exported
 
 def test_io_sleep_variables_and_servoj(make_sim):
     sim = make_sim(speed=5.0)
-    q0 = HOME.tolist()
+    q1 = (HOME + [0.2, 0, 0, 0, 0, 0]).tolist()
+    q2 = (HOME + [0.2 + 1e-3, 0, 0, 0, 0, 0]).tolist()  # servoj targets near the arm (a jump is a protective stop)
     prog = "\n".join([
         "def io_job():",
         "  # a comment",
-        f"  local q = {q0}",
+        f"  local q = {q2}",
         "  local dz = 0.05",
         "  textmsg(\"job \", 1)",
         "  set_standard_digital_out(2, True)",
         "  set_tool_digital_out(1, True)",
-        f"  movej([{q0[0] + 0.2}, {q0[1]}, {q0[2]}, {q0[3]}, {q0[4]}, {q0[5]}], a=2.0, v=1.0)",
+        f"  movej({q1}, a=2.0, v=1.0)",
         "  sleep(0.1)",
         "  sync()",
         "  servoj(q, t=0.002, lookahead_time=0.1, gain=300)",
@@ -97,6 +98,7 @@ def test_io_sleep_variables_and_servoj(make_sim):
     ])
     _run(sim, prog)
     st = sim.state()
+    assert st["safety_mode"] == "NORMAL", st["log"]
     assert st["digital_out"] == 1 << 17
     assert any(m[2] == "job 1" for m in st["log"])
     np.testing.assert_allclose(st["tcp_pose"], forward("ur5e", HOME) + [0, 0, -0.05, 0, 0, 0], atol=1e-6)
