@@ -5,6 +5,21 @@ from __future__ import annotations
 import numpy as np
 
 from planner.errors import PlannerError
+from planner.validation import ArgumentError, as_floats
+
+#: Element types of the one-pose fast path (anything else goes through the full check: no strings, booleans).
+_REAL = frozenset((float, int, np.float64))
+
+
+def times(t, n: int) -> np.ndarray:
+    """Sample times (n,), finite, as floats; PlannerError naming ``t`` and the index otherwise."""
+    t = as_floats(t, "t")
+    if t.shape != (n,):
+        raise PlannerError(f"t: expected shape ({n},) (one time per sample), got {t.shape}")
+    bad = ~np.isfinite(t)
+    if bad.any():
+        raise PlannerError(f"t[{int(np.argmax(bad))}] is {t[np.argmax(bad)]}; times must be finite")
+    return t
 
 
 def rows_of_six(value, name: str, *, allow_nan_rows: bool = False) -> tuple[np.ndarray, bool]:
@@ -14,9 +29,9 @@ def rows_of_six(value, name: str, *, allow_nan_rows: bool = False) -> tuple[np.n
     With ``allow_nan_rows``, rows that are entirely NaN pass (they mark "no value" samples).
     """
     try:
-        arr = np.asarray(value, dtype=float)
-    except (TypeError, ValueError) as exc:
-        raise PlannerError(f"{name}: expected numbers of shape (6,) or (n, 6): {exc}") from None
+        arr = as_floats(value, name)
+    except ArgumentError as exc:
+        raise PlannerError(f"{name}: expected numbers of shape (6,) or (n, 6): {str(exc).partition(': ')[2]}") from None
     single = arr.ndim == 1
     if single:
         arr = arr[None, :]
@@ -40,8 +55,8 @@ def six_floats(value, name: str) -> list[float] | None:
     A list, tuple or array of six numbers is converted without numpy's per-call overhead.
     """
     if type(value) is np.ndarray:
-        vals = value.tolist() if value.shape == (6,) else None
-    elif isinstance(value, (list, tuple)) and len(value) == 6:
+        vals = value.tolist() if value.shape == (6,) and value.dtype.kind in "fiu" else None
+    elif isinstance(value, (list, tuple)) and len(value) == 6 and all(type(v) in _REAL for v in value):
         vals = value
     else:
         vals = None

@@ -14,6 +14,7 @@ from planner.errors import PlannerError
 from planner.kinematics._checks import rows_of_six, six_floats
 from planner.kinematics.rotvec import matrix_to_rotvec, matrix_to_rotvec_1, rotvec_to_matrix, rotvec_to_matrix_1
 from planner.kinematics.ur_models import DH_COS_ALPHA, DH_SIN_ALPHA, URModel, get_model
+from planner.validation import as_floats, finite_floats
 
 __all__ = ["forward", "forward_matrix", "link_frames", "pose_to_matrix", "matrix_to_pose"]
 
@@ -61,9 +62,10 @@ def matrix_to_pose(T) -> np.ndarray:
 
     The rotation vector has angle in [0, pi] (scipy's convention).
     """
-    T = np.asarray(T, dtype=float)
+    T = as_floats(T, "transform")
     if T.shape[-2:] != (4, 4) or T.ndim not in (2, 3):
         raise PlannerError(f"transform: expected shape (4, 4) or (n, 4, 4), got {T.shape}")
+    T = finite_floats(T, "transform")
     if T.ndim == 2:  # one transform on Python floats: the same operations, identical results
         (r00, r01, r02, x), (r10, r11, r12, y), (r20, r21, r22, z) = T[:3].tolist()
         return np.array([x, y, z, *matrix_to_rotvec_1(r00, r01, r02, r10, r11, r12, r20, r21, r22)])

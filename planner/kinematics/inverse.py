@@ -59,6 +59,7 @@ from planner.kinematics.forward import (
 )
 from planner.kinematics.inverse_one import solve_one
 from planner.kinematics.ur_models import URModel, get_model
+from planner.validation import as_floats
 
 __all__ = ["IKSolutions", "inverse", "inverse_batch", "inverse_nearest", "inverse_path", "wrap_angle"]
 
@@ -80,8 +81,10 @@ _SIGNS = np.array([1.0, -1.0])
 
 
 def wrap_angle(x) -> np.ndarray:
-    """Angles wrapped into (-pi, pi] (a new array)."""
-    x = np.asarray(x, dtype=float)
+    """Angles wrapped into (-pi, pi] (a new array; NaN stays NaN: a joint without a solution)."""
+    x = as_floats(x, "x")
+    if np.isinf(x).any():
+        raise PlannerError(f"x: angles must be finite (NaN passes), got {x[np.isinf(x)][0]}")
     w = np.subtract(x, _TWO_PI * np.round(x * _INV_TWO_PI), out=np.empty_like(x))
     # round(x / 2 pi) may leave w a rounding error outside (-pi, pi]: one step back covers it
     np.add(w, _TWO_PI, out=w, where=w <= -np.pi)

@@ -13,7 +13,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.errors import PlannerError
-from planner.kinematics._checks import rows_of_six
+from planner.kinematics._checks import rows_of_six, times
 from planner.kinematics.inverse import inverse_path
 from planner.kinematics.ur_models import JOINT_NAMES, URModel, get_model
 
@@ -121,7 +121,7 @@ class ReachabilityReport:
 
 
 def _times(t, n: int) -> np.ndarray:
-    t = np.asarray(t, dtype=float)
+    t = times(t, n)
     if t.shape != (n,):
         raise PlannerError(f"t: expected shape ({n},) (one time per sample), got {t.shape}")
     bad = ~np.isfinite(t)
