@@ -62,6 +62,18 @@ class Budget:
         return self.poses * CSV_BYTES_PER_POSE
 
 
+def _check_arguments(toolpath, settings) -> None:
+    """PlannerError unless ``toolpath`` is a Toolpath and ``settings`` checked PlanSettings."""
+    from planner.io.toolpath import Toolpath
+    from planner.settings import PlanSettings
+
+    if not isinstance(toolpath, Toolpath):
+        raise PlannerError(f"toolpath must be a planner.io.Toolpath (read_toolpath), got {type(toolpath).__name__}")
+    if not isinstance(settings, PlanSettings) or settings.arc_tolerance is None:
+        raise PlannerError(f"settings must be checked PlanSettings (PlanSettings(...).checked()), got "
+                           f"{type(settings).__name__}")
+
+
 def _where(toolpath, i: int) -> str:
     return f"{toolpath.source} line {int(toolpath.lines[i])}"
 
@@ -98,6 +110,7 @@ def _dwells(toolpath) -> list:
 
 def estimate(toolpath, settings) -> Budget:
     """The :class:`Budget` of a toolpath under checked, resolved settings (see :func:`check_budget`)."""
+    _check_arguments(toolpath, settings)
     p = toolpath.points
     seg = np.linalg.norm(np.diff(p, axis=0), axis=1) if len(p) > 1 else np.zeros(0)
     rapid = toolpath.rapid[1:]
@@ -131,6 +144,7 @@ def check_budget(toolpath, settings) -> Budget:
         Naming the cause and its place, e.g. ``part.apt line 24: feed 1.7e-305 m/s is below 1 um/s`` or
         ``the path is 1.2e+06 m long ...: are the units right? (the file says mm)``.
     """
+    _check_arguments(toolpath, settings)
     p = toolpath.points
     if len(p):
         far = np.abs(p).max(axis=1)

@@ -18,14 +18,24 @@ from planner.errors import PlannerError
 
 def check_output(target, *inputs) -> Path:
     """``target`` as a Path, or PlannerError when it names one of the ``inputs`` (never overwrite an input)."""
-    out = Path(os.fspath(target))
+    out = as_path(target, "target")
     for src in inputs:
         if src is None:
             continue
-        src = Path(os.fspath(src))
+        src = as_path(src, "input")
         if out.exists() and src.exists() and out.resolve() == src.resolve():
             raise PlannerError(f"{out}: is the input file; refusing to overwrite it")
     return out
+
+
+def as_path(target, name: str = "target") -> Path:
+    """A file name (str or os.PathLike) as a Path, or PlannerError naming ``name`` (None, numbers, lists, ...)."""
+    if not isinstance(target, str | os.PathLike) or isinstance(target, bytes):
+        raise PlannerError(f"{name} must be a file name (str or path), got {type(target).__name__}")
+    text = os.fspath(target)
+    if not isinstance(text, str) or not text or "\0" in text:
+        raise PlannerError(f"{name} must be a file name, got {text!r}")
+    return Path(text)
 
 
 def _umask_mode() -> int:
@@ -39,7 +49,7 @@ def _umask_mode() -> int:
 def _atomic(target, mode: str, **options) -> Iterator[IO]:
     """A file opened with ``mode`` that appears at ``target`` (its parent made) only when the block completes;
     on any failure, the temporary file is removed and an existing target is untouched."""
-    out = Path(os.fspath(target))
+    out = as_path(target)
     out.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{out.name}.", suffix=".part", dir=out.parent)
     try:
@@ -59,7 +69,9 @@ def atomic_text(target):
 
 
 def write_bytes_atomic(target, data: bytes) -> None:
-    """Write ``data`` to ``target`` atomically."""
+    """Write ``data`` (bytes) to ``target`` atomically."""
+    if not isinstance(data, bytes | bytearray | memoryview):
+        raise PlannerError(f"data must be bytes, got {type(data).__name__}")
     with _atomic(target, "wb") as f:
         f.write(data)
 

@@ -44,6 +44,11 @@ def trajectory_parameters(trajectory, parameters: Mapping | None = None, max_pro
     SI units (m, s, rad) except the thresholds in degrees, as the keys say; ``parameters`` adds anything
     else (input file name, ...); ``max_problems`` caps the robot problems listed (their count is always given).
     """
+    if not hasattr(trajectory, "job") or not hasattr(trajectory, "rate"):
+        raise ExportError(f"trajectory must be a planned job's Trajectory (job.trajectory()), got "
+                          f"{type(trajectory).__name__}")
+    if parameters is not None and not isinstance(parameters, Mapping):
+        raise ExportError(f"parameters must be a mapping (dict) of header entries, got {type(parameters).__name__}")
     job = trajectory.job
     out: dict = {
         "generator": generator(),

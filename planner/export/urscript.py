@@ -20,6 +20,7 @@ Numbers are written in fixed point with 12 decimals (no exponents), far below th
 
 from __future__ import annotations
 
+from planner.errors import PlannerError
 from planner.export.files import text_target
 from planner.export.movep import MovePPlan
 from planner.export.script_text import io_line, num, pose
@@ -50,6 +51,8 @@ def movep_lines(plan: MovePPlan, acceleration: float) -> list[str]:
 
 def write_script(program: str, target) -> None:
     """Write a program text to a path (atomically) or a text file."""
+    if not isinstance(program, str):
+        raise PlannerError(f"program must be the program's text (str), got {type(program).__name__}")
     with text_target(target) as f:
         f.write(program)
 
