@@ -69,13 +69,13 @@ def as_floats(value, name: str) -> np.ndarray:
         raise ArgumentError(name, f"must be numbers, got strings ({a.flat[0]!r:.40} ...)" if a.size else
                             "must be numbers, got strings")
     if kind == "O":
-        bad = next((x for x in a.flat if not isinstance(x, numbers.Real) or isinstance(x, bool | np.bool_)), None)
-        if bad is None:
+        bad = [x for x in a.flat if not isinstance(x, numbers.Real) or isinstance(x, bool | np.bool_)][:1]
+        if not bad:
             try:
                 return a.astype(float)
             except (OverflowError, TypeError, ValueError):
-                bad = next((x for x in a.flat if isinstance(x, int) and abs(x) > 2**1023), a.flat[0])
-        raise ArgumentError(name, f"must be numbers, got {_described(bad)}")
+                bad = [x for x in a.flat if isinstance(x, int) and abs(x) > 2**1023][:1] or [a.flat[0]]
+        raise ArgumentError(name, f"must be numbers, got {_described(bad[0])}")
     raise ArgumentError(name, f"must be numbers, got an array of {a.dtype}")
 
 
@@ -96,7 +96,7 @@ def finite_floats(value, name: str, shape: tuple | None = None, *, min_rows: int
     bad = ~np.isfinite(a)
     if bad.any():
         i = np.unravel_index(int(np.argmax(bad)), a.shape)
-        raise ArgumentError(name + "".join(f"[{j}]" for j in i), f"must be finite, got {a[i]!r}")
+        raise ArgumentError(name + "".join(f"[{j}]" for j in i), f"must be finite, got {float(a[i])!r}")
     return a
 
 
@@ -237,9 +237,10 @@ def check_arc_lengths(s, length: float) -> np.ndarray:
 
 
 def check_in_range(value, name: str, lo: float, hi: float, error: type[PlannerError] = PlannerError) -> float:
-    """``value`` as a float in (lo, hi], or ``error`` naming ``name`` (booleans and NaN are refused)."""
-    if isinstance(value, bool):
-        raise error(f"{name} must be a number, got {value!r}")
+    """``value`` as a float in (lo, hi], or ``error`` naming ``name`` (booleans, strings, complex numbers and NaN
+    are refused)."""
+    if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
+        raise error(f"{name} must be a number, got {_described(value)}")
     try:
         x = float(value)
     except (TypeError, ValueError, OverflowError):

@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import math
+import re
 import signal
 import traceback
 import warnings
@@ -389,3 +390,51 @@ def test_the_valid_call_works(call_name):
     """Each call of the table is valid as given: the bad values above spoil a working call."""
     call = next(c for c in _calls() if c.name == call_name)
     call.fn(*[_materialize(a) for a in call.args], **{k: _materialize(v) for k, v in call.kwargs.items()})
+
+
+@pytest.mark.parametrize("value, message", [
+    ("0.01", "got the string '0.01'"),
+    (1j, "got the complex number 1j"),
+    (None, "got None"),
+    (True, "got the boolean True"),
+    (10**400, "an integer of 401 digits, beyond the float range"),
+    (math.nan, "be in (0, 10], got nan"),
+])
+def test_a_setting_is_a_real_number(value, message):
+    """PlanSettings' numbers (planner.validation.check_in_range): a numeric string is not parsed, a complex
+    number is not truncated to its real part."""
+    from planner import PlanSettings
+
+    with pytest.raises(PlannerError, match=f"^feed must .*{re.escape(message)}"):
+        PlanSettings(feed=value).checked()
+    assert PlanSettings(feed=np.float32(0.25)).checked().feed == pytest.approx(0.25)
+
+
+@pytest.mark.parametrize("value, message", [
+    ([[0.0, 1.0], [2.0, "3"]], "must be numbers, got strings"),
+    ([[0.0, 1.0], [2.0]], "rectangular array"),
+    ([1.0, 2.0 + 1e-3j], "must be real numbers, got complex numbers"),
+    ([1.0, None], "must be numbers, got None"),
+    ([1.0, 10**400], "an integer of 401 digits"),
+    ([True, False], "must be numbers, got booleans"),
+    ("1, 2", "must be numbers, got the string '1, 2'"),
+])
+def test_as_floats_names_what_is_not_a_number(value, message):
+    from planner.validation import ArgumentError, as_floats
+
+    with pytest.raises(ArgumentError, match=re.escape(message)) as info:
+        as_floats(value, "q")
+    assert info.value.argument == "q" and str(info.value).startswith("q: ")
+    assert as_floats([[1, 2], [3, 4]], "q").dtype == np.float64
+
+
+def test_finite_floats_names_the_index_and_the_shape():
+    from planner.validation import ArgumentError, finite_floats
+
+    with pytest.raises(ArgumentError, match=r"^p\[1\]\[2\]: must be finite, got nan$"):
+        finite_floats([[0, 0, 0], [1, 1, math.nan]], "p", (None, 3))
+    with pytest.raises(ArgumentError, match=r"^p: must have shape \(n, 3\), got \(2, 2\)$"):
+        finite_floats([[0, 0], [1, 1]], "p", (None, 3))
+    with pytest.raises(ArgumentError, match=r"^t: must have shape \(\) or \(n,\), got \(1, 2\)$"):
+        finite_floats([[0.1, 0.2]], "t", ((), (None,)))
+    assert finite_floats(0.5, "t", ((), (None,))).shape == ()
