@@ -176,7 +176,7 @@ def test_health_and_metrics_count_jobs_by_state(server):
         if line and not line.startswith("#"):
             name, value = line.rsplit(" ", 1)
             values[name] = float(value)
-    assert values['planner_jobs{state="done"}'] == 1
+    assert values['planner_jobs{state="done"}'] == 1, m.text
     assert values['planner_jobs{state="queued"}'] == 0 and values["planner_queue_depth"] == 0
     assert values["planner_planning_seconds_count"] == 1
     assert values['planner_planning_seconds_bucket{le="+Inf"}'] == 1

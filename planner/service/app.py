@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import asyncio
 import contextlib
+import functools
 import gc
 import json
 import re
@@ -37,7 +38,7 @@ from planner.service.execution_runs import Executions
 from planner.service.metrics import Metrics
 from planner.service.plots import Plotter
 from planner.service.schemas import JobCreated, JobList, JobView, ReadOptions, SettingsModel, WaypointJob
-from planner.service.store import Job, now, open_store
+from planner.service.store import Checkpointer, Job, now, open_store
 from planner.service.workers import Inserter, WorkerPool, job_dir, recover, remove_job_files
 
 API = "/v1"
@@ -111,7 +112,9 @@ class Service:
 
     def __init__(self, cfg: ServiceConfig):
         self.cfg = cfg
-        self.engine, self.sessions = open_store(cfg.db_url)
+        bg = cfg.db_url.startswith("sqlite")  # WAL checkpoints (and their fsync) out of the commits requests wait for
+        self.engine, self.sessions = open_store(cfg.db_url, background_checkpoints=bg)
+        self.checkpointer = Checkpointer(self.engine) if bg else None
         self.metrics = Metrics()
         self.pool = WorkerPool(self.sessions, cfg, self.metrics)
         self.inserter = Inserter(self.pool)
@@ -126,6 +129,8 @@ class Service:
         self.inserter.start()
         self.pool.start()
         self.plotter.start()
+        if self.checkpointer is not None:
+            self.checkpointer.start()
         return recovered
 
     def stop(self) -> None:
@@ -133,6 +138,8 @@ class Service:
         self.plotter.stop()
         self.inserter.stop()
         self.pool.stop()
+        if self.checkpointer is not None:
+            self.checkpointer.stop()
         self.engine.dispose()
 
 
@@ -275,9 +282,10 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
     @app.post(f"{API}/jobs", status_code=202, response_model=JobCreated, tags=["jobs"], openapi_extra=_JOB_BODY,
               responses={413: {"description": "request too large"}, 415: {"description": "not JSON or multipart"},
                          422: {"description": "bad input, naming the field"}})
-    async def submit(request: Request, who: Caller) -> JSONResponse:
+    async def submit(request: Request) -> JSONResponse:
         """Submit a job: JSON waypoints (WaypointJob) or a multipart upload of a toolpath file."""
         svc = _service(request)
+        who = await principal(request)  # called directly: FastAPI's dependency solving costs more than the check
         ctype = request.headers.get("content-type", "").lower()
         if ctype.startswith("application/json"):
             body = await request.body()
@@ -286,9 +294,9 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
             except ValidationError as exc:
                 raise HTTPException(422, _validation_detail(exc, ["body"])) from None
             if len(req.waypoints) <= INLINE_WAYPOINTS:  # checked at once: well under a millisecond
-                job_id, row = _waypoint_row(svc, who, req)
+                job_id, row = _waypoint_row(svc, who, req, body)
             else:
-                job_id, row = await run_in_threadpool(_waypoint_row, svc, who, req)
+                job_id, row = await run_in_threadpool(_waypoint_row, svc, who, req, body)
             await asyncio.wrap_future(svc.inserter.submit(row))
         elif ctype.startswith("multipart/form-data"):
             job_id = await _submit_file(svc, who, request)
@@ -442,19 +450,28 @@ def _row(job_id: str, who: Principal, **values: Any) -> dict:
                 job_bytes=0, **values)
 
 
-def _checked_settings(model: SettingsModel, fmt: str, has_axes: bool, prefix: list):
-    from planner.plan import resolve
-
+def _checked_settings(model: SettingsModel, fmt: str, has_axes: bool, prefix: list) -> str:
+    """The settings as the planner will take them for this input, as the JSON stored with the job (422 naming the
+    setting if they are refused)."""
     try:
-        settings = model.to_settings()
-        resolve(settings, fmt, has_axes)
+        return _settings_json(model.model_dump_json(), fmt, has_axes)
     except PlannerError as exc:
         raise Unprocessable(_settings_loc(str(exc), prefix), str(exc)) from None
-    return settings
 
 
-def _waypoint_row(svc: Service, who: Principal, req: WaypointJob) -> tuple[str, dict]:
-    """A JSON job checked as the planner will read it: its id and row (422 naming the field if it is bad)."""
+@functools.lru_cache(maxsize=256)
+def _settings_json(model_json: str, fmt: str, has_axes: bool) -> str:
+    """Checked settings by their JSON (clients send the same settings again and again: checked once each)."""
+    from planner.plan import resolve
+
+    settings = SettingsModel.model_validate_json(model_json).to_settings()
+    resolve(settings, fmt, has_axes)
+    return json.dumps(settings.to_dict())
+
+
+def _waypoint_row(svc: Service, who: Principal, req: WaypointJob, body: bytes) -> tuple[str, dict]:
+    """A JSON job checked as the planner will read it: its id and row (422 naming the field if it is bad). The
+    input stored is the request's JSON itself (validated: the worker reads its waypoints, axes and feeds)."""
     from planner.plan import waypoints_toolpath
 
     n = len(req.waypoints)
@@ -468,10 +485,9 @@ def _waypoint_row(svc: Service, who: Principal, req: WaypointJob) -> tuple[str, 
         field = next((f for f in ("axes", "feeds") if msg.startswith(f)), "waypoints")
         raise Unprocessable(["body", field], msg) from None
     settings = _checked_settings(req.settings, "waypoints", req.axes is not None, ["body", "settings"])
-    data = json.dumps({"waypoints": req.waypoints, "axes": req.axes, "feeds": req.feeds})
     job_id = uuid.uuid4().hex
     return job_id, _row(job_id, who, input_kind="waypoints", input_name="<waypoints>", input_format="waypoints",
-                        input_bytes=len(data), input_json=data, settings=json.dumps(settings.to_dict()),
+                        input_bytes=len(body), input_json=body.decode("utf-8"), settings=settings,
                         read_options="{}")
 
 
@@ -537,6 +553,6 @@ def _create_file_job(svc: Service, who: Principal, job_id: str, upload: UploadFi
         raise Unprocessable(["body", "file"], f"{name}: not a text file ({exc})") from None
     settings = _checked_settings(settings_model, fmt, toolpath.axes is not None, ["body", "settings"])
     svc.inserter.submit(_row(job_id, who, input_kind="file", input_name=name, input_format=fmt, input_bytes=size,
-                             input_json=None, settings=json.dumps(settings.to_dict()),
+                             input_json=None, settings=settings,
                              read_options=json.dumps(read_options))).result()
     return job_id

@@ -34,6 +34,12 @@ class LimitsModel(Strict):
     angular_speed: Finite | None = None
 
 
+def _limits(name: str):
+    """A limits field whose default is built per request (a shared model default would be deep-copied for every
+    request, the largest cost of parsing a small job), shown in the schema as PlanSettings' default."""
+    return Field(default_factory=lambda: LimitsModel(**_D[name]), json_schema_extra={"default": _D[name]})
+
+
 PathModel = Literal[PATH_MODELS]  # type: ignore[valid-type]
 AxisSource = Literal[AXIS_SOURCES]  # type: ignore[valid-type]
 FrameMethod = Literal[FRAME_METHODS]  # type: ignore[valid-type]
@@ -52,9 +58,9 @@ class SettingsModel(Strict):
     feed: Finite = _D["feed"]
     feed_override: Finite = _D["feed_override"]
     rapid_speed: Finite = _D["rapid_speed"]
-    limits: LimitsModel = LimitsModel(**_D["limits"])
-    turn_limits: LimitsModel = LimitsModel(**_D["turn_limits"])
-    joint_limits: LimitsModel = LimitsModel(**_D["joint_limits"])
+    limits: LimitsModel = _limits("limits")
+    turn_limits: LimitsModel = _limits("turn_limits")
+    joint_limits: LimitsModel = _limits("joint_limits")
     rate: Finite = _D["rate"]
     robot: str | None = Field(default=_D["robot"], max_length=32)
     part_frame: Pose6 | None = _D["part_frame"]
@@ -89,7 +95,7 @@ class WaypointJob(Strict):
     axes: list[Vec3] | None = Field(default=None, description="tool axis per waypoint (CAM convention)")
     feeds: list[Finite | None] | None = Field(default=None, description="feed into each waypoint, m/s (null: "
                                               "the job's feed)")
-    settings: SettingsModel = SettingsModel()
+    settings: SettingsModel = Field(default_factory=SettingsModel, json_schema_extra={"default": {}})
 
 
 class Progress(BaseModel):

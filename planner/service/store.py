@@ -7,6 +7,7 @@ kilobytes to a few megabytes) and its summary. Exports are never stored: they ar
 
 from __future__ import annotations
 
+import threading
 import time
 from pathlib import Path
 
@@ -118,8 +119,9 @@ class Execution(Base):
                             postgresql_where=_ACTIVE))
 
 
-def make_engine(url: str) -> Engine:
-    """An engine for ``url``; SQLite gets WAL mode, a busy timeout and foreign keys on every connection."""
+def make_engine(url: str, *, background_checkpoints: bool = False) -> Engine:
+    """An engine for ``url``; SQLite gets WAL mode, a busy timeout and foreign keys on every connection (and, with
+    ``background_checkpoints``, no automatic WAL checkpoints: a :class:`Checkpointer` does them)."""
     if url.startswith("sqlite"):
         if url.startswith("sqlite:///") and url[len("sqlite:///"):] not in ("", ":memory:"):
             Path(url[len("sqlite:///"):]).resolve().parent.mkdir(parents=True, exist_ok=True)
@@ -133,6 +135,8 @@ def make_engine(url: str) -> Engine:
             cur.execute("PRAGMA synchronous=NORMAL")
             cur.execute("PRAGMA busy_timeout=30000")
             cur.execute("PRAGMA foreign_keys=ON")
+            if background_checkpoints:  # no checkpoint (and its fsync) inside a commit: see Checkpointer
+                cur.execute("PRAGMA wal_autocheckpoint=0")
             cur.close()
 
         return engine
@@ -151,9 +155,38 @@ def migrate(engine: Engine) -> None:
         command.upgrade(cfg, "head")
 
 
-def open_store(url: str) -> tuple[Engine, sessionmaker]:
-    """The engine (migrated) and a session factory."""
-    engine = make_engine(url)
+class Checkpointer(threading.Thread):
+    """SQLite's WAL checkpoints in a thread of their own, every ``every`` s (PASSIVE: never waits for readers or
+    writers). SQLite otherwise checkpoints inside the commit that fills the WAL past 1000 pages, and the fsync of
+    the database file that a checkpoint makes then delays that commit, and the requests waiting for it, by tens of
+    milliseconds on a busy disk."""
+
+    def __init__(self, engine: Engine, every: float = 1.0):
+        super().__init__(name="planner-checkpoints", daemon=True)
+        self.engine = engine
+        self.every = every
+        self.stopping = threading.Event()
+
+    def run(self) -> None:
+        while not self.stopping.wait(self.every):
+            self.checkpoint()
+        self.checkpoint()
+
+    def checkpoint(self) -> None:
+        try:
+            with self.engine.connect() as conn:
+                conn.exec_driver_sql("PRAGMA wal_checkpoint(PASSIVE)")
+        except Exception:  # the database is gone or busy: the next round tries again
+            pass
+
+    def stop(self) -> None:
+        self.stopping.set()
+        self.join(10.0)
+
+
+def open_store(url: str, *, background_checkpoints: bool = False) -> tuple[Engine, sessionmaker]:
+    """The engine (migrated) and a session factory (see :func:`make_engine`)."""
+    engine = make_engine(url, background_checkpoints=background_checkpoints)
     migrate(engine)
     return engine, sessionmaker(engine, expire_on_commit=False)
 

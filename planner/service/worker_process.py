@@ -112,6 +112,11 @@ def worker_main(conn, parent_pid: int) -> None:
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C goes to the service, which stops its workers
     import planner.plan  # noqa: F401  (imported before the first job: its time is not the job's)
 
+    try:
+        conn.send(("ready",))  # the slot hands out jobs (and starts their clocks) from here on
+    except OSError:
+        return
+
     while True:
         try:
             task = conn.recv()

@@ -29,7 +29,7 @@ from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import func, select, update
+from sqlalchemy import Table, func, select, update
 from sqlalchemy.orm import sessionmaker
 
 from planner.service.config import ServiceConfig
@@ -37,9 +37,13 @@ from planner.service.metrics import Metrics
 from planner.service.store import STATES, Job, now
 
 log = logging.getLogger("planner.service")
+#: The jobs table itself (inserts without the ORM's per-row bookkeeping).
+JOBS: Table = Job.__table__  # type: ignore[assignment]
 
 #: Seconds between progress writes to the store for one job.
 PROGRESS_WRITE_EVERY = 0.5
+#: Seconds a new worker process may take to import the planner before it is given up.
+WORKER_START_TIMEOUT = 120.0
 
 
 def job_dir(cfg: ServiceConfig, job_id: str) -> Path:
@@ -73,6 +77,7 @@ class Slot(threading.Thread):
         self.process: mp.process.BaseProcess | None = None
         self.conn: Any = None
         self.current: tuple[str, int] | None = None
+        self.ready = False
 
     # -- process ------------------------------------------------------------------------------
     def start_process(self) -> None:
@@ -85,6 +90,14 @@ class Slot(threading.Thread):
         proc.start()
         child.close()
         self.process, self.conn = proc, parent
+        self.ready = False
+        try:  # its imports done: a job's time limit counts from its start, not from the worker's
+            if parent.poll(WORKER_START_TIMEOUT) and parent.recv() == ("ready",):
+                self.ready = True
+        except (EOFError, OSError):
+            pass
+        if not self.ready:
+            log.error("planning worker %d did not start within %g s", self.index, WORKER_START_TIMEOUT)
 
     def stop_process(self, kill: bool = False) -> None:
         proc, conn = self.process, self.conn
@@ -103,7 +116,8 @@ class Slot(threading.Thread):
 
     @property
     def alive(self) -> bool:
-        return self.process is not None and self.process.is_alive()
+        """The worker process is running and ready for jobs."""
+        return self.ready and self.process is not None and self.process.is_alive()
 
     # -- loop ---------------------------------------------------------------------------------
     def run(self) -> None:
@@ -343,7 +357,7 @@ class Inserter(threading.Thread):
                 batch.append(more)
             try:
                 with self.pool.write_lock, self.pool.sessions() as s:
-                    s.add_all([Job(**row) for row, _ in batch])
+                    s.connection().execute(JOBS.insert(), [row for row, _ in batch])  # one executemany, Core
                     s.commit()
             except Exception as exc:  # e.g. the database is gone: every waiting request gets the error
                 for _, done in batch:
