@@ -240,3 +240,35 @@ def test_a_crash_of_the_service_fails_the_execution_it_interrupted(tmp_path, cel
             assert done["state"] == "done" and done["report"]["ok"], done
     finally:
         s.stop()
+
+
+@pytest.mark.parametrize("text, message", [
+    ('{"cell": {"host": "cell.local", "model": "ur5e"}}', "robot 'cell': host must be an IP address, got 'cell.local'"),
+    ('{"cell": {"model": "ur5e"}}', "robot 'cell': give either host (the controller's IP address) or \"sim\": true"),
+    ('{"cell": {"host": "10.0.0.2"}}', "robot 'cell': model is needed for a real controller"),
+    ('{"cell": {"sim": true, "model": "ur7"}}', "robot 'cell': model: unknown robot model 'ur7'"),
+    ('{"cell": {"sim": true, "port": 1}}', "robot 'cell': unknown field 'port'"),
+    ('{"cell": {"host": "10.0.0.2", "model": "ur5e", "sim_speed": 2}}', "sim_speed applies to simulated robots only"),
+    ('{"cell": {"sim": true, "io": "profinet"}}', "robot 'cell': io must be 'rtde' or 'modbus'"),
+    ('{"a b": {"sim": true}}', "robot 'a b': a name is 1..32 of A-Z a-z 0-9 _ -"),
+    ('{}', "at least one robot"),
+    ('{"cell": ', "PLANNER_ROBOTS: not JSON"),
+])
+def test_robot_configuration_refusals_name_the_robot_and_field(text, message):
+    from planner.errors import PlannerError
+    from planner.service.config import ServiceConfig
+
+    with pytest.raises(PlannerError) as err:
+        ServiceConfig.from_env({"PLANNER_ROBOTS": text})
+    assert message in str(err.value)
+
+
+def test_robots_from_a_file_and_the_default(tmp_path):
+    from planner.service.config import RobotConfig, ServiceConfig
+
+    assert ServiceConfig.from_env({}).robots == (RobotConfig("sim"),)
+    f = tmp_path / "robots.json"
+    f.write_text('{"cell": {"host": "10.0.0.2", "model": "UR10e", "io": "modbus", "modbus_port": 5020}}')
+    cfg = ServiceConfig.from_env({"PLANNER_ROBOTS": str(f)})
+    assert cfg.robots == (RobotConfig("cell", "10.0.0.2", "ur10e", "modbus", 5020),)
+    assert cfg.robot("cell").simulated is False and cfg.robot("sim") is None
