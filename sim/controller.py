@@ -231,6 +231,13 @@ class SimController:
         dashboard's ``power on`` and ``brake release``). False when none was pressed."""
         return bool(self._ask({"cmd": "emergency_stop", "pressed": False})["ok"])
 
+    def set_speed(self, speed: float) -> None:
+        """Change the simulated seconds per wall-clock second (e.g. fast-forward once a long program runs)."""
+        if isinstance(speed, bool) or not isinstance(speed, int | float) or not speed > 0:
+            raise ValueError(f"speed must be a number > 0, got {speed!r}")
+        self._ask({"cmd": "speed", "speed": float(speed)})
+        self.speed = float(speed)
+
     def set_remote_control(self, on: bool) -> None:
         """Switch between remote (True) and local (False) control, as on the teach pendant."""
         if not isinstance(on, bool):

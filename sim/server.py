@@ -11,8 +11,8 @@ client's process would deadlock). The child
   and sends the data packages due;
 * reads JSON commands, one per line, on stdin (``{"cmd": "state"}``, ``{"cmd": "set_digital_in",
   "mask": m, "value": v}``, ``{"cmd": "emergency_stop", "pressed": true, "kind": "robot"}``,
-  ``{"cmd": "remote_control", "on": false}``, ``{"cmd": "stop"}``) and answers each with one JSON line
-  on stdout;
+  ``{"cmd": "remote_control", "on": false}``, ``{"cmd": "speed", "speed": 100}``, ``{"cmd": "stop"}``)
+  and answers each with one JSON line on stdout;
 * runs SCHED_FIFO where the system allows it (``--no-realtime``: not), the loop highest;
 * exits when stdin closes (the parent is gone) or on SIGTERM, writing its recording first.
 """
@@ -49,8 +49,13 @@ class Loop:
         self.late = 0  # ticks skipped because the loop fell more than one period behind
         # most periods simulated in one wall-clock period when fast-forwarding (at speed <= 1 every missed
         # period is integrated: simulated time follows the wall clock)
-        self.max_batch = int(4 * speed) if speed > 1 else 1 << 30
+        self.set_speed(speed)
         self.thread = threading.Thread(target=self.run, name="control-loop", daemon=True)
+
+    def set_speed(self, speed: float) -> None:
+        """Simulated seconds per wall-clock second from the next period on."""
+        self.speed = float(speed)
+        self.max_batch = int(4 * speed) if speed > 1 else 1 << 30
 
     def run(self) -> None:
         core, rtde = self.core, self.rtde
@@ -91,7 +96,7 @@ class Loop:
                 conn.flush()
 
 
-def _commands(core: Core, io, stop: threading.Event) -> None:
+def _commands(core: Core, io, stop: threading.Event, loop: Loop) -> None:
     """JSON commands from the parent on stdin; EOF means the parent is gone."""
     for line in sys.stdin:
         try:
@@ -113,6 +118,12 @@ def _commands(core: Core, io, stop: threading.Event) -> None:
                         reply = {"ok": True}
                     else:
                         reply = {"ok": core.release_emergency_stop()}
+            elif cmd == "speed":
+                speed = req["speed"]
+                if isinstance(speed, bool) or not isinstance(speed, int | float) or not speed > 0:
+                    raise ValueError(f"speed must be a number > 0, got {speed!r}")
+                loop.set_speed(float(speed))
+                reply = {"ok": True}
             elif cmd == "remote_control":
                 on = req["on"]
                 if not isinstance(on, bool):
@@ -189,7 +200,7 @@ def main(argv: list[str] | None = None) -> int:
     for srv in (rtde, dash, script):
         srv.start()
     loop.thread.start()
-    threading.Thread(target=_commands, args=(core, io, stop), name="commands", daemon=True).start()
+    threading.Thread(target=_commands, args=(core, io, stop, loop), name="commands", daemon=True).start()
     ports = {"rtde": 30004, "dashboard": 29999, "script": [30001, 30002, 30003],
              "modbus": modbus.port if modbus else None}
     print("READY " + json.dumps({"host": host, "pid": os.getpid(), "ports": ports}), flush=True)

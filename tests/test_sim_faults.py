@@ -300,3 +300,18 @@ def test_local_control_switched_on_mid_program_lets_it_run_and_refuses_the_next(
     time.sleep(0.3)
     st = sim.state()
     assert st["digital_out"] & 4 == 0 and st["runtime_state"] == "STOPPED"
+
+
+def test_speed_changed_while_running(make_sim):
+    """Fast-forward switched on through the control channel: simulated time runs 20x the wall clock from then."""
+    sim = make_sim()
+    with pytest.raises(ValueError, match="speed must be a number > 0"):
+        sim.set_speed(0)
+    t0, w0 = sim.state()["time"], time.monotonic()
+    time.sleep(0.5)
+    t1, w1 = sim.state()["time"], time.monotonic()
+    sim.set_speed(20.0)
+    time.sleep(0.5)
+    t2, w2 = sim.state()["time"], time.monotonic()
+    assert (t1 - t0) / (w1 - w0) == pytest.approx(1.0, rel=0.2)
+    assert (t2 - t1) / (w2 - w1) == pytest.approx(20.0, rel=0.25)
