@@ -15,7 +15,8 @@ waypoints built from the example CSV; mutations: truncation, byte flips, NaN/inf
 coordinates scaled by 1e-6..1e6, duplicated, deleted and swapped lines.
 
 Bounded so the default run takes well under a minute. ``HYPOTHESIS_PROFILE=fuzz`` selects the long profile
-(many more examples per format, a longer deadline per example): ``./run fuzz``.
+(1000 examples per format, fresh random ones each run, a longer deadline per example): ``./run fuzz``;
+``FUZZ_EXAMPLES=N`` sets the number of examples per format.
 """
 
 from __future__ import annotations
@@ -36,7 +37,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from planner.cli import main
@@ -50,8 +51,8 @@ settings.register_profile("fuzz", deadline=None, max_examples=1000, print_blob=T
                           suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
 if FUZZ:
     settings.load_profile("fuzz")
-#: Examples per input format: default suite, long profile.
-EXAMPLES = 1000 if FUZZ else 12
+#: Examples per input format: default suite, long profile (FUZZ_EXAMPLES=N sets it for a run of its own).
+EXAMPLES = int(os.environ.get("FUZZ_EXAMPLES", 1000 if FUZZ else 12))
 #: Wall-clock limit of one planner run (s): a run past it is a hang. Generous: 2 shared cores, other tests beside.
 DEADLINE = 60.0 if FUZZ else 30.0
 #: Every fuzz run is capped at this many poses (unless the options draw a smaller cap): the default 2e8 is a valid
@@ -168,26 +169,45 @@ def _scaled(token: bytes, factor: float) -> bytes:
     return repr(float(token) * factor).encode()
 
 
-# option values: valid ones, edge ones and bad ones (the bad ones must be refused in one line)
-OPTION_VALUES = {
-    "--feed": ["0.001", "5", "50", "250", "10000", "-5", "0", "nan", "1e400", "1e-9", "abc"],
-    "--tolerance": ["0.001", "0.01", "0.1", "2", "1000", "0", "-1", "inf"],
-    "--rate": ["125", "500", "0.5", "1e-9", "10000", "0", "1e7"],
-    "--corner": ["1", "30", "60", "180", "0", "200"],
-    "--axis-jump": ["1", "45", "90", "91"],
-    "--feed-override": ["0.5", "1", "10", "11", "0", "-1"],
-    "--rapid-speed": ["10", "250", "10000", "0.0001", "-1"],
-    "--max-poses": ["1", "1000", "50000", "0", "1e13"],
-    "--path": ["auto", "interpolate", "cam", "bogus"],
-    "--axes": ["auto", "file", "approach", "fixed", "path", "bogus"],
+# option values: valid ones (edges included), and bad ones (each must be refused in one line)
+GOOD_OPTIONS = {
+    "--feed": ["0.001", "5", "50", "250", "10000"],
+    "--tolerance": ["0.001", "0.01", "0.1", "2", "1000"],
+    "--rate": ["125", "500", "0.5", "10000"],
+    "--corner": ["1", "30", "60", "180"],
+    "--axis-jump": ["1", "45", "90"],
+    "--feed-override": ["0.5", "1", "10"],
+    "--rapid-speed": ["10", "250", "10000"],
+    "--max-poses": ["1", "1000", "50000"],
+    "--path": ["auto", "interpolate", "cam"],
+    "--axes": ["auto", "file", "approach", "fixed", "path"],
     "--frame": ["rmf", "grm", "juttler", "er", "double-reflection"],
     "--units": ["mm", "m", "inch"],
-    "--pass": ["0", "1", "2,3", "longest", "all", "-1", "99", "x"],
-    "--cut-output": ["standard:0", "tool:1", "tool:2", "spray"],
+    "--pass": ["0", "1", "2,3", "longest", "all"],
+    "--cut-output": ["standard:0", "tool:1"],
+}
+BAD_OPTIONS = {
+    "--feed": ["-5", "0", "nan", "1e400", "1e-9", "abc"],
+    "--tolerance": ["0", "-1", "inf"],
+    "--rate": ["1e-9", "0", "1e7"],
+    "--corner": ["0", "200"],
+    "--axis-jump": ["91"],
+    "--feed-override": ["11", "0", "-1"],
+    "--rapid-speed": ["0.0001", "-1"],
+    "--max-poses": ["0", "1e13"],
+    "--path": ["bogus"],
+    "--axes": ["bogus"],
+    "--pass": ["-1", "99", "x"],
+    "--cut-output": ["tool:2", "spray"],
     "--machine": ["haas-umc-750", "bogus"],
 }
-options = st.lists(st.sampled_from(sorted(OPTION_VALUES)), max_size=4, unique=True).flatmap(
-    lambda flags: st.tuples(*[st.tuples(st.just(f), st.sampled_from(OPTION_VALUES[f])) for f in flags]))
+good_options = st.lists(st.sampled_from(sorted(GOOD_OPTIONS)), max_size=3, unique=True).flatmap(
+    lambda flags: st.tuples(*[st.tuples(st.just(f), st.sampled_from(GOOD_OPTIONS[f])) for f in flags]))
+bad_option = st.sampled_from(sorted(BAD_OPTIONS)).flatmap(
+    lambda f: st.tuples(st.just(f), st.sampled_from(BAD_OPTIONS[f])))
+#: Mostly valid options (the mutated file decides), one run in six with a bad one beside them.
+options = st.tuples(good_options, st.integers(0, 5), bad_option).map(
+    lambda t: tuple(dict(t[0] + ((t[2],) if t[1] == 5 else ())).items()))
 outputs = st.sampled_from([".csv", ".csv", ".json", ".json", ".job", ".script", ".txt"])
 
 
@@ -286,7 +306,7 @@ def check_contract(input_path: Path, argv: list[str], out: Path, rc: int, stdout
         assert left == [input_path.name], f"{cmd}: exit {rc} and files left {left}"
 
 
-def _fuzz_one(fmt: str, ops, opts, suffix: str) -> None:
+def _fuzz_one(fmt: str, ops, opts, suffix: str) -> tuple[int, str]:
     name, seed, fixed = SEEDS[fmt]
     data = mutate(seed, ops)
     with tempfile.TemporaryDirectory(prefix="fuzz-") as tmp:
@@ -303,6 +323,7 @@ def _fuzz_one(fmt: str, ops, opts, suffix: str) -> None:
             argv += ["--robot", "ur5e", "--part-frame", "0.4,0.9965,-0.1,0,0,0"]
         rc, stdout, stderr = run_in_process(argv)
         check_contract(src, argv, out, rc, stdout, stderr)
+    return rc, stderr
 
 
 FUZZ_SETTINGS = settings(max_examples=EXAMPLES, deadline=None, derandomize=not FUZZ,
@@ -311,9 +332,34 @@ FUZZ_SETTINGS = settings(max_examples=EXAMPLES, deadline=None, derandomize=not F
 
 @pytest.mark.parametrize("fmt", sorted(SEEDS))
 @FUZZ_SETTINGS
-@given(ops=st.lists(mutation, min_size=1, max_size=4), opts=options, suffix=outputs)
+@given(ops=st.lists(mutation, max_size=4), opts=options, suffix=outputs)
 def test_mutated_inputs_keep_the_contract(fmt, ops, opts, suffix):
-    _fuzz_one(fmt, ops, opts, suffix)
+    rc, stderr = _fuzz_one(fmt, ops, opts, suffix)
+    event(f"exit {rc}" + (f": {stderr.split(': ')[2][:40]}" if rc and stderr.count(": ") > 1 else ""))
+
+
+@pytest.mark.parametrize("fmt", ["csv", "json", "cls"])
+@FUZZ_SETTINGS
+@given(ops=st.lists(mutation, max_size=4), method=st.sampled_from(["C1", "C2", "cubic", "all"] * 3 + ["C3"]),
+       units=st.sampled_from([None, "mm", "m", "inch"] * 3 + ["km"]))
+def test_planner_fit_keeps_the_contract(fmt, ops, method, units):
+    """``planner fit`` on mutated waypoint files: exit 0 with the fit figures, or one line on stderr and exit 2."""
+    name, seed, _ = SEEDS[fmt]
+    with tempfile.TemporaryDirectory(prefix="fuzz-") as tmp:
+        src = Path(tmp) / name
+        src.write_bytes(mutate(seed, ops))
+        argv = ["fit", str(src), "--method", method] + ([] if units is None else ["--units", units])
+        rc, stdout, stderr = run_in_process(argv)
+        event(f"exit {rc}")
+        cmd = f"planner {' '.join(argv)}"
+        assert "Traceback" not in stdout + stderr and "encountered in" not in stdout, cmd
+        assert sorted(p.name for p in Path(tmp).iterdir()) == [name], cmd  # fit writes nothing
+        if rc == 0:
+            assert stderr == "" and f"{name}: " in stdout and "waypoints" in stdout, cmd
+            lengths = [float(x) for x in re.findall(r"length (\S+) mm", stdout)]
+            assert lengths and all(math.isfinite(x) and x > 0.0 for x in lengths), cmd
+        else:
+            assert rc in (2, 3) and stderr.count("\n") == 1, f"{cmd}: exit {rc}\n{stderr}"
 
 
 @pytest.mark.parametrize("fmt", sorted(SEEDS))
