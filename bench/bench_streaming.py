@@ -1,24 +1,23 @@
-"""Benchmark: the 500 Hz servoJ streaming loop through real ur_rtde against the simulated controller.
+"""Benchmark: the 500 Hz servoJ streaming loop of :class:`drivers.ur.URDriver` through real ur_rtde against the
+simulated controller.
 
 The demo job (the first pass of the real NX file, placed for a UR5e as ``planner demo`` places it; about
-62 s of motion) is streamed as :class:`drivers.ur.URDriver` streams it: ``moveJ`` onto the start joints, then
-one ``servoJ`` with the planner's joints per 2 ms sample in ur_rtde's ``initPeriod``/``waitPeriod`` loop (with
-the ``RTDEReceiveInterface`` reads URDriver makes every period: actual TCP, joints, outputs, safety and runtime
-state), then ``servoStop``; ``--seconds`` streams only the job's first seconds. The simulated controller (a
+62 s of motion) is executed by ``URDriver.execute(job, mode="stream")`` itself: the approach onto the start
+joints, then one ``servoJ`` with the planner's joints per 2 ms sample, paced on the absolute schedule
+t0 + k * 2 ms (:class:`drivers.pacing.Schedule`: sleep to 0.3 ms before the deadline, then spin), with the
+targets produced ahead by the driver's feed thread and the RTDE receive reads the driver makes every period;
+``--seconds`` streams only the job's first seconds (the run is then cancelled there). The simulated controller (a
 :class:`sim.SimController` child process) records what it executed. Reported:
 
-* period: wall time between the starts of consecutive loop iterations (ms): p50, p99, max, and
-  ``|p99 - 2 ms|`` (target: within 0.5 ms); the loop's mean rate (Hz): ``waitPeriod`` waits 2 ms from its own
-  ``initPeriod``, not to an absolute schedule, so the few microseconds between them add up and the stream
-  runs slightly slower than the controller's 500 Hz;
+* period: the driver's own figures (``report.loop``): wall time between the starts of consecutive loop
+  iterations, p50, p99, max, ``|p99 - 2 ms|`` (target: within 0.5 ms) and the loop's mean rate (Hz);
 * missed periods: loop iterations that started a whole period or more late (counted in periods), and on the
   controller's side the control periods in which no new target had arrived (the recording's commanded joints
-  repeat: the client's drift and jitter against the controller's clock) and the targets it never executed (two
-  arrived within one period), and the periods the controller's own loop skipped (late ticks); target: not one;
+  repeat) and the targets it never executed (two arrived within one period), and the periods the controller's
+  own loop skipped (late ticks); target: not one;
 * tracking: the controller's actual joints against the commanded ones (largest, rad, and against the motion
-  model's servo following-error bound), and the actual TCP's largest distance from the planned path (mm,
-  :func:`drivers.report.execution_report`, the one report computation);
-* CPU: this client process and the simulator process, each as a share of one core over the stream;
+  model's servo following-error bound), and the report's largest distance of the actual TCP from the planned path;
+* CPU: this client process (the approach included) and the simulator process, each as a share of one core;
 * machine stalls: periods a SCHED_FIFO probe thread in this process, on the same absolute 2 ms schedule, woke
   more than a period late (a shared virtual machine stalls now and then; no loop can do better).
 
@@ -69,74 +68,64 @@ def _period_stats(starts: np.ndarray) -> dict:
 
 
 def run_stream(job, seconds: float, realtime: bool) -> dict:
-    import rtde_control
-    import rtde_receive
+    import threading
 
-    from drivers.report import execution_report
+    from drivers.ur import URDriver
     from sim import SimController, recording
     from sim.motion import servo_following_error
 
     Q = np.concatenate([c.joints for c in job.trajectory().chunks()])
     n = min(len(Q), int(round(seconds / PERIOD)))
+    cut = n < len(Q)
     Q = Q[:n]
-    targets = Q.tolist()
+    cancel = threading.Event()
+
+    def progress(stage, done, total):
+        if done >= n - 1 and cut:
+            cancel.set()  # --seconds: the job's first seconds only
+
     with tempfile.TemporaryDirectory(prefix="bench-stream-") as tmp:
         rec_path = Path(tmp) / "stream.npz"
         sim = SimController(_free_hosts(1)[0], modbus_port=None, record=rec_path)
         sim.start()
         try:
-            c = rtde_control.RTDEControlInterface(sim.host)
-            r = rtde_receive.RTDEReceiveInterface(sim.host)
-            try:
-                if not c.moveJ([float(x) for x in job.start_joints], 0.5, 0.5):
-                    raise RuntimeError("moveJ onto the start joints failed")
+            with URDriver(sim.host, "ur5e", lookahead=LOOKAHEAD, gain=GAIN) as d:
                 if realtime:
                     _realtime_threads()
                 late0 = sim.state()["late_ticks"]
-                starts = np.empty(n)
-                cpu_sim0, cpu0, w0 = _cpu_seconds(sim.proc.pid), time.process_time(), time.perf_counter()
-                with StallProbe() as probe:
-                    for k in range(n):
-                        t0 = c.initPeriod()
-                        starts[k] = time.perf_counter()
-                        if not c.servoJ(targets[k], 0.0, 0.0, PERIOD, LOOKAHEAD, GAIN):
-                            raise RuntimeError(f"servoJ refused at sample {k}")
-                        # what URDriver reads every period: the recording and its fault checks
-                        r.getActualTCPPose(), r.getActualQ(), r.getActualDigitalOutputBits()
-                        r.isConnected(), r.getSafetyStatusBits(), r.getSafetyMode(), r.getRobotMode()
-                        r.getRuntimeState()
-                        c.waitPeriod(t0)
-                wall = time.perf_counter() - w0
-                cpu_client = (time.process_time() - cpu0) / wall
-                cpu_sim = (_cpu_seconds(sim.proc.pid) - cpu_sim0) / wall
-                c.servoStop(10.0)
-                time.sleep(0.3)
+                try:
+                    cpu_sim0, cpu0, w0 = _cpu_seconds(sim.proc.pid), time.process_time(), time.perf_counter()
+                    with StallProbe() as probe:
+                        rep = d.execute(job, mode="stream", progress=progress, cancel=cancel)
+                    wall = time.perf_counter() - w0
+                    cpu_client = (time.process_time() - cpu0) / wall
+                    cpu_sim = (_cpu_seconds(sim.proc.pid) - cpu_sim0) / wall
+                finally:
+                    _normal_threads()
                 late = sim.state()["late_ticks"] - late0
-                c.stopScript()
-            finally:
-                _normal_threads()
-                c.disconnect()
-                r.disconnect()
         finally:
             sim.stop()
         rec = recording.load(rec_path)
-    out = _period_stats(starts)
+    if rep.failure is not None and not (cut and cancel.is_set()):
+        raise RuntimeError(f"the stream failed: {rep.failure}")
+    loop = rep.loop
+    out = {"rate": loop.rate, "p50": 1e3 * loop.p50, "p99": 1e3 * loop.p99, "max": 1e3 * loop.max,
+           "missed": loop.missed, "n": loop.n}
     # the controller's side: each control period's commanded joints, matched to the sample sent
     index = {q.tobytes(): k for k, q in enumerate(Q)}
     ks = np.array([index.get(q.tobytes(), -1) for q in rec.target_q])
     rows = np.flatnonzero(ks >= 0)
     rows = rows[rows >= np.flatnonzero(ks == 1)[0]]
-    rows = rows[: np.flatnonzero(ks[rows] == n - 1)[0] + 1]
+    last = np.flatnonzero(ks[rows] == ks[rows].max())[0]
+    rows = rows[: last + 1]
     # a period in which the target did not advance while the stream went on: a command that came late
     stalled = int(np.count_nonzero(np.diff(ks[rows]) == 0))
     skipped = int(np.clip(np.diff(ks[rows]) - 1, 0, None).sum())
     err = np.abs(rec.actual_q[rows] - Q[ks[rows]]).max()
     v = float(np.abs(np.diff(Q, axis=0)).max() / PERIOD)
     bound = servo_following_error(v, LOOKAHEAD, GAIN)
-    report = execution_report(job, ks[rows] * PERIOD, rec.tcp_pose[rows], rec.actual_q[rows], rec.digital_out[rows],
-                              mode="stream")
     out.update(stalled=stalled, skipped=skipped, late=late, stalls=probe.late, cpu_client=100 * cpu_client,
-               cpu_sim=100 * cpu_sim, joint_err=float(err), bound=bound, path_mm=report.max_path_error * 1e3)
+               cpu_sim=100 * cpu_sim, joint_err=float(err), bound=bound, path_mm=rep.max_path_error * 1e3)
     return out
 
 
@@ -172,13 +161,13 @@ def main(argv: list[str] | None = None) -> int:
     r = run_stream(job, args.seconds, realtime)
     jitter = abs(r["p99"] - PERIOD * 1e3)
     ok = jitter <= 0.5 and r["missed"] == 0  # the issue's target: the loop's p99 and its missed periods
-    print(f"servoJ stream of the demo job through ur_rtde into the simulated controller: {r['n'] + 1} targets "
-          f"({(r['n'] + 1) * PERIOD:.1f} s), {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}, client "
-          f"threads {'SCHED_FIFO' if realtime else 'normal priority'}")
+    print(f"URDriver's servoJ stream of the demo job through ur_rtde into the simulated controller: {r['n'] + 1} "
+          f"periods ({(r['n'] + 1) * PERIOD:.1f} s), {os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}, "
+          f"client threads {'SCHED_FIFO' if realtime else 'normal priority'}")
     print_table(["loop", "rate Hz", "period p50 ms", "p99 ms", "max ms", "|p99 - 2| ms", "missed periods (client)",
                  "targets late / lost (controller)", "late ticks (sim)", "machine stalls (periods)",
                  "CPU % client / sim", "target met", "baseline p99 / p99"],
-                [["servoJ via ur_rtde", f"{r['rate']:.2f}",
+                [["URDriver stream", f"{r['rate']:.2f}",
                   f"{r['p50']:.3f}", f"{r['p99']:.3f}", f"{r['max']:.3f}", f"{jitter:.3f}",
                   r["missed"], f"{r['stalled']} / {r['skipped']}", r["late"], r["stalls"],
                   f"{r['cpu_client']:.1f} / {r['cpu_sim']:.1f}", "yes" if ok else "NO",

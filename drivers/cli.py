@@ -42,6 +42,8 @@ def add_run_subcommand(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--lookahead", type=float, default=0.1, help="servoJ lookahead time, s (default 0.1)")
     r.add_argument("--gain", type=float, default=300.0, help="servoJ gain (default 300)")
     r.add_argument("--progress", action="store_true", help="show the progress bar even when not on a terminal")
+    r.add_argument("--plot", help="write the picture of the job with the run drawn over it (.png, .svg, .pdf): the "
+                                  "actual against the planned TCP path and speed, the I/O stations and the switches")
     r.set_defaults(func=cmd_run, robot="ur5e")
     return r
 
@@ -71,11 +73,18 @@ def _free_port(host: str) -> int:
 
 
 def start_sim(model: str, *, host: str | None = None, modbus: bool = False, speed: float = 1.0):
-    """A started :class:`sim.SimController` (on ``host`` or a free loopback address; Modbus on a free port)."""
-    from sim import SimController
+    """A started :class:`sim.SimController` (on ``host`` or a free loopback address; Modbus on a free port).
+    DriverError when it cannot start (no free loopback address, the address taken, the child process failing)."""
+    from sim import SimController, SimError
 
     host = host or free_loopback_host()
-    return SimController(host, model=model, modbus_port=_free_port(host) if modbus else None, speed=speed).start()
+    try:
+        return SimController(host, model=model, modbus_port=_free_port(host) if modbus else None,
+                             speed=speed).start()
+    except (SimError, OSError) as exc:
+        # the child's reason is the last line of what it printed (SimError carries its whole traceback)
+        lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+        raise DriverError(f"cannot start a simulated controller on {host}: {lines[-1] if lines else exc}") from exc
 
 
 def execute_job(job, host: str, *, mode: str = "stream", io: str = "rtde", modbus_port: int = 502,
@@ -91,16 +100,29 @@ def execute_job(job, host: str, *, mode: str = "stream", io: str = "rtde", modbu
         driver.close()
 
 
-def run_demo_on_sim(job, *, mode: str = "program", speed: float = 10.0, progress=None):
+def run_demo_on_sim(job, *, mode: str = "program", speed: float = 10.0, progress=None, plot=None):
     """Execute a planned job on a simulated controller through real ur_rtde (the end of ``planner demo``).
 
     Program mode runs the job's URScript in fast-forward (``speed`` simulated seconds per second); stream
-    mode streams servoJ in real time (``speed`` is then 1). Returns the :class:`ExecutionReport`."""
+    mode streams servoJ in real time (``speed`` is then 1). ``plot``: a picture of the job with the run drawn
+    over it is written there (atomically). Returns the :class:`ExecutionReport`."""
     sim = start_sim(job.settings.robot, speed=speed if mode == "program" else 1.0)
     try:
-        return execute_job(job, sim.host, mode=mode, progress=progress)
+        report = execute_job(job, sim.host, mode=mode, progress=progress)
     finally:
         sim.stop()
+    if plot is not None:
+        plot_run(job, report, plot)
+    return report
+
+
+def plot_run(job, report, target) -> None:
+    """The job's picture with the run drawn over it (:func:`planner.plot.plot_job` with ``execution=``)."""
+    from planner.plot import plot_job
+
+    s = job.summary()
+    plot_job(job, target, execution=report,
+             title=f"{job.source}: {s['passes']} pass{'es' * (s['passes'] != 1)}, executed on a {job.settings.robot}")
 
 
 def cmd_run(args: argparse.Namespace) -> int:
@@ -123,6 +145,10 @@ def cmd_run(args: argparse.Namespace) -> int:
         print("planner run: error: --sim-speed works in program mode only (streaming runs in real time)",
               file=sys.stderr)
         return 2
+    if args.plot:
+        from planner.plot import check_plot_target
+
+        check_plot_target(args.plot)  # before planning and moving: a PlannerError (exit 2)
     settings = settings_from_args(args)
     bars = _Progress(args.progress or sys.stderr.isatty())
     read_options = {k: v for k, v in (("units", args.units), ("machine", args.machine)) if v} or None
@@ -134,8 +160,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     sim = None
     try:
         if args.sim:
-            sim = start_sim(settings.robot, host=args.host, modbus=args.io == "modbus", speed=args.sim_speed)
-            host, modbus_port = sim.host, sim.modbus_port
+            try:
+                sim = start_sim(settings.robot, host=args.host, modbus=args.io == "modbus", speed=args.sim_speed)
+            except DriverError as exc:
+                print(f"planner run: error: {exc}", file=sys.stderr)
+                return 1
+            host, modbus_port = sim.host, sim.modbus_port or 502  # no Modbus server without --io modbus
             print(f"simulated {settings.robot} controller on {host}", flush=True)
         else:
             host, modbus_port = args.host, 502
@@ -155,6 +185,9 @@ def cmd_run(args: argparse.Namespace) -> int:
             sim.stop()
     for line in report.describe():
         print(line)
+    if args.plot:
+        plot_run(job, report, args.plot)
+        print(f"wrote {args.plot}", flush=True)
     if isinstance(report.failure, ConnectionLostError):
         # ur_rtde 1.6.5 aborts the interpreter when it destroys interfaces whose connection dropped (an
         # uncaught boost exception): end here, with the report printed and the exit status of a failed run

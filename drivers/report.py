@@ -15,11 +15,16 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial import cKDTree
 
 from drivers.base import DriverError
+from drivers.pacing import LoopStats
+
+if TYPE_CHECKING:  # pragma: no cover
+    from drivers.recording import ExecutionTrace
 
 
 def bit_name(bit: int) -> str:
@@ -71,7 +76,11 @@ class ExecutionReport:
     samples: recorded samples; max_path_error: largest distance of the tracked TCP from the planned path, m;
     max_path_error_t: job time of that sample, s; io_events: tuple of :class:`IOSwitch`;
     joint_limit_margin: smallest distance of a recorded joint from its position limit, rad;
-    failure: the :class:`drivers.base.DriverError` or None.
+    failure: the :class:`drivers.base.DriverError` or None;
+    loop: the streaming loop's timing (:class:`drivers.pacing.LoopStats`: period p50/p99/max, missed periods) or
+    None (no real-time loop: program mode, an in-process dry run);
+    trace: a bounded trace of the recording (:class:`drivers.recording.ExecutionTrace`: times, actual TCP
+    positions and speed, output bits; at most ~20,000 samples, every output change kept): what a plot draws.
     """
 
     mode: str
@@ -86,6 +95,8 @@ class ExecutionReport:
     failure: DriverError | None = None
     max_path_error_t: float = math.nan
     path_length: float = 0.0
+    loop: LoopStats | None = None
+    trace: ExecutionTrace | None = None
 
     @property
     def max_io_distance_mm(self) -> float:
@@ -103,6 +114,8 @@ class ExecutionReport:
             pct = f" ({100.0 * self.duration / self.planned_duration:.1f} % of planned)"
         lines.append(f"  duration {self.duration:.3f} s, planned {self.planned_duration:.3f} s{pct}; "
                      f"{self.samples} samples recorded")
+        if self.loop is not None and self.loop.n:
+            lines.append("  " + self.loop.describe())
         if self.samples:
             at = "" if math.isnan(self.max_path_error_t) else f" at t = {self.max_path_error_t:.3f} s"
             lines.append("  tracked TCP path: largest distance from the planned path "
@@ -149,36 +162,56 @@ def planned_path(job, rate: float | None = None):
     return t, p, np.concatenate(io), np.concatenate(ln), s
 
 
+class PolylineIndex:
+    """A polyline ``path`` (n, 3) prepared once for many :meth:`distance` queries (a k-d tree of its vertices,
+    repeated vertices dropped)."""
+
+    def __init__(self, path: np.ndarray) -> None:
+        path = np.asarray(path, dtype=float).reshape(-1, 3)
+        self.n = path.shape[0]
+        # drop repeated vertices (the tool rests at move boundaries): they make the k nearest all the same point
+        keep = np.concatenate(([True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-12)) if self.n else \
+            np.zeros(0, bool)
+        self.idx_map = np.flatnonzero(keep)
+        self.v = path[keep]
+        self.tree = cKDTree(self.v) if self.v.shape[0] > 1 else None
+
+    def distance(self, points: np.ndarray, *, k: int = 8) -> tuple[np.ndarray, np.ndarray]:
+        """Distance (m) of each point (m, 3) from the polyline, and the index of the nearest segment's start
+        (m,), as :func:`distance_to_polyline`."""
+        points = np.asarray(points, dtype=float).reshape(-1, 3)
+        m = points.shape[0]
+        if self.n == 0 or m == 0:
+            return np.full(m, np.nan), np.zeros(m, np.int64)
+        v = self.v
+        if self.tree is None:
+            return np.linalg.norm(points - v[0], axis=1), np.zeros(m, np.int64)
+        kk = min(k, v.shape[0])
+        _, near = self.tree.query(points, k=kk)
+        near = near.reshape(m, kk)
+        nseg = v.shape[0] - 1
+        seg = np.concatenate((np.clip(near - 1, 0, nseg - 1), np.clip(near, 0, nseg - 1)), axis=1)  # (m, 2k)
+        a = v[seg]
+        d = v[seg + 1] - a
+        w = points[:, None, :] - a
+        dd = np.einsum("mkj,mkj->mk", d, d)
+        u = np.clip(np.einsum("mkj,mkj->mk", w, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
+        dist = np.linalg.norm(w - u[..., None] * d, axis=2)
+        best = dist.argmin(axis=1)
+        rows = np.arange(m)
+        return dist[rows, best], self.idx_map[seg[rows, best]]
+
+
 def distance_to_polyline(points: np.ndarray, path: np.ndarray, *, k: int = 8) -> tuple[np.ndarray, np.ndarray]:
     """Distance (m) of each point (m, 3) from the polyline ``path`` (n, 3), and the index of the segment
     start nearest to it (m,). The candidate segments are those next to the ``k`` nearest vertices (exact for a
-    polyline sampled densely against the distances measured, as the planned path at the controller rate is)."""
+    polyline sampled densely against the distances measured, as the planned path at the controller rate is).
+    Many queries against one path: :class:`PolylineIndex`."""
     points = np.asarray(points, dtype=float).reshape(-1, 3)
     path = np.asarray(path, dtype=float).reshape(-1, 3)
     if path.shape[0] == 0 or points.shape[0] == 0:
         return np.full(points.shape[0], np.nan), np.zeros(points.shape[0], np.int64)
-    if path.shape[0] == 1:
-        return np.linalg.norm(points - path[0], axis=1), np.zeros(points.shape[0], np.int64)
-    # drop repeated vertices (the tool rests at move boundaries): they make the k nearest all the same point
-    keep = np.concatenate(([True], np.linalg.norm(np.diff(path, axis=0), axis=1) > 1e-12))
-    idx_map = np.flatnonzero(keep)
-    v = path[keep]
-    if v.shape[0] == 1:
-        return np.linalg.norm(points - v[0], axis=1), np.zeros(points.shape[0], np.int64)
-    kk = min(k, v.shape[0])
-    _, near = cKDTree(v).query(points, k=kk)
-    near = near.reshape(points.shape[0], kk)
-    nseg = v.shape[0] - 1
-    seg = np.concatenate((np.clip(near - 1, 0, nseg - 1), np.clip(near, 0, nseg - 1)), axis=1)  # (m, 2k)
-    a = v[seg]
-    d = v[seg + 1] - a
-    w = points[:, None, :] - a
-    dd = np.einsum("mkj,mkj->mk", d, d)
-    u = np.clip(np.einsum("mkj,mkj->mk", w, d) / np.where(dd > 0, dd, 1.0), 0.0, 1.0)
-    dist = np.linalg.norm(w - u[..., None] * d, axis=2)
-    best = dist.argmin(axis=1)
-    rows = np.arange(points.shape[0])
-    return dist[rows, best], idx_map[seg[rows, best]]
+    return PolylineIndex(path).distance(points, k=k)
 
 
 def _switches(times: np.ndarray, io: np.ndarray, first: int) -> list[tuple[int, bool, int]]:
@@ -213,44 +246,58 @@ def joint_limit_margin(model: str | None, joints: np.ndarray) -> float:
     return float(np.minimum(q - lo, hi - q).min())
 
 
-def execution_report(job, recorded_times, recorded_tcp, recorded_joints, recorded_io, *, mode: str,
-                     failure: DriverError | None = None, planned=None) -> ExecutionReport:
+def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=None, recorded_io=None, *, mode: str,
+                     failure: DriverError | None = None, planned=None, loop: LoopStats | None = None
+                     ) -> ExecutionReport:
     """The report of a run from what was recorded.
 
     Parameters
     ----------
     job : PlannedJob
-    recorded_times : (n,) job time of each recorded sample, s (0 at the start of the planned trajectory)
+    recorded_times : (n,) job time of each recorded sample, s (0 at the start of the planned trajectory); or a
+        :class:`drivers.recording.Recording` the run reduced as it went (then the three arrays are not given)
     recorded_tcp : (n, 6) actual TCP poses p[x, y, z, rx, ry, rz] in the base frame, m, rad
     recorded_joints : (n, 6) actual joints, rad
     recorded_io : (n,) actual digital output bits (standard 0-7, configurable 8-15, tool 16-17)
     mode : str
     failure : DriverError or None
     planned : the result of :func:`planned_path` (computed from the job when None)
+    loop : the streaming loop's timing, if any
     """
-    t = np.asarray(recorded_times, dtype=float).reshape(-1)
-    n = t.size
-    tcp = np.asarray(recorded_tcp, dtype=float).reshape(n, 6) if n else np.zeros((0, 6))
-    q = np.asarray(recorded_joints, dtype=float).reshape(n, 6) if n else np.zeros((0, 6))
-    io = np.asarray(recorded_io, dtype=np.int64).reshape(-1) if n else np.zeros(0, np.int64)
-    if io.size != n:
-        raise ValueError(f"recorded_io has {io.size} samples, recorded_times {n}")
+    from drivers.recording import Recording
+
     pt, pp, pio, _, ps = planned if planned is not None else planned_path(job)
     pp = pp[:, :3]
-    planned_duration = float(pt[-1] - pt[0]) if pt.size else 0.0
-    if n:
-        dist, seg = distance_to_polyline(tcp[:, :3], pp)
-        worst = int(np.nanargmax(dist)) if np.isfinite(dist).any() else 0
-        max_err, max_err_t = float(dist[worst]), float(t[worst])
+    if isinstance(recorded_times, Recording):
+        rec = recorded_times
     else:
-        max_err, max_err_t = 0.0, math.nan
-    events = _io_events(t, tcp, io, pt, pp, pio, ps)
+        t = np.asarray(recorded_times, dtype=float).reshape(-1)
+        n = t.size
+        io = np.asarray(recorded_io, dtype=np.int64).reshape(-1) if n else np.zeros(0, np.int64)
+        if io.size != n:
+            raise ValueError(f"recorded_io has {io.size} samples, recorded_times {n}")
+        rec = new_recording(job, (pt, pp, pio, None, ps))
+        if n:
+            rec.extend(t, recorded_tcp, recorded_joints, io)
+    rec.finish()
+    trace = rec.trace()
+    planned_duration = float(pt[-1] - pt[0]) if pt.size else 0.0
+    events = _io_events(trace.t, trace.xyz, trace.io, pt, pp, pio, ps)
     return ExecutionReport(
         mode=mode, ok=failure is None, reason="" if failure is None else failure.reason,
-        planned_duration=planned_duration, duration=float(t[-1] - t[0]) if n > 1 else 0.0, samples=int(n),
-        max_path_error=max_err, max_path_error_t=max_err_t, io_events=tuple(events),
-        joint_limit_margin=joint_limit_margin(job.settings.robot, q), failure=failure,
-        path_length=float(ps[-1]) if ps.size else 0.0)
+        planned_duration=planned_duration, duration=rec.duration, samples=int(rec.samples),
+        max_path_error=rec.max_error if rec.samples else 0.0, max_path_error_t=rec.max_error_t,
+        io_events=tuple(events), joint_limit_margin=rec.margin if math.isfinite(rec.margin) else math.nan,
+        failure=failure, path_length=float(ps[-1]) if ps.size else 0.0, loop=loop, trace=trace)
+
+
+def new_recording(job, planned):
+    """An empty :class:`drivers.recording.Recording` for a run of ``job`` against its planned path (the result
+    of :func:`planned_path`)."""
+    from drivers.recording import Recording
+
+    pp, ps = planned[1], planned[4]
+    return Recording(pp[:, :3], job.settings.robot, float(ps[-1]) if ps.size else 0.0)
 
 
 def _io_events(t, tcp, io, pt, pp, pio, ps) -> list[IOSwitch]:

@@ -32,13 +32,37 @@ import time
 
 import numpy as np
 
-from drivers.base import CancelledError, DriverError, NotReadyError, ProtectiveStopError, RobotState
-from drivers.report import ExecutionReport, distance_to_polyline, execution_report, planned_path
+from drivers.base import DriverError, NotReadyError, ProtectiveStopError, RobotState
+from drivers.jobs import check_job, output_mask, stop_requested
+from drivers.report import ExecutionReport, distance_to_polyline, execution_report, new_recording, planned_path
+from drivers.stations import Station
 from sim.core import RUNTIME_PAUSED, RUNTIME_PLAYING, RUNTIME_STOPPED, SAFETY_PROTECTIVE_STOP, Core
 from sim.io_state import IOState
 from sim.motion import DT, MotionError, Segment
 
 MODES = ("stream", "program")
+
+
+class _Recorder:
+    """One run's samples: into the bounded :class:`drivers.recording.Recording`, and with ``keep`` also whole
+    (t, commanded joints, actual joints, TCP pose, output bits) for :attr:`SimDriver.recording`."""
+
+    def __init__(self, rec, keep: bool) -> None:
+        self.rec = rec
+        self.keep = keep
+        self.lists: list[list] = [[], [], [], [], []]
+        self.last_x: np.ndarray | None = None
+
+    def sample(self, core, t: float) -> None:
+        m = core.motion
+        x = core.tcp_pose().copy()
+        q = m.q.copy()
+        bits = core.io.digital_out
+        self.rec.add(t, x, q, bits)
+        self.last_x = x
+        if self.keep:
+            for lst, v in zip(self.lists, (t, m.commanded.copy(), q, x, bits), strict=True):
+                lst.append(v)
 
 
 class ProgramError(DriverError):
@@ -75,10 +99,14 @@ class SimDriver:
         Seconds the last target of a stream is held before the controlled stop, s (URDriver's ``settle``).
     deceleration : float
         Deceleration of the controlled stop (servoStop), m/s^2 of the tool.
+    record : bool
+        Keep every sample of the last run in :attr:`recording` (memory grows with the job: for tests and
+        comparisons). Without it a run's memory is bounded: the report is reduced as the run goes
+        (:class:`drivers.recording.Recording`).
     """
 
     def __init__(self, model: str = "ur5e", *, speed: float = math.inf, q0=None, lookahead: float = 0.1,
-                 gain: float = 300.0, settle: float = 0.3, deceleration: float = 10.0) -> None:
+                 gain: float = 300.0, settle: float = 0.3, deceleration: float = 10.0, record: bool = False) -> None:
         from planner.kinematics import get_model
 
         self.model = get_model(model).name
@@ -99,8 +127,9 @@ class SimDriver:
         self._stop = threading.Event()
         self._mode: str | None = None
         self._wall0 = self._sim0 = 0.0
-        #: What the last :meth:`execute` recorded: dict of arrays t (n,) job time s, target_q (n, 6) commanded
-        #: joints, actual_q (n, 6), tcp (n, 6), digital_out (n,).
+        self.record = bool(record)
+        #: With ``record``: what the last :meth:`execute` recorded, dict of arrays t (n,) job time s, target_q
+        #: (n, 6) commanded joints, actual_q (n, 6), tcp (n, 6), digital_out (n,).
         self.recording: dict | None = None
 
     # ---- connection ---------------------------------------------------------------------------------
@@ -150,18 +179,7 @@ class SimDriver:
         return None
 
     def _check_job(self, job) -> None:
-        robot = job.settings.robot
-        if robot is None:
-            raise DriverError("the job was planned without a robot: plan it with robot=... to execute it")
-        from planner.kinematics import get_model
-
-        if get_model(robot).name != self.model:
-            raise DriverError(f"the job was planned for {robot}, the simulated robot is a {self.model}")
-        if job.problems:
-            raise DriverError(f"the job has {len(job.problems)} unreachable poses (first: {job.problems[0]}); "
-                              "it is not executed")
-        if job.start_joints is None:
-            raise DriverError("the job has no start joints (no reachable first pose)")
+        check_job(job, self.model, "the simulated robot is")
         ticks = 1.0 / (float(job.settings.rate) * DT)
         if abs(ticks - round(ticks)) > 1e-9:
             raise DriverError(f"the job's rate {job.settings.rate:g} Hz is not a whole division of the "
@@ -230,11 +248,7 @@ class SimDriver:
         self._stop.set()
 
     def _stopped(self, cancel) -> DriverError | None:
-        if cancel is not None and cancel.is_set():
-            return CancelledError("cancelled by the caller")
-        if self._stop.is_set():
-            return CancelledError("stopped by the caller (driver.stop())")
-        return None
+        return stop_requested(cancel, self._stop)
 
     # ---- execution ----------------------------------------------------------------------------------
     def execute(self, job, *, mode: str = "stream", progress=None,
@@ -255,9 +269,7 @@ class SimDriver:
         self._paused.clear()
         planned = planned_path(job)
         self.move_to_start(job)
-        mask = 0
-        for v in np.unique(planned[2]):
-            mask |= int(v)
+        mask = output_mask(planned[2])
         if mask:
             core.io.set_digital_out(mask, 0)
         self._mode = mode
@@ -267,19 +279,11 @@ class SimDriver:
             rec, failure = run(job, planned, mask, progress, cancel)
         finally:
             self._mode = None
-        t, target, q, x, bits = (np.asarray(a, dtype=float) for a in rec)
-        self.recording = {"t": t, "target_q": target.reshape(-1, 6), "actual_q": q.reshape(-1, 6),
-                          "tcp": x.reshape(-1, 6), "digital_out": bits.astype(np.int64)}
-        return execution_report(job, t, x, q, bits, mode=mode, failure=failure, planned=planned)
-
-    def _sample(self, rec: list, t: float) -> None:
-        core = self.core
-        m = core.motion
-        rec[0].append(t)
-        rec[1].append(m.commanded.copy())
-        rec[2].append(m.q.copy())
-        rec[3].append(core.tcp_pose().copy())
-        rec[4].append(core.io.digital_out)
+        if self.record:
+            t, target, q, x, bits = (np.asarray(a, dtype=float) for a in rec.lists)
+            self.recording = {"t": t, "target_q": target.reshape(-1, 6), "actual_q": q.reshape(-1, 6),
+                              "tcp": x.reshape(-1, 6), "digital_out": bits.astype(np.int64)}
+        return execution_report(job, rec.rec, mode=mode, failure=failure, planned=planned)
 
     @staticmethod
     def _locate(err: DriverError, k: int, job, planned) -> DriverError:
@@ -304,8 +308,6 @@ class SimDriver:
             core.io.set_digital_out(mask, 0)
 
     def _stream(self, job, planned, mask, progress, cancel):
-        from drivers.ur import _Station  # URDriver's rule for switching an output at its station
-
         core = self.core
         m = core.motion
         pt, pp = planned[0], planned[1][:, :3]  # planned positions (planned_path gives whole poses)
@@ -313,7 +315,7 @@ class SimDriver:
         rate = float(job.settings.rate)
         ticks = round(1.0 / (rate * DT))
         dt = 1.0 / rate
-        rec: list[list] = [[], [], [], [], []]
+        rec = _Recorder(new_recording(job, planned), self.record)
         failure = None
         prev_io = 0
         pending: list = []  # output switches whose station the actual TCP has not reached yet
@@ -322,7 +324,7 @@ class SimDriver:
         t_last, q_last = 0.0, None
 
         def switch_reached() -> None:
-            x = rec[3][-1]
+            x = rec.last_x
             while pending and pending[0].reached(x, k):
                 ev = pending.pop(0)
                 core.io.set_digital_out(ev.mask, ev.value)
@@ -342,11 +344,11 @@ class SimDriver:
                         except MotionError as exc:
                             core.protective_stop(str(exc))
                     if ios[i] != prev_io and not paused:
-                        pending.append(_Station(k, ios[i] ^ prev_io, ios[i], pp))
+                        pending.append(Station.on_path(k, ios[i] ^ prev_io, ios[i], pp, k, rate=rate))
                         prev_io = ios[i]
                     self._tick(ticks)
                     t_last, q_last = times[i], qs[i]
-                    self._sample(rec, t_last)
+                    rec.sample(core, t_last)
                     switch_reached()
                     f = self._fault()
                     if f is not None:
@@ -368,7 +370,7 @@ class SimDriver:
                             core.io.set_digital_out(ev.mask, ev.value)
                         m.plan_stop(self.deceleration, linear=True)
                 self._tick(ticks)
-                self._sample(rec, t_last + (j + 1) * dt)
+                rec.sample(core, t_last + (j + 1) * dt)
                 switch_reached()
             while m.busy:  # the rest of the controlled stop, if any
                 self._tick()
@@ -385,7 +387,7 @@ class SimDriver:
         core = self.core
         pt, pp = planned[0], planned[1][:, :3]  # planned positions (planned_path gives whole poses)
         text = job_program(job)
-        rec: list[list] = [[], [], [], [], []]
+        rec = _Recorder(new_recording(job, planned), self.record)
         failure = None
         k = 0
         try:
@@ -403,19 +405,19 @@ class SimDriver:
                     raise err
                 self._tick()
                 n += 1
-                self._sample(rec, core.time - t0)
+                rec.sample(core, core.time - t0)
                 f = self._fault()
                 if f is not None:
                     raise f
                 if core.runtime_state == RUNTIME_STOPPED:
                     break
                 if progress is not None and n % every == 0 and pp.size:
-                    _, seg = distance_to_polyline(rec[3][-1][None, :3], pp)
+                    _, seg = distance_to_polyline(rec.last_x[None, :3], pp)
                     k = max(k, int(seg[0]))
                     progress("execute", k, pt.size)
             # the program ended: at the job's end, or halted by a runtime error
             halted = next((msg for _, src, msg in reversed(core.log) if src == "Program"), "")
-            last = np.asarray(rec[3][-1][:3])[None]
+            last = np.asarray(rec.last_x[:3])[None]
             d = distance_to_polyline(last, pp[-1:])[0][0] if pp.size else 0.0
             if halted.startswith("Runtime error") or d > 1e-3:
                 if pp.size:
@@ -426,8 +428,8 @@ class SimDriver:
             if progress is not None:
                 progress("execute", pt.size, pt.size)
         except DriverError as exc:
-            if rec[3] and pp.size and not isinstance(exc, ProgramError):
-                k = int(distance_to_polyline(np.asarray(rec[3][-1][:3])[None], pp)[1][0])
+            if rec.last_x is not None and pp.size and not isinstance(exc, ProgramError):
+                k = int(distance_to_polyline(np.asarray(rec.last_x[:3])[None], pp)[1][0])
             failure = self._locate(exc, k, job, planned)
             self._halt(failure, mask)
         with core.lock:

@@ -20,13 +20,13 @@ given.
 from __future__ import annotations
 
 import socket
+import sys
 import threading
 import time
 
 import numpy as np
 
 from drivers.base import (
-    CancelledError,
     ConnectionLostError,
     DriverError,
     EmergencyStopError,
@@ -35,7 +35,11 @@ from drivers.base import (
     ProtectiveStopError,
     RobotState,
 )
-from drivers.report import ExecutionReport, distance_to_polyline, execution_report, planned_path
+from drivers.feed import TargetFeed
+from drivers.jobs import check_job, output_mask, stop_requested
+from drivers.pacing import Schedule
+from drivers.report import ExecutionReport, distance_to_polyline, execution_report, new_recording, planned_path
+from drivers.stations import Station, Stations
 
 #: RTDE safety_status_bits: protective stop (bit 2), robot / system emergency stop (bits 7, 8), safeguard (3).
 _BIT_PROTECTIVE = 1 << 2
@@ -51,8 +55,6 @@ _SAFETY_MODES = {1: "NORMAL", 2: "REDUCED", 3: "PROTECTIVE_STOP", 4: "RECOVERY",
 MODES = ("stream", "program")
 #: ur_rtde interfaces whose connection dropped: never disconnected or destroyed (see URDriver.close).
 _ABANDONED: list = []
-#: Samples converted to Python lists at a time in the streaming loop.
-_SLICE = 2500
 
 
 class ProgramStoppedError(DriverError):
@@ -157,6 +159,9 @@ class URDriver:
         self._stop = threading.Event()
         self._mode: str | None = None
         self._lost = False  # the connection dropped: the ur_rtde interfaces are abandoned on close
+        #: The streaming loop's last reading of the receive interface (see _read): what state() returns while the
+        #: loop runs, so that no other thread uses ur_rtde meanwhile.
+        self._snap: tuple | None = None
 
     # ---- connection ---------------------------------------------------------------------------------
     def connect(self) -> None:
@@ -251,15 +256,24 @@ class URDriver:
 
     # ---- state ----------------------------------------------------------------------------------------
     def state(self) -> RobotState:
+        """The robot's state. While a stream runs, the loop's own reading of this control period (at most one
+        period old): another thread never calls into ur_rtde beside the real-time loop."""
+        snap = self._snap
+        if snap is not None and self._mode == "stream":
+            _, x, q, bits, sbits, smode, rmode, runtime = snap
+            return RobotState(joints=tuple(q), tcp_pose=tuple(x), robot_mode=int(rmode), safety_mode=int(smode),
+                              runtime_state=int(runtime), protective_stop=bool(int(sbits) & _BIT_PROTECTIVE),
+                              emergency_stop=bool(int(sbits) & _BITS_EMERGENCY),
+                              program_running=int(runtime) == _PLAYING, digital_out=int(bits))
         r = self._need()
         try:
             bits = int(r.getSafetyStatusBits())
+            runtime = int(r.getRuntimeState())
             return RobotState(
                 joints=tuple(r.getActualQ()), tcp_pose=tuple(r.getActualTCPPose()), robot_mode=int(r.getRobotMode()),
-                safety_mode=int(r.getSafetyMode()), runtime_state=int(r.getRuntimeState()),
+                safety_mode=int(r.getSafetyMode()), runtime_state=runtime,
                 protective_stop=bool(bits & _BIT_PROTECTIVE), emergency_stop=bool(bits & _BITS_EMERGENCY),
-                program_running=int(r.getRuntimeState()) == _PLAYING,
-                digital_out=int(r.getActualDigitalOutputBits()))
+                program_running=runtime == _PLAYING, digital_out=int(r.getActualDigitalOutputBits()))
         except RuntimeError as exc:
             raise ConnectionLostError(f"lost the RTDE connection to {self.host}: {exc}") from exc
 
@@ -268,15 +282,19 @@ class URDriver:
         r = self._r
         if r is None or not r.isConnected() or (self._c is not None and not self._c.isConnected()):
             return ConnectionLostError(f"the RTDE connection to {self.host} dropped")
-        bits = int(r.getSafetyStatusBits())
-        safety = int(r.getSafetyMode())
+        return self._fault_of(r.getSafetyStatusBits(), r.getSafetyMode(), r.getRobotMode())
+
+    def _fault_of(self, bits: int, safety: int, mode: int) -> DriverError | None:
+        """The fault that safety status bits, safety mode and robot mode (RTDE) mean (None: none)."""
+        bits, safety, mode = int(bits), int(safety), int(mode)
+        if mode == 7 and safety == 1 and not bits & (_BIT_PROTECTIVE | _BITS_EMERGENCY):
+            return None  # the usual case, decided at once
         name = _SAFETY_MODES.get(safety, str(safety))
         if bits & _BITS_EMERGENCY or safety in (6, 7):
             return EmergencyStopError(f"emergency stop (safety mode {name})")
         if bits & _BIT_PROTECTIVE or safety == 3:
             return ProtectiveStopError(f"protective stop (safety mode {name}, safety status bits {bits:#x})"
                                        f"{self._safety_text()}")
-        mode = int(r.getRobotMode())
         if mode == 3:
             return NotReadyError("the robot is powered off (robot mode POWER_OFF)")
         if mode in (4, 5):
@@ -336,21 +354,10 @@ class URDriver:
         return int(job.moves[0].line) if job.moves else None
 
     def _check_job(self, job) -> None:
-        robot = job.settings.robot
-        if robot is None:
-            raise DriverError("the job was planned without a robot: plan it with robot=... to execute it")
-        from planner.kinematics import get_model
-
-        if get_model(robot).name != self.model:
-            raise DriverError(f"the job was planned for {robot}, the driver drives a {self.model}")
-        if job.problems:
-            raise DriverError(f"the job has {len(job.problems)} unreachable poses (first: {job.problems[0]}); "
-                              "it is not executed")
+        check_job(job, self.model)
         if abs(float(job.settings.rate) - self.frequency) > 1e-9:
             raise DriverError(f"the job was planned at {job.settings.rate:g} Hz, the controller runs at "
                               f"{self.frequency:g} Hz: plan it with rate={self.frequency:g}")
-        if job.start_joints is None:
-            raise DriverError("the job has no start joints (no reachable first pose)")
 
     def pause(self) -> None:
         """Hold the arm on the path (stream: the target stops advancing; program: dashboard pause)."""
@@ -385,149 +392,160 @@ class URDriver:
         self._paused.clear()
         cancel = cancel if cancel is not None else threading.Event()
         planned = planned_path(job)
-        whole = None
-        if mode == "stream":  # every target computed before the arm moves: the loop never waits for the planner
-            whole = job.trajectory().collect()
-            bad = np.flatnonzero(~np.isfinite(whole.joints).all(axis=1))
-            if bad.size:
-                k = int(bad[0])
-                raise DriverError("the job has poses without joint positions (unreachable); it is not executed",
-                                  t=whole.times[k], pose=whole.poses[k], line=int(whole.lines[k]))
-        self.move_to_start(job, speed=self.approach_speed, acceleration=self.approach_acceleration)
-        mask = self._job_mask(planned[2])
-        if mask:
-            self._io.set_bits(mask, 0)
-        self._mode = mode
+        # stream: the targets are produced ahead by a thread of their own while the arm approaches the start
+        feed = TargetFeed(job.trajectory(job.settings.rate)) if mode == "stream" else None
         try:
-            if mode == "stream":
-                rec, failure = self._stream(job, planned, mask, progress, cancel, whole)
-            else:
-                rec, failure = self._program(job, planned, mask, progress, cancel)
+            self.move_to_start(job, speed=self.approach_speed, acceleration=self.approach_acceleration)
+            mask = output_mask(planned[2])
+            if mask:
+                self._io.set_bits(mask, 0)
+            self._mode = mode
+            try:
+                if mode == "stream":
+                    rec, failure, loop = self._stream(job, planned, mask, progress, cancel, feed)
+                else:
+                    (rec, failure), loop = self._program(job, planned, mask, progress, cancel), None
+            finally:
+                self._mode = None
+                self._snap = None
         finally:
-            self._mode = None
-        return execution_report(job, *rec, mode=mode, failure=failure, planned=planned)
-
-    @staticmethod
-    def _job_mask(io: np.ndarray) -> int:
-        m = 0
-        for v in np.unique(io):
-            m |= int(v)
-        return m
+            if feed is not None:
+                feed.close()
+        return execution_report(job, rec, mode=mode, failure=failure, planned=planned, loop=loop)
 
     def _stopped(self, cancel) -> DriverError | None:
-        if cancel.is_set():
-            return CancelledError("cancelled by the caller")
-        if self._stop.is_set():
-            return CancelledError("stopped by the caller (driver.stop())")
-        return None
+        return stop_requested(cancel, self._stop)
 
     def _safe_off(self, mask: int) -> None:
-        """Switch the job's outputs off after a failure (best effort: the connection may be gone)."""
+        """Switch the job's outputs off after a failure (best effort: the connection may be gone), and wait until
+        the controller reports them off."""
         if mask and self._io is not None and not (self._lost and isinstance(self._io, RTDEOutputs)):
             try:
                 self._io.set_bits(mask, 0)
             except (RuntimeError, OSError):
-                pass
+                return
+            self._confirm_outputs(mask, 0)
 
-    def _stream(self, job, planned, mask, progress, cancel, whole):
-        c, r, io = self._c, self._r, self._io
+    def _confirm_outputs(self, mask: int, value: int, timeout: float = 1.0) -> bool:
+        """Wait (at most ``timeout`` s) until the controller's actual output bits under ``mask`` read ``value``:
+        an output command is a message, applied and reported back a control period or two later. True if so."""
+        if not mask or self._r is None or self._lost:
+            return True
+        end = time.monotonic() + timeout
+        try:
+            while (int(self._r.getActualDigitalOutputBits()) & mask) != (value & mask):
+                if time.monotonic() > end or not self._r.isConnected():
+                    return False
+                time.sleep(0.002)
+        except RuntimeError:
+            return False
+        return True
+
+    def _read(self) -> tuple:
+        """One period's reading of the receive interface: (timestamp, tcp pose, joints, output bits, safety status
+        bits, safety mode, robot mode, runtime state). Kept as the run's snapshot for :meth:`state`."""
+        r = self._r
+        snap = (r.getTimestamp(), r.getActualTCPPose(), r.getActualQ(), r.getActualDigitalOutputBits(),
+                r.getSafetyStatusBits(), r.getSafetyMode(), r.getRobotMode(), r.getRuntimeState())
+        self._snap = snap
+        return snap
+
+    def _stream(self, job, planned, mask, progress, cancel, feed):
+        c, r = self._c, self._r
         pt, pp, _, plines, _ = planned
         total = pt.size
         rate = float(job.settings.rate)
         dt = 1.0 / rate
         la, gain = self.lookahead, self.gain
-        T, X, Q, B = [], [], [], []
+        rec = new_recording(job, planned)  # reduced as it goes: bounded memory
+        t_rec = 0.0
         failure = None
-        done = 0
         prev_io = 0
-        pending: list[_Station] = []  # output switches whose station the actual TCP has not reached yet
+        stations = Stations(self._io.set_bits)  # output switches whose station the actual TCP has not reached yet
         k = 0  # sample being commanded (job-wide)
         ts0 = None
-        t_last = None
+        q_last = None
         report_every = max(1, int(rate // 10))
+        host = self.host
+        overrun = self.overrun_limit
+        sched = Schedule(dt)
+        switch = sys.getswitchinterval()
+        # the target feed's thread computes ahead: a short switch interval hands the GIL back to this loop within
+        # 0.2 ms of its deadline (the default 5 ms would be two and a half control periods)
+        sys.setswitchinterval(2e-4)
         try:
-            for a in range(0, whole.times.size, _SLICE):  # Python lists per slice: no numpy per sample
-                qs = whole.joints[a:a + _SLICE].tolist()
-                ios = whole.io[a:a + _SLICE].tolist()
-                times = whole.times[a:a + _SLICE].tolist()
+            last = sched.start()
+            for sl in feed:
+                qs, ios, times, pos, h0 = sl.q, sl.io, sl.t, sl.positions, sl.history
                 i = 0
-                n = len(qs)
+                n = len(times)
                 while i < n:
-                    t0 = c.initPeriod()
-                    now = time.perf_counter()
-                    if t_last is not None and now - t_last > self.overrun_limit:
-                        raise PeriodOverrunError(f"the control loop missed its period: {1e3 * (now - t_last):.1f} ms "
-                                                 f"between targets (limit {1e3 * self.overrun_limit:.0f} ms)")
-                    t_last = now
                     err = self._stopped(cancel)
                     if err is not None:
                         raise err
                     paused = self._paused.is_set()
                     q = qs[i]
                     if not (r.isConnected() and c.isConnected()):  # before servoJ: ur_rtde would reconnect by itself
-                        raise ConnectionLostError(f"the connection to the controller at {self.host} dropped")
+                        raise ConnectionLostError(f"the connection to the controller at {host} dropped")
                     if not c.servoJ(q, 0.0, 0.0, dt, la, gain):
                         raise self._fault() or ProgramStoppedError(self._not_running_reason())
                     if ios[i] != prev_io and not paused:
-                        pending.append(_Station(k, ios[i] ^ prev_io, ios[i], pp[:, :3]))
+                        stations.add(Station.on_path(k, ios[i] ^ prev_io, ios[i], pos, h0 + i, rate=rate))
                         prev_io = ios[i]
+                    ts, x, qa, bits, sbits, smode, rmode, runtime = self._read()
                     if ts0 is None:
-                        ts0 = r.getTimestamp() - times[i]  # the controller's clock, 0 at the job's start
-                    T.append(r.getTimestamp() - ts0)
-                    x = r.getActualTCPPose()
-                    X.append(x)
-                    while pending and pending[0].reached(x, k):
-                        ev = pending.pop(0)
-                        io.set_bits(ev.mask, ev.value)
-                    Q.append(r.getActualQ())
-                    B.append(r.getActualDigitalOutputBits())
-                    f = self._fault()
+                        ts0 = ts - times[i]  # the controller's clock, 0 at the job's start
+                    t_rec = ts - ts0
+                    rec.add(t_rec, x, qa, bits)
+                    if stations:
+                        stations.reached(x, k)
+                    f = self._fault_of(sbits, smode, rmode)
                     if f is not None:
                         raise f
-                    if r.getRuntimeState() != _PLAYING:
+                    if runtime != _PLAYING:
                         raise ProgramStoppedError(self._not_running_reason())
                     if not paused:
+                        q_last = q
                         i += 1
                         k += 1
-                        done += 1
-                        if progress is not None and done % report_every == 0:
-                            progress("execute", done, total)
-                    c.waitPeriod(t0)
+                        if progress is not None and k % report_every == 0:
+                            progress("execute", k, total)
+                    now = sched.wait()
+                    if now - last > overrun:
+                        raise PeriodOverrunError(f"the control loop missed its period: {1e3 * (now - last):.1f} ms "
+                                                 f"between targets (limit {1e3 * overrun:.0f} ms)")
+                    last = now
             # hold the last target until the arm, lagging its targets, has arrived; then a controlled stop
-            t_end = T[-1] if T else 0.0
-            q_last = qs[-1] if T else None
+            t_end = t_rec
             n_settle = int(self.settle * rate)
             for j in range(n_settle + 10):
-                t0 = c.initPeriod()
                 if j < n_settle and q_last is not None:
                     c.servoJ(q_last, 0.0, 0.0, dt, la, gain)
                 elif j == n_settle:
-                    while pending:
-                        ev = pending.pop(0)
-                        io.set_bits(ev.mask, ev.value)
+                    stations.flush()
                     c.servoStop(self.deceleration)
-                T.append(r.getTimestamp() - ts0 if ts0 is not None else t_end + (j + 1) * dt)
-                x = r.getActualTCPPose()
-                X.append(x)
-                while pending and pending[0].reached(x, k):
-                    ev = pending.pop(0)
-                    io.set_bits(ev.mask, ev.value)
-                Q.append(r.getActualQ())
-                B.append(r.getActualDigitalOutputBits())
-                c.waitPeriod(t0)
+                ts, x, qa, bits = self._read()[:4]
+                rec.add(ts - ts0 if ts0 is not None else t_end + (j + 1) * dt, x, qa, bits)
+                if stations:
+                    stations.reached(x, k)
+                sched.wait()
             if progress is not None:
                 progress("execute", total, total)
         except DriverError as exc:
             failure = self._locate(exc, k, pt, pp, plines)
         except RuntimeError as exc:  # ur_rtde: the socket closed
-            failure = self._locate(ConnectionLostError(f"the connection to {self.host} dropped: {exc}"),
+            failure = self._locate(ConnectionLostError(f"the connection to {host} dropped: {exc}"),
                                    k, pt, pp, plines)
+        finally:
+            sys.setswitchinterval(switch)
         if isinstance(failure, ConnectionLostError):
             self._lost = True
         if failure is not None:
             self._halt(failure)
             self._safe_off(mask)
-        return (T, X, Q, B), failure
+        else:
+            self._confirm_outputs(mask, prev_io)
+        return rec, failure, sched.stats()
 
     def _not_running_reason(self) -> str:
         return ("the program on the robot stopped (runtime state "
@@ -568,7 +586,8 @@ class URDriver:
         text = job_program(job)
         self._c.stopScript()  # hand the arm from ur_rtde's control script to the job's program
         tree = cKDTree(pp[:, :3]) if pp.size else None
-        T, X, Q, B = [], [], [], []
+        rec = new_recording(job, planned)
+        x = None
         failure = None
         k = 0
         try:
@@ -593,10 +612,7 @@ class URDriver:
                     raise err
                 ts = r.getTimestamp()
                 x = r.getActualTCPPose()
-                T.append(ts - ts0)
-                X.append(x)
-                Q.append(r.getActualQ())
-                B.append(r.getActualDigitalOutputBits())
+                rec.add(ts - ts0, x, r.getActualQ(), r.getActualDigitalOutputBits())
                 f = self._fault()
                 if f is not None:
                     raise f
@@ -611,7 +627,7 @@ class URDriver:
                     break
                 time.sleep(0.002)
             # the program ended: at the job's end, or stopped from outside
-            d, _ = distance_to_polyline(np.asarray(X[-1][:3])[None], pp[-1:, :3])
+            d, _ = distance_to_polyline(np.asarray(x[:3])[None], pp[-1:, :3])
             if d[0] > 1e-3:
                 raise ProgramStoppedError(self._not_running_reason() + f"; the tool is {1e3 * d[0]:.1f} mm "
                                           "from the job's last pose")
@@ -633,31 +649,4 @@ class URDriver:
                 self._c.reuploadScript()  # ur_rtde's control script back, for the next move
             except RuntimeError:
                 pass
-        return (T, X, Q, B), failure
-
-
-class _Station:
-    """A planned switch of outputs at sample ``k`` of the planned path: made when the ACTUAL TCP reaches the
-    station (passes the plane through it normal to the path, or comes within ``near`` m of it), not when the
-    servo target does: the arm lags its targets by the servo's following error, which is the switch's distance
-    from its station otherwise. ``late`` s after its target was commanded it is made in any case."""
-
-    __slots__ = ("k", "mask", "value", "p", "u", "deadline", "near")
-
-    def __init__(self, k: int, mask: int, value: int, pp: np.ndarray, near: float = 5e-5, late: float = 0.5,
-                 rate: float = 500.0) -> None:
-        self.k, self.mask, self.value = k, int(mask), int(value)
-        k = min(k, pp.shape[0] - 1)
-        self.p = pp[k]
-        back = pp[max(k - 50, 0):k + 1]
-        step = np.diff(back, axis=0)
-        nz = np.flatnonzero(np.linalg.norm(step, axis=1) > 1e-9)
-        u = step[nz[-1]] if nz.size else np.zeros(3)
-        nu = np.linalg.norm(u)
-        self.u = u / nu if nu > 0 else u
-        self.deadline = k + int(late * rate)
-        self.near = near
-
-    def reached(self, x, k: int) -> bool:
-        d = np.asarray(x[:3]) - self.p
-        return bool((self.u @ d) >= 0.0 and np.any(self.u)) or float(d @ d) <= self.near**2 or k >= self.deadline
+        return rec, failure

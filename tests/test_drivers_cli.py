@@ -40,3 +40,23 @@ def test_run_demo_on_sim():
     assert rep.ok and rep.mode == "program", rep.describe()
     assert rep.max_path_error <= job.settings.tolerance
     assert all(e.switched and e.distance_mm < 1.0 for e in rep.io_events) and len(rep.io_events) == 2
+
+
+def test_planner_run_sim_that_cannot_start_is_one_line(capsys):
+    """The simulated controller's address taken (a listener on its RTDE port): one line and exit status 1, no
+    traceback."""
+    import socket
+
+    from drivers.cli import free_loopback_host
+
+    host = free_loopback_host()
+    with socket.socket() as s:
+        s.bind((host, 30004))
+        s.listen()
+        rc = main(["run", DEMO, "--robot", "ur5e", "--part-frame", PART, "--sim", "--host", host])
+    err = capsys.readouterr().err
+    assert rc == 1
+    lines = [ln for ln in err.splitlines() if ln.strip()]
+    assert len(lines) == 1 and lines[0].startswith("planner run: error: cannot start a simulated controller on "
+                                                   f"{host}"), err
+    assert "Traceback" not in err

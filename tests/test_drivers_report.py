@@ -98,3 +98,32 @@ def test_missing_switch_and_failure_are_reported(job):
 def test_recorded_arrays_must_agree(job):
     with pytest.raises(ValueError, match="recorded_io has 2 samples"):
         execution_report(job, [0.0, 0.1, 0.2], np.zeros((3, 6)), np.zeros((3, 6)), [0, 0], mode="x")
+
+
+def test_recording_reduced_in_blocks_with_a_small_trace_gives_the_same_report(job):
+    """The report from a Recording fed sample by sample in blocks of 700 with a trace of at most 300 samples equals
+    the report from the whole arrays: same path error, margin, duration and the same I/O switches (the trace
+    keeps every output change and the sample before it), with outputs toggled 40 times."""
+    from drivers.recording import Recording
+    from drivers.report import new_recording
+
+    c = job.trajectory().collect()
+    rng = np.random.default_rng(3)
+    x = c.poses + np.r_[rng.normal(scale=2e-5, size=(len(c.times), 3)).T, np.zeros((3, len(c.times)))].T
+    io = c.io.copy()
+    for a in np.sort(rng.choice(np.arange(100, len(io) - 100), 40, replace=False)):
+        io[a:a + 3] ^= 1 << 17  # the tool output blips on for three samples
+    full = execution_report(job, c.times, x, c.joints, io, mode="replay")
+    planned = planned_path(job)
+    rec = Recording(planned[1][:, :3], "ur5e", float(planned[4][-1]), max_trace=300, block=700)
+    for i in range(len(c.times)):
+        rec.add(float(c.times[i]), x[i], c.joints[i], int(io[i]))
+    small = execution_report(job, rec, mode="replay", planned=planned)
+    assert len(small.trace) <= 300 < len(full.trace)
+    assert small.max_path_error == full.max_path_error and small.max_path_error_t == full.max_path_error_t
+    assert small.joint_limit_margin == full.joint_limit_margin and small.duration == full.duration
+    assert small.samples == full.samples == len(c.times)
+    assert small.io_events == full.io_events and len(small.io_events) == 2  # the plan switches standard[0] only
+    tr = small.trace
+    assert np.count_nonzero(tr.io[1:] != tr.io[:-1]) == np.count_nonzero(io[1:] != io[:-1]) == 82
+    assert isinstance(new_recording(job, planned), Recording)

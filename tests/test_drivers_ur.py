@@ -174,9 +174,6 @@ def _wait_streaming(d: URDriver, timeout: float = 30.0, mode: str = "stream") ->
     time.sleep(1.5)  # into the cut
 
 
-# Known race (issue 14, open): now and then the output switched off at the cancel is still read as on; rerun
-# at most three times until the cancel path is fixed, so one flake does not hide the rest of the suite.
-@pytest.mark.flaky(reruns=3)
 def test_cancel_from_the_caller_stops_the_arm(make_sim, fast_job):
     sim = make_sim()
     cancel = threading.Event()
@@ -309,9 +306,6 @@ def sim_fixtures_free_port() -> int:
         return s.getsockname()[1]
 
 
-# Known race (issue 14, open): now and then the streaming loop stalls for about 2 s while another thread reads
-# the robot's state during the pause (both go through ur_rtde's receive interface); rerun at most three times until fixed.
-@pytest.mark.flaky(reruns=3)
 def test_pause_and_resume_hold_the_arm_on_the_path(make_sim):
     job = _job(8.0)  # 8 s
     sim = make_sim()

@@ -1,0 +1,198 @@
+"""What a run records, reduced as it goes: the report's figures and a bounded trace, never the whole recording.
+
+A driver adds one sample per control period (:meth:`Recording.add`: job time, actual TCP pose, actual joints,
+actual digital output bits). Every ``block`` samples the block is reduced and dropped:
+
+- the largest distance of the actual TCP from the PLANNED PATH (the planned polyline at the controller rate,
+  :class:`drivers.report.PolylineIndex`) and its time; the smallest joint-limit margin; the first and last
+  time and the number of samples;
+- the trace (:class:`ExecutionTrace`): times, TCP positions, TCP speed and output bits of at most ``max_trace``
+  samples, decimated by distance travelled (one sample per ``spacing`` metres, the spacing doubled whenever the
+  trace would pass its bound) and keeping EVERY sample at which an output changed together with the sample before
+  it (so the I/O switches computed from the trace are the ones of the whole recording, exactly).
+
+So a run's memory does not grow with its length (the planned path it is compared with is the job's, computed
+once: see :func:`drivers.report.planned_path`).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from drivers.report import PolylineIndex, joint_limit_margin
+
+#: Samples reduced at a time.
+BLOCK = 2500
+#: Samples of the trace at most.
+MAX_TRACE = 20_000
+
+
+@dataclass(frozen=True, eq=False)
+class ExecutionTrace:
+    """A bounded trace of what a run recorded (see the module doc).
+
+    t (n,) job time, s; xyz (n, 3) actual TCP position, m (base frame); speed (n,) actual TCP speed, m/s (over
+    the recorded step ending at the sample); io (n,) actual digital output bits; spacing: the distance
+    decimation's final spacing, m."""
+
+    t: np.ndarray
+    xyz: np.ndarray
+    speed: np.ndarray
+    io: np.ndarray
+    spacing: float
+
+    def __len__(self) -> int:
+        return int(self.t.size)
+
+
+class Recording:
+    """A run's samples, reduced block by block (see the module doc).
+
+    Parameters
+    ----------
+    planned_xyz : ndarray (m, 3)
+        The planned TCP positions at the controller rate, m (the path the actual TCP is measured against).
+    model : str or None
+        UR model (for the joint-limit margin).
+    path_length : float
+        The planned path's length, m (sets the trace's first spacing: about ``max_trace / 2`` samples for a run
+        that follows it).
+    """
+
+    def __init__(self, planned_xyz: np.ndarray, model: str | None, path_length: float = 0.0, *,
+                 max_trace: int = MAX_TRACE, block: int = BLOCK) -> None:
+        if max_trace < 16:
+            raise ValueError(f"max_trace must be >= 16 samples, got {max_trace!r}")
+        self.planned = PolylineIndex(planned_xyz)
+        self.model = model
+        self.max_trace = int(max_trace)
+        self.block = max(1, int(block))
+        self.spacing = max(float(path_length), 0.0) / (self.max_trace / 2) or 1e-4
+        self.samples = 0
+        self.t_first = math.nan
+        self.t_last = math.nan
+        self.max_error = 0.0
+        self.max_error_t = math.nan
+        self.margin = math.inf
+        self._t: list = []
+        self._x: list = []
+        self._q: list = []
+        self._b: list = []
+        # the trace's undecided last sample: (t, xyz, speed, io, changed there, distance travelled to it)
+        self._tail: tuple | None = None
+        self._trace: list[np.ndarray] = []  # blocks of rows (t, x, y, z, speed, io, keep-flag 1 = must keep)
+        self._rows = 0
+
+    def add(self, t: float, x, q, bits: int) -> None:
+        """One sample: job time s, actual TCP pose (6,) p[x, y, z, rx, ry, rz], actual joints (6,) rad, bits."""
+        self._t.append(t)
+        self._x.append(x)
+        self._q.append(q)
+        self._b.append(bits)
+        if len(self._t) >= self.block:
+            self._reduce()
+
+    def extend(self, t, x, q, bits) -> None:
+        """Many samples: (n,), (n, 6), (n, 6), (n,)."""
+        t = np.asarray(t, dtype=float).reshape(-1)
+        n = t.size
+        x = np.asarray(x, dtype=float).reshape(n, 6)
+        q = np.asarray(q, dtype=float).reshape(n, 6)
+        b = np.asarray(bits, dtype=np.int64).reshape(n)
+        for a in range(0, n, self.block):
+            self._reduce_arrays(t[a:a + self.block], x[a:a + self.block], q[a:a + self.block], b[a:a + self.block])
+
+    def _reduce(self) -> None:
+        if not self._t:
+            return
+        t = np.asarray(self._t, dtype=float)
+        x = np.asarray(self._x, dtype=float).reshape(-1, 6)
+        q = np.asarray(self._q, dtype=float).reshape(-1, 6)
+        b = np.asarray(self._b, dtype=np.int64)
+        self._t, self._x, self._q, self._b = [], [], [], []
+        self._reduce_arrays(t, x, q, b)
+
+    def _reduce_arrays(self, t: np.ndarray, x: np.ndarray, q: np.ndarray, b: np.ndarray) -> None:
+        n = t.size
+        if n == 0:
+            return
+        xyz = x[:, :3]
+        if self.samples == 0:
+            self.t_first = float(t[0])
+        self.samples += n
+        self.t_last = float(t[-1])
+        if self.planned.n:
+            d, _ = self.planned.distance(xyz)
+            if np.isfinite(d).any():
+                w = int(np.nanargmax(d))
+                if d[w] > self.max_error or math.isnan(self.max_error_t):
+                    self.max_error, self.max_error_t = float(d[w]), float(t[w])
+        m = joint_limit_margin(self.model, q)
+        if not math.isnan(m):
+            self.margin = min(self.margin, m)
+        # the trace: the undecided last sample of the previous block (the tail) first, then this block's; a sample's
+        # fate is decided once the next one is known (kept before an output change)
+        if self._tail is None:  # the run's first sample: the outputs were cleared before the run
+            tail = (float(t[0]), xyz[0], 0.0, 0, float(b[0] != 0), 0.0)
+            t, xyz, b = t[1:], xyz[1:], b[1:]
+        else:
+            tail = self._tail
+        tt = np.concatenate(([tail[0]], t))
+        pp = np.vstack((tail[1][None], xyz))
+        bb = np.concatenate(([tail[3]], b))
+        step = np.linalg.norm(np.diff(pp, axis=0), axis=1)
+        dt = np.diff(tt)
+        speed = np.concatenate(([tail[2]], np.where(dt > 0, step / np.where(dt > 0, dt, 1.0), 0.0)))
+        cum = tail[5] + np.concatenate(([0.0], np.cumsum(step)))
+        change = np.concatenate(([tail[4] > 0], bb[1:] != bb[:-1]))
+        must = change.copy()
+        must[:-1] |= change[1:]  # the sample before a change
+        if self._rows == 0 and not self._trace:
+            must[0] = True  # the run's first sample
+        cell = np.floor(cum / self.spacing)
+        keep = must.copy()
+        keep[1:] |= cell[1:] != cell[:-1]
+        # all but the last are decided; the last waits for the next block (or finish())
+        idx = np.flatnonzero(keep[:-1])
+        if idx.size:
+            rows = np.column_stack((tt[idx], pp[idx], speed[idx], bb[idx].astype(float), must[idx].astype(float)))
+            self._trace.append(rows)
+            self._rows += rows.shape[0]
+        self._tail = (float(tt[-1]), pp[-1].copy(), float(speed[-1]), int(bb[-1]), float(change[-1]), float(cum[-1]))
+        while self._rows > self.max_trace:
+            self._thin()
+
+    def _thin(self) -> None:
+        """Halve the trace's distance samples (double the spacing); the must-keep samples stay."""
+        rows = np.concatenate(self._trace)
+        must = rows[:, 6] > 0
+        free = np.flatnonzero(~must)
+        drop = free[1::2]
+        if drop.size == 0:
+            raise RuntimeError("the trace cannot hold the run's output changes (more than max_trace of them)")
+        rows = np.delete(rows, drop, axis=0)
+        self._trace = [rows]
+        self._rows = rows.shape[0]
+        self.spacing *= 2.0
+
+    def finish(self) -> None:
+        """Reduce what is left and keep the run's last sample (call once, when the run has ended)."""
+        self._reduce()
+        if self._tail is not None:
+            t, xyz, speed, io, _, _ = self._tail
+            self._trace.append(np.array([[t, *xyz, speed, float(io), 1.0]]))
+            self._rows += 1
+            self._tail = None
+
+    @property
+    def duration(self) -> float:
+        return float(self.t_last - self.t_first) if self.samples > 1 else 0.0
+
+    def trace(self) -> ExecutionTrace:
+        """The bounded trace (after :meth:`finish`)."""
+        rows = np.concatenate(self._trace) if self._trace else np.zeros((0, 7))
+        return ExecutionTrace(rows[:, 0].copy(), rows[:, 1:4].copy(), rows[:, 4].copy(),
+                              rows[:, 5].astype(np.int64), self.spacing)
