@@ -207,6 +207,7 @@ def settings_from_args(args: argparse.Namespace) -> PlanSettings:
 
     Every option is checked first in the user's units and named as typed (:func:`check_numeric_options`)."""
     check_numeric_options(args)
+    _check_machine(getattr(args, "machine", None))
     d = PlanSettings()
     return PlanSettings(
         path=args.path, tolerance=args.tolerance / 1e3, corner_deg=float(args.corner),
@@ -217,6 +218,18 @@ def settings_from_args(args: argparse.Namespace) -> PlanSettings:
         feed_floor=d.feed_floor, cut_output=_output(args.cut_output), passes=_passes(args.pass_index),
         max_poses=float(args.max_poses),
     ).checked()
+
+
+def _check_machine(name: str | None) -> None:
+    """``--machine NAME`` names a known machine preset (checked before the file is read)."""
+    if name is None:
+        return
+    from planner.io.machines import machine_kinematics
+
+    try:
+        machine_kinematics(name)
+    except (ValueError, TypeError):
+        raise PlannerError(f"--machine {name}: unknown machine (known: haas-umc-750)") from None
 
 
 def _passes(text: str | None):
@@ -375,7 +388,7 @@ def cmd_demo(args: argparse.Namespace) -> None:
     print("standard DO 0 during the cut; the execution report compares the tracked path with the plan")
     from drivers.cli import run_demo_on_sim
 
-    report = run_demo_on_sim(job)
+    report = run_demo_on_sim(job, plot=out / "demo.png")  # the picture again, with the run drawn over it
     for line in report.describe():
         print(f"  {line}")
     if not report.ok:

@@ -223,7 +223,7 @@ def _axis_stations(job, n: int):
 
 
 def plot_job(job, target, *, rate: float | None = None, title: str | None = None, axes_shown: int = 60,
-             bins: int = 1500, max_points: int = 20_000) -> StreamDigest:
+             bins: int = 1500, max_points: int = 20_000, execution=None) -> StreamDigest:
     """Write the picture of a planned job (:class:`planner.PlannedJob`) to ``target`` (a path ending in .png,
     .svg or .pdf, written atomically; or a binary file object, which gets a PNG).
 
@@ -238,6 +238,13 @@ def plot_job(job, target, *, rate: float | None = None, title: str | None = None
         Tool frames drawn, evenly spaced along the total cut length.
     bins, max_points : int
         Time bins of the speed envelope and samples kept for the joint panel (:func:`digest`).
+    execution : execution report, optional
+        How a run of the job went (duck-typed, e.g. ``drivers.report.ExecutionReport``: ``trace`` with ``t``
+        (n,) s, ``xyz`` (n, 3) m base frame, ``speed`` (n,) m/s, ``io`` (n,) output bits; ``io_events`` with
+        ``bit``, ``value``, ``planned_t``, ``actual_t``, ``distance_mm``; ``mode``, ``ok``, ``reason``,
+        ``max_path_error`` m). Drawn over the plan: the actual TCP path in the 3D panel with the planned
+        stations and the actual switches, the actual TCP speed over the planned envelope, and a panel of the
+        outputs planned against the outputs switched.
 
     Returns
     -------
@@ -253,8 +260,12 @@ def plot_job(job, target, *, rate: float | None = None, title: str | None = None
     rate = float(rate or job.settings.rate)
     s = job.summary()
     st = job.settings
-    fig = new_figure(title or f"{job.source}: {s['passes']} pass{'es' * (s['passes'] != 1)}", size=(17, 10))
-    grid = fig.add_gridspec(2, 3)
+    run = _execution_view(job, execution, dg) if execution is not None else None
+    head = title or f"{job.source}: {s['passes']} pass{'es' * (s['passes'] != 1)}"
+    if run is not None:
+        head += "\n" + run["title"]
+    fig = new_figure(head, size=(17, 14 if run is not None else 10))
+    grid = fig.add_gridspec(3, 3, height_ratios=(1.0, 1.0, 0.55)) if run is not None else fig.add_gridspec(2, 3)
 
     ax = fig.add_subplot(grid[0, 0:2], projection="3d")
     cuts, rapids = _path_lines(job)
@@ -278,6 +289,8 @@ def plot_job(job, target, *, rate: float | None = None, title: str | None = None
     ax.set_box_aspect(span, zoom=1.15)
     if len(q):
         tool_axes(ax, q, F, scale)
+    if run is not None:
+        _execution_path(ax, run)
     label_path_axes(ax, f"paths (part frame, {st.path}): {s['cut_length_mm']:.0f} mm of cut, {s['rapids']} rapids, "
                         f"{s['reorientations']} turns in place")
 
@@ -290,6 +303,10 @@ def plot_job(job, target, *, rate: float | None = None, title: str | None = None
         if np.isfinite(v_hi).any():
             ax.fill_between(t_mid, np.where(v_lo > 0, v_lo, np.nan), v_hi, color=color, alpha=0.3, lw=0)
             ax.plot(t_mid, v_hi, color=color, lw=0.8, label=f"{label}: highest speed per bin")
+    if run is not None:
+        v = 1e3 * run["speed"]
+        ax.plot(run["t"], np.where(v > 0, v, np.nan), color="tab:red", lw=0.6, alpha=0.8,
+                label=f"actual ({run['mode']} run)")
     ax.set_yscale("log")
     peaks = 1e3 * np.concatenate([v_hi for _, v_hi in dg.speed.values()])
     peaks = peaks[np.isfinite(peaks) & (peaks > 0)]
@@ -309,8 +326,91 @@ def plot_job(job, target, *, rate: float | None = None, title: str | None = None
                      f"({'within limits' if not job.problems else f'{len(job.problems)} move(s) with problems'})")
 
     _fit_panel(fig.add_subplot(grid[1, 2]), job, s)
+    if run is not None:
+        _execution_io_panel(fig.add_subplot(grid[2, 0:3]), run)
     save(fig, target)
     return dg
+
+
+def _execution_view(job, execution, dg: StreamDigest) -> dict:
+    """What the plot draws of a run (see plot_job's ``execution``), in the part frame, mm."""
+    from planner.motion.stream import as_transform
+
+    tr = getattr(execution, "trace", None)
+    if tr is None:
+        raise PlannerError("execution= needs a report with a trace of the run (its 'trace' is missing)")
+    t = np.asarray(tr.t, dtype=float).reshape(-1)
+    xyz = np.asarray(tr.xyz, dtype=float).reshape(-1, 3)
+    speed = np.asarray(tr.speed, dtype=float).reshape(-1)
+    io = np.asarray(tr.io, dtype=np.int64).reshape(-1)
+    if not (xyz.shape[0] == speed.size == io.size == t.size):
+        raise PlannerError(f"execution trace: t, xyz, speed and io differ in length ({t.size}, {xyz.shape[0]}, "
+                           f"{speed.size}, {io.size})")
+    Tb = as_transform(job.settings.part_frame, "part_frame")
+    Rb, pb = Tb[:3, :3], Tb[:3, 3]
+    part = (xyz - pb) @ Rb * 1e3  # base frame (m) -> part frame (mm)
+    events = list(getattr(execution, "io_events", ()))
+    # planned stations: the planned pose at each planned switch time (the digest's kept poses, nearest in time)
+    planned_at = []
+    for e in events:
+        if dg.times.size and math.isfinite(e.planned_t):
+            k = int(np.clip(np.searchsorted(dg.times, e.planned_t), 0, dg.times.size - 1))
+            planned_at.append((dg.poses[k, :3] - pb) @ Rb * 1e3)
+    change = np.flatnonzero(io[1:] != io[:-1]) + 1
+    ok = bool(getattr(execution, "ok", True))
+    err = float(getattr(execution, "max_path_error", math.nan))
+    done = [e.distance_mm for e in events if math.isfinite(e.distance_mm)]
+    head = (f"run ({getattr(execution, 'mode', 'run')}): {'ok' if ok else 'FAILED: ' + str(execution.reason)}, "
+            f"actual TCP within {1e3 * err:.3f} mm of the planned path")
+    if events:
+        head += f", {len(done)} of {len(events)} switches made" + (
+            f" within {max(done):.3f} mm of their stations" if done else "")
+    return {"t": t, "xyz": part, "speed": speed, "io": io, "events": events, "switch_xyz": part[change],
+            "planned_xyz": np.asarray(planned_at).reshape(-1, 3), "mode": getattr(execution, "mode", "run"),
+            "title": head}
+
+
+def _execution_path(ax, run: dict) -> None:
+    p = run["xyz"]
+    if p.shape[0]:
+        ax.plot(p[:, 0], p[:, 1], p[:, 2], color="tab:red", lw=0.8, alpha=0.9, label="actual TCP path (run)")
+    if run["planned_xyz"].shape[0]:
+        q = run["planned_xyz"]
+        ax.scatter(q[:, 0], q[:, 1], q[:, 2], marker="o", s=40, facecolors="none", edgecolors="k",
+                   label="I/O stations (planned)")
+    if run["switch_xyz"].shape[0]:
+        q = run["switch_xyz"]
+        ax.scatter(q[:, 0], q[:, 1], q[:, 2], marker="x", s=40, color="tab:red", label="I/O switched (run)")
+
+
+def _execution_io_panel(ax, run: dict) -> None:
+    """The outputs the plan switches (step lines from the planned switch times) against the ones the run
+    switched (the trace's output bits), one row per output bit."""
+    events = run["events"]
+    bits = sorted({int(e.bit) for e in events} | {b for b in range(18) if np.any((run["io"] >> b) & 1)})
+    t = run["t"]
+    t_end = float(t[-1]) if t.size else 1.0
+    for row, b in enumerate(bits):
+        ev = sorted((e for e in events if int(e.bit) == b and math.isfinite(e.planned_t)), key=lambda e: e.planned_t)
+        tp = [0.0] + [float(e.planned_t) for e in ev] + [t_end]
+        vp = [0.0] + [float(bool(e.value)) for e in ev]
+        ax.step(tp, [row + 0.8 * v for v in vp] + [row + 0.8 * vp[-1]], where="post", color="k", lw=1.0,
+                label="planned" if row == 0 else None)
+        if t.size:
+            ax.step(t, row + 0.8 * ((run["io"] >> b) & 1) + 0.04, where="post", color="tab:red", lw=1.0,
+                    label="switched (run)" if row == 0 else None)
+        for e in ev:
+            if math.isfinite(e.actual_t):
+                ax.annotate(f"{e.distance_mm:.3f} mm", (float(e.actual_t), row + 0.4), fontsize=7,
+                            xytext=(3, 0), textcoords="offset points")
+    names = {**{b: f"standard[{b}]" for b in range(8)}, **{b: f"configurable[{b - 8}]" for b in range(8, 16)},
+             16: "tool[0]", 17: "tool[1]"}
+    ax.set_yticks([row + 0.4 for row in range(len(bits))], [names[b] for b in bits])
+    ax.set_xlabel("time [s]")
+    ax.set_title("digital outputs: planned against switched in the run (distance of each switch from its station)")
+    if bits:
+        ax.legend(fontsize=8, loc="upper right")
+    ax.grid(alpha=0.3)
 
 
 def _frames_panel(ax, job, s: dict) -> None:
