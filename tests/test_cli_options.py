@@ -115,6 +115,7 @@ def test_settings_in_si_from_user_units():
     (["--part-frame", "0,0,0,0,0,1e308"], "planner: error: --part-frame 0,0,0,0,0,1e308: the rotation vector"),
     (["--part-frame", "0,0,0,0,nan,0"], "planner: error: --part-frame 0,0,0,0,nan,0: ry (number 5) must be finite"),
     (["--tcp", "0,0,6e3,0,0,0"], "planner: error: --tcp 0,0,6e3,0,0,0: z = 6000 m is beyond any robot cell"),
+    (["--machine", "bogus"], "planner: error: --machine bogus: unknown machine (known: haas-umc-750)"),
 ])
 def test_other_options_refused_in_one_line(argv, message):
     err = _refusal(["plan", MISSING, *argv])
