@@ -289,7 +289,13 @@ def _check_samples(pose: np.ndarray, stdout: str, path: Path) -> None:
     assert m and int(m.group(1)) == len(pose), "the output holds fewer poses than reported"
 
 
-def check_contract(input_path: Path, argv: list[str], out: Path, rc: int, stdout: str, stderr: str) -> None:
+#: What an output file holds before a run that should replace it on success and leave it untouched on failure.
+PREVIOUS = b"an earlier output, kept unless the run succeeds\n"
+
+
+def check_contract(input_path: Path, argv: list[str], out: Path, rc: int, stdout: str, stderr: str,
+                   existed: bool = False) -> None:
+    """The contract of the module docstring; ``existed``: the output file held :data:`PREVIOUS` before the run."""
     cmd = f"planner {' '.join(argv)}"
     left = sorted(p.name for p in out.parent.iterdir())
     assert "Traceback" not in stderr + stdout, cmd
@@ -303,16 +309,22 @@ def check_contract(input_path: Path, argv: list[str], out: Path, rc: int, stdout
         assert stderr.count("\n") == 1 and stderr.endswith("\n"), f"{cmd}: stderr is not one line:\n{stderr}"
         prefix = "planner: error: " if rc == 2 else "planner: internal error: "
         assert stderr.startswith(prefix) or (rc == 2 and stderr.startswith("planner plan: error: ")), stderr
-        assert left == [input_path.name], f"{cmd}: exit {rc} and files left {left}"
+        if existed:
+            assert left == sorted({input_path.name, out.name}), f"{cmd}: exit {rc} and files left {left}"
+            assert out.read_bytes() == PREVIOUS, f"{cmd}: exit {rc} and the existing output was changed"
+        else:
+            assert left == [input_path.name], f"{cmd}: exit {rc} and files left {left}"
 
 
-def _fuzz_one(fmt: str, ops, opts, suffix: str) -> tuple[int, str]:
+def _fuzz_one(fmt: str, ops, opts, suffix: str, existing: bool = False) -> tuple[int, str]:
     name, seed, fixed = SEEDS[fmt]
     data = mutate(seed, ops)
     with tempfile.TemporaryDirectory(prefix="fuzz-") as tmp:
         src = Path(tmp) / name
         src.write_bytes(data)
         out = Path(tmp) / f"out{suffix}"
+        if existing:
+            out.write_bytes(PREVIOUS)
         flags = dict(opts)
         argv = ["plan", str(src), *fixed, "--max-poses", flags.pop("--max-poses", MAX_POSES), "-o", str(out)]
         for flag, value in flags.items():
@@ -322,7 +334,7 @@ def _fuzz_one(fmt: str, ops, opts, suffix: str) -> tuple[int, str]:
         if suffix == ".script":
             argv += ["--robot", "ur5e", "--part-frame", "0.4,0.9965,-0.1,0,0,0"]
         rc, stdout, stderr = run_in_process(argv)
-        check_contract(src, argv, out, rc, stdout, stderr)
+        check_contract(src, argv, out, rc, stdout, stderr, existing)
     return rc, stderr
 
 
@@ -332,9 +344,9 @@ FUZZ_SETTINGS = settings(max_examples=EXAMPLES, deadline=None, derandomize=not F
 
 @pytest.mark.parametrize("fmt", sorted(SEEDS))
 @FUZZ_SETTINGS
-@given(ops=st.lists(mutation, max_size=4), opts=options, suffix=outputs)
-def test_mutated_inputs_keep_the_contract(fmt, ops, opts, suffix):
-    rc, stderr = _fuzz_one(fmt, ops, opts, suffix)
+@given(ops=st.lists(mutation, max_size=4), opts=options, suffix=outputs, existing=st.booleans())
+def test_mutated_inputs_keep_the_contract(fmt, ops, opts, suffix, existing):
+    rc, stderr = _fuzz_one(fmt, ops, opts, suffix, existing)
     event(f"exit {rc}" + (f": {stderr.split(': ')[2][:40]}" if rc and stderr.count(": ") > 1 else ""))
 
 
