@@ -101,26 +101,34 @@ class Placement:
 
 def job_samples(moves, count: int = SAMPLES) -> tuple[np.ndarray, np.ndarray]:
     """Decimated tool poses of planned moves in the part frame: positions (n, 3) and frames (n, 3, 3), in job
-    order: every move's ends, about ``count`` points spread along the job, the extremes along x, y, z."""
-    moving = [m for m in moves if m.kind in ("cut", "rapid", "reorientation", "dwell") and
-              (m.kind == "dwell" or m.profile is not None)]
+    order: every move's ends (known without evaluating its path), points every ``length / count`` along the
+    moves longer than that, then at most ``count`` of them spread evenly and the extremes along x, y, z."""
+    moving = [m for m in moves if m.kind == "dwell" or (m.kind in ("cut", "rapid", "reorientation")
+                                                        and m.profile is not None)]
+    if not moving:
+        raise PlannerError("part_frame='auto': the job has no motion to place")
     length = sum(float(m.path.length) for m in moving if m.kind in ("cut", "rapid"))
     step = max(length / max(count, 1), 1e-6)
     P, R = [], []
     for m in moving:
-        if m.kind in ("cut", "rapid"):
-            L = float(m.path.length)
-            x = np.linspace(0.0, L, max(2, math.ceil(L / step) + 1))
-            p, F, _ = poses_at_length(m.path, tool_orientation(m.frames), x)
-        elif m.kind == "reorientation":
-            F = m.frames.frames(np.linspace(0.0, m.frames.angle, 3))
-            p = np.broadcast_to(m.point, (3, 3))
+        start = np.asarray(m.point, float)
+        if m.kind == "cut":
+            end = m.item.points[-1]
+        elif m.kind == "rapid":
+            end = m.item.end
         else:
-            F, p = m.start_frame[None], np.asarray(m.point, float)[None]
-        P.append(np.asarray(p, float))
-        R.append(np.asarray(F, float))
-    if not P:
-        raise PlannerError("part_frame='auto': the job has no motion to place")
+            end = start
+        P.append(start[None])
+        R.append(m.start_frame[None])
+        if m.kind in ("cut", "rapid") and float(m.path.length) > step:
+            L = float(m.path.length)
+            x = np.linspace(0.0, L, math.ceil(L / step) + 1)[1:-1]
+            p, F, _ = poses_at_length(m.path, tool_orientation(m.frames), x)
+            P.append(np.asarray(p, float))
+            R.append(np.asarray(F, float))
+        if m.kind != "dwell":
+            P.append(np.asarray(end, float)[None])
+            R.append(m.end_frame[None])
     pos, frames = np.concatenate(P), np.concatenate(R)
     if len(pos) > count:
         keep = np.union1d(np.linspace(0, len(pos) - 1, count).round().astype(np.int64),
