@@ -320,7 +320,7 @@ def bench_nx(workers: int) -> None:
                 [["planner plan (one process)", f"{t_cli:.2f}", f"{usage.ru_maxrss / 1024:.0f}", "1.00"],
                  [f"service (submit {t_submit:.2f} s incl. reading the file)", f"{t_done:.2f}",
                   f"{peaks['service'] / 1024:.0f} service, "
-                  + ", ".join(f"{v / 1024:.0f}" for k, v in peaks.items() if k != "service") + " workers",
+                  + ", ".join(f"{v / 1024:.0f} {k.split()[0]}" for k, v in peaks.items() if k != "service"),
                   f"{t_done / t_cli:.2f}"]])
     print(f"\nstorage per job: {storage / 2**20:.2f} MiB (input {view['input']['bytes'] / 2**20:.2f} MiB + saved "
           "plan + settings + summary); exports are streamed, never stored")
