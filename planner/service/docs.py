@@ -7,6 +7,7 @@ OpenAPI 3.1 schema FastAPI writes) and are served under ``/docs/assets/``; only 
 
 from __future__ import annotations
 
+import importlib
 from pathlib import Path
 
 from fastapi import FastAPI, HTTPException
@@ -23,11 +24,11 @@ FILES = {"swagger-ui-bundle.js": "text/javascript; charset=utf-8", "swagger-ui.c
 def swagger_ui_dir() -> Path:
     """The folder of the packaged Swagger UI (``swagger_ui_bundle.swagger_ui_path``)."""
     try:
-        from swagger_ui_bundle import swagger_ui_path
+        bundle = importlib.import_module("swagger_ui_bundle")  # (untyped: only its folder is used)
     except ImportError:  # pragma: no cover - a broken install
         raise RuntimeError("the docs page needs the package swagger-ui-bundle-v2 (pip install swagger-ui-bundle-v2)"
                            ) from None
-    return Path(str(swagger_ui_path))
+    return Path(str(bundle.swagger_ui_path))
 
 
 def add_docs(app: FastAPI, openapi_url: str = "/openapi.json") -> None:

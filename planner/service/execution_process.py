@@ -93,7 +93,7 @@ def run_execution(task: dict, send, cancel: threading.Event) -> None:
         if robot["host"] is None:
             send(("stage", "controller"))
             speed = float(robot["sim_speed"]) if mode == "program" else 1.0
-            sim = start_sim(job.settings.robot, modbus=robot["io"] == "modbus", speed=speed)
+            sim = start_sim(str(job.settings.robot), modbus=robot["io"] == "modbus", speed=speed)
             host, modbus_port = sim.host, sim.modbus_port or robot["modbus_port"]
         else:
             host, modbus_port = robot["host"], robot["modbus_port"]

@@ -171,7 +171,7 @@ class Runner(threading.Thread):
         results_w.close()
         stop_sent: float | None = None
         last_write = 0.0
-        result = None
+        result: tuple = ("failed", {"kind": "internal", "reason": "no result"})
         try:
             while True:
                 if self._stop_asked.is_set() and stop_sent is None:
@@ -219,13 +219,13 @@ class Runner(threading.Thread):
                 proc.kill()
                 proc.join(5.0)
         if result[0] == "report":
-            figures = result[1]
-            failure = figures.get("failure")
+            figures: dict = result[1]
+            failure: dict | None = figures.get("failure")
             state = "done" if figures["ok"] else ("cancelled" if failure and failure["kind"] == "cancelled"
                                                   else "failed")
             self._finish(state, failure, report=figures)
         else:
-            error = result[1]
+            error: dict = result[1]
             self._finish("cancelled" if error["kind"] == "cancelled" else "failed", error)
 
     def _finish(self, state: str, error: dict | None, report: dict | None = None) -> None:
