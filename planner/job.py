@@ -29,6 +29,7 @@ from planner.protocols import FrameField, Path
 from planner.settings import PlanSettings
 
 if TYPE_CHECKING:
+    from planner.cam.placement import Placement
     from planner.trajectory import Trajectory
 
 #: What a move carries out: a record of the file, or a change of the arm configuration the planner adds.
@@ -162,7 +163,7 @@ class PlannedMove:
     @property
     def duration(self) -> float:
         """Time of the move, s (a dwell: its seconds at rest)."""
-        if self.kind == "dwell":
+        if isinstance(self.item, Dwell):
             return float(self.item.seconds)
         return 0.0 if self.profile is None else float(self.profile.duration)
 
@@ -227,7 +228,7 @@ class PlannedJob:
     start_joints: np.ndarray | None = None
     start_note: str = ""
     warnings: tuple = ()
-    placement: object = None
+    placement: Placement | None = None
 
     # -- figures -------------------------------------------------------------------------------
     @property

@@ -171,8 +171,8 @@ class PlanSettings:
                                f"or None; got {s.part_frame!r}")
         if auto and s.robot is None:
             raise PlannerError("part_frame='auto' places the part for a robot: set robot (e.g. robot='ur5e')")
-        poses = {name: _pose(getattr(s, name), name) for name in (("tcp",) if auto else ("part_frame", "tcp"))}
-        poses.setdefault("part_frame", "auto")
+        part_frame: tuple | str | None = "auto" if auto else _pose(s.part_frame, "part_frame")
+        tcp = _pose(s.tcp, "tcp")
         if s.robot is not None:
             from planner.kinematics import get_model
 
@@ -192,7 +192,7 @@ class PlanSettings:
                 raise PlannerError(f"passes must be pass numbers (>= 0), 'longest' or None, got {passes!r}")
             passes = tuple(sorted({int(k) for k in passes}))
         return replace(s, tolerance=tol, arc_tolerance=arc, cut_output=out, passes=passes,
-                       part_frame=poses["part_frame"], tcp=poses["tcp"])
+                       part_frame=part_frame, tcp=tcp)
 
     def to_dict(self) -> dict:
         """The settings as plain JSON values (limits as dicts), for job files, exports and REST."""

@@ -158,7 +158,7 @@ class _Rater:
         th = math.atan2(s, c)
         return (t[0], t[1], t[2], 0.0, 0.0, th)
 
-    def rate(self, cands: np.ndarray, detail: bool = False):
+    def rate(self, cands, detail: bool = False):
         """Ratings (C,) of candidates (C, 3) = (r, h, theta); with ``detail`` also the best branch (C,), its
         singularity margin (C,), joint-limit margin (C,) and elbow, wrist, shoulder factors (C, 3)."""
         cands = np.atleast_2d(np.asarray(cands, dtype=float))
