@@ -272,3 +272,16 @@ def test_robots_from_a_file_and_the_default(tmp_path):
     cfg = ServiceConfig.from_env({"PLANNER_ROBOTS": str(f)})
     assert cfg.robots == (RobotConfig("cell", "10.0.0.2", "ur10e", "modbus", 5020),)
     assert cfg.robot("cell").simulated is False and cfg.robot("sim") is None
+
+
+def test_serve_refuses_a_bad_robots_option_with_its_message(tmp_path):
+    import os
+    import subprocess
+    import sys
+
+    env = {**os.environ, "PLANNER_DB": f"sqlite:///{tmp_path / 'j.sqlite'}"}
+    r = subprocess.run([sys.executable, "-m", "planner.service", "serve", "--port", "0", "--robots",
+                        '{"cell": {"host": "cell.local", "model": "ur5e"}}'], env=env, capture_output=True, text=True,
+                       timeout=60, cwd=tmp_path)
+    assert r.returncode == 2 and "listening" not in r.stdout
+    assert r.stderr.strip() == "planner: error: --robots: robot 'cell': host must be an IP address, got 'cell.local'"

@@ -13,7 +13,7 @@ import socket
 import sys
 
 from planner.errors import PlannerError
-from planner.service.config import DEFAULT_DB, ROLES, ServiceConfig, is_loopback
+from planner.service.config import DEFAULT_DB, ROLES, ServiceConfig, is_loopback, robots_from_env
 
 
 def add_subcommands(sub) -> None:
@@ -25,6 +25,9 @@ def add_subcommands(sub) -> None:
     s.add_argument("--db", default=None, help=f"database URL (default PLANNER_DB or {DEFAULT_DB})")
     s.add_argument("--data", default=None, help="folder for inputs and saved jobs (default PLANNER_DATA or <db>.data)")
     s.add_argument("--job-timeout", type=float, default=None, help="seconds a job may plan (default 3600)")
+    s.add_argument("--robots", default=None,
+                   help="robots jobs may run on: a JSON file (or text) of name -> {host, model, io, modbus_port} or "
+                        "{\"sim\": true} (default PLANNER_ROBOTS, else one simulated robot named sim)")
     s.add_argument("--log-level", default="warning", help="uvicorn log level (default warning)")
     s.set_defaults(func=cmd_serve)
     k = sub.add_parser("keys", help="create, list and revoke the service's API keys")
@@ -41,9 +44,11 @@ def add_subcommands(sub) -> None:
 
 
 def _config(args: argparse.Namespace) -> ServiceConfig:
+    robots = getattr(args, "robots", None)
     return ServiceConfig.from_env(db_url=args.db, workers=getattr(args, "workers", None),
                                   data_dir=getattr(args, "data", None),
-                                  job_timeout_s=getattr(args, "job_timeout", None))
+                                  job_timeout_s=getattr(args, "job_timeout", None),
+                                  robots=None if robots is None else robots_from_env(robots, "--robots"))
 
 
 def cmd_serve(args: argparse.Namespace) -> None:

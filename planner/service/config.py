@@ -119,18 +119,18 @@ def robots_from_json(text: str, where: str = "PLANNER_ROBOTS") -> tuple[RobotCon
     return tuple(out)
 
 
-def robots_from_env(value: str | None) -> tuple[RobotConfig, ...]:
-    """``PLANNER_ROBOTS``: a JSON object (see :func:`robots_from_json`) or the path of a file holding one;
-    unset: :data:`DEFAULT_ROBOTS`."""
+def robots_from_env(value: str | None, where: str = "PLANNER_ROBOTS") -> tuple[RobotConfig, ...]:
+    """``PLANNER_ROBOTS`` (or ``planner serve --robots``, named by ``where`` in errors): a JSON object (see
+    :func:`robots_from_json`) or the path of a file holding one; unset: :data:`DEFAULT_ROBOTS`."""
     if not value:
         return DEFAULT_ROBOTS
     if value.lstrip().startswith("{"):
-        return robots_from_json(value)
+        return robots_from_json(value, where)
     try:
         text = open(value, encoding="utf-8").read()  # noqa: SIM115
     except OSError as exc:
-        raise PlannerError(f"PLANNER_ROBOTS: cannot read {value}: {exc.strerror}") from None
-    return robots_from_json(text, f"PLANNER_ROBOTS file {value}")
+        raise PlannerError(f"{where}: cannot read {value}: {exc.strerror}") from None
+    return robots_from_json(text, f"{where} file {value}")
 
 
 @dataclass(frozen=True)
