@@ -1,13 +1,15 @@
 """Benchmark: peak resident memory of ``planner plan`` against the number of poses (issue 16, bounded memory).
 
 Each row runs ``planner plan FILE [-o OUT]`` in a fresh Python process and reads its peak RSS
-(``resource.getrusage``): with no output, with a CSV and with a JSON trajectory. The files:
+(``resource.getrusage``): with no output and with every output format (a CSV and a JSON trajectory, a saved
+``.job``; with a robot also the whole-job URScript program). The files:
 - a synthetic NX-style face-milling CLSF: 300 CIRCLE records (half circles of 100 mm radius at 100 mm/min,
-  about 100,000 points after the arcs, about 13.5 million poses at 500 Hz), written here;
+  about 100,000 points after the arcs, about 28 million poses at 500 Hz), written here;
 - a synthetic 10^7-pose job: one straight 2 m pass at 0.1 mm/s (one move of 10^7 samples);
-- the real NX job of ``../shared/data`` (12.9 million poses), when it is there.
+- the real NX job of ``../shared/data`` (12.9 million poses), when it is there, without a robot and on a UR5e
+  at the part frame ``part_frame="auto"`` finds for it (joints in the CSV, the program as ``.script``).
 Baseline in the same run: the process's RSS after importing the planner and reading the file (what every
-run pays before planning). Target: under 300 MB for 13.5 million poses in every output format.
+run pays before planning). Target: under 300 MB for 13.5 million poses in every output format and with none.
 
 Run: ``python bench/bench_memory.py [--quick]`` (--quick: the 10^7-pose job only, CSV only).
 """
@@ -27,6 +29,8 @@ from _common import print_table  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 NX = ROOT.parent / "shared" / "data" / "nx_clsf_variable_contour_ust_a2.cls"
+#: The part frame ``plan(NX, PlanSettings(robot="ur5e", part_frame="auto"))`` printed (every move reachable).
+NX_AUTO_FRAME = "0.6975,0.804226,-0.137689,0,0,-0.022816"
 
 RUNNER = """
 import resource, sys
@@ -84,20 +88,23 @@ def main() -> None:
         jobs = []
         long_csv = t / "long_pass.csv"
         long_pass(long_csv)
+        every = [None, ".csv", ".json", ".job"]
         if not quick:
             face = t / "face_milling.cls"
             face_milling(face)
-            jobs.append(("face milling, 300 arcs", face, []))
-        jobs.append(("one 2 m pass at 0.1 mm/s", long_csv, ["--path", "cam"]))
+            jobs.append(("face milling, 300 arcs", face, [], every))
+        jobs.append(("one 2 m pass at 0.1 mm/s", long_csv, ["--path", "cam"], [None, ".csv"] if quick else every))
         if NX.is_file() and not quick:
-            jobs.append(("NX job (shared/data)", NX, []))
-        for name, src, extra in jobs:
+            jobs.append(("NX job (shared/data)", NX, [], every))
+            jobs.append(("NX job on a UR5e", NX, ["--robot", "ur5e", "--part-frame", NX_AUTO_FRAME],
+                         [None, ".csv", ".script"]))
+        for name, src, extra, outputs in jobs:
             base, _, _ = peak(["--baseline", str(src)])
-            outputs = [None, ".csv"] if quick else [None, ".csv", ".json"]
+            first = len(rows)
+            poses = "-"
             for suffix in outputs:
                 out = [] if suffix is None else ["-o", str(t / f"out{suffix}")]
                 mb, wall, code = peak(["plan", str(src), *extra, *out])
-                poses = "-"
                 if suffix == ".csv" and code == 0:
                     with open(t / "out.csv", encoding="utf-8") as f:
                         poses = next(int(line.split(": ")[1]) for line in f if line.startswith("# samples: "))
@@ -106,6 +113,8 @@ def main() -> None:
                              f"{size:.0f}" if size == size else "-", f"{wall:.1f}", code])
                 for f in t.glob("out.*"):
                     f.unlink()
+            for row in rows[first:]:
+                row[2] = poses  # the job's poses (counted from its CSV)
     print("Peak resident memory of `planner plan` (MB); baseline: import + read the file in the same kind of process\n")
     print_table(["job", "output", "poses", "baseline MB", "peak MB (target < 300)", "above baseline MB", "output MB",
                  "wall s", "exit"], rows)
