@@ -32,16 +32,26 @@ def cell():
     sim.stop()
 
 
-def _robots(cell) -> str:
-    return json.dumps({"sim": {"sim": True, "sim_speed": 10, **FAST},
-                       "cell": {"host": cell.host, "model": "ur5e", **FAST},
-                       "big": {"host": "127.0.0.1", "model": "ur10e"}})
+@pytest.fixture(scope="module")
+def slow_cell():
+    """A second controller, configured with the driver's careful approach speed (0.3 rad/s)."""
+    sim = start_sim(model="ur5e")
+    yield sim
+    sim.stop()
+
+
+def _robots(cell, slow_cell=None) -> str:
+    robots = {"sim": {"sim": True, "sim_speed": 10, **FAST}, "cell": {"host": cell.host, "model": "ur5e", **FAST},
+              "big": {"host": "127.0.0.1", "model": "ur10e"}}
+    if slow_cell is not None:
+        robots["slow"] = {"host": slow_cell.host, "model": "ur5e", "approach_speed": 0.3, "approach_acceleration": 0.5}
+    return json.dumps(robots)
 
 
 @pytest.fixture(scope="module")
-def server(tmp_path_factory, cell):
+def server(tmp_path_factory, cell, slow_cell):
     s = ServiceProcess(tmp_path_factory.mktemp("executions"), workers=1, dev=False,
-                       env={"PLANNER_ROBOTS": _robots(cell)}).start()
+                       env={"PLANNER_ROBOTS": _robots(cell, slow_cell)}).start()
     s.operator = s.keys("create", "--name", "cell operator", "--role", "operator").split("key ")[1].split()[0]
     s.other = s.keys("create", "--name", "other operator", "--role", "operator").split("key ")[1].split()[0]
     s.planner = s.keys("create", "--name", "cam station", "--role", "planner").split("key ")[1].split()[0]
@@ -92,7 +102,7 @@ def test_program_on_the_simulated_robot_follows_the_plan_and_holds_the_robot(ser
     # one execution per robot: a second one is refused while the first runs; another robot is free
     again = op.post(f"/v1/jobs/{job_id}/executions", json={"robot": "sim", "mode": "program"})
     assert again.status_code == 409 and "busy" in again.json()["detail"]
-    assert _busy(op) == {"sim": True, "cell": False, "big": False}
+    assert _busy(op) == {"sim": True, "cell": False, "big": False, "slow": False}
     wait_until(lambda: len(server.children("planner-exec")) == 1, 10, "the execution's own process")
     seen = []
     while (v := op.get(f"/v1/executions/{eid}").json())["state"] not in ENDED:
@@ -141,7 +151,7 @@ def test_refusals_name_the_problem(server, op, demo_job):
     assert r.status_code == 422
     assert r.json()["detail"] == [{"loc": ["body", "robot"], "type": "value_error",
                                    "msg": "no robot named 'lab' in this service's configuration (configured: sim, "
-                                          "cell, big)"}]
+                                          "cell, big, slow)"}]
     r = op.post(url, json={"robot": "cell", "host": "10.0.0.9"})  # a request never carries a host
     assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "host"]
     r = op.post(url, json={"robot": "cell", "mode": "teach"})
@@ -216,6 +226,34 @@ def test_stop_brings_the_arm_to_rest_within_a_second(op, demo_job, cell):
 
 
 @pytest.mark.realtime
+def test_stop_during_the_approach_move_halts_the_arm_at_once(op, demo_job, slow_cell):
+    """The approach onto the job's start is one blocking joint move the driver's cancel does not reach: a stop then
+    halts the controller's program (dashboard "stop"); the execution ends cancelled with the driver's reason."""
+    eid = op.post(f"/v1/jobs/{demo_job['id']}/executions", json={"robot": "slow"}).json()["id"]
+    watch = rtde_receive.RTDEReceiveInterface(slow_cell.host)
+    try:
+        deadline = time.monotonic() + 30
+        while np.abs(watch.getActualQd()).max() < 0.05:  # the approach has begun (several seconds at 0.3 rad/s)
+            assert time.monotonic() < deadline, op.get(f"/v1/executions/{eid}").json()
+            time.sleep(0.01)
+        assert op.get(f"/v1/executions/{eid}").json()["state"] == "starting"
+        asked = time.monotonic()
+        out: dict = {}
+        th = threading.Thread(target=lambda: out.update(r=op.delete(f"/v1/executions/{eid}")))
+        th.start()
+        while np.abs(watch.getActualQd()).max() >= 1e-3:
+            assert time.monotonic() - asked < 1.0, "the arm still moves a second after the stop"
+            time.sleep(0.002)
+        th.join(15)
+    finally:
+        watch.disconnect()
+    view = out["r"].json()
+    assert view["state"] == "cancelled" and view["note"] == "stopped by the operator", view
+    assert view["error"]["reason"].startswith("move to the start") and view["error"]["t"] == 0.0
+    assert view["report"] is None and _busy(op)["slow"] is False
+
+
+@pytest.mark.realtime
 def test_a_crash_of_the_service_fails_the_execution_it_interrupted(tmp_path, cell):
     s = ServiceProcess(tmp_path, workers=1, env={"PLANNER_ROBOTS": _robots(cell)}).start()
     try:
@@ -252,6 +290,8 @@ def test_a_crash_of_the_service_fails_the_execution_it_interrupted(tmp_path, cel
     ('{"cell": {"sim": true, "io": "profinet"}}', "robot 'cell': io must be 'rtde' or 'modbus'"),
     ('{"a b": {"sim": true}}', "robot 'a b': a name is 1..32 of A-Z a-z 0-9 _ -"),
     ('{}', "at least one robot"),
+    ('{"a": {"host": "10.0.0.2", "model": "ur5e"}, "b": {"host": "10.0.0.2", "model": "ur5e"}}',
+     "robot 'b': host 10.0.0.2 is robot 'a''s already (one name per controller)"),
     ('{"cell": ', "PLANNER_ROBOTS: not JSON"),
 ])
 def test_robot_configuration_refusals_name_the_robot_and_field(text, message):

@@ -115,6 +115,9 @@ def robots_from_json(text: str, where: str = "PLANNER_ROBOTS") -> tuple[RobotCon
             if isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v <= top:
                 raise PlannerError(f"{at}: {key} must be a number within (0, {top:g}], got {v!r}")
             approach.append(float(v))
+        same = next((r for r in out if host is not None and r.host == host), None)
+        if same is not None:  # two names for one controller would let two executions drive one arm
+            raise PlannerError(f"{at}: host {host} is robot {same.name!r}'s already (one name per controller)")
         out.append(RobotConfig(name, host, model, io, port, float(speed), *approach))
     return tuple(out)
 

@@ -11,7 +11,9 @@ sends back messages over a pipe:
   ``("failed", error)`` (refused or failed before the run; ``error`` as :func:`error_figures`).
 
 A ``"stop"`` on the control pipe sets the driver's cancel event: the run ends with the arm stopped (a controlled
-stop) and the job's outputs off. The process ends with ``os._exit`` once its result is sent (ur_rtde 1.6.5 aborts
+stop) and the job's outputs off; before the run's loop has begun (connecting, or the approach move onto the job's
+start, which the cancel event does not reach), the controller's program is stopped through its dashboard server.
+The process ends with ``os._exit`` once its result is sent (ur_rtde 1.6.5 aborts
 the interpreter when it destroys interfaces whose connection dropped). Kept free of web and database imports.
 """
 
@@ -67,7 +69,31 @@ def report_figures(report) -> dict:
     })
 
 
-def run_execution(task: dict, send, cancel: threading.Event) -> None:
+class Phase:
+    """Where the execution is, for a stop arriving from the service: the controller's host once known, and whether
+    the run itself (the driver's loop, which watches the cancel event) has begun."""
+
+    def __init__(self) -> None:
+        self.host: str | None = None
+        self.running = False
+
+
+def stop_from_dashboard(host: str) -> None:
+    """Stop the controller's program through its dashboard server ("stop"): the arm halts. Used for a stop before the
+    run's loop has begun (the approach move onto the job's start is one blocking joint move the cancel event does not
+    reach)."""
+    import dashboard_client
+
+    dash = dashboard_client.DashboardClient(host)
+    try:
+        dash.connect(2000)
+        dash.stop()
+    finally:
+        with contextlib.suppress(Exception):
+            dash.disconnect()
+
+
+def run_execution(task: dict, send, cancel: threading.Event, phase: Phase | None = None) -> None:
     """Execute ``task`` (job_path, mode, robot: RobotConfig fields) and ``send`` its messages (module doc)."""
     from drivers.base import DriverError
     from drivers.cli import execute_job, start_sim
@@ -75,13 +101,13 @@ def run_execution(task: dict, send, cancel: threading.Event) -> None:
 
     robot = task["robot"]
     mode = task["mode"]
+    phase = phase or Phase()
     job = load_job(Path(task["job_path"]))
     last = [0.0]
-    started = [False]
 
     def progress(stage: str, done: int, total: int) -> None:
-        if not started[0]:
-            started[0] = True
+        if not phase.running:
+            phase.running = True
             send(("stage", "run"))
         t = time.monotonic()
         if t - last[0] >= PROGRESS_EVERY or done >= total:
@@ -97,6 +123,7 @@ def run_execution(task: dict, send, cancel: threading.Event) -> None:
             host, modbus_port = sim.host, sim.modbus_port or robot["modbus_port"]
         else:
             host, modbus_port = robot["host"], robot["modbus_port"]
+        phase.host = host
         if cancel.is_set():
             raise _cancelled()
         send(("stage", "connecting"))
@@ -129,21 +156,28 @@ def execution_main(control, results, parent_pid: int, task: dict) -> None:
     name_process("planner-exec")
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C goes to the service, which stops its executions
     cancel = threading.Event()
+    phase = Phase()
+
+    def stop() -> None:
+        cancel.set()
+        if not phase.running and phase.host is not None:  # connecting or on the approach move
+            with contextlib.suppress(Exception):
+                stop_from_dashboard(phase.host)
 
     def listen() -> None:
         while True:
             try:
                 msg = control.recv()
             except (EOFError, OSError):  # the service is gone: stop the arm
-                cancel.set()
+                stop()
                 return
             if msg == "stop":
-                cancel.set()
+                stop()
 
     threading.Thread(target=listen, name="execution-control", daemon=True).start()
     code = 0
     try:
-        run_execution(task, results.send, cancel)
+        run_execution(task, results.send, cancel, phase)
     except BaseException as exc:  # a bug of ours: say what, never a traceback to the client
         code = 1
         with contextlib.suppress(Exception):

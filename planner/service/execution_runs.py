@@ -182,8 +182,7 @@ class Runner(threading.Thread):
                 if stop_sent is not None and time.monotonic() - stop_sent > STOP_GRACE:
                     proc.kill()
                     result = ("failed", {"kind": "cancelled", "reason": f"{self._stop_reason}; the execution's "
-                                         f"process did not end within {STOP_GRACE:g} s and was killed (the "
-                                         "controller stops the arm when its connection drops)"})
+                                         f"process did not end within {STOP_GRACE:g} s and was killed"})
                     break
                 try:
                     msg = results_r.recv() if results_r.poll(0.05) else None
@@ -224,9 +223,10 @@ class Runner(threading.Thread):
             state = "done" if figures["ok"] else ("cancelled" if failure and failure["kind"] == "cancelled"
                                                   else "failed")
             self._finish(state, failure, report=figures)
-        else:
+        else:  # refused or failed before the run: after a stop (e.g. the approach move halted) it was cancelled
             error: dict = result[1]
-            self._finish("cancelled" if error["kind"] == "cancelled" else "failed", error)
+            stopped = error["kind"] == "cancelled" or self._stop_reason is not None
+            self._finish("cancelled" if stopped else "failed", error)
 
     def _finish(self, state: str, error: dict | None, report: dict | None = None) -> None:
         values: dict = {"state": state, "finished_at": now()}
