@@ -183,3 +183,21 @@ def test_selected_passes_keep_their_dwells(tmp_path):
     assert [m.kind for m in job.moves] == ["cut", "dwell"]  # the plunge of hole 2 and its dwell
     (d,) = [m for m in job.moves if m.kind == "dwell"]
     assert d.line == 5 and d.item.seconds == 0.5 and np.allclose(d.point, np.array([20, 0, -10]) * MM)
+
+
+def test_the_simulated_controller_waits_at_each_bottom(drill_job):
+    """The whole-job program run by the simulator's URScript interpreter (SimDriver, program mode): the arm
+    stands within a micrometre of each hole bottom for the dwell (plus the movep stop and the retract start)."""
+    from drivers.sim import SimDriver
+
+    with SimDriver(record=True) as d:
+        report = d.execute(drill_job, mode="program")
+        rec = d.recording
+    assert report.ok, report.describe()
+    assert report.duration == pytest.approx(drill_job.duration, rel=0.01)  # the three sleeps included
+    base = np.array(PART[:3])
+    for x, y, top, _ in HOLES:
+        bottom = base + np.array([x, y, top - 10]) * MM
+        at = np.flatnonzero(np.linalg.norm(rec["tcp"][:, :3] - bottom, axis=1) < 1e-6)
+        assert at.size and (np.diff(at) == 1).all()  # one visit
+        assert 0.5 <= rec["t"][at[-1]] - rec["t"][at[0]] < 0.55
