@@ -72,7 +72,7 @@ def robots_from_json(text: str, where: str = "PLANNER_ROBOTS") -> tuple[RobotCon
         raise PlannerError(f"{where}: must be a JSON object of robot name -> settings, with at least one robot")
     from planner.kinematics import get_model
 
-    out = []
+    out: list[RobotConfig] = []
     for name, spec in data.items():
         at = f"{where}: robot {name!r}"
         if not _ROBOT_NAME.match(name):

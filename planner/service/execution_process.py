@@ -31,6 +31,8 @@ from pathlib import Path
 PROGRESS_EVERY = 0.2
 #: I/O switches listed one by one in the figures (all are counted).
 IO_EVENTS_LISTED = 200
+#: Seconds between dashboard stops while a stopped execution has not reached its run's loop.
+DASHBOARD_STOP_EVERY = 0.25
 
 
 def error_figures(exc) -> dict:
@@ -76,6 +78,7 @@ class Phase:
     def __init__(self) -> None:
         self.host: str | None = None
         self.running = False
+        self.ended = threading.Event()
 
 
 def stop_from_dashboard(host: str) -> None:
@@ -133,6 +136,7 @@ def run_execution(task: dict, send, cancel: threading.Event, phase: Phase | None
     except DriverError as exc:
         send(("failed", error_figures(exc)))
     finally:
+        phase.ended.set()
         if sim is not None:
             with contextlib.suppress(Exception):
                 sim.stop()
@@ -158,11 +162,20 @@ def execution_main(control, results, parent_pid: int, task: dict) -> None:
     cancel = threading.Event()
     phase = Phase()
 
+    def halt_until_the_run_ends() -> None:
+        # connecting or on the approach move: halt the program now, and again until the driver gives up (a move
+        # it starts right after a halt is halted too); from the run's loop on, the cancel event stops it
+        while not phase.running and not phase.ended.is_set():
+            if phase.host is not None:
+                with contextlib.suppress(Exception):
+                    stop_from_dashboard(phase.host)
+            phase.ended.wait(DASHBOARD_STOP_EVERY)
+
     def stop() -> None:
+        if cancel.is_set():
+            return
         cancel.set()
-        if not phase.running and phase.host is not None:  # connecting or on the approach move
-            with contextlib.suppress(Exception):
-                stop_from_dashboard(phase.host)
+        threading.Thread(target=halt_until_the_run_ends, name="execution-halt", daemon=True).start()
 
     def listen() -> None:
         while True:
