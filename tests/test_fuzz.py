@@ -22,6 +22,7 @@ Bounded so the default run takes well under a minute. ``HYPOTHESIS_PROFILE=fuzz`
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import io
 import json
 import math
@@ -333,9 +334,22 @@ def _fuzz_one(fmt: str, ops, opts, suffix: str, existing: bool = False) -> tuple
             argv += [f"{flag}={value}"]
         if suffix == ".script":
             argv += ["--robot", "ur5e", "--part-frame", "0.4,0.9965,-0.1,0,0,0"]
-        rc, stdout, stderr = run_in_process(argv)
-        check_contract(src, argv, out, rc, stdout, stderr, existing)
+        try:
+            rc, stdout, stderr = run_in_process(argv)
+            check_contract(src, argv, out, rc, stdout, stderr, existing)
+        except (AssertionError, pytest.fail.Exception) as exc:
+            raise AssertionError(f"{exc}\n{_reproducer(fmt, ops, opts, data)}") from None
     return rc, stderr
+
+
+def _reproducer(fmt: str, ops, opts, data: bytes) -> str:
+    """Where the failing input is kept, and how it was made (this pytest/hypothesis setup prints the falsifying
+    example's arguments empty, so the message carries them)."""
+    folder = Path(tempfile.gettempdir()) / "planner-fuzz-failures"
+    folder.mkdir(exist_ok=True)
+    path = folder / f"{hashlib.sha1(data).hexdigest()[:12]}-{SEEDS[fmt][0]}"
+    path.write_bytes(data)
+    return f"reproducer: {path} (seed {fmt}, mutations {list(ops)!r}, options {list(opts)!r})"
 
 
 FUZZ_SETTINGS = settings(max_examples=EXAMPLES, deadline=None, derandomize=not FUZZ,
@@ -361,7 +375,10 @@ def test_planner_fit_keeps_the_contract(fmt, ops, method, units):
         src = Path(tmp) / name
         src.write_bytes(mutate(seed, ops))
         argv = ["fit", str(src), "--method", method] + ([] if units is None else ["--units", units])
-        rc, stdout, stderr = run_in_process(argv)
+        try:
+            rc, stdout, stderr = run_in_process(argv)
+        except pytest.fail.Exception as exc:
+            raise AssertionError(f"{exc}\n{_reproducer(fmt, ops, (), mutate(seed, ops))}") from None
         event(f"exit {rc}")
         cmd = f"planner {' '.join(argv)}"
         assert "Traceback" not in stdout + stderr and "encountered in" not in stdout, cmd
