@@ -150,6 +150,10 @@ def cmd_run(args: argparse.Namespace) -> int:
 
         check_plot_target(args.plot)  # before planning and moving: a PlannerError (exit 2)
     settings = settings_from_args(args)
+    robot = settings.robot
+    if robot is None:  # (--robot none is refused above)
+        print("planner run: error: --robot MODEL is needed to execute a job", file=sys.stderr)
+        return 2
     bars = _Progress(args.progress or sys.stderr.isatty())
     read_options = {k: v for k, v in (("units", args.units), ("machine", args.machine)) if v} or None
     try:
@@ -161,12 +165,12 @@ def cmd_run(args: argparse.Namespace) -> int:
     try:
         if args.sim:
             try:
-                sim = start_sim(settings.robot, host=args.host, modbus=args.io == "modbus", speed=args.sim_speed)
+                sim = start_sim(robot, host=args.host, modbus=args.io == "modbus", speed=args.sim_speed)
             except DriverError as exc:
                 print(f"planner run: error: {exc}", file=sys.stderr)
                 return 1
             host, modbus_port = sim.host, sim.modbus_port or 502  # no Modbus server without --io modbus
-            print(f"simulated {settings.robot} controller on {host}", flush=True)
+            print(f"simulated {robot} controller on {host}", flush=True)
         else:
             host, modbus_port = args.host, 502
         if args.modbus_port is not None:

@@ -300,14 +300,32 @@ def new_recording(job, planned):
     return Recording(pp[:, :3], job.settings.robot, float(ps[-1]) if ps.size else 0.0)
 
 
+def planned_switches(times: np.ndarray, io: np.ndarray) -> list[tuple[int, bool, int]]:
+    """(bit, value, index) of the planned switches of a trajectory's I/O column: every change of a bit, except a
+    change undone one sample later (the trajectory's output is off for the one sample between two cuts joined at a
+    corner: the drivers keep it on, :class:`drivers.stations.Stations`)."""
+    from drivers.stations import BLIP
+
+    sw = _switches(times, io, 0)
+    dropped: set[int] = set()
+    last: dict[int, int] = {}  # bit -> index in sw of its last switch kept
+    for n, (b, v, i) in enumerate(sw):
+        j = last.pop(b, None)
+        if j is not None and i - sw[j][2] <= BLIP and sw[j][1] != v:
+            dropped.update((j, n))  # undone at once: no switch
+            continue
+        last[b] = n
+    return [x for n, x in enumerate(sw) if n not in dropped]
+
+
 def _io_events(t, tcp, io, pt, pp, pio, ps) -> list[IOSwitch]:
     """Planned switches matched, bit by bit and in order, with the recorded ones."""
-    planned = _switches(pt, pio, 0)
+    planned = planned_switches(pt, pio)
     actual = _switches(t, io, 0)  # the driver clears the job's outputs before the run
-    act_by = {}
+    act_by: dict[tuple[int, bool], list[int]] = {}
     for b, v, i in actual:
         act_by.setdefault((b, v), []).append(i)
-    used = {}
+    used: dict[tuple[int, bool], int] = {}
     out = []
     for b, v, i in planned:
         station = pp[i]

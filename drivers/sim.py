@@ -35,7 +35,7 @@ import numpy as np
 from drivers.base import DriverError, NotReadyError, ProtectiveStopError, RobotState
 from drivers.jobs import check_job, output_mask, stop_requested
 from drivers.report import ExecutionReport, distance_to_polyline, execution_report, new_recording, planned_path
-from drivers.stations import Station
+from drivers.stations import Station, Stations
 from sim.core import RUNTIME_PAUSED, RUNTIME_PLAYING, RUNTIME_STOPPED, SAFETY_PROTECTIVE_STOP, Core
 from sim.io_state import IOState
 from sim.motion import DT, MotionError, Segment
@@ -51,7 +51,8 @@ class _Recorder:
         self.rec = rec
         self.keep = keep
         self.lists: list[list] = [[], [], [], [], []]
-        self.last_x: np.ndarray | None = None
+        self.n = 0  # samples so far
+        self.last_x = np.full(6, np.nan)  # the last sample's TCP pose
 
     def sample(self, core, t: float) -> None:
         m = core.motion
@@ -60,6 +61,7 @@ class _Recorder:
         bits = core.io.digital_out
         self.rec.add(t, x, q, bits)
         self.last_x = x
+        self.n += 1
         if self.keep:
             for lst, v in zip(self.lists, (t, m.commanded.copy(), q, x, bits), strict=True):
                 lst.append(v)
@@ -136,12 +138,12 @@ class SimDriver:
     def connect(self) -> None:
         """Start the in-process controller (arm at ``q0``, powered, brakes released, no program)."""
         if self.core is None:
-            self.core = Core(self.model, IOState())
+            core = self.core = Core(self.model, IOState())
             if self.q0 is not None:
-                self.core.motion._check_q(self.q0, "q0")
-                self.core.motion.q = self.q0.copy()
-                self.core.motion.servo_target = self.q0.copy()
-                self.core.motion.servo_filtered = self.q0.copy()
+                core.motion._check_q(self.q0, "q0")
+                core.motion.q = self.q0.copy()
+                core.motion.servo_target = self.q0.copy()
+                core.motion.servo_filtered = self.q0.copy()
 
     def close(self) -> None:
         """Drop the in-process controller (the arm's state goes with it)."""
@@ -170,7 +172,7 @@ class SimDriver:
                 program_running=core.runtime_state == RUNTIME_PLAYING, digital_out=core.io.digital_out)
 
     def _fault(self) -> DriverError | None:
-        core = self.core
+        core = self._need()
         if core.safety_mode == SAFETY_PROTECTIVE_STOP:
             text = next((m for _, src, m in reversed(core.log) if src == "Safety"), "protective stop")
             return ProtectiveStopError(text)
@@ -188,7 +190,7 @@ class SimDriver:
     # ---- the clock ----------------------------------------------------------------------------------
     def _tick(self, n: int = 1) -> None:
         """``n`` control periods; paced to the wall clock when ``speed`` is finite."""
-        core = self.core
+        core = self._need()
         with core.lock:
             for _ in range(n):
                 core.tick()
@@ -199,7 +201,7 @@ class SimDriver:
 
     def _start_clock(self) -> None:
         self._wall0 = time.perf_counter()
-        self._sim0 = self.core.time
+        self._sim0 = self._need().time
 
     # ---- motions ------------------------------------------------------------------------------------
     def move_to_start(self, job, *, speed: float = 0.5, acceleration: float = 0.5) -> None:
@@ -296,7 +298,7 @@ class SimDriver:
 
     def _halt(self, failure: DriverError, mask: int) -> None:
         """After a failure: a controlled stop of a moving arm (a faulted one is halted already), outputs off."""
-        core = self.core
+        core = self._need()
         with core.lock:
             if self._mode == "program":
                 core.stop_program()
@@ -308,7 +310,7 @@ class SimDriver:
             core.io.set_digital_out(mask, 0)
 
     def _stream(self, job, planned, mask, progress, cancel):
-        core = self.core
+        core = self._need()
         m = core.motion
         pt, pp = planned[0], planned[1][:, :3]  # planned positions (planned_path gives whole poses)
         total = pt.size
@@ -318,16 +320,10 @@ class SimDriver:
         rec = _Recorder(new_recording(job, planned), self.record)
         failure = None
         prev_io = 0
-        pending: list = []  # output switches whose station the actual TCP has not reached yet
+        stations = Stations(core.io.set_digital_out)  # switches whose station the actual TCP has not reached yet
         k = 0
         report_every = max(1, int(rate // 10))
         t_last, q_last = 0.0, None
-
-        def switch_reached() -> None:
-            x = rec.last_x
-            while pending and pending[0].reached(x, k):
-                ev = pending.pop(0)
-                core.io.set_digital_out(ev.mask, ev.value)
 
         try:
             for chunk in job.trajectory(rate).chunks():
@@ -344,12 +340,12 @@ class SimDriver:
                         except MotionError as exc:
                             core.protective_stop(str(exc))
                     if ios[i] != prev_io and not paused:
-                        pending.append(Station.on_path(k, ios[i] ^ prev_io, ios[i], pp, k, rate=rate))
+                        stations.add(Station.on_path(k, ios[i] ^ prev_io, ios[i], pp, k, rate=rate))
                         prev_io = ios[i]
                     self._tick(ticks)
                     t_last, q_last = times[i], qs[i]
                     rec.sample(core, t_last)
-                    switch_reached()
+                    stations.reached(rec.last_x, k)
                     f = self._fault()
                     if f is not None:
                         raise f
@@ -365,13 +361,11 @@ class SimDriver:
                     if j < n_settle and q_last is not None:
                         m.servo(q_last, dt, self.lookahead, self.gain)
                     elif j == n_settle:
-                        while pending:
-                            ev = pending.pop(0)
-                            core.io.set_digital_out(ev.mask, ev.value)
+                        stations.flush()
                         m.plan_stop(self.deceleration, linear=True)
                 self._tick(ticks)
                 rec.sample(core, t_last + (j + 1) * dt)
-                switch_reached()
+                stations.reached(rec.last_x, k)
             while m.busy:  # the rest of the controlled stop, if any
                 self._tick()
             if progress is not None:
@@ -384,7 +378,7 @@ class SimDriver:
     def _program(self, job, planned, mask, progress, cancel):
         from planner.export import job_program
 
-        core = self.core
+        core = self._need()
         pt, pp = planned[0], planned[1][:, :3]  # planned positions (planned_path gives whole poses)
         text = job_program(job)
         rec = _Recorder(new_recording(job, planned), self.record)
@@ -428,7 +422,7 @@ class SimDriver:
             if progress is not None:
                 progress("execute", pt.size, pt.size)
         except DriverError as exc:
-            if rec.last_x is not None and pp.size and not isinstance(exc, ProgramError):
+            if rec.n and pp.size and not isinstance(exc, ProgramError):
                 k = int(distance_to_polyline(np.asarray(rec.last_x[:3])[None], pp)[1][0])
             failure = self._locate(exc, k, job, planned)
             self._halt(failure, mask)

@@ -19,10 +19,12 @@ given.
 
 from __future__ import annotations
 
+import gc
 import socket
 import sys
 import threading
 import time
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -40,6 +42,9 @@ from drivers.jobs import check_job, output_mask, stop_requested
 from drivers.pacing import Schedule
 from drivers.report import ExecutionReport, distance_to_polyline, execution_report, new_recording, planned_path
 from drivers.stations import Station, Stations
+
+if TYPE_CHECKING:  # pragma: no cover
+    from drivers.modbus_io import ModbusToolIO
 
 #: RTDE safety_status_bits: protective stop (bit 2), robot / system emergency stop (bits 7, 8), safeguard (3).
 _BIT_PROTECTIVE = 1 << 2
@@ -154,7 +159,11 @@ class URDriver:
                              f"(0, 40] rad/s^2, got {approach_speed!r}, {approach_acceleration!r}")
         self.approach_speed = float(approach_speed)
         self.approach_acceleration = float(approach_acceleration)
-        self._r = self._c = self._io = self._dash = None
+        # ur_rtde's interfaces (no type information: Any), None when not connected
+        self._r: Any | None = None  # rtde_receive.RTDEReceiveInterface
+        self._c: Any | None = None  # rtde_control.RTDEControlInterface
+        self._dash: Any | None = None  # dashboard_client.DashboardClient
+        self._io: RTDEOutputs | ModbusToolIO | None = None
         self._paused = threading.Event()
         self._stop = threading.Event()
         self._mode: str | None = None
@@ -175,9 +184,9 @@ class URDriver:
         except RuntimeError as exc:
             raise ConnectionLostError(f"cannot connect to the controller at {self.host} (RTDE): {exc}") from exc
         try:
-            self._dash = dashboard_client.DashboardClient(self.host)
-            self._dash.connect()
-            remote = self._dash.isInRemoteControl()
+            dash = self._dash = dashboard_client.DashboardClient(self.host)
+            dash.connect()
+            remote = dash.isInRemoteControl()
         except RuntimeError as exc:
             self.close()
             raise ConnectionLostError(f"cannot connect to the dashboard server at {self.host}: {exc}") from exc
@@ -194,8 +203,9 @@ class URDriver:
             if self.io_kind == "modbus":
                 from drivers.modbus_io import ModbusToolIO
 
-                self._io = ModbusToolIO(self.host, self.modbus_port)
-                self._io.connect()
+                mio = ModbusToolIO(self.host, self.modbus_port)
+                self._io = mio
+                mio.connect()
             else:
                 self._io = RTDEOutputs(self.host)
         except (RuntimeError, OSError) as exc:
@@ -249,10 +259,23 @@ class URDriver:
     def __exit__(self, *exc) -> None:
         self.close()
 
-    def _need(self):
+    def _need(self) -> Any:
+        """The receive interface (ConnectionLostError when not connected)."""
         if self._r is None:
             raise ConnectionLostError(f"not connected to {self.host}: call connect() first")
         return self._r
+
+    def _control(self) -> Any:
+        """The control interface (ConnectionLostError when not connected)."""
+        if self._c is None:
+            raise ConnectionLostError(f"no control connection to {self.host}: call connect() first")
+        return self._c
+
+    def _outputs(self) -> RTDEOutputs | ModbusToolIO:
+        """The job's output interface (ConnectionLostError when not connected)."""
+        if self._io is None:
+            raise ConnectionLostError(f"no I/O connection to {self.host}: call connect() first")
+        return self._io
 
     # ---- state ----------------------------------------------------------------------------------------
     def state(self) -> RobotState:
@@ -320,7 +343,7 @@ class URDriver:
     def move_to_start(self, job, *, speed: float = 0.5, acceleration: float = 0.5) -> None:
         """A joint move (rad/s, rad/s^2) onto ``job.start_joints``: the arm configuration the planner chose."""
         self._check_job(job)
-        self._need()
+        r = self._need()
         self._check_state()
         if self._c is None or not self._c.isProgramRunning():
             if self._c is not None:
@@ -329,7 +352,7 @@ class URDriver:
                 self._connect_control()
         q0 = [float(x) for x in job.start_joints]
         try:
-            ok = self._c.moveJ(q0, float(speed), float(acceleration))
+            ok = self._control().moveJ(q0, float(speed), float(acceleration))
         except RuntimeError as exc:
             raise ConnectionLostError(f"the move to the start failed: {exc}") from exc
         err = self._fault()
@@ -337,7 +360,13 @@ class URDriver:
             err = err or DriverError("the controller did not complete the move to the start joints")
             raise type(err)(f"move to the start: {err.reason}", t=0.0, pose=self._first_pose(job),
                             line=self._first_line(job))
-        q = np.asarray(self._r.getActualQ())
+        # the control interface's "done" and the receive interface's data come over two connections: the joints
+        # read may be a package or two older than the end of the move (more so in fast-forward)
+        end = time.monotonic() + 0.5
+        q = np.asarray(r.getActualQ())
+        while np.abs(q - q0).max() > 1e-3 and time.monotonic() < end:
+            time.sleep(0.004)
+            q = np.asarray(r.getActualQ())
         if np.abs(q - q0).max() > 1e-3:
             raise DriverError(f"the move to the start ended {np.abs(q - q0).max():.4f} rad from the start joints",
                               t=0.0, pose=self._first_pose(job))
@@ -398,7 +427,7 @@ class URDriver:
             self.move_to_start(job, speed=self.approach_speed, acceleration=self.approach_acceleration)
             mask = output_mask(planned[2])
             if mask:
-                self._io.set_bits(mask, 0)
+                self._outputs().set_bits(mask, 0)
             self._mode = mode
             try:
                 if mode == "stream":
@@ -429,12 +458,13 @@ class URDriver:
     def _confirm_outputs(self, mask: int, value: int, timeout: float = 1.0) -> bool:
         """Wait (at most ``timeout`` s) until the controller's actual output bits under ``mask`` read ``value``:
         an output command is a message, applied and reported back a control period or two later. True if so."""
-        if not mask or self._r is None or self._lost:
+        r = self._r
+        if not mask or r is None or self._lost:
             return True
         end = time.monotonic() + timeout
         try:
-            while (int(self._r.getActualDigitalOutputBits()) & mask) != (value & mask):
-                if time.monotonic() > end or not self._r.isConnected():
+            while (int(r.getActualDigitalOutputBits()) & mask) != (value & mask):
+                if time.monotonic() > end or not r.isConnected():
                     return False
                 time.sleep(0.002)
         except RuntimeError:
@@ -444,14 +474,14 @@ class URDriver:
     def _read(self) -> tuple:
         """One period's reading of the receive interface: (timestamp, tcp pose, joints, output bits, safety status
         bits, safety mode, robot mode, runtime state). Kept as the run's snapshot for :meth:`state`."""
-        r = self._r
+        r = self._need()
         snap = (r.getTimestamp(), r.getActualTCPPose(), r.getActualQ(), r.getActualDigitalOutputBits(),
                 r.getSafetyStatusBits(), r.getSafetyMode(), r.getRobotMode(), r.getRuntimeState())
         self._snap = snap
         return snap
 
     def _stream(self, job, planned, mask, progress, cancel, feed):
-        c, r = self._c, self._r
+        c, r = self._control(), self._need()
         pt, pp, _, plines, _ = planned
         total = pt.size
         rate = float(job.settings.rate)
@@ -461,7 +491,7 @@ class URDriver:
         t_rec = 0.0
         failure = None
         prev_io = 0
-        stations = Stations(self._io.set_bits)  # output switches whose station the actual TCP has not reached yet
+        stations = Stations(self._outputs().set_bits)  # switches whose station the actual TCP has not reached yet
         k = 0  # sample being commanded (job-wide)
         ts0 = None
         q_last = None
@@ -473,6 +503,11 @@ class URDriver:
         # the target feed's thread computes ahead: a short switch interval hands the GIL back to this loop within
         # 0.2 ms of its deadline (the default 5 ms would be two and a half control periods)
         sys.setswitchinterval(2e-4)
+        # no cyclic garbage collection during the stream: a full collection walks every object of the process (tens
+        # of ms, more on a loaded machine) and the loop's objects are freed by reference counting anyway
+        gc_enabled = gc.isenabled()
+        gc.disable()
+        gc.freeze()
         try:
             last = sched.start()
             for sl in feed:
@@ -538,6 +573,9 @@ class URDriver:
                                    k, pt, pp, plines)
         finally:
             sys.setswitchinterval(switch)
+            gc.unfreeze()
+            if gc_enabled:
+                gc.enable()
         if isinstance(failure, ConnectionLostError):
             self._lost = True
         if failure is not None:
@@ -548,8 +586,9 @@ class URDriver:
         return rec, failure, sched.stats()
 
     def _not_running_reason(self) -> str:
+        state = self._need().getRuntimeState()
         return ("the program on the robot stopped (runtime state "
-                f"{'STOPPED' if self._r.getRuntimeState() == 1 else self._r.getRuntimeState()}): "
+                f"{'STOPPED' if state == 1 else state}): "
                 "a stop from the dashboard or the pendant")
 
     @staticmethod
@@ -560,18 +599,19 @@ class URDriver:
 
     def _halt(self, failure: DriverError) -> None:
         """Bring the arm to rest after a failure (nothing to do when the connection or the program is gone)."""
-        if isinstance(failure, ConnectionLostError) or self._c is None:
+        c, r = self._c, self._r
+        if isinstance(failure, ConnectionLostError) or c is None or r is None:
             return
         try:
             if self._mode == "stream":
-                self._c.servoStop(self.deceleration)
-            elif self._r.getRuntimeState() in (_PLAYING, _PAUSED) and self._dash is not None:
+                c.servoStop(self.deceleration)
+            elif r.getRuntimeState() in (_PLAYING, _PAUSED) and self._dash is not None:
                 self._dash.stop()
         except RuntimeError:
             pass
         try:
             end = time.monotonic() + 2.0
-            while time.monotonic() < end and np.abs(self._r.getActualQd()).max() > 1e-4:
+            while time.monotonic() < end and np.abs(r.getActualQd()).max() > 1e-4:
                 time.sleep(0.01)
         except RuntimeError:
             pass
@@ -581,10 +621,10 @@ class URDriver:
 
         from planner.export import job_program
 
-        r = self._r
+        r, c = self._need(), self._control()
         pt, pp, _, plines, ps = planned
         text = job_program(job)
-        self._c.stopScript()  # hand the arm from ur_rtde's control script to the job's program
+        c.stopScript()  # hand the arm from ur_rtde's control script to the job's program
         tree = cKDTree(pp[:, :3]) if pp.size else None
         rec = new_recording(job, planned)
         x = None
@@ -646,7 +686,7 @@ class URDriver:
             self._safe_off(mask)
         if not isinstance(failure, ConnectionLostError):
             try:
-                self._c.reuploadScript()  # ur_rtde's control script back, for the next move
+                c.reuploadScript()  # ur_rtde's control script back, for the next move
             except RuntimeError:
                 pass
         return rec, failure

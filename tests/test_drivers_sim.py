@@ -328,3 +328,60 @@ def test_long_stream_memory_is_bounded_by_the_plan_not_the_recording():
         assert r["error"] < 0.2e-3 and len(r["io"]) == 2 and max(r["io"]) < 1.0
     growth = (long["rss_kib"] - short["rss_kib"]) * 1024 / (long["n"] - short["n"])
     assert growth < 400, f"{growth:.0f} bytes per sample"
+
+
+def reconfiguring_job(tmp_path):
+    """Real NX passes of lines 20238-20330 at 10x their feed (18 s): three passes, then the arm changes its
+    configuration by a joint move (3.8 s) before the rapid at line 20299 and the pass after it
+    (tests/test_cam_reconfigure.py shows why), the cut output on standard DO 0 during the cuts."""
+    from tests.test_cam_reconfigure import NX_PART, _nx_excerpt
+
+    src = tmp_path / "ust_a2_20238.cls"
+    src.write_text(_nx_excerpt(20238, 20330))
+    job = plan(src, PlanSettings(path="cam", feed=0.05, part_frame=NX_PART, robot="ur5e", feed_override=10.0,
+                                 cut_output=("standard", 0)))
+    assert job.reachable and not job.problems and len(job.reconfigurations) == 1
+    assert job.duration < 20.0
+    return job
+
+
+#: servoJ lookahead of the reconfiguring job's runs: at 10x the feed (0.5 m/s) the default 0.1 s lags 0.3 mm off
+#: the path at the end of a pass; 0.05 s keeps it within 0.2 mm.
+RECONF_LOOKAHEAD = 0.05
+
+
+def check_reconfigured_run(job, report, t, actual_q, commanded_q=None) -> None:
+    """A stream run of ``reconfiguring_job`` (lookahead RECONF_LOOKAHEAD): no fault, every pass within 0.2 mm of
+    its planned path, every output switch within 1 mm of its station, and the joint move of the reconfiguration
+    made (the arm's joints follow the planned ones through it, within the servo's following error, and end on
+    the new configuration)."""
+    assert report.ok, report.describe()
+    assert report.max_path_error <= 0.2e-3, report.describe()
+    n_cuts = sum(1 for m in job.moves if m.kind == "cut")
+    assert 2 <= len(report.io_events) <= 2 * n_cuts
+    assert all(e.switched and e.distance_mm <= 1.0 for e in report.io_events), report.describe()
+    moves = job.trajectory().moves()
+    (mv,) = [m for m in moves if m["kind"] == "reconfiguration"]
+    q_from, q_to = np.asarray(mv["q_from"]), np.asarray(mv["q_to"])
+    assert np.abs(q_to - q_from).max() > 1.0  # a real change of configuration, not a small adjustment
+    Q = planned_joints(job)
+    bound = servo_following_error(float(np.abs(np.diff(Q, axis=0)).max() / DT), RECONF_LOOKAHEAD, GAIN)
+    rate = job.settings.rate
+    t0, t1 = mv["t_start"], mv["t_start"] + mv["duration_s"]
+    # through the joint move (and half a second either side) the joints follow the planned ones within the
+    # servo's following error: time-aligned on the job clock
+    window = (t > t0 - 0.5) & (t < t1 + 0.5)
+    assert window.sum() > 0.9 * (t1 - t0 + 1.0) * rate
+    k = np.clip(np.round(t[window] * rate).astype(int), 0, len(Q) - 1)
+    assert np.abs(actual_q[window] - Q[k]).max() <= bound
+    assert np.abs(actual_q[-1] - Q[-1]).max() < 1e-3  # at rest on the job's last joints: the new configuration
+    if commanded_q is not None:
+        assert np.abs(actual_q - commanded_q).max() <= bound
+
+
+def test_stream_whole_job_with_a_reconfiguration(tmp_path):
+    job = reconfiguring_job(tmp_path)
+    with SimDriver(record=True, lookahead=RECONF_LOOKAHEAD) as d:
+        rep = d.execute(job)
+        rec = d.recording
+    check_reconfigured_run(job, rep, rec["t"], rec["actual_q"], rec["target_q"])

@@ -362,3 +362,32 @@ def test_whole_nx_job_excerpt_program_in_fast_forward(make_sim, tmp_path):
     assert rep.max_path_error <= job.settings.tolerance, rep.describe()
     assert len(rep.io_events) == 14 and all(e.switched for e in rep.io_events)
     assert rep.duration == pytest.approx(rep.planned_duration, rel=0.02)
+
+
+def test_stream_whole_job_with_a_reconfiguration(make_sim, tmp_path):
+    """A real NX excerpt whose plan changes the arm's configuration between passes (18 s at 10x feed, see
+    tests/test_drivers_sim.py::reconfiguring_job) streamed through real ur_rtde into the simulated controller:
+    every pass within 0.2 mm, every output switch within 1 mm of its station, no fault, and the joint move made
+    (the controller's recording: its actual joints through the move and at the end, on the new configuration)."""
+    from sim import recording
+    from tests.test_drivers_sim import RECONF_LOOKAHEAD, check_reconfigured_run, reconfiguring_job
+
+    job = reconfiguring_job(tmp_path)
+    path = tmp_path / "ctrl.npz"
+    sim = make_sim(record=path)
+    with URDriver(sim.host, "ur5e", lookahead=RECONF_LOOKAHEAD, **FAST) as d:
+        rep = d.execute(job)
+        q_end = np.asarray(d.state().joints)
+    sim.stop()
+    ctrl = recording.load(path)
+    # each control period's job time: that of the target it was executing (a late target holds the one before)
+    Q = np.concatenate([c.joints for c in job.trajectory().chunks()])
+    index = {q.tobytes(): k for k, q in enumerate(Q)}
+    ks = np.array([index.get(q.tobytes(), -1) for q in ctrl.target_q])
+    keep = np.zeros(len(ks), bool)
+    keep[int(np.flatnonzero(ks >= 1)[0]):] = True
+    keep &= ks >= 0
+    t = ks / job.settings.rate
+    check_reconfigured_run(job, rep, t[keep], ctrl.actual_q[keep])
+    np.testing.assert_allclose(q_end, Q[-1], atol=1e-3)
+    assert rep.loop is not None and rep.loop.n > 0.95 * len(Q)
