@@ -115,7 +115,7 @@ def test_upload_a_clsf_file_for_a_robot_and_a_refused_input(server, browser):
     assert "ur5e: every move reachable" in d.find_element("id", "summary").text
     wait(d, lambda d: len(d.find_elements("id", "download-script")) == 1)
     # run it on the simulated robot (program mode, fast-forward): progress, then the execution report
-    assert d.find_element("id", "exec-robot").text.strip() == "sim (simulated)"
+    wait(d, lambda d: d.find_element("id", "exec-robot").text.strip() == "sim (simulated)", 30)  # from /v1/robots
     d.find_element("id", "execute").click()
     wait(d, lambda d: d.find_element("id", "exec-state").text in ("starting", "running", "done"), 30)
     seen = set()
