@@ -1,7 +1,8 @@
 """Plots drawn in a process of their own, never in the service process (matplotlib is slow to import, holds a
 global lock and would stall the event loop's threads): :class:`Plotter` keeps one spawned process
-(``concurrent.futures.ProcessPoolExecutor``) that loads a saved job and writes the picture ``planner plan --plot``
-draws, atomically, beside the saved job. Requests for a picture being drawn share its future.
+(``concurrent.futures.ProcessPoolExecutor``, started on the first picture asked for) that loads a saved job and
+writes the picture ``planner plan --plot`` draws, atomically, beside the saved job. Requests for a picture being
+drawn share its future.
 
 Kept free of web and database imports (the drawing process imports only the planner).
 """
@@ -60,9 +61,10 @@ class Plotter:
         self._inflight: dict[str, Future] = {}
 
     def start(self) -> None:
+        """Ready to draw: the drawing process itself is started by the first picture asked for (a service that
+        draws none keeps no matplotlib process)."""
         with self._lock:
             self._pool = self._new_pool()
-        self._pool.submit(os.getpid)  # start the process (and its imports) now
 
     def _new_pool(self) -> ProcessPoolExecutor:
         return ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn"), initializer=_start,
