@@ -89,6 +89,8 @@ def _pose(text: str | None, name: str):
     """``--part-frame`` / ``--tcp`` text -> 6 floats (m, rad), or PlannerError naming the option."""
     if text is None:
         return None
+    if name == "--part-frame" and text.strip().lower() == "auto":
+        return "auto"  # placed for the robot by the planner (PlanSettings.part_frame = "auto")
     try:
         v = [float(x) for x in text.split(",")]
     except ValueError:
@@ -422,7 +424,8 @@ def add_plan_options(p: argparse.ArgumentParser, *, outputs: bool = True) -> Non
                    help=f"speed of rapid moves, mm/s (default {D.rapid_speed * 1e3:g})")
     p.add_argument("--rate", type=Number, default=D.rate, help="controller rate in Hz (500 e-Series, 125 CB)")
     p.add_argument("--robot", default="none", help="ur3e, ur5e, ur10e, ur16e, ur20, or none (default)")
-    p.add_argument("--part-frame", help="part frame in the robot base: x,y,z,rx,ry,rz (m, rad)")
+    p.add_argument("--part-frame", help="part frame in the robot base: x,y,z,rx,ry,rz (m, rad), or auto (the part "
+                                        "placed for the robot with the largest joint-limit and singularity margins)")
     p.add_argument("--tcp", help="tool centre point in the flange frame: x,y,z,rx,ry,rz (m, rad)")
     p.add_argument("--cut-output", help="digital output on during every cut, KIND:PIN (standard:0, tool:1, ...)")
     p.add_argument("--pass", dest="pass_index", help="plan only passes K[,K...] or 'longest' (default: all)")

@@ -133,3 +133,12 @@ def test_settings_hold_plain_floats_that_pickle():
         assert type(getattr(s, name)) is float, name
     assert pickle.loads(pickle.dumps(s)) == s
     assert type(pickle.loads(pickle.dumps(Number("2.5")))) is float
+
+
+def test_part_frame_auto():
+    p = _subparser("plan")
+    assert settings_from_args(p.parse_args([MISSING, "--part-frame", "auto", "--robot", "ur5e"])).part_frame == "auto"
+    with pytest.raises(PlannerError, match="places the part for a robot"):
+        settings_from_args(p.parse_args([MISSING, "--part-frame", "auto"]))
+    with pytest.raises(PlannerError, match="^--tcp auto: must be six numbers"):
+        settings_from_args(p.parse_args([MISSING, "--tcp", "auto"]))
