@@ -74,6 +74,15 @@ def _check_arguments(toolpath, settings) -> None:
                            f"{type(settings).__name__}")
 
 
+def _per_minute(v: float, units: str) -> str:
+    """A feed (m/s) per minute in the file's length unit, as CAM files give feeds."""
+    if units == "inch":
+        return f"{v / 0.0254 * 60.0:.3g} in/min"
+    if units == "m":
+        return f"{v * 60.0:.3g} m/min"
+    return f"{v * 6e4:.3g} mm/min"
+
+
 def _where(toolpath, i: int) -> str:
     return f"{toolpath.source} line {int(toolpath.lines[i])}"
 
@@ -159,7 +168,8 @@ def check_budget(toolpath, settings) -> Budget:
                       (cut & (f * settings.feed_override > MAX_FEED), f"above {MAX_FEED:g} m/s")):
         if bad.any():
             i = int(np.argmax(bad)) + 1
-            raise BudgetError(f"{_where(toolpath, i)}: feed {f[i - 1] * settings.feed_override:.3g} m/s is {what}: "
+            v = f[i - 1] * settings.feed_override
+            raise BudgetError(f"{_where(toolpath, i)}: feed {v:.3g} m/s is {what} ({_per_minute(v, toolpath.units)}): "
                               f"no robot cell cuts at that feed (are the feed units right?)")
     b = estimate(toolpath, settings)
     if b.points > settings.max_points:

@@ -3,7 +3,9 @@ with one line naming the cause and its place; real jobs and a 10^8-pose job pass
 
 from __future__ import annotations
 
+import contextlib
 import io
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -65,3 +67,18 @@ def test_real_jobs_and_a_hundred_million_pose_job_pass():
 def test_budget_settings_are_checked(field):
     with pytest.raises(PlannerError, match=f"{field} must be in"):
         PlanSettings(**{field: 0}).checked()
+
+
+def test_a_file_feed_is_named_per_minute_in_the_files_units(tmp_path):
+    """The refusal quotes the feed as the CAM file wrote it (per minute, in the file's length unit) beside SI."""
+    from planner.cli import main
+
+    text = (Path(__file__).resolve().parents[1] / "examples" / "nx_first_pass.cls").read_text()
+    src = tmp_path / "slow.cls"
+    src.write_text(text.replace("FEDRAT/MMPM,250.0000", "FEDRAT/MMPM,1e-300"))
+    err = io.StringIO()
+    with contextlib.redirect_stderr(err), contextlib.redirect_stdout(io.StringIO()):
+        assert main(["plan", str(src), "-o", str(tmp_path / "out.csv")]) == 2
+    assert err.getvalue() == ("planner: error: slow.cls line 17: feed 1.67e-305 m/s is below 1 um/s (1e-300 mm/min): "
+                              "no robot cell cuts at that feed (are the feed units right?)\n")
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["slow.cls"]
