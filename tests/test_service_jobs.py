@@ -138,6 +138,22 @@ def test_waypoints_with_axes_feeds_and_settings(client):
     assert times[-1] >= np.pi * 0.2 / 0.02
 
 
+def test_part_frame_auto_is_placed_and_returned_for_reuse(client):
+    """``part_frame: "auto"`` over REST: the worker places the part; the job shows the frame found, the same
+    one ``planner plan --part-frame auto`` prints, and the settings it was planned with hold it."""
+    r = submit_file(client, EXAMPLES / "nx_first_pass.cls", {"robot": "ur5e", "part_frame": "auto"})
+    assert r.status_code == 202, r.text
+    view = wait_state(client, r.json()["id"])
+    assert view["state"] == "done", view["error"]
+    auto = view["summary"]["part_frame_auto"]
+    frame = auto["part_frame"]
+    assert len(frame) == 6 and frame[3] == 0 and frame[4] == 0  # a turn about the base z only
+    assert np.allclose([float(v) for v in auto["option"].split(",")], frame, atol=1e-6)
+    assert auto["singularity_margin"] > 0 and auto["joint_margin_deg"] > 0
+    bad = client.post("/v1/jobs", json={"waypoints": [[0, 0, 0], [0.1, 0, 0]], "settings": {"part_frame": "autox"}})
+    assert bad.status_code == 422 and "part_frame" in bad.text
+
+
 def test_list_is_newest_first_and_paginated(client):
     ids = []
     for k in range(3):

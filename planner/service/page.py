@@ -82,7 +82,7 @@ PAGE = r"""<!doctype html>
         <div><label for="robot">robot</label><select id="robot"><option value="">none</option><option>ur3e</option>
           <option>ur5e</option><option>ur10e</option><option>ur16e</option><option>ur20</option></select></div>
         <div><label for="passes">passes (K,K or longest)</label><input id="passes" placeholder="all"></div>
-        <div><label for="partframe">part frame x,y,z,rx,ry,rz (m, rad)</label><input id="partframe"></div>
+        <div><label for="partframe">part frame x,y,z,rx,ry,rz (m, rad) or auto</label><input id="partframe"></div>
       </div>
       <button id="submit" class="primary" type="button">Plan</button>
       <div id="error"></div>
@@ -165,7 +165,7 @@ function settings() {
   put("rate", num("rate"));
   if ($("robot").value) s.robot = $("robot").value;
   const pf = $("partframe").value.trim();
-  if (pf) s.part_frame = pf.split(/[ ,]+/).map(Number);
+  if (pf) s.part_frame = pf.toLowerCase() === "auto" ? "auto" : pf.split(/[ ,]+/).map(Number);
   const p = $("passes").value.trim();
   if (p === "longest") s.passes = "longest";
   else if (p && p !== "all") s.passes = p.split(/[ ,]+/).map((x) => parseInt(x, 10));

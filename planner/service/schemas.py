@@ -63,7 +63,7 @@ class SettingsModel(Strict):
     joint_limits: LimitsModel = _limits("joint_limits")
     rate: Finite = _D["rate"]
     robot: str | None = Field(default=_D["robot"], max_length=32)
-    part_frame: Pose6 | None = _D["part_frame"]
+    part_frame: Pose6 | Literal["auto"] | None = _D["part_frame"]
     tcp: Pose6 | None = _D["tcp"]
     feed_floor: Finite = _D["feed_floor"]
     reach_step: Finite = _D["reach_step"]
