@@ -101,6 +101,10 @@ class Schedule:
         self._count(now)
         return now
 
+    def time_left(self) -> float:
+        """Seconds until the next deadline (negative: it has passed)."""
+        return self.t0 + (self.k + 1) * self.period - time.perf_counter()
+
     def _count(self, now: float) -> None:
         d = now - self._last
         self._last = now

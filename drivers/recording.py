@@ -95,6 +95,16 @@ class Recording:
         if len(self._t) >= self.block:
             self._reduce()
 
+    @property
+    def pending(self) -> int:
+        """Samples added and not yet reduced."""
+        return len(self._t)
+
+    def reduce_pending(self) -> None:
+        """Reduce the samples added so far now (a real-time loop calls this when its period has time to spare;
+        :meth:`add` reduces by itself every ``block`` samples otherwise)."""
+        self._reduce()
+
     def extend(self, t, x, q, bits) -> None:
         """Many samples: (n,), (n, 6), (n, 6), (n,)."""
         t = np.asarray(t, dtype=float).reshape(-1)

@@ -291,13 +291,15 @@ def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=Non
         failure=failure, path_length=float(ps[-1]) if ps.size else 0.0, loop=loop, trace=trace)
 
 
-def new_recording(job, planned):
+def new_recording(job, planned, *, block: int | None = None):
     """An empty :class:`drivers.recording.Recording` for a run of ``job`` against its planned path (the result
-    of :func:`planned_path`)."""
-    from drivers.recording import Recording
+    of :func:`planned_path`); ``block``: samples reduced at a time (default :data:`drivers.recording.BLOCK`; a
+    real-time loop reduces small blocks, a fraction of its period each)."""
+    from drivers.recording import BLOCK, Recording
 
     pp, ps = planned[1], planned[4]
-    return Recording(pp[:, :3], job.settings.robot, float(ps[-1]) if ps.size else 0.0)
+    return Recording(pp[:, :3], job.settings.robot, float(ps[-1]) if ps.size else 0.0,
+                     block=BLOCK if block is None else block)
 
 
 def planned_switches(times: np.ndarray, io: np.ndarray) -> list[tuple[int, bool, int]]:
