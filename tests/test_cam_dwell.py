@@ -108,6 +108,7 @@ def test_tables_carry_the_dwell(drill_job):
     tr = drill_job.trajectory()
     doc = json.loads("".join(json_text(tr)))
     moves = [m for m in doc["moves"] if m["kind"] == "dwell"]
+    assert doc["parameters"]["dwells"] == 3
     assert [(m["first_line"], m["duration_s"], m["samples"]) for m in moves] == [(4, 0.5, 250), (5, 0.5, 250),
                                                                                   (6, 0.5, 250)]
     kind = doc["columns"].index("kind")

@@ -58,6 +58,7 @@ def trajectory_parameters(trajectory, parameters: Mapping | None = None, max_pro
         "rapids": job.count("rapid"),
         "reorientations": job.count("reorientation"),
         "skipped": job.count("skipped"),
+        "dwells": job.count("dwell"),
         "cut_length_m": float(sum(p.length for p in job.passes)),
         "duration_s": trajectory.duration,
         "motion_time_s": job.duration,
