@@ -182,7 +182,7 @@ BAD_JSON = [  # body, status, loc, words in the message
     ('{"waypoints": [[0, 0, 0], [1, 0, 0]], "settings": {"robot": "ur99"}}', 422, ["body", "settings", "robot"],
      "ur5e"),
     ('{"waypoints": [[0, 0, 0], [1, 0, 0]], "settings": {"part_frame": [0, 0, 0, 0, 0]}}', 422,
-     ["body", "settings", "part_frame", 5], "required"),
+     ["body", "settings", "part_frame"], "required"),  # six numbers or "auto": item 5 is missing
     ('{"waypoints": [[0, 0, 0], [1, 0, 0]], "settings": {"frame": "grm", "axes": "fixed"}}', 422,
      ["body", "settings", "frame"], "axes='path'"),
     ('{"waypoints": [[0, 0, 0], [0, 0, 0], [1, 0, 0]]}', 422, ["body", "waypoints"], "waypoint 1"),
