@@ -30,7 +30,7 @@ import math
 import os
 import time
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import replace
 
 import numpy as np
@@ -52,6 +52,7 @@ from planner.frames.tool_field import PathToolField, path_tool_field
 from planner.job import PassReport, PlannedJob, PlannedMove
 from planner.motion import MotionLimits, plan_feed, tool_orientation
 from planner.settings import PlanSettings
+from planner.validation import ArgumentError, _described, as_floats
 
 #: The CAM default tool axis (APT: +Z, from the tip towards the spindle).
 CAM_DEFAULT_AXIS = np.array([0.0, 0.0, 1.0])
@@ -89,32 +90,45 @@ def waypoints_toolpath(waypoints, axes=None, feeds=None, *, source: str = "<wayp
         ax = _finite_rows(axes, "axes", n)
         bad = np.flatnonzero(np.linalg.norm(ax, axis=1) < 1e-12)
         if bad.size:
-            raise PlannerError(f"axes[{int(bad[0])}]: the tool axis is zero (waypoint {int(bad[0])})")
+            raise ArgumentError(f"axes[{int(bad[0])}]", f"the tool axis is zero (waypoint {int(bad[0])})")
         ax = ax / np.linalg.norm(ax, axis=1, keepdims=True)
         given = np.ones(n, bool)
     f = np.full(n, np.nan)
     if feeds is not None:
-        f = np.asarray(feeds, dtype=float).reshape(-1)
+        f = as_floats(feeds, "feeds")
         if f.shape != (n,):
-            raise PlannerError(f"feeds: expected one feed per waypoint, shape ({n},), got {f.shape}")
+            raise ArgumentError("feeds", f"expected one feed per waypoint, shape ({n},), got {f.shape}")
         bad = np.flatnonzero(~np.isnan(f) & ~(np.isfinite(f) & (f > 0.0)))
         if bad.size:
-            raise PlannerError(f"feeds[{int(bad[0])}]: a feed must be > 0 m/s (or NaN for the job's feed), "
-                               f"got {f[bad[0]]!r}")
+            raise ArgumentError(f"feeds[{int(bad[0])}]", f"a feed must be > 0 m/s (or NaN for the job's feed), "
+                                                         f"got {float(f[bad[0]])!r}")
     return Toolpath(pts, ax, given, f, np.zeros(n, bool), np.arange(n, dtype=np.int64), (), "m", source)
 
 
 def _finite_rows(a, name: str, n: int) -> np.ndarray:
-    try:
-        arr = np.asarray(a, dtype=float)
-    except (TypeError, ValueError):
-        raise PlannerError(f"{name} must be numbers of shape ({n}, 3)") from None
+    """``a`` as finite rows (n, 3), one per waypoint; else ArgumentError naming ``name`` (and the row)."""
+    arr = as_floats(a, name)
     if arr.shape != (n, 3):
-        raise PlannerError(f"{name}: expected shape ({n}, 3) (one per waypoint), got {arr.shape}")
+        raise ArgumentError(name, f"expected shape ({n}, 3) (one per waypoint), got {arr.shape}")
     bad = np.flatnonzero(~np.isfinite(arr).all(axis=1))
     if bad.size:
-        raise PlannerError(f"{name}[{int(bad[0])}]: not a finite vector (waypoint {int(bad[0])})")
+        raise ArgumentError(f"{name}[{int(bad[0])}]", f"not a finite vector (waypoint {int(bad[0])})")
     return arr
+
+
+def _check_plan_arguments(settings, read_options, progress) -> None:
+    """plan()'s own arguments, before any work: ArgumentError naming the first bad one."""
+    if not isinstance(settings, PlanSettings):
+        raise PlannerError(f"settings must be a PlanSettings, got {_described(settings)}")
+    if progress is not None and not callable(progress):
+        raise ArgumentError("progress", f"must be a function (stage, done, total) or None, got {_described(progress)}")
+    if read_options is not None:
+        if not isinstance(read_options, Mapping):
+            raise ArgumentError("read_options", f"must be a dict of reader options such as {{'units': 'mm'}}, got "
+                                                f"{_described(read_options)}")
+        bad = [k for k in read_options if not isinstance(k, str)]
+        if bad:
+            raise ArgumentError("read_options", f"option names must be strings, got {_described(bad[0])}")
 
 
 def resolve(settings: PlanSettings, fmt: str, has_axes: bool) -> PlanSettings:
@@ -172,8 +186,7 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
     from planner.io import Toolpath, detect_format, linearize_arcs, read_toolpath
 
     settings = PlanSettings() if settings is None else settings
-    if not isinstance(settings, PlanSettings):
-        raise PlannerError(f"settings must be a PlanSettings, got {type(settings).__name__}")
+    _check_plan_arguments(settings, read_options, progress)
     timings: dict[str, float] = {}
     caught: list[str] = []
     if isinstance(source, str | os.PathLike):
@@ -289,18 +302,12 @@ def _select_passes(tp, seg: Segmentation, passes):
                     dwells, tp.units, tp.source, sub(tp.rotary))
 
 
-def check_read_options(fmt: str, options: dict) -> None:
-    """PlannerError naming every reader option that does not apply to files of format ``fmt``."""
-    import inspect
+def check_read_options(fmt: str, options) -> None:
+    """PlannerError (a :class:`planner.io.options.ReaderArgumentError`) naming the first reader option that does not
+    apply to files of format ``fmt``."""
+    from planner.io.dispatch import check_options
 
-    from planner.io.dispatch import READERS
-
-    accepted = {name: {p for p in list(inspect.signature(r).parameters)[1:]} for name, r in READERS.items()}
-    for key in options:
-        if key not in accepted[fmt]:
-            where = sorted(f for f, keys in accepted.items() if key in keys)
-            raise PlannerError(f"option {key!r} does not apply to {fmt} files"
-                               + (f" (it is for {', '.join(where)} files)" if where else ""))
+    check_options(fmt, options)
 
 
 def _format_of(name: str) -> str:

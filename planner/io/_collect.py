@@ -17,7 +17,9 @@ from collections.abc import Iterator
 import numpy as np
 
 from planner.io.errors import InputFileError
+from planner.io.options import ReaderArgumentError, ReaderArgumentTypeError, binary_stream, check_src
 from planner.io.toolpath import Arc, Event, Nurbs, Toolpath, vec3
+from planner.validation import _described
 
 #: Metres per unit of length for the unit names the readers accept.
 LENGTH_UNITS = {"mm": 1e-3, "m": 1.0, "inch": 0.0254, "in": 0.0254, "cm": 1e-2}
@@ -30,11 +32,14 @@ AXIS_TOLERANCE = 1e-3
 
 
 def unit_scale(units: str, what: str = "units") -> tuple[str, float]:
-    """Canonical name and metres per unit of a length unit given by the user."""
-    key = str(units).strip().lower()
+    """Canonical name and metres per unit of a length unit given by the user; :class:`ReaderArgumentError` naming
+    ``what`` for an unknown one (a :class:`ReaderArgumentTypeError` for a value that is not a string)."""
+    if not isinstance(units, str):
+        raise ReaderArgumentTypeError(what, f"{what} must be one of 'mm', 'm', 'inch', got {_described(units)}")
+    key = units.strip().lower()
     key = {"millimetre": "mm", "millimeter": "mm", "inches": "inch", "metre": "m", "meter": "m"}.get(key, key)
     if key not in LENGTH_UNITS:
-        raise ValueError(f"{what} must be one of 'mm', 'm', 'inch', got {units!r}")
+        raise ReaderArgumentError(what, f"{what} must be one of 'mm', 'm', 'inch', got {units!r}")
     return ("inch" if key == "in" else key), LENGTH_UNITS[key]
 
 
@@ -53,30 +58,39 @@ def open_lines(src) -> Iterator[Iterator[str]]:
     """Lines of a path or text stream, streamed; a UTF-8 byte-order mark is dropped.
 
     Undecodable bytes become U+FFFD (they can only matter inside comments: a number holding one
-    fails to parse with a message naming its line).
+    fails to parse with a message naming its line). Anything but a path or a text stream is a
+    :class:`ReaderArgumentTypeError` naming ``src``.
     """
+    check_src(src)
     if isinstance(src, str | os.PathLike):
         with open(src, encoding="utf-8-sig", errors="replace", newline=None) as fh:
             yield iter(fh)
         return
-    if isinstance(src, io.TextIOBase) or hasattr(src, "readline"):
+    if isinstance(src, io.TextIOBase) or hasattr(src, "__iter__"):
         it = iter(src)
-        first = next(it, None)
-        if first is None:
-            yield iter(())
-            return
-        if isinstance(first, bytes):
-            raise TypeError("open the file in text mode (or pass its path)")
-        if first.startswith("\ufeff"):
-            first = first[1:]
-
-        def chain():
-            yield first
-            yield from it
-
-        yield chain()
+    elif hasattr(src, "readline"):
+        it = iter(src.readline, "")
+    else:  # a stream with read() only
+        text = src.read()
+        if isinstance(text, bytes | bytearray):
+            raise binary_stream()
+        it = iter(io.StringIO(text))
+    first = next(it, None)
+    if first is None:
+        yield iter(())
         return
-    raise TypeError(f"expected a path or a text stream, got {type(src).__name__}")
+    if isinstance(first, bytes | bytearray):
+        raise binary_stream()
+    if not isinstance(first, str):
+        raise ReaderArgumentTypeError("src", f"src must be a text stream: it yielded {_described(first)}")
+    if first.startswith("\ufeff"):
+        first = first[1:]
+
+    def chain():
+        yield first
+        yield from it
+
+    yield chain()
 
 
 def parse_number(token: str, source: str, line: int, field: str) -> float:
@@ -226,7 +240,8 @@ class PathCollector:
             if agiven.any():
                 rows = aval[agiven]
                 bad = ~np.isfinite(rows).all(axis=1)
-                norm = np.linalg.norm(np.where(np.isfinite(rows), rows, 0.0), axis=1)
+                finite = np.where(np.isfinite(rows), rows, 0.0)
+                norm = np.hypot(np.hypot(finite[:, 0], finite[:, 1]), finite[:, 2])  # 1e308 does not overflow
                 bad |= np.abs(norm - 1.0) > axis_tolerance
                 if bad.any():
                     j = int(np.argmax(bad))

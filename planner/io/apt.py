@@ -77,6 +77,7 @@ from typing import NoReturn
 
 import numpy as np
 
+from planner.io import options as opts
 from planner.io._collect import (
     AXIS_TOLERANCE,
     PathCollector,
@@ -117,8 +118,7 @@ class _Reader:
     """State of one APT read; :meth:`run` is the streaming loop."""
 
     def __init__(self, source: str, units: str, frames: str, axis_tolerance: float):
-        if frames not in ("auto", "none"):
-            raise ValueError(f"frames must be 'auto' or 'none', got {frames!r}")
+        opts.choice(frames, "frames", ("auto", "none"))
         self.source = source
         self.units, self.scale = unit_scale(units)
         self.default_units = self.units
@@ -371,7 +371,7 @@ class _Reader:
         if self.circle is not None:
             self.fail(self.circle[0], "CIRCLE record", f"has no end point (the next motion record is the "
                       f"CIRCLE at line {line})")  # fmt: skip
-        norm = math.sqrt(v[3] * v[3] + v[4] * v[4] + v[5] * v[5])
+        norm = math.hypot(v[3], v[4], v[5])
         if abs(norm - 1.0) > self.axis_tolerance:
             self.fail(line, "fields 4-6 of CIRCLE", f"axis {tuple(v[3:6])} is not a unit vector "
                       f"(length {norm:.9g})", 4)  # fmt: skip
@@ -548,7 +548,7 @@ class _Reader:
         p = (vals[0] * s, vals[1] * s, vals[2] * s)
         given = len(vals) == 6
         a = tuple(vals[3:6]) if given else self.axis
-        norm = math.sqrt(a[0] ** 2 + a[1] ** 2 + a[2] ** 2)
+        norm = math.hypot(*a)  # a component of 1e308 must not overflow
         if given and abs(norm - 1.0) > self.axis_tolerance:
             self.fail(line, "fields 4-6 of GOTO", f"tool axis {a} is not a unit vector (length {norm:.9g})", 4)
         a = (a[0] / norm, a[1] / norm, a[2] / norm)
@@ -627,7 +627,7 @@ class _Reader:
         if len(v) in (4, 7) and not v[-1] > 0.0:
             self.fail(line, f"field {len(v)} of CNTRL", f"weight must be positive, got {v[-1]:g}", len(v))
         if len(v) in (6, 7):
-            norm = math.sqrt(v[3] ** 2 + v[4] ** 2 + v[5] ** 2)
+            norm = math.hypot(v[3], v[4], v[5])
             if abs(norm - 1.0) > self.axis_tolerance:
                 self.fail(line, "fields 4-6 of CNTRL", f"tool axis {tuple(v[3:6])} is not a unit vector "
                           f"(length {norm:.9g})", 4)  # fmt: skip
@@ -869,6 +869,8 @@ def read_apt(
 
     Raises
     ------
+    ReaderArgumentError
+        A bad argument, named (before the file is opened).
     InputFileError
         A malformed record: the message names the file, the line and the field.
 
@@ -877,11 +879,14 @@ def read_apt(
     InputFileWarning
         An unknown record skipped (naming its line) or a value read under an assumption.
     """
-    name = source_name(src, source)
-    if not (isinstance(peck_clearance, int | float) and 0.0 < peck_clearance < 1.0):
-        raise ValueError(f"peck_clearance must be a length in metres in (0, 1), got {peck_clearance!r}")
+    opts.check_src(src)
+    name = source_name(src, opts.source_label(source))
+    opts.choice(frames, "frames", ("auto", "none"))
+    unit_scale(units)
+    arc_tolerance = opts.arc_tolerance(arc_tolerance)
+    axis_tolerance = opts.axis_tolerance(axis_tolerance)
     reader = _Reader(name, units, frames, axis_tolerance)
-    reader.peck_clearance = float(peck_clearance)
+    reader.peck_clearance = opts.peck_clearance(peck_clearance)
     with open_lines(src) as lines:
         reader.run(lines)
     if reader.out.count == 0:

@@ -24,6 +24,7 @@ import csv
 import math
 import re
 
+from planner.io import options as opts
 from planner.io._collect import (
     AXIS_TOLERANCE,
     PathCollector,
@@ -34,6 +35,7 @@ from planner.io._collect import (
 )
 from planner.io.errors import InputFileError, WarningLimiter
 from planner.io.toolpath import Toolpath
+from planner.validation import _described
 
 _ALIASES = {
     "x": "x", "y": "y", "z": "z",
@@ -65,10 +67,18 @@ _FALSE = {"0", "false", "no", "n", "f", ""}
 
 
 def feed_scale(feed_units: str | None, units: str) -> tuple[str, float]:
-    """Canonical feed unit name and its value in m/s (default from the length unit)."""
-    name = _DEFAULT_FEED[units] if feed_units is None else str(feed_units).strip().lower()
-    if name not in FEED_UNITS:
-        raise ValueError(f"feed_units must be one of {', '.join(FEED_UNITS)}, got {feed_units!r}")
+    """Canonical feed unit name and its value in m/s (default from the length unit); :class:`ReaderArgumentError`
+    naming ``feed_units`` for an unknown one, listing the known ones."""
+    if feed_units is None:
+        name = _DEFAULT_FEED[units]
+    else:
+        known = ", ".join(repr(k) for k in FEED_UNITS)
+        if not isinstance(feed_units, str):
+            raise opts.ReaderArgumentTypeError("feed_units", f"feed_units must be one of {known}, got "
+                                                             f"{_described(feed_units)}")
+        name = feed_units.strip().lower()
+        if name not in FEED_UNITS:
+            raise opts.ReaderArgumentError("feed_units", f"feed_units must be one of {known}, got {feed_units!r}")
     return name, FEED_UNITS[name]
 
 
@@ -137,10 +147,21 @@ def read_csv(
     Toolpath
         Points in metres, axes (None without i,j,k columns), feeds in m/s (NaN without a feed column),
         rapid flags (all False without a rapid column).
+
+    Raises
+    ------
+    ReaderArgumentError
+        A bad argument, named (a unit lists the known ones), before the file is opened.
+    InputFileError
+        A bad cell or row, naming the file, the line and the column.
     """
+    opts.check_src(src)
     unit_name, scale = unit_scale(units)
     _, fscale = feed_scale(feed_units, unit_name)
-    name = source_name(src, source)
+    delimiter = opts.delimiter(delimiter)
+    axis_tolerance = opts.axis_tolerance(axis_tolerance)
+    normalize_axes = opts.flag(normalize_axes, "normalize_axes")
+    name = source_name(src, opts.source_label(source))
     out = PathCollector(name)
     warn = WarningLimiter(name)
     table: _Table | None = None
@@ -211,7 +232,7 @@ def _row(out: PathCollector, t: _Table, cells, line, scale, fscale, tol, normali
         raw = [cells[p[c]] for c in "ijk"]
         if any(raw):
             v = [parse_number(r, src, line, f"column {c}") for r, c in zip(raw, "ijk", strict=True)]
-            n = math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
+            n = math.hypot(*v)  # no overflow: a component of 1e308 has the length 1e308
             if normalize:
                 if n == 0.0:
                     raise InputFileError(src, line, "columns i,j,k", "the vector is zero")

@@ -114,7 +114,7 @@ def hole_moves(current, hole, axis, cycle: DrillCycle) -> tuple[list[tuple[tuple
     """
     px, py, pz = (float(v) for v in hole)
     ax, ay, az = (float(v) for v in axis)
-    norm = math.sqrt(ax * ax + ay * ay + az * az)
+    norm = math.hypot(ax, ay, az)
     ax, ay, az = ax / norm, ay / norm, az / norm
     moves: list[tuple[tuple[float, float, float], bool]] = []
     last = None if current is None else tuple(float(v) for v in current)

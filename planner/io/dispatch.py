@@ -14,6 +14,7 @@ from planner.io.csv_reader import read_csv
 from planner.io.errors import InputFileError
 from planner.io.gcode import read_gcode
 from planner.io.json_reader import read_json
+from planner.io.options import ReaderArgumentError, ReaderArgumentTypeError, check_src, choice
 from planner.io.toolpath import Toolpath
 
 READERS: dict[str, Callable[..., Toolpath]] = {"apt": read_apt, "gcode": read_gcode, "csv": read_csv, "json": read_json}
@@ -90,11 +91,38 @@ def read_toolpath(path, *, format: str | None = None, **options) -> Toolpath:
     Returns
     -------
     Toolpath
+
+    Raises
+    ------
+    ReaderArgumentError
+        A bad argument (named, with the known values of a named choice), or an option the reader of this
+        format does not take (naming the formats that take it), before the file is read.
+    InputFileError
+        A bad file (naming the file, the line and the field).
     """
-    if format is None:
-        if not isinstance(path, str | os.PathLike):
-            raise TypeError("reading a stream needs format='apt', 'gcode', 'csv' or 'json'")
+    check_src(path, "path")
+    if format is not None:
+        choice(format, "format", READERS)
+    elif not isinstance(path, str | os.PathLike):
+        raise ReaderArgumentTypeError("format", "reading a stream needs format='apt', 'gcode', 'csv' or 'json'")
+    else:
         format = detect_format(path)
-    if format not in READERS:
-        raise ValueError(f"format must be one of {', '.join(READERS)}, got {format!r}")
+    check_options(format, options)
     return READERS[format](path, **options)
+
+
+def reader_options(fmt: str) -> tuple[str, ...]:
+    """The keyword options the reader of format ``fmt`` takes (after the file)."""
+    import inspect
+
+    return tuple(list(inspect.signature(READERS[fmt]).parameters)[1:])
+
+
+def check_options(fmt: str, options) -> None:
+    """:class:`ReaderArgumentError` naming the first option in ``options`` that the reader of format ``fmt`` does
+    not take (and the formats whose readers take it)."""
+    for key in options:
+        if key not in reader_options(fmt):
+            where = [f for f in READERS if key in reader_options(f)]
+            also = f" (it is for {', '.join(where)} files)" if where else ""
+            raise ReaderArgumentError(str(key), f"option {key!r} does not apply to {fmt} files{also}")

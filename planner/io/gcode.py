@@ -63,6 +63,7 @@ from typing import NoReturn
 
 import numpy as np
 
+from planner.io import options as opts
 from planner.io._collect import PathCollector, check_arcs, open_lines, source_name, unit_scale
 from planner.io.cycles import DEFAULT_PECK_CLEARANCE, DrillCycle, hole_moves
 from planner.io.errors import InputFileError, WarningLimiter
@@ -745,15 +746,18 @@ def read_gcode(
 
     Raises
     ------
+    ReaderArgumentError
+        A bad argument, named (an unknown machine lists the presets), before the file is opened.
     InputFileError
         A malformed block, naming the file, line and word.
     """
+    opts.check_src(src)
     kin = machine_kinematics(machine) if machine is not None else None
-    name = source_name(src, source)
-    if not (isinstance(peck_clearance, int | float) and 0.0 < peck_clearance < 1.0):
-        raise ValueError(f"peck_clearance must be a length in metres in (0, 1), got {peck_clearance!r}")
-    if dialect not in ("auto", "iso", "sinumerik"):
-        raise ValueError(f"dialect must be 'auto', 'iso' or 'sinumerik', got {dialect!r}")
+    name = source_name(src, opts.source_label(source))
+    unit_scale(units)
+    arc_tolerance = opts.arc_tolerance(arc_tolerance)
+    peck = opts.peck_clearance(peck_clearance)
+    opts.choice(dialect, "dialect", ("auto", "iso", "sinumerik"))
     with open_lines(src) as lines:
         if dialect == "auto":
             if name.lower().endswith((".mpf", ".spf")):
@@ -763,7 +767,7 @@ def read_gcode(
                 dialect = "sinumerik" if any(SNIFF.match(t) for t in head) else "iso"
                 lines = itertools.chain(head, lines)
         reader = _Reader(name, units, kin, dialect)
-        reader.peck_clearance = float(peck_clearance)
+        reader.peck_clearance = peck
         reader.run(lines)
     if reader.out.count == 0:
         raise InputFileError(name, None, "", "holds no motion block with a known X, Y and Z")

@@ -30,13 +30,13 @@ and its JSON path, e.g. ``points[12].z``.
 from __future__ import annotations
 
 import bisect
-import io
 import json
 import math
 import os
 import re
 from json.scanner import make_scanner
 
+from planner.io import options as opts
 from planner.io._collect import AXIS_TOLERANCE, PathCollector, source_name, unit_scale
 from planner.io.csv_reader import feed_scale
 from planner.io.errors import InputFileError, WarningLimiter
@@ -170,17 +170,32 @@ def read_json(
     Returns
     -------
     Toolpath
+
+    Raises
+    ------
+    ReaderArgumentError
+        A bad argument, named (a unit lists the known ones), before the file is read.
+    InputFileError
+        A bad value or structure, naming the file, the line and the JSON path (``points[12].z``).
     """
-    name = source_name(src, source)
+    opts.check_src(src)
+    if units is not None:
+        unit_scale(units)
+    feed_scale(feed_units, "mm")
+    axis_tolerance = opts.axis_tolerance(axis_tolerance)
+    normalize_axes = opts.flag(normalize_axes, "normalize_axes")
+    name = source_name(src, opts.source_label(source))
     if isinstance(src, str | os.PathLike):
         with open(src, encoding="utf-8-sig", errors="replace") as fh:
             text = fh.read()
-    elif isinstance(src, io.TextIOBase) or hasattr(src, "read"):
-        text = src.read()
+    else:
+        text = src.read() if hasattr(src, "read") else "".join(src)
+        if isinstance(text, bytes | bytearray):
+            raise opts.binary_stream()
+        if not isinstance(text, str):
+            raise opts.ReaderArgumentTypeError("src", f"src must be a text stream: it gave a {type(text).__name__}")
         if text.startswith("\ufeff"):
             text = text[1:]
-    else:
-        raise TypeError(f"expected a path or a text stream, got {type(src).__name__}")
     try:
         doc = json.loads(text, object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as exc:
@@ -203,14 +218,11 @@ def read_json(
             return val
         return option
 
-    try:
+    try:  # the options are valid (checked above): a bad unit here is the file's
         unit_name, scale = unit_scale(setting("units", units, "units") or "mm")
         _, fscale = feed_scale(setting("feed_units", feed_units, "feed_units"), unit_name)
-    except ValueError as exc:
-        if isinstance(doc, dict) and ("units" in doc or "feed_units" in doc):
-            key = "units" if "units" in doc and "units" in str(exc) and "feed" not in str(exc) else "feed_units"
-            j.fail([key], str(exc))
-        raise
+    except opts.ReaderArgumentError as exc:
+        j.fail([exc.argument], str(exc))
     rows = _rows(j, doc, warn)
     if not rows:
         j.fail([], "holds no points")
@@ -320,7 +332,7 @@ def _point(j: _Json, out: PathCollector, k: int, path, obj: dict, scale, fscale,
         if missing:
             j.fail(path, f"tool axis needs {', '.join(keys)}; {missing[0]!r} is missing")
         v = [j.number(*obj[c]) for c in keys]
-        n = math.sqrt(v[0] ** 2 + v[1] ** 2 + v[2] ** 2)
+        n = math.hypot(*v)  # no overflow: a component of 1e308 has the length 1e308
         if normalize:
             if n == 0.0:
                 j.fail(path, "the tool axis is zero")

@@ -53,6 +53,9 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from planner.io.options import ReaderArgumentError, ReaderArgumentTypeError
+from planner.validation import _described
+
 
 def _unit(v, name: str) -> tuple[float, float, float]:
     a = np.asarray(v, dtype=float)
@@ -209,12 +212,22 @@ MACHINES = {"haasumc750": HAAS_UMC_750, "umc750": HAAS_UMC_750}
 
 
 def machine_kinematics(machine) -> TableTableKinematics:
-    """A :class:`TableTableKinematics` from itself or from a preset name such as ``"haas-umc-750"``."""
+    """A :class:`TableTableKinematics` from itself or from a preset name such as ``"haas-umc-750"``.
+
+    Raises
+    ------
+    ReaderArgumentError
+        An unknown name (listing the presets), or a value that is neither a name nor a kinematics (also a
+        ``TypeError``); the message names the argument ``machine``.
+    """
+    known = "'haas-umc-750'"
     if isinstance(machine, TableTableKinematics):
         return machine
     if isinstance(machine, str):
         key = "".join(ch for ch in machine.lower() if ch.isalnum())
         if key in MACHINES:
             return MACHINES[key]
-        raise ValueError(f"unknown machine {machine!r}; presets: 'haas-umc-750' (or give a TableTableKinematics)")
-    raise TypeError(f"machine must be a preset name or a TableTableKinematics, got {type(machine).__name__}")
+        raise ReaderArgumentError("machine", f"machine {machine!r}: unknown machine; presets: {known} (or give a "
+                                             "TableTableKinematics)")
+    raise ReaderArgumentTypeError("machine", f"machine must be a preset name ({known}) or a TableTableKinematics, "
+                                             f"got {_described(machine)}")

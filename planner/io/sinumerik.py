@@ -417,7 +417,7 @@ class Sinumerik:
             if not self.traori:
                 self.fail(line, "A3", "tool vector A3/B3/C3 without TRAORI (the orientation transformation)")
             i, j, k = got["A3"], got["B3"], got["C3"]
-            n = math.sqrt(i * i + j * j + k * k)
+            n = math.hypot(i, j, k)
             if not n > 0.0:
                 self.fail(line, "A3", "tool vector A3/B3/C3 is zero")
             self.r.vector = (i / n, j / n, k / n)

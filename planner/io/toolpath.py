@@ -13,6 +13,9 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.interpolate import BSpline
 
+from planner.io.options import ReaderArgumentTypeError, chord_tolerance
+from planner.validation import _described
+
 #: Kinds of :class:`Event` the readers emit (an :class:`Arc` has kind ``"arc"``).
 EVENT_KINDS = (
     "operation",  # start of a CAM operation; name = operation name (NX TOOL PATH, G-code OPER comment)
@@ -426,8 +429,9 @@ def linearize_arcs(toolpath: Toolpath, tolerance: float = 1e-5) -> Toolpath:
         Every event keeps its place; each :class:`Arc` and :class:`Nurbs` now spans
         ``points[start..index]`` including the inserted points.
     """
-    if not tolerance > 0.0:
-        raise ValueError(f"tolerance must be positive, got {tolerance!r}")
+    if not isinstance(toolpath, Toolpath):
+        raise ReaderArgumentTypeError("toolpath", f"toolpath must be a Toolpath, got {_described(toolpath)}")
+    tolerance = chord_tolerance(tolerance, "tolerance")
     tp = toolpath
     curves = [e for e in tp.events if isinstance(e, Arc | Nurbs)]
     if not curves:
