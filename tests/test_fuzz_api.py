@@ -1,6 +1,7 @@
 """The Python API refuses bad arguments with a PlannerError naming the argument (issue 17).
 
-Every public function of planner.curves, .frames, .motion, .kinematics, .export and planner.budget is called
+Every public function of planner.curves, .frames, .motion, .kinematics, .export, planner.budget, the readers
+(planner.io) and plan() is called
 with a valid set of arguments, then with each argument in turn replaced by a bad value: NaN, inf, strings,
 complex numbers, None, an arbitrary object, wrong shapes, empty arrays, arrays holding NaN / inf / strings /
 complex numbers, zero and negative sizes. The contract: either a :class:`planner.errors.PlannerError` (a
@@ -117,6 +118,29 @@ def settings():
     return PlanSettings().checked()
 
 
+@cache
+def inputs() -> dict[str, Path]:
+    """Small valid files of every input format (in the scratch folder): an APT arc, a G-code arc, CSV and JSON."""
+    folder = _scratch() / "inputs"
+    folder.mkdir(exist_ok=True)
+    texts = {
+        "apt": "GOTO/0,0,0,0,0,1\nGOTO/10,0,0\nCIRCLE/10,10,0,0,0,1,10\nGOTO/20,10,0\n",
+        "nc": "G21 G90\nG1 X0 Y0 Z0 F600\nG1 X10\nG3 X20 Y10 I0 J10\n",
+        "csv": "x,y,z,i,j,k,feed\n0,0,0,0,0,1,600\n10,0,0,0,0,1,\n20,10,0,0,0,1,\n30,10,5,0,0,1,\n",
+        "json": '[{"x": 0, "y": 0, "z": 0, "i": 0, "j": 0, "k": 1}, {"x": 10, "y": 0, "z": 0}, {"x": 20, "y": 10, '
+                '"z": 0}]',
+    }
+    paths = {}
+    for fmt, text in texts.items():
+        paths[fmt] = folder / f"p.{fmt}"
+        paths[fmt].write_text(text)
+    return paths
+
+
+def _progress(stage, done, total):
+    """A valid progress callback for plan()."""
+
+
 def _q():
     return np.array([0.1, -1.2, 1.3, -1.6, -1.5, 0.2])
 
@@ -149,12 +173,14 @@ class Call:
 
 
 def _calls() -> list[Call]:
-    from planner import budget
+    from planner import PlanSettings, budget
     from planner import curves as cv
     from planner import export as ex
     from planner import frames as fr
+    from planner import io as pio
     from planner import kinematics as kin
     from planner import motion as mo
+    from planner import plan as plan_fn
 
     wp = waypoints
     t9 = lambda: np.linspace(0.0, 1.0, 9)  # noqa: E731
@@ -254,6 +280,35 @@ def _calls() -> list[Call]:
         # budget
         Call("check_budget", budget.check_budget, (toolpath, settings)),
         Call("estimate", budget.estimate, (toolpath, settings)),
+        # readers (the file is fixed: a string there is a file name, a missing one an OSError)
+        Call("read_toolpath", pio.read_toolpath, (lambda: inputs()["apt"],),
+             {"format": "apt", "units": "mm", "arc_tolerance": 1e-5}, fixed=("arg0",),
+             optional=("format", "arc_tolerance")),
+        Call("read_apt", pio.read_apt, (lambda: inputs()["apt"],),
+             {"units": "mm", "frames": "auto", "arc_tolerance": 1e-5, "axis_tolerance": 1e-3, "source": "part.apt",
+              "peck_clearance": 5e-4}, fixed=("arg0",), optional=("arc_tolerance", "source"), str_ok=("source",)),
+        Call("read_gcode", pio.read_gcode, (lambda: inputs()["nc"],),
+             {"machine": "haas-umc-750", "units": "mm", "arc_tolerance": 1e-5, "source": "part.nc", "dialect": "iso",
+              "peck_clearance": 5e-4}, fixed=("arg0",), optional=("machine", "arc_tolerance", "source"),
+             str_ok=("source",)),
+        Call("read_csv", pio.read_csv, (lambda: inputs()["csv"],),
+             {"units": "mm", "feed_units": "mm/min", "delimiter": ",", "axis_tolerance": 1e-3, "normalize_axes": False,
+              "source": "part.csv"}, fixed=("arg0",), optional=("feed_units", "delimiter", "source"),
+             str_ok=("source",)),
+        Call("read_json", pio.read_json, (lambda: inputs()["json"],),
+             {"units": "mm", "feed_units": "mm/min", "axis_tolerance": 1e-3, "normalize_axes": True,
+              "source": "part.json"}, fixed=("arg0",), optional=("units", "feed_units", "source"), str_ok=("source",)),
+        Call("linearize_arcs", pio.linearize_arcs, (lambda: pio.read_apt(inputs()["apt"]), 1e-5)),
+        Call("machine_kinematics", pio.machine_kinematics, ("haas-umc-750",)),
+        # plan() (a string source is a file name: the waypoints are fixed, spoiled through fit_ph_spline above)
+        Call("plan waypoints", plan_fn, (wp,), {"settings": lambda: PlanSettings(rate=50.0),
+                                               "axes": lambda: np.tile([0.0, 0.0, 1.0], (9, 1)),
+                                               "feeds": lambda: np.full(9, 0.05), "progress": _progress},
+             fixed=("arg0",), optional=("settings", "axes", "feeds", "progress"), nan_ok=("feeds",)),
+        Call("plan file", plan_fn, (lambda: inputs()["csv"],), {"settings": lambda: PlanSettings(rate=50.0),
+                                                                 "read_options": {"units": "mm"},
+                                                                 "progress": _progress},
+             fixed=("arg0",), optional=("settings", "read_options", "progress")),
     ]
 
 
