@@ -309,3 +309,18 @@ def test_plan_progress_is_called_with_stages():
     plan(WAYPOINTS, PlanSettings(rate=50.0), progress=lambda stage, done, total: calls.append((stage, done, total)))
     assert ("moves", 1, 1) in calls or any(c[0] == "moves" and c[1] == c[2] for c in calls)
     assert all(isinstance(c[0], str) and 0 <= c[1] <= c[2] for c in calls)
+
+
+def test_nurbs_sampling_tolerance_is_checked():
+    from planner.io import Nurbs
+
+    curve = Nurbs(1, 1, 0, 2, np.array([0.0, 0, 0, 1, 1, 1]), np.array([[0.0, 0, 0], [0.5, 0.5, 0], [1, 0, 0]]),
+                  np.ones(3), None)
+    for bad in (0.0, -1e-5, math.nan, "1e-5", 1e-300):
+        with pytest.raises(ReaderArgumentError, match=r"^tolerance must be positive, a length in metres in "
+                                                      r"\[2e-10, 1\], got "):
+            curve.sample_parameters(bad)
+    u = curve.sample_parameters(1e-4)
+    mid = curve.evaluate((u[1:] + u[:-1]) / 2)
+    chord_mid = (curve.evaluate(u[1:]) + curve.evaluate(u[:-1])) / 2
+    assert u[0] == 0.0 and u[-1] == 1.0 and np.linalg.norm(mid - chord_mid, axis=1).max() <= 1e-4

@@ -13,7 +13,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.interpolate import BSpline
 
-from planner.io.options import ReaderArgumentTypeError, chord_tolerance
+from planner.io.options import ARC_TOLERANCE_RANGE, ReaderArgumentTypeError, chord_tolerance, number_in
 from planner.validation import _described
 
 #: Kinds of :class:`Event` the readers emit (an :class:`Arc` has kind ``"arc"``).
@@ -203,8 +203,9 @@ class Nurbs:
         ``ceil(1.25 sqrt(deviation / tolerance))`` equal parts (the chord error falls with the square of
         the step), until no interval is.
         """
-        if not tolerance > 0.0:
-            raise ValueError(f"tolerance must be positive, got {tolerance!r}")
+        lo = ARC_TOLERANCE_RANGE[0] * NURBS_SAMPLING_FRACTION
+        tolerance = number_in(tolerance, "tolerance", lo, ARC_TOLERANCE_RANGE[1],
+                              what=f"positive, a length in metres in [{lo:g}, {ARC_TOLERANCE_RANGE[1]:g}]")
         u0, u1 = self.domain
         k = np.unique(self.knots[(self.knots >= u0) & (self.knots <= u1)])
         u = np.unique(np.concatenate([k[:-1, None] + np.diff(k)[:, None] * np.arange(4)[None, :] / 4.0,
