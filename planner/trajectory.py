@@ -200,19 +200,30 @@ def _counted(chunks, total: int, progress):
 
 
 def _with_io(job, chunks):
-    """The chunks with their digital output bits (``cut_output`` on during cuts)."""
+    """The chunks with their digital output bits (``cut_output`` on during cuts). The last sample of a cut is
+    the first of the next move: the output is off there unless that move is a cut too (two passes joined at a
+    corner), so the output never blinks off for one sample between them. One chunk is held back to see the
+    next one's kind."""
     out = job.settings.cut_output
     bit = 0 if out is None else 1 << (IO_BIT_OFFSET[out[0]] + out[1])
+    held = None
     for c in chunks:
-        n = c.times.size
-        on = bit if c.kind == "cut" else 0
-        if on and n:
-            io = np.full(n, on, dtype=np.int64)
-            if c.final:
-                io[-1] = 0  # the last sample of a cut is the first of the next move: the output is off there
-            yield replace(c, io=io)
-        else:
-            yield replace(c, io=np.zeros(n, dtype=np.int64))
+        if held is not None:
+            yield _io_of(held, bit, c.kind == "cut")
+        held = c
+    if held is not None:
+        yield _io_of(held, bit, False)
+
+
+def _io_of(c, bit: int, next_is_cut: bool):
+    n = c.times.size
+    on = bit if c.kind == "cut" else 0
+    if on and n:
+        io = np.full(n, on, dtype=np.int64)
+        if c.final and not next_is_cut:
+            io[-1] = 0
+        return replace(c, io=io)
+    return replace(c, io=np.zeros(n, dtype=np.int64))
 
 
 def sample_counts(moves, rate: float) -> np.ndarray:

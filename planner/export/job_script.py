@@ -263,7 +263,8 @@ def job_program(
         "  # Passes: movep within tolerance of the planned path, ending with r = 0 where the CAM system stops.",
         "  # Rapids and turns in place: movel (straight, orientation about one axis); t = planned time where",
         "  # the tool turns. " + ("No outputs are switched (no cut_output set)." if s.cut_output is None else
-                                f"The {s.cut_output[0]} digital output {s.cut_output[1]} is on during every pass."),
+                                f"The {s.cut_output[0]} digital output {s.cut_output[1]} is on during every pass "
+                                "(and through a corner that joins two)."),
         "  # Changes of the arm configuration: movej at a rapid's safe point, t = planned time of the joint move.",
         f"  set_tcp({pose(tcp_pose)})",
     ]
@@ -284,10 +285,11 @@ def job_program(
             lines.append(comment(
                 f"pass {m.pass_index}{op}, lines {m.first_line}-{m.last_line}: {1e3 * m.plan.s[-1]:.3f} mm at up to "
                 f"{1e3 * m.speed:.3f} mm/s in movep moves: {m.plan.s.size - 1}, planned {m.duration:.3f} s"))
-            if s.cut_output is not None:
+            # two passes joined at a corner keep the output on through it (as the trajectory's io bits do)
+            if s.cut_output is not None and not (i > 0 and moves[i - 1].kind == "cut"):
                 lines.append(f"  {_OUTPUT_CALL[s.cut_output[0]]}({s.cut_output[1]}, True)")
             lines += movep_lines(m.plan, a)
-            if s.cut_output is not None:
+            if s.cut_output is not None and not (i + 1 < len(moves) and moves[i + 1].kind == "cut"):
                 lines.append(f"  {_OUTPUT_CALL[s.cut_output[0]]}({s.cut_output[1]}, False)")
         elif m.kind == "reconfiguration":
             r = job.moves[m.move].item
