@@ -26,7 +26,11 @@ class ArgumentError(PlannerError):
 
     def __init__(self, argument: str, message: str):
         self.argument = argument
+        self.detail = message
         super().__init__(f"{argument}: {message}")
+
+    def __reduce__(self):  # picklable (worker processes send errors back): rebuilt from both arguments
+        return (type(self), (self.argument, self.detail))
 
 
 def _described(value) -> str:
@@ -43,7 +47,8 @@ def _described(value) -> str:
         return f"an integer of {len(str(abs(value)))} digits, beyond the float range"
     if isinstance(value, numbers.Real):
         return repr(value)
-    return f"a {type(value).__name__}"
+    kind = type(value).__name__
+    return f"{'an' if kind[:1].lower() in 'aeiou' else 'a'} {kind}"
 
 
 def as_floats(value, name: str) -> np.ndarray:

@@ -59,3 +59,19 @@ def test_singular_slope_system_is_ours():
 
     with np.errstate(divide="ignore", invalid="ignore"), pytest.raises(NumericalError, match="singular cubic spline"):
         slopes_rows(np.array([0.0, 1.0, 1.0, 2.0]), np.ones((3, 3)))
+
+
+def test_argument_errors_survive_pickling_between_processes():
+    """Worker processes send errors back pickled: an ArgumentError keeps its argument and message."""
+    import pickle
+
+    from planner.validation import ArgumentError, as_floats
+
+    try:
+        as_floats(object(), "waypoints")
+    except ArgumentError as exc:
+        back = pickle.loads(pickle.dumps(exc))
+        assert type(back) is ArgumentError and back.argument == "waypoints" and str(back) == str(exc)
+        assert "an object" in str(back)
+    else:
+        raise AssertionError("as_floats accepted an object")

@@ -203,7 +203,7 @@ def test_valid_options_still_work(tmp_path):
     (lambda: read_apt(5), "src", "src must be a file path or a text stream, got 5"),
     (lambda: read_apt(None), "src", "src must be a file path or a text stream, got None"),
     (lambda: read_csv([1, 2, 3]), "src", "src must be a file path or a text stream, got a list"),
-    (lambda: read_json(object()), "src", "src must be a file path or a text stream, got a object"),
+    (lambda: read_json(object()), "src", "src must be a file path or a text stream, got an object"),
     (lambda: read_gcode(b"p.nc"), "src", "src must be a file path or a text stream, got the string b'p.nc'"),
     (lambda: read_csv(io.BytesIO(b"0,0,0\n1,0,0\n")), "src", "src is a binary stream: open the file in text mode"),
     (lambda: read_json(io.BytesIO(b"[]")), "src", "src is a binary stream: open the file in text mode"),

@@ -227,6 +227,9 @@ def test_bad_files_are_422_with_the_readers_message(client, tmp_path):
     assert r.status_code == 422 and "pts.csv line 3" in r.json()["detail"][0]["msg"]
     r = submit_file(client, EXAMPLES / "nx_first_pass.csv", read_options={"units": "furlong"})
     assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "read_options", "units"]
+    r = submit_file(client, EXAMPLES / "nx_first_pass.csv", read_options={"machine": "haas-umc-750"})
+    d = r.json()["detail"][0]  # an option this reader does not take: named as a read option, not a bad file
+    assert r.status_code == 422 and d["loc"] == ["body", "read_options", "machine"] and "machine" in d["msg"]
     r = submit_file(client, EXAMPLES / "nx_first_pass.csv", settings={"frame": "er", "axes": "path"},
                     read_options={"units": "mm"})
     assert r.status_code == 202, r.text  # the tool normal to the path: any frame method

@@ -532,6 +532,7 @@ def _form_json(value, model, field: str):
 def _create_file_job(svc: Service, who: Principal, job_id: str, upload: UploadFile, settings_model: SettingsModel,
                      options: ReadOptions) -> str:
     from planner.io import detect_format, read_toolpath
+    from planner.io.options import ReaderArgumentError
 
     name = _safe_name(upload.filename)
     folder = job_dir(svc.cfg, job_id) / "input"
@@ -545,6 +546,8 @@ def _create_file_job(svc: Service, who: Principal, job_id: str, upload: UploadFi
     try:
         fmt = detect_format(path)
         toolpath = read_toolpath(path, format=fmt, **read_options)
+    except ReaderArgumentError as exc:  # an option this reader does not take, an unknown machine, ...
+        raise Unprocessable(["body", "read_options", exc.argument], f"{name}: {exc}") from None
     except PlannerError as exc:
         raise Unprocessable(["body", "file"], str(exc)) from None
     except TypeError as exc:  # an option this reader does not take
