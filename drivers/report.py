@@ -49,7 +49,9 @@ class IOSwitch:
     step between them (a point, for the first sample);
     planned_t, actual_t: job time of the planned and of the actual switch, s (NaN if missing);
     resolution_mm: length of that recorded step, mm: how far the TCP moved between the last sample that saw the
-    old state and the first that saw the new one (the sampling's uncertainty about where the switch happened).
+    old state and the first that saw the new one (the sampling's uncertainty about where the switch happened);
+    unresolved_ms: for a switch not seen, when the recording could not have shown it: the time between the
+    recorded samples nearest its station, ms (longer than the planned state lasted there); NaN otherwise.
     """
 
     bit: int
@@ -60,10 +62,16 @@ class IOSwitch:
     planned_t: float = math.nan
     actual_t: float = math.nan
     resolution_mm: float = math.nan
+    unresolved_ms: float = math.nan
 
     @property
     def switched(self) -> bool:
         return not math.isnan(self.actual_s)
+
+    @property
+    def unresolved(self) -> bool:
+        """Not seen, and the recording was too sparse there to see it (not counted as missed)."""
+        return not math.isnan(self.unresolved_ms)
 
 
 @dataclass(frozen=True)
@@ -124,10 +132,12 @@ class ExecutionReport:
                          f"({math.degrees(self.joint_limit_margin):.1f} deg)")
         if self.io_events:
             done = [e for e in self.io_events if e.switched]
-            missed = len(self.io_events) - len(done)
+            unresolved = sum(1 for e in self.io_events if e.unresolved)
+            missed = len(self.io_events) - len(done) - unresolved
             worst = max((e.distance_mm for e in done), default=math.nan)
             lines.append(f"  I/O: {len(done)} of {len(self.io_events)} switches made"
                          + (f", {missed} not made" if missed else "")
+                         + (f", {unresolved} too brief for the recording to show" if unresolved else "")
                          + (f"; largest distance from its station {worst:.3f} mm" if done else ""))
             for e in self.io_events[:8]:
                 state = "on " if e.value else "off"
@@ -135,6 +145,9 @@ class ExecutionReport:
                     lines.append(f"    {bit_name(e.bit)} {state} at s = {e.actual_s:.4f} m "
                                  f"(planned {e.planned_s:.4f} m, {e.distance_mm:.3f} mm from the station; "
                                  f"sampled every {e.resolution_mm:.3f} mm of travel there)")
+                elif e.unresolved:
+                    lines.append(f"    {bit_name(e.bit)} {state} planned at s = {e.planned_s:.4f} m: not seen, the "
+                                 f"recording's samples there are {e.unresolved_ms:.1f} ms apart")
                 else:
                     lines.append(f"    {bit_name(e.bit)} {state} planned at s = {e.planned_s:.4f} m: not switched")
             if len(self.io_events) > 8:
@@ -321,35 +334,104 @@ def planned_switches(times: np.ndarray, io: np.ndarray) -> list[tuple[int, bool,
 
 
 def _io_events(t, tcp, io, pt, pp, pio, ps) -> list[IOSwitch]:
-    """Planned switches matched, bit by bit and in order, with the recorded ones."""
+    """Planned switches matched with the recorded ones, bit and value apart, by an ordered alignment (each
+    planned switch to at most one recorded switch, in order) of least total distance from the stations, a switch
+    left unmatched costing UNMATCHED_COST. A sparse recording (program mode in fast-forward) can miss an output
+    that is off for a moment between two passes: such a pair is left unmatched (and marked unresolved when the
+    recording's samples there are further apart than it lasted) instead of shifting every later match."""
     planned = planned_switches(pt, pio)
     actual = _switches(t, io, 0)  # the driver clears the job's outputs before the run
     act_by: dict[tuple[int, bool], list[int]] = {}
-    for b, v, i in actual:
-        act_by.setdefault((b, v), []).append(i)
-    used: dict[tuple[int, bool], int] = {}
+    for b, v, j in actual:
+        act_by.setdefault((b, v), []).append(j)
+    plan_by: dict[tuple[int, bool], list[int]] = {}
+    for n, (b, v, _) in enumerate(planned):
+        plan_by.setdefault((b, v), []).append(n)
+    match: dict[int, int] = {}  # index in planned -> recorded sample index
+    for key, ns in plan_by.items():
+        js = act_by.get(key, [])
+        if js:
+            stations = pp[[planned[n][2] for n in ns]]
+            for x, y in _align(stations, tcp, js):
+                match[ns[x]] = js[y]
     out = []
-    for b, v, i in planned:
+    for n, (b, v, i) in enumerate(planned):
         station = pp[i]
-        j0 = max(i - 1, 0)
-        j1 = min(i + 1, pp.shape[0] - 1)
-        tan = pp[j1] - pp[j0]
+        tan = pp[min(i + 1, pp.shape[0] - 1)] - pp[max(i - 1, 0)]
         nt = np.linalg.norm(tan)
         tan = tan / nt if nt > 0 else tan
-        k = used.get((b, v), 0)
-        cands = act_by.get((b, v), [])
-        if k < len(cands):
-            used[(b, v)] = k + 1
-            j = cands[k]
-            a, c = tcp[max(j - 1, 0), :3], tcp[j, :3]
-            step = c - a
-            ls = float(np.dot(step, step))
-            u = 0.0 if ls == 0.0 else float(np.clip(np.dot(station - a, step) / ls, 0.0, 1.0))
-            p = a + u * step  # the TCP's recorded step between the old state and the new, nearest the station
-            tj = float(t[max(j - 1, 0)] + u * (t[j] - t[max(j - 1, 0)]))
-            out.append(IOSwitch(b, v, float(ps[i]), float(ps[i] + np.dot(p - station, tan)),
-                                float(np.linalg.norm(p - station) * 1e3), float(pt[i]), tj,
-                                float(math.sqrt(ls) * 1e3)))
-        else:
-            out.append(IOSwitch(b, v, float(ps[i]), math.nan, math.nan, float(pt[i]), math.nan))
+        j = match.get(n)
+        if j is None:
+            out.append(IOSwitch(b, v, float(ps[i]), math.nan, math.nan, float(pt[i]), math.nan,
+                                unresolved_ms=_unresolved_ms(n, planned, pt, station, t, tcp)))
+            continue
+        p, u, ls = _nearest_on_step(station, tcp, j)
+        tj = float(t[max(j - 1, 0)] + u * (t[j] - t[max(j - 1, 0)]))
+        out.append(IOSwitch(b, v, float(ps[i]), float(ps[i] + np.dot(p - station, tan)),
+                            float(np.linalg.norm(p - station) * 1e3), float(pt[i]), tj, float(math.sqrt(ls) * 1e3)))
     return out
+
+
+#: Cost of leaving a planned or a recorded switch unmatched in :func:`_io_events`' alignment, m: a switch is
+#: matched to a recorded one up to 2 x this away from its station, else both count as unmatched.
+UNMATCHED_COST = 0.05
+
+
+def _nearest_on_step(station, tcp, j):
+    """The point of the TCP's recorded step from sample j - 1 to j nearest ``station``, its fraction u along the
+    step and the step's squared length."""
+    a, c = tcp[max(j - 1, 0), :3], tcp[j, :3]
+    step = c - a
+    ls = float(np.dot(step, step))
+    u = 0.0 if ls == 0.0 else float(np.clip(np.dot(station - a, step) / ls, 0.0, 1.0))
+    return a + u * step, u, ls
+
+
+def _align(stations, tcp, js) -> list[tuple[int, int]]:
+    """Ordered alignment of planned stations (m, 3) with recorded switch samples js (k,): pairs (a, c) of least
+    total cost (distance of the recorded step from the station; UNMATCHED_COST per switch left over)."""
+    m, k = stations.shape[0], len(js)
+    jj = np.asarray(js)
+    a = tcp[np.maximum(jj - 1, 0), :3]
+    d = tcp[jj, :3] - a
+    dd = np.einsum("kj,kj->k", d, d)
+    w = np.einsum("mkj,kj->mk", stations[:, None] - a[None], d)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        u = np.clip(np.where(dd > 0, w / dd, 0.0), 0.0, 1.0)
+    cost = np.linalg.norm(stations[:, None] - (a[None] + u[..., None] * d[None]), axis=2)  # (m, k)
+    skip = UNMATCHED_COST
+    acc = np.zeros((m + 1, k + 1))
+    acc[0, :] = skip * np.arange(k + 1)
+    acc[:, 0] = skip * np.arange(m + 1)
+    for x in range(1, m + 1):  # the edit-distance recurrence (a cell depends on the one before it in its row)
+        row, prev, cx = acc[x], acc[x - 1], cost[x - 1]
+        for y in range(1, k + 1):
+            row[y] = min(prev[y - 1] + cx[y - 1], prev[y] + skip, row[y - 1] + skip)
+    pairs = []
+    x, y = m, k
+    while x > 0 and y > 0:
+        if acc[x, y] == acc[x - 1, y - 1] + cost[x - 1, y - 1]:
+            pairs.append((x - 1, y - 1))
+            x, y = x - 1, y - 1
+        elif acc[x, y] == acc[x - 1, y] + skip:
+            x -= 1
+        else:
+            y -= 1
+    return pairs[::-1]
+
+
+def _unresolved_ms(n, planned, pt, station, t, tcp) -> float:
+    """For planned switch n not seen: the time between the recorded samples nearest its station, ms, when that
+    is longer than the planned state lasted there (from the previous or to the next planned switch of its bit):
+    the recording could not show it. NaN when it could (a switch missed)."""
+    if t.size < 2:
+        return math.nan
+    b, _, i = planned[n]
+    same = [q[2] for q in planned if q[0] == b]
+    k = same.index(i)
+    lasted = min([abs(pt[i] - pt[q]) for q in same[max(k - 1, 0):k + 2] if q != i] or [math.inf])
+    rel = tcp[:, :3] - station
+    near = int(np.argmin(np.einsum("nj,nj->n", rel, rel)))
+    lo, hi = max(near - 1, 0), min(near + 1, t.size - 1)
+    gap = float(max(t[near] - t[lo], t[hi] - t[near]))
+    return gap * 1e3 if gap > lasted else math.nan

@@ -127,3 +127,45 @@ def test_recording_reduced_in_blocks_with_a_small_trace_gives_the_same_report(jo
     tr = small.trace
     assert np.count_nonzero(tr.io[1:] != tr.io[:-1]) == np.count_nonzero(io[1:] != io[:-1]) == 82
     assert isinstance(new_recording(job, planned), Recording)
+
+
+APT_THREE_PASSES = """FEDRAT/MMPM,1200
+GOTO/0,0,0
+GOTO/40,0,0
+RAPID
+GOTO/40,0.4,0
+GOTO/0,0.4,0
+RAPID
+GOTO/0,0.8,0
+GOTO/40,0.8,0
+"""
+
+
+def test_a_sparse_recording_that_misses_a_brief_off_leaves_it_unresolved_not_shifted(tmp_path):
+    """Three passes 0.4 mm apart joined by short rapids: the output is off for a moment between them. Recorded
+    every 0.5 s (program mode in fast-forward), the off-on pairs are not seen; the ordered alignment leaves them
+    unmatched and marked unresolved, and still matches the first on and the last off to their own stations
+    (in-order matching used to give the last off to the first pass's off, 80 mm away)."""
+    path = tmp_path / "three.apt"
+    path.write_text(APT_THREE_PASSES)
+    job = plan(path, PlanSettings(path="cam", robot="ur5e", part_frame=PART, cut_output=("standard", 0)))
+    c = job.trajectory().collect()
+    on = np.flatnonzero(c.io & 1)
+    gaps = np.flatnonzero(np.diff(on) > 1)
+    assert len(gaps) == 2  # two brief offs between the three passes
+    off_s = (on[gaps + 1] - on[gaps]) / 500.0
+    assert (off_s < 0.5).all()
+    step = 250  # every 0.5 s
+    keep = np.unique(np.r_[np.arange(0, c.times.size, step), c.times.size - 1])
+    keep = keep[~np.isin(keep, np.r_[[np.arange(on[g] + 1, on[g + 1]) for g in gaps]].ravel())]  # offs unseen
+    rep = execution_report(job, c.times[keep], c.poses[keep], c.joints[keep], c.io[keep], mode="replay")
+    ev = rep.io_events
+    assert [(e.value, e.switched, e.unresolved) for e in ev] == [
+        (True, True, False), (False, False, True), (True, False, True),
+        (False, False, True), (True, False, True), (False, True, False)]
+    assert ev[0].distance_mm <= ev[0].resolution_mm + 1e-9 and ev[-1].distance_mm <= ev[-1].resolution_mm + 1e-9
+    assert all(1e3 * off_s.max() < e.unresolved_ms <= 500.0 + 1e-6 for e in ev if e.unresolved)
+    assert "4 too brief for the recording to show" in "\n".join(rep.describe())
+    # the same recording at the controller's rate sees every switch on its station
+    full = execution_report(job, c.times, c.poses, c.joints, c.io, mode="replay")
+    assert all(e.switched and e.distance_mm < 1e-9 for e in full.io_events) and len(full.io_events) == 6
