@@ -360,11 +360,11 @@ def _io_events(t, tcp, io, pt, pp, pio, ps) -> list[IOSwitch]:
         tan = pp[min(i + 1, pp.shape[0] - 1)] - pp[max(i - 1, 0)]
         nt = np.linalg.norm(tan)
         tan = tan / nt if nt > 0 else tan
-        j = match.get(n)
-        if j is None:
+        if n not in match:
             out.append(IOSwitch(b, v, float(ps[i]), math.nan, math.nan, float(pt[i]), math.nan,
                                 unresolved_ms=_unresolved_ms(n, planned, pt, station, t, tcp)))
             continue
+        j = match[n]
         p, u, ls = _nearest_on_step(station, tcp, j)
         tj = float(t[max(j - 1, 0)] + u * (t[j] - t[max(j - 1, 0)]))
         out.append(IOSwitch(b, v, float(ps[i]), float(ps[i] + np.dot(p - station, tan)),
