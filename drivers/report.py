@@ -355,14 +355,17 @@ def _io_events(t, tcp, io, pt, pp, pio, ps) -> list[IOSwitch]:
             for x, y in _align(stations, tcp, js):
                 match[ns[x]] = js[y]
     out = []
+    seg = None  # the planned segment nearest each recorded sample, for switches not matched
     for n, (b, v, i) in enumerate(planned):
         station = pp[i]
         tan = pp[min(i + 1, pp.shape[0] - 1)] - pp[max(i - 1, 0)]
         nt = np.linalg.norm(tan)
         tan = tan / nt if nt > 0 else tan
         if n not in match:
+            if seg is None:
+                seg = distance_to_polyline(tcp[:, :3], pp)[1] if t.size else np.zeros(0, np.int64)
             out.append(IOSwitch(b, v, float(ps[i]), math.nan, math.nan, float(pt[i]), math.nan,
-                                unresolved_ms=_unresolved_ms(n, planned, pt, station, t, tcp)))
+                                unresolved_ms=_unresolved_ms(n, planned, t, seg)))
             continue
         j = match[n]
         p, u, ls = _nearest_on_step(station, tcp, j)
@@ -420,18 +423,21 @@ def _align(stations, tcp, js) -> list[tuple[int, int]]:
     return pairs[::-1]
 
 
-def _unresolved_ms(n, planned, pt, station, t, tcp) -> float:
-    """For planned switch n not seen: the time between the recorded samples nearest its station, ms, when that
-    is longer than the planned state lasted there (from the previous or to the next planned switch of its bit):
-    the recording could not show it. NaN when it could (a switch missed)."""
-    if t.size < 2:
-        return math.nan
+def _unresolved_ms(n, planned, t, seg) -> float:
+    """For planned switch n not seen: when the recording has no sample inside a planned state the switch begins
+    or ends (the planned samples between it and the neighbouring switch of its bit, ends excluded), the time
+    between the recorded samples on either side of that state, ms: the recording could not show it. NaN when
+    the recording saw the stretch (the switch was missed)."""
     b, _, i = planned[n]
     same = [q[2] for q in planned if q[0] == b]
     k = same.index(i)
-    lasted = min([abs(pt[i] - pt[q]) for q in same[max(k - 1, 0):k + 2] if q != i] or [math.inf])
-    rel = tcp[:, :3] - station
-    near = int(np.argmin(np.einsum("nj,nj->n", rel, rel)))
-    lo, hi = max(near - 1, 0), min(near + 1, t.size - 1)
-    gap = float(max(t[near] - t[lo], t[hi] - t[near]))
-    return gap * 1e3 if gap > lasted else math.nan
+    states = ([(same[k - 1], i)] if k > 0 else []) + ([(i, same[k + 1])] if k + 1 < len(same) else [])
+    for lo, hi in states:
+        if seg.size == 0:
+            continue
+        if ((seg > lo) & (seg < hi - 1)).any():
+            continue  # seen inside that state
+        before, after = np.flatnonzero(seg <= lo), np.flatnonzero(seg >= hi - 1)
+        if before.size and after.size and after[0] > before[-1]:
+            return float(t[after[0]] - t[before[-1]]) * 1e3
+    return math.nan

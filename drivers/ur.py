@@ -342,8 +342,12 @@ class URDriver:
             raise err
 
     # ---- motions ------------------------------------------------------------------------------------
-    def move_to_start(self, job, *, speed: float = 0.5, acceleration: float = 0.5) -> None:
-        """A joint move (rad/s, rad/s^2) onto ``job.start_joints``: the arm configuration the planner chose."""
+    def move_to_start(self, job, *, speed: float = 0.5, acceleration: float = 0.5,
+                      cancel: threading.Event | None = None) -> None:
+        """A joint move (rad/s, rad/s^2) onto ``job.start_joints``: the arm configuration the planner chose.
+
+        The move runs asynchronously on the controller and is watched every 4 ms: ``cancel`` set, or
+        :meth:`stop` called, stops it (``stopJ`` at ``acceleration`` x 4) and raises CancelledError."""
         self._check_job(job)
         r = self._need()
         self._check_state()
@@ -353,9 +357,23 @@ class URDriver:
             else:
                 self._connect_control()
         q0 = [float(x) for x in job.start_joints]
+        c = self._control()
         try:
-            ok = self._control().moveJ(q0, float(speed), float(acceleration))
-        except RuntimeError as exc:
+            ok = c.moveJ(q0, float(speed), float(acceleration), True)  # asynchronous: watched below
+            while ok and c.getAsyncOperationProgress() >= 0:
+                stopped = stop_requested(cancel, self._stop)
+                if stopped is not None:
+                    c.stopJ(4.0 * float(acceleration))
+                    end = time.monotonic() + 2.0  # the arm at rest before the caller hears of it
+                    while time.monotonic() < end and np.abs(r.getActualQd()).max() > 1e-4:
+                        time.sleep(0.004)
+                    raise type(stopped)(f"move to the start: {stopped.reason}", t=0.0)
+                if self._fault() is not None:
+                    break
+                time.sleep(0.004)
+        except DriverError:
+            raise
+        except RuntimeError as exc:  # ur_rtde's own errors: the connection
             raise ConnectionLostError(f"the move to the start failed: {exc}") from exc
         err = self._fault()
         if not ok or err is not None:
@@ -426,7 +444,7 @@ class URDriver:
         # stream: the targets are produced ahead by a thread of their own while the arm approaches the start
         feed = TargetFeed(job.trajectory(job.settings.rate)) if mode == "stream" else None
         try:
-            self.move_to_start(job, speed=self.approach_speed, acceleration=self.approach_acceleration)
+            self.move_to_start(job, speed=self.approach_speed, acceleration=self.approach_acceleration, cancel=cancel)
             mask = output_mask(planned[2])
             if mask:
                 self._outputs().set_bits(mask, 0)
@@ -693,6 +711,9 @@ class URDriver:
         if not isinstance(failure, ConnectionLostError):
             try:
                 c.reuploadScript()  # ur_rtde's control script back, for the next move
+                end = time.monotonic() + 1.0  # and playing before the caller reads the state
+                while r.getRuntimeState() != _PLAYING and time.monotonic() < end:
+                    time.sleep(0.004)
             except RuntimeError:
                 pass
         return rec, failure

