@@ -12,10 +12,8 @@ result of a NaN argument.
 
 from __future__ import annotations
 
-import contextlib
 import math
 import re
-import signal
 import traceback
 import warnings
 from dataclasses import dataclass, field
@@ -26,24 +24,8 @@ import numpy as np
 import pytest
 
 from planner.errors import NumericalError, PlannerError
-
-
-class _Hang(BaseException):
-    pass
-
-
-@contextlib.contextmanager
-def _deadline(seconds: float):
-    def alarm(signum, frame):
-        raise _Hang(f"no answer within {seconds:g} s")
-
-    old = signal.signal(signal.SIGALRM, alarm)
-    signal.setitimer(signal.ITIMER_REAL, seconds)
-    try:
-        yield
-    finally:
-        signal.setitimer(signal.ITIMER_REAL, 0.0)
-        signal.signal(signal.SIGALRM, old)
+from tests.test_fuzz import Hang as _Hang
+from tests.test_fuzz import deadline as _deadline
 
 
 # ---------------------------------------------------------------------------------------------- valid objects
