@@ -109,6 +109,7 @@ def test_servoj_target_that_jumps_is_a_protective_stop(arm):
     assert r.getSafetyMode() == 1
 
 
+@pytest.mark.realtime  # a 500 Hz stream whose pace matters: alone on the machine, not beside the parallel run
 def test_servoj_stream_faster_than_a_joint_can_go_is_a_protective_stop(make_sim):
     """A smooth stream (acceleration 8 rad/s^2, under the limit) that passes the base joint's 3.14 rad/s: the arm
     follows it until the joint would need more than its speed limit, then stops (at the controller's own pace:
