@@ -439,13 +439,7 @@ class _Reader:
             hole[k] = 0.0
             if current is not None and any(v != v for v in current):
                 current = None
-            moves, bottom = hole_moves(current, hole, normal, cyc)
-            for j, (q, rapid) in enumerate(moves):
-                self.emit(line, q, rapid)
-                if j == bottom and cyc.dwell > 0.0:
-                    self.out.event("dwell", line, name, cyc.dwell, text.strip())
-            if moves:
-                pos[:] = moves[-1][0]
+            self.emit_hole(line, text, name, cyc, current, hole, normal)
 
     def drill_here(self, line: int, text: str, name: str, cyc: DrillCycle) -> None:
         """One hole of a Sinumerik drilling cycle at the tool's position (levels absolute along the plane's
@@ -458,13 +452,18 @@ class _Reader:
         normal[k] = 1.0
         hole = list(pos)
         hole[k] = 0.0
-        moves, bottom = hole_moves(tuple(pos), hole, normal, cyc)
+        self.emit_hole(line, text, name, cyc, tuple(pos), hole, normal)
+
+    def emit_hole(self, line: int, text: str, name: str, cyc: DrillCycle, current, hole, normal) -> None:
+        """The moves of one hole (:func:`hole_moves`) from ``current``, the cycle's dwell at the bottom, and the
+        tool's position left at the last of them."""
+        moves, bottom = hole_moves(current, hole, normal, cyc)
         for j, (q, rapid) in enumerate(moves):
             self.emit(line, q, rapid)
             if j == bottom and cyc.dwell > 0.0:
                 self.out.event("dwell", line, name, cyc.dwell, text.strip())
         if moves:
-            pos[:] = moves[-1][0]
+            self.pos[:] = moves[-1][0]
 
     def emit(self, line: int, xyz, rapid: bool, rot_given: bool = False) -> None:
         """Append one point (program frame, metres) with the modal rotary state."""
