@@ -39,6 +39,17 @@ def next_host() -> str:
     raise RuntimeError("no free loopback address for a simulated controller")
 
 
+def eventually(condition, timeout: float = 3.0) -> bool:
+    """Whether ``condition()`` becomes true within ``timeout`` s of wall time (polled every 10 ms): the state
+    reaches the client with the next RTDE data packages, later when the machine is loaded."""
+    end = time.monotonic() + timeout
+    while not condition():
+        if time.monotonic() > end:
+            return False
+        time.sleep(0.01)
+    return True
+
+
 def start_sim(**kwargs) -> SimController:
     """A started SimController on a free address (retried if another session took it meanwhile)."""
     kwargs.setdefault("modbus_port", None)

@@ -22,6 +22,7 @@ from drivers.ur import ProgramStoppedError, URDriver
 from planner import PlanSettings, plan
 from planner.trajectory import Chunk, Trajectory
 from tests import sim_fixtures
+from tests.sim_fixtures import eventually
 
 make_sim = sim_fixtures.make_sim  # fixture
 
@@ -89,15 +90,6 @@ def _located(job, err, t_lo: float, t_hi: float) -> None:
     assert f"source line {err.line}" in str(err)
 
 
-def _eventually(condition, timeout: float = 2.0) -> bool:
-    end = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > end:
-            return False
-        time.sleep(0.01)
-    return True
-
-
 def _run_in_thread(d: URDriver, job, mode: str = "stream"):
     out: dict = {}
     th = threading.Thread(target=lambda: out.update(rep=d.execute(job, mode=mode)))
@@ -119,7 +111,7 @@ def test_servo_target_that_jumps_is_a_protective_stop_with_time_pose_and_line(ma
         rep = d.execute(_Jumping(fast_job), mode="stream")
         assert d.state().protective_stop
         # the controller ends the program a few periods after the protective stop
-        assert _eventually(lambda: not d.state().program_running)
+        assert eventually(lambda: not d.state().program_running, timeout=2.0)
     assert not rep.ok
     err = rep.failure
     assert isinstance(err, ProtectiveStopError), rep.describe()

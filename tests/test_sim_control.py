@@ -15,6 +15,7 @@ import rtde_receive
 from planner.kinematics import forward, inverse
 from sim.motion import HOME
 from tests import sim_fixtures
+from tests.sim_fixtures import eventually
 
 make_sim = sim_fixtures.make_sim  # fixture
 
@@ -231,18 +232,6 @@ def test_servo_speed_and_stop_commands(arm):
     assert np.abs(r.getActualQd()).max() == 0.0
 
 
-def _eventually(condition, timeout: float = 3.0) -> bool:
-    """Whether ``condition()`` becomes true within ``timeout`` s of wall time (polled every 10 ms): the state
-    reaches the client with the next RTDE data packages, later when the machine is loaded."""
-    end = time.monotonic() + timeout
-    while True:
-        if condition():
-            return True
-        if time.monotonic() > end:
-            return False
-        time.sleep(0.01)
-
-
 def test_unreachable_target_protective_stop_and_recovery(make_sim, capfd):
     sim = make_sim(speed=4.0)
     c = rtde_control.RTDEControlInterface(sim.host)
@@ -254,10 +243,10 @@ def test_unreachable_target_protective_stop_and_recovery(make_sim, capfd):
         capfd.readouterr()
         assert not c.moveL([1.6, 0.0, 0.3, 0.0, 3.14, 0.0], 0.25, 1.2)
         assert "script is not running" not in capfd.readouterr().err  # it was the protective-stop check
-        assert _eventually(r.isProtectiveStopped)  # the receive interface's next data packages
+        assert eventually(r.isProtectiveStopped)  # the receive interface's next data packages
         assert r.getSafetyMode() == 3 and r.getSafetyStatusBits() & 4
         # the controller ends the program 0.1 s (simulated) after the stop
-        assert _eventually(lambda: not c.isProgramRunning())
+        assert eventually(lambda: not c.isProgramRunning())
         assert d.safetystatus() == "Safetystatus: PROTECTIVE_STOP"
         assert any("Protective stop" in m[2] for m in sim.state()["log"])
         # too soon to unlock, as on the controller (5 s); then released through the dashboard
@@ -267,11 +256,11 @@ def test_unreachable_target_protective_stop_and_recovery(make_sim, capfd):
         d.unlockProtectiveStop()
         assert d.safetystatus() == "Safetystatus: NORMAL"
         assert c.reuploadScript()
-        assert _eventually(c.isProgramRunning)
+        assert eventually(c.isProgramRunning)
         assert c.moveJ((HOME + 0.1).tolist(), 1.0, 2.0)
         # a joint target beyond the limits is a protective stop too
         assert not c.moveJ((HOME + [7.0, 0, 0, 0, 0, 0]).tolist(), 1.0, 2.0)
-        assert _eventually(r.isProtectiveStopped)
+        assert eventually(r.isProtectiveStopped)
     finally:
         c.disconnect()
         r.disconnect()

@@ -22,19 +22,11 @@ from sim.__main__ import command
 from sim.dashboard import LOCAL_REFUSAL
 from sim.motion import HOME, JOINT_ACCEL_MAX
 from tests import sim_fixtures
+from tests.sim_fixtures import eventually
 
 make_sim = sim_fixtures.make_sim  # fixture
 REPO = Path(__file__).resolve().parents[1]
 UR5E_SPEED = get_model("ur5e").speed_limits
-
-
-def _eventually(condition, timeout: float = 3.0) -> bool:
-    end = time.monotonic() + timeout
-    while not condition():
-        if time.monotonic() > end:
-            return False
-        time.sleep(0.01)
-    return True
 
 
 def _raw(host: str, *lines: str) -> list[str]:
@@ -56,13 +48,13 @@ def _send_program(host: str, text: str) -> None:
 
 def _protective_stop_seen(sim, r, d, why: str) -> str:
     """Checks every sign of a protective stop a real controller gives; returns its text message."""
-    assert _eventually(r.isProtectiveStopped)
+    assert eventually(r.isProtectiveStopped)
     assert r.getSafetyMode() == 3
     assert r.getSafetyStatusBits() & (1 << 2) and r.getSafetyStatusBits() & (1 << 10)
     assert not r.getSafetyStatusBits() & 1  # not in normal mode
     assert d.safetystatus() == "Safetystatus: PROTECTIVE_STOP"
-    assert _eventually(lambda: r.getRuntimeState() == 1)  # the program stopped
-    assert _eventually(lambda: np.abs(r.getActualQd()).max() == 0.0)  # the arm at rest
+    assert eventually(lambda: r.getRuntimeState() == 1)  # the program stopped
+    assert eventually(lambda: np.abs(r.getActualQd()).max() == 0.0)  # the arm at rest
     msgs = [m[2] for m in sim.state()["log"] if m[1] == "Safety" and m[2].startswith("Protective stop")]
     assert len(msgs) == 1 and why in msgs[0], msgs
     return msgs[0]
@@ -104,7 +96,7 @@ def test_servoj_target_that_jumps_is_a_protective_stop(arm):
     # re-uploaded script would run it again, as on a real controller. servoStop, refused with the script
     # stopped, clears it first
     assert not c.servoStop(10.0)
-    assert c.reuploadScript() and _eventually(c.isProgramRunning)
+    assert c.reuploadScript() and eventually(c.isProgramRunning)
     assert c.moveJ((q0 + 0.05).tolist(), 1.0, 2.0)  # moving again after the unlock
     assert r.getSafetyMode() == 1
 
@@ -160,7 +152,7 @@ def _program(*lines: str) -> str:
 def test_movej_beyond_the_joint_limits_in_a_program_is_a_protective_stop(arm, move, why, moves):
     sim, c, r, d = arm
     c.stopScript()
-    assert _eventually(lambda: r.getRuntimeState() == 1)
+    assert eventually(lambda: r.getRuntimeState() == 1)
     _send_program(sim.host, _program("set_standard_digital_out(0, True)", move.format(q0=HOME[0] + 2.0)))
     text = _protective_stop_seen(sim, r, d, why)
     q = np.asarray(r.getActualQ())
@@ -177,7 +169,7 @@ def test_movel_too_fast_in_a_program_is_a_protective_stop(arm):
     """A 3 m/s linear move across the workspace needs more than the joints' speed limits."""
     sim, c, r, d = arm
     c.stopScript()
-    assert _eventually(lambda: r.getRuntimeState() == 1)
+    assert eventually(lambda: r.getRuntimeState() == 1)
     p = forward("ur5e", HOME) + [0.0, 0.35, -0.2, 0.0, 0.0, 0.0]
     _send_program(sim.host, _program(f"movel(p[{', '.join(f'{x:.6f}' for x in p)}], a=20.0, v=3.0)"))
     _protective_stop_seen(sim, r, d, "movel: joint")
@@ -187,9 +179,9 @@ def test_emergency_stop_mid_move_powers_the_arm_off(arm):
     sim, c, r, d = arm
     q0 = np.asarray(r.getActualQ())
     assert c.moveJ((q0 + [1.5, 0, 0, 0, 0, 0]).tolist(), 0.5, 1.0, True)  # async: 3+ s
-    assert _eventually(lambda: np.abs(r.getActualQd()).max() > 0.2)
+    assert eventually(lambda: np.abs(r.getActualQd()).max() > 0.2)
     sim.press_emergency_stop()
-    assert _eventually(lambda: r.getSafetyMode() == 7)  # ROBOT_EMERGENCY_STOP
+    assert eventually(lambda: r.getSafetyMode() == 7)  # ROBOT_EMERGENCY_STOP
     bits = r.getSafetyStatusBits()
     assert bits & (1 << 6) and bits & (1 << 7) and bits & (1 << 10) and not bits & 1
     assert r.isEmergencyStopped() and not r.isProtectiveStopped()
@@ -211,22 +203,22 @@ def test_emergency_stop_mid_move_powers_the_arm_off(arm):
     assert any("not started: robot is POWER_OFF" in m[2] for m in sim.state()["log"])
     # released: normal safety, still powered off until power on and brake release
     assert sim.release_emergency_stop() and not sim.release_emergency_stop()
-    assert _eventually(lambda: r.getSafetyMode() == 1) and r.getRobotMode() == 3
+    assert eventually(lambda: r.getSafetyMode() == 1) and r.getRobotMode() == 3
     d.powerOn()
     d.brakeRelease()
     assert d.robotmode() == "Robotmode: RUNNING"
-    assert c.reuploadScript() and _eventually(c.isProgramRunning)
+    assert c.reuploadScript() and eventually(c.isProgramRunning)
     assert c.moveJ(q0.tolist(), 1.0, 2.0)
 
 
 def test_system_emergency_stop_mid_program(arm):
     sim, c, r, d = arm
     c.stopScript()
-    assert _eventually(lambda: r.getRuntimeState() == 1)
+    assert eventually(lambda: r.getRuntimeState() == 1)
     _send_program(sim.host, _program("set_standard_digital_out(0, True)", "sleep(5.0)"))
-    assert _eventually(lambda: r.getRuntimeState() == 2)
+    assert eventually(lambda: r.getRuntimeState() == 2)
     sim.press_emergency_stop("system")
-    assert _eventually(lambda: r.getSafetyMode() == 6)  # SYSTEM_EMERGENCY_STOP
+    assert eventually(lambda: r.getSafetyMode() == 6)  # SYSTEM_EMERGENCY_STOP
     bits = r.getSafetyStatusBits()
     assert bits & (1 << 5) and bits & (1 << 7) and not bits & (1 << 6)
     assert r.getRuntimeState() == 1 and r.getRobotMode() == 3
@@ -288,15 +280,15 @@ def test_local_control_mode_refuses_motion_commands_and_programs(make_sim):
     sim.set_remote_control(True)
     assert _raw(sim.host, "is in remote control")[1] == "true"
     _send_program(sim.host, _program("set_standard_digital_out(0, True)"))
-    assert _eventually(lambda: sim.state()["digital_out"] & 1 == 1)
+    assert eventually(lambda: sim.state()["digital_out"] & 1 == 1)
 
 
 def test_local_control_switched_on_mid_program_lets_it_run_and_refuses_the_next(make_sim):
     sim = make_sim(speed=4.0)
     _send_program(sim.host, _program("sleep(1.0)", "set_standard_digital_out(1, True)"))
-    assert _eventually(lambda: sim.state()["runtime_state"] == "PLAYING")
+    assert eventually(lambda: sim.state()["runtime_state"] == "PLAYING")
     sim.set_remote_control(False)
-    assert _eventually(lambda: sim.state()["digital_out"] & 2 == 2)  # ran to its end
+    assert eventually(lambda: sim.state()["digital_out"] & 2 == 2)  # ran to its end
     _send_program(sim.host, _program("set_standard_digital_out(2, True)"))
     time.sleep(0.3)
     st = sim.state()
