@@ -20,8 +20,8 @@ from drivers.base import EmergencyStopError, NotReadyError, ProtectiveStopError
 from drivers.report import planned_path
 from drivers.ur import ProgramStoppedError, URDriver
 from planner import PlanSettings, plan
-from planner.trajectory import Chunk, Trajectory
 from tests import sim_fixtures
+from tests.jumping_job import JumpingJob
 from tests.sim_fixtures import eventually
 
 make_sim = sim_fixtures.make_sim  # fixture
@@ -45,30 +45,6 @@ def fast_job():
 @pytest.fixture(scope="module")
 def demo_job():
     return plan(DEMO, PlanSettings(robot="ur5e", part_frame=PART, cut_output=("standard", 0)))
-
-
-class _Jumping:
-    """``job`` whose servo targets jump by `JUMP` rad on the elbow `JUMP_AT` s into the cut, and stay there."""
-
-    def __init__(self, job):
-        self._job = job
-
-    def __getattr__(self, name):
-        return getattr(self._job, name)
-
-    def trajectory(self, rate=None):
-        return _JumpingTrajectory(self._job, self._job.settings.rate if rate is None else rate)
-
-
-class _JumpingTrajectory(Trajectory):
-    def chunks(self, *, joints=None, progress=None):
-        k = int(JUMP_AT * self.rate)
-        for c in super().chunks(joints=joints, progress=progress):
-            if c.joints is not None and c.kind == "cut":
-                q = c.joints.copy()
-                q[k:, 2] += JUMP
-                c = Chunk(c.move, c.kind, c.pass_index, c.times, c.poses, c.lines, q, c.io, c.final)
-            yield c
 
 
 def _at_rest(host: str) -> float:
@@ -108,7 +84,7 @@ def _wait_mode(d: URDriver, mode: str, then: float, timeout: float = 30.0) -> No
 def test_servo_target_that_jumps_is_a_protective_stop_with_time_pose_and_line(make_sim, fast_job):
     sim = make_sim()
     with URDriver(sim.host, "ur5e", **FAST) as d:
-        rep = d.execute(_Jumping(fast_job), mode="stream")
+        rep = d.execute(JumpingJob(fast_job, joint=2, jump=JUMP, after_s=JUMP_AT), mode="stream")
         assert d.state().protective_stop
         # the controller ends the program a few periods after the protective stop
         assert eventually(lambda: not d.state().program_running, timeout=2.0)

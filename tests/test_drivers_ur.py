@@ -24,8 +24,8 @@ from drivers.base import (
 from drivers.report import planned_path
 from drivers.ur import ProgramStoppedError, URDriver
 from planner import PlanSettings, plan
-from planner.trajectory import Chunk, Trajectory
 from tests import sim_fixtures
+from tests.jumping_job import JumpingJob
 
 make_sim = sim_fixtures.make_sim  # fixture
 
@@ -109,34 +109,11 @@ def test_program_mode_followed_within_the_blend_tolerance(make_sim, demo_job):
     assert rep.duration == pytest.approx(rep.planned_duration, rel=0.05)
 
 
-class _TooFast:
-    """The demo job whose servo targets jump by 7 rad on joint 0 after 1 s of the cut, beyond the joint's
-    position limit (+-2 pi): an unreachable target, which the controller must refuse with a protective stop.
-    (The simulator follows a target that merely jumps as fast as the joint speed limits allow.)"""
-
-    def __init__(self, job):
-        self._job = job
-
-    def __getattr__(self, name):
-        return getattr(self._job, name)
-
-    def trajectory(self, rate=None):
-        return _JumpingTrajectory(self._job, self._job.settings.rate if rate is None else rate)
-
-
-class _JumpingTrajectory(Trajectory):
-    def chunks(self, *, joints=None, progress=None):
-        for c in super().chunks(joints=joints, progress=progress):
-            if c.joints is not None and c.kind == "cut":
-                q = c.joints.copy()
-                q[500:, 0] += 7.0
-                c = Chunk(c.move, c.kind, c.pass_index, c.times, c.poses, c.lines, q, c.io, c.final)
-            yield c
-
-
 def test_too_fast_target_protective_stop_with_time_pose_and_line(make_sim, fast_job):
     sim = make_sim()
-    bad = _TooFast(fast_job)
+    # the servo targets jump by 7 rad on joint 0 after 1 s of the cut, beyond its position limit (+-2 pi): an
+    # unreachable target, which the controller must refuse with a protective stop
+    bad = JumpingJob(fast_job, joint=0, jump=7.0, after_s=1.0)
     with URDriver(sim.host, "ur5e", **FAST) as d:
         rep = d.execute(bad, mode="stream")
     assert not rep.ok
