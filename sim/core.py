@@ -83,7 +83,7 @@ class Core:
         self.payload_cog = np.zeros(3)
         self.payload_inertia = np.zeros(6)
         self.execution_time_ms = 0.0
-        self.late_ticks = 0  # control-loop ticks skipped because the loop fell behind (wall clock)
+        self.late_ticks = 0  # control-loop ticks that ran late (the loop fell behind the wall clock), caught up
         self.packages_sent = 0  # RTDE data packages sent
         self.max_late_ms = 0.0  # largest wake-up delay of the control loop, ms
         self.log: collections.deque = collections.deque(maxlen=200)
