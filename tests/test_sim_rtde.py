@@ -159,6 +159,34 @@ def test_data_before_start_and_pause(shared_sim):
         raw.close()
 
 
+def test_a_controller_held_up_by_the_machine_sends_every_package_late(make_sim):
+    """The whole simulator process stopped for 0.1 s (a machine stall, SIGSTOP): afterwards the simulated
+    clock has followed the wall clock and every 2 ms package of the stall arrives, in a burst, in order."""
+    sim = make_sim()
+    raw = RawRTDE(sim.host)
+    try:
+        raw.send("V", struct.pack(">H", 2))
+        assert raw.recv() == ("V", b"\x01")
+        raw.send("O", struct.pack(">d", 500.0) + b"timestamp")
+        assert raw.recv() == ("O", b"\x01DOUBLE")
+        raw.send("S")
+        assert raw.recv() == ("S", b"\x01")
+        stamps = []
+        while len(stamps) < 1000:  # 2 s
+            kind, payload = raw.recv(skip_data=False)
+            if kind == "U":
+                stamps.append(struct.unpack(">d", payload[1:9])[0])
+            if len(stamps) == 200:
+                os.kill(sim.proc.pid, signal.SIGSTOP)
+                time.sleep(0.1)
+                os.kill(sim.proc.pid, signal.SIGCONT)
+    finally:
+        raw.close()
+    steps = np.round(np.diff(stamps) / 0.002).astype(int)
+    assert (steps == 1).all(), np.unique(steps, return_counts=True)
+    assert stamps[-1] - stamps[0] == pytest.approx(0.002 * 999, abs=1e-9)
+
+
 def test_client_vanishing_mid_stream_leaves_the_controller_serving(make_sim):
     sim = make_sim()
     # a raw client that subscribes at 500 Hz and never reads, then one killed mid servo stream
