@@ -1,0 +1,307 @@
+"""The default PH quintic member (issue 12) picked by the fast selection equals the rule as first written.
+
+``reference_member`` below is the selection as it landed with issue 12 (commit b5e9ab5..9106e5f: the four
+members with A0 i A2* a pure vector, a 2 x 4-node Gauss screen, the 8 x 8-node rule where the screen is
+not clear by a factor 10), frozen here verbatim as the oracle; ``ph_quintic._least_energy_member`` is the
+faster implementation of the same rule. On random Hermite data of every kind (rough spatial and planar,
+smooth spline segments, near-straight, hairpins, exact degenerate cases) both must return the same member
+(A equal to round-off), or, where they differ, members whose bending energies are equal to 1e-12 (a tie).
+The default suite checks a few thousand segments of each kind; ``-m slow`` (or running this file as a
+script: ``python -m tests.test_member_selection [segments per kind]``) checks 1e5 and more.
+"""
+
+from __future__ import annotations
+
+import sys
+
+import numpy as np
+import pytest
+
+from planner.curves.ph_quintic import (
+    _AXIS_FALLBACK,
+    _IPERM,
+    _ISIGN,
+    _PRODUCTS,
+    _dot,
+    _energy_matrices,
+    _least_energy_member,
+    _member,
+    _times_e_i,
+    bending_energies,
+    sqrt_rot,
+)
+
+_SCREEN_RULE = _energy_matrices(4, 2)
+_FULL_RULE = _energy_matrices(8, 8)
+_SCREEN = 10.0
+_TIE = 1e-9
+
+
+def _reference_axis(Sc, Ss, sc, ss, lam, dp):
+    """(cos, sin) (N,) of the delta = phi2 - phi0 (defined up to pi) at which A0 i A2* is a pure vector.
+
+    The quaternion a0 i (a2 e^{i delta})* = (sc cos + ss sin) + S(delta) has the scalar part sigma.z with
+    sigma = (sc, ss), z = (cos delta, sin delta): it vanishes on the axis z = +-sigma_perp. Where the end
+    tangents are antiparallel sigma = 0 and every delta qualifies; there the axis maximizing |<S(delta), dp>|
+    (b = (<Sc, dp>, <Ss, dp>)) decides. Both axes are blended sign-free, on doubled angles (an axis z ~ -z
+    is the point (x^2 - y^2, 2 x y)), the second with the weight _AXIS_FALLBACK, so that the result is a
+    continuous function of the data wherever the blend is nonzero. Both axes are carried onto themselves by
+    every isometry of the data (rotations; the reflections that fix planar data or map mirror-symmetric data
+    onto their reversal), so their blend is too. lam = |a0|^2 |a2|^2, dp = p1 - p0 (3, N).
+    """
+    bc, bs = _dot(Sc, dp), _dot(Ss, dp)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        w = _AXIS_FALLBACK / (lam * _dot(dp, dp))
+        w = np.where(np.isfinite(w), w, 0.0)
+        il = np.where(lam > 0, 1.0 / lam, 0.0)
+    Dx = (ss * ss - sc * sc) * il + (bc * bc - bs * bs) * w  # doubled angle of sigma_perp = (-ss, sc) ...
+    Dy = (-2.0 * il) * ss * sc + (2.0 * w) * bc * bs  # ... and of b
+    r = np.hypot(Dx, Dy)
+    # half angle: (r + Dx, Dy) ~ z for Dx >= 0 and (Dy, r - Dx) ~ z otherwise (no cancellation either way)
+    pos = Dx >= 0
+    x, y = np.where(pos, r + Dx, Dy), np.where(pos, Dy, r - Dx)
+    n = np.hypot(x, y)
+    ok = n > 0  # no axis at all: d1 antiparallel to d0 and p1 - p0 along them (a straight hairpin)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        return np.where(ok, x / n, 1.0), np.where(ok, y / n, 0.0)
+
+
+def _reference_energies(g, h, rule) -> np.ndarray:
+    """4 int kappa^2 sigma dt (M,) by a Gauss ``rule`` of :func:`_energy_matrices` from the inner products
+    g (6, M) and h (3, M) of A0, A1, A2 (see :func:`bending_energies`)."""
+    w, Msdx, Mh = rule
+    k = w.size
+    sdx = Msdx @ g
+    s, d, x = sdx[:k], sdx[k:2 * k], sdx[2 * k:]
+    y = Mh @ h
+    d *= s
+    x *= x
+    d -= x
+    y *= y
+    d -= y
+    num = np.maximum(d, 0.0, out=d)  # |A|^2 |A'_perp|^2 >= 0 but for round-off
+    x[...] = s
+    x *= s
+    x *= s  # sigma^3
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        f = np.divide(num, x, out=y)
+    f[~(x > 0)] = np.inf
+    return 4.0 * (w @ f)
+
+
+def reference_member(dp, base, a0, a2, r0, r1) -> np.ndarray:
+    """A (3, 4, N) of the default member (see :func:`batch_hermite`): of the four members with A0 i A2* a pure
+    vector, the one of least bending energy.
+
+    The candidates are delta in {delta0, delta0 + pi} (``_pure_vector_axis``) and, for each, phi0 at the maximum
+    of <A0 + A2, Q> and phi0 + pi. Their energies E = 4 int Lambda / sigma^3 dt (see :func:`bending_energies`)
+    follow from nine inner products of A0, A1, A2, themselves from a few inner products of a0, a2, Q
+    (A1 = -(3/4)(A0 + A2) + Q/4, <A0, A0> = |d0|, ...). A coarse Gauss rule screens them: where one candidate's
+    estimate is below 1 / _SCREEN of the other three's (smooth data: the others have cusps or loops) it is
+    taken; elsewhere the composite rule of :func:`bending_energies` decides among the candidates within
+    _SCREEN of the best estimate.
+    """
+    n = dp.shape[1]
+    R = _PRODUCTS @ np.multiply(a0[:, None], a2[None]).reshape(16, n)  # a0 i a2* and a0 a2*, (vec, scalar)
+    Sc, Ss = R[:3], R[4:7]
+    c, s = _reference_axis(Sc, Ss, R[3], R[7], r0 * r1, dp)
+    c02, e02 = R[7] * c - R[3] * s, R[3] * c + R[7] * s  # <a0, a2 e^{i delta}>, <a0 i, a2 e^{i delta}>
+    # per delta (rows 0: delta0, 1: delta0 + pi): a2 e^{i delta}, Q, phi0 and the inner products at phi0
+    a2d = np.stack((_times_e_i(a2, c, s), _times_e_i(a2, -c, -s)))  # (2, 4, N)
+    S = Sc * c + Ss * s
+    Q, qq = sqrt_rot(np.stack((base + 10.0 * S, base - 10.0 * S), axis=1).reshape(3, 2 * n))
+    Q = Q.reshape(4, 2, n).transpose(1, 0, 2)
+    qq = qq.reshape(2, n)  # |Q|^2 = |alpha|
+    u0, v0 = (a0 * Q).sum(axis=1), (a0[_IPERM] * _ISIGN * Q).sum(axis=1)  # <a0, Q>, <a0 i, Q>  (2, N)
+    u2, v2 = (a2d * Q).sum(axis=1), (a2d[:, _IPERM] * _ISIGN * Q).sum(axis=1)
+    x, y = u0 + u2, v0 + v2  # <(a0 + a2d) e^{i phi0}, Q> = x cos + y sin: the maximum at phi0 = atan2(y, x)
+    h = np.hypot(x, y)
+    ok = h > 0
+    with np.errstate(divide="ignore", invalid="ignore"):
+        c0, s0 = np.where(ok, x / h, 1.0), np.where(ok, y / h, 0.0)
+    P0, P2 = c0 * u0 + s0 * v0, c0 * u2 + s0 * v2  # <A0, Q>, <A2, Q>
+    V0, V2 = c0 * v0 - s0 * u0, c0 * v2 - s0 * u2  # <A0 i, Q>, <A2 i, Q>
+    # candidates k = 2 * (delta index) + (phi0 + pi): the flip negates A0, A2 and so P, V
+    f = np.array([1.0, -1.0])[:, None]
+    sg = np.array([1.0, -1.0])[:, None]
+    g02 = np.repeat(sg * c02, 2, axis=0)  # (4, N)
+    e = np.repeat(sg * e02, 2, axis=0)
+    P0, P2, V0, V2 = ((f[:, None] * z[None]).transpose(1, 0, 2).reshape(4, n) for z in (P0, P2, V0, V2))
+    qq4 = np.repeat(qq, 2, axis=0)
+    g00, g22 = np.broadcast_to(r0, (4, n)), np.broadcast_to(r1, (4, n))
+    g01 = -0.75 * (r0 + g02) + 0.25 * P0
+    g12 = -0.75 * (g02 + r1) + 0.25 * P2
+    g11 = 0.5625 * (r0 + r1 + 2.0 * g02) - 0.375 * (P0 + P2) + 0.0625 * qq4
+    g = np.stack((g00, g01, g02, g11, g12, g22)).reshape(6, 4 * n)
+    hh = np.stack((-0.75 * e + 0.25 * V0, e, -0.75 * e - 0.25 * V2)).reshape(3, 4 * n)
+    # screening: the energies by the 2 x 4-node rule from the inner products; a candidate below 1 / _SCREEN of
+    # the other three is taken, elsewhere the full rule decides
+    est = _reference_energies(g, hh, _SCREEN_RULE).reshape(4, n)
+    # ties (a straight segment and the same line with stops, both of zero energy) go to the least CC measure
+    # |A0 - 2 A1 + A2|^2 (FGMS 2008): _TIE of it, made dimensionless by (|d0| + |d1|)^2, joins the energy
+    cc = (g[0] + 4.0 * g[3] + g[5] - 4.0 * g[1] + 2.0 * g[2] - 4.0 * g[4]).reshape(4, n)
+    tie = _TIE / (r0 + r1) ** 2
+    est = est + tie * cc
+    best = np.argmin(est, axis=0)
+    cols = np.arange(n)
+    others = est.copy()
+    others[best, cols] = np.inf
+    bad = np.flatnonzero(~(others.min(axis=0) > _SCREEN * est[best, cols]))
+    if bad.size:  # the candidates within _SCREEN of the best estimate, by the full rule
+        k, col = np.nonzero(est[:, bad] < _SCREEN * est[best[bad], bad])
+        seg = bad[col]
+        kc = k * n + seg  # the candidates' columns of g, hh
+        E = np.full((4, bad.size), np.inf)
+        E[k, col] = _reference_energies(g[:, kc], hh[:, kc], _FULL_RULE) \
+            + tie[seg] * cc.reshape(-1)[kc]
+        best[bad] = np.argmin(E, axis=0)
+    j, fl = best // 2, best % 2
+    sign = 1.0 - 2.0 * fl
+    return _member(a0, a2d[j, :, cols].T, Q[j, :, cols].T, sign * c0[j, cols], sign * s0[j, cols])
+
+
+# ---------------------------------------------------------------------------------------------
+# Random Hermite data (dp = p1 - p0, d0, d1 as component rows (3, N)) of every kind
+# ---------------------------------------------------------------------------------------------
+
+
+def _unit(v: np.ndarray) -> np.ndarray:
+    return v / np.linalg.norm(v, axis=0)
+
+
+def _rotate(v: np.ndarray, axis: np.ndarray, angle: np.ndarray) -> np.ndarray:
+    """Rows v (3, N) rotated about unit rows ``axis`` by ``angle`` (N,) (Rodrigues)."""
+    c, s = np.cos(angle), np.sin(angle)
+    return v * c + np.cross(axis, v, axis=0) * s + axis * _dot(axis, v) * (1 - c)
+
+
+def _in_random_planes(rng, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+    """Planar rows x e1 + y e2 (3, N) in a random plane per segment (x, y (N,) or (k, N))."""
+    e1 = _unit(rng.normal(size=(3,) + x.shape[-1:]))
+    e2 = _unit(np.cross(e1, rng.normal(size=e1.shape), axis=0))
+    return e1[:, None] * x + e2[:, None] * y
+
+
+def hermite_data(kind: str, n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(dp, d0, d1) of n random segments of one ``kind``."""
+    rng = np.random.default_rng(seed)
+    if kind == "rough spatial":
+        dp, d0, d1 = rng.normal(size=(3, 3, n))
+        d0 *= np.exp(rng.normal(scale=0.7, size=n))
+        d1 *= np.exp(rng.normal(scale=0.7, size=n))
+    elif kind == "rough planar":
+        dp, d0, d1 = _in_random_planes(rng, *rng.normal(size=(2, 3, n))).transpose(1, 0, 2)
+        d0 *= np.exp(rng.normal(scale=0.7, size=n))
+        d1 *= np.exp(rng.normal(scale=0.7, size=n))
+    elif kind == "smooth":  # spline segments: unit tangents turning by up to 0.5 rad, chord about 1
+        d0 = _unit(rng.normal(size=(3, n)))
+        turn = rng.uniform(0.0, 0.5, size=n) * rng.uniform(0.0, 1.0, size=n)
+        d1 = _rotate(d0, _unit(np.cross(d0, rng.normal(size=(3, n)), axis=0)), turn)
+        twist = 10.0 ** rng.uniform(-6, -1, size=n) * rng.normal(size=(3, n))
+        dp = _unit(d0 + d1 + twist)
+    elif kind == "near straight":
+        d0 = _unit(rng.normal(size=(3, n)))
+        eps = 10.0 ** rng.uniform(-10, -2, size=(3, n))
+        dp = d0 * np.exp(rng.normal(scale=0.3, size=n)) + eps[0] * rng.normal(size=(3, n))
+        d1 = d0 * np.exp(rng.normal(scale=0.3, size=n)) + eps[1] * rng.normal(size=(3, n))
+        d0 = d0 + eps[2] * rng.normal(size=(3, n))
+    elif kind == "hairpin":
+        d0 = _unit(rng.normal(size=(3, n)))
+        d1 = -d0 * np.exp(rng.normal(scale=0.3, size=n)) + 10.0 ** rng.uniform(-9, -1, size=n) * rng.normal(size=(3, n))
+        along = rng.uniform(-1.0, 1.0, size=n) * (rng.uniform(size=n) < 0.3)
+        dp = d0 * along + _unit(np.cross(d0, rng.normal(size=(3, n)), axis=0)) * rng.uniform(0.0, 2.0, size=n)
+    elif kind == "exact degenerate":  # exactly collinear, antiparallel, planar in z = 0, or repeated
+        m = n // 4
+        u = _unit(rng.normal(size=(3, m)))
+        k = np.exp(rng.normal(size=(3, m)))
+        straight = (u * k[0], u * k[1], u * k[2])
+        v = _unit(np.cross(u, rng.normal(size=(3, m)), axis=0))
+        pin = (v * k[0] * (rng.uniform(size=m) < 0.5), u * k[1], -u * k[2])
+        flat = rng.normal(size=(3, 3, m))
+        flat[:, 2] = 0.0
+        same = rng.normal(size=(3, n - 3 * m))
+        parts = (straight, pin, tuple(flat), (same, same, same))
+        dp, d0, d1 = (np.hstack([p[i] for p in parts]) for i in range(3))
+    else:
+        raise ValueError(kind)
+    return dp, d0, d1
+
+
+def spline_data(n: int, seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Segments as the C1 spline builds them (dp / h, unit tangents) from random walks, rough to smooth."""
+    from planner.curves.tangents import slopes_rows
+
+    rng = np.random.default_rng(seed)
+    out = []
+    while sum(o[0].shape[1] for o in out) < n:
+        m = int(rng.integers(4, 400))
+        steps = rng.normal(size=(m, 3)) * np.exp(rng.normal(size=(m, 1)))
+        steps[:, 2] *= rng.choice([0.0, 0.1, 1.0])  # planar, flat or spatial
+        steps = np.cumsum(steps, axis=0) * rng.uniform(0.0, 0.95) + steps  # smoother for larger factors
+        p = np.cumsum(steps, axis=0)
+        dp = np.diff(p, axis=0).T
+        h = np.linalg.norm(dp, axis=0)
+        keep = h > 0
+        dp, h = dp[:, keep], h[keep]
+        m_ = slopes_rows(np.concatenate(([0.0], np.cumsum(h))), dp)
+        m_ = m_ / np.linalg.norm(m_, axis=0)
+        out.append((dp / h, m_[:, :-1], m_[:, 1:]))
+    return tuple(np.hstack([o[i] for o in out])[:, :n] for i in range(3))
+
+
+KINDS = ("rough spatial", "rough planar", "smooth", "near straight", "hairpin", "exact degenerate")
+
+
+def compare(dp: np.ndarray, d0: np.ndarray, d1: np.ndarray) -> tuple[int, int, float]:
+    """(segments, segments where the members differ, largest relative energy difference among those) of the
+    fast selection against the reference on Hermite data rows; asserts the result is finite."""
+    n = dp.shape[1]
+    a, r = sqrt_rot(np.hstack((d0, d1)))
+    args = (dp, 120.0 * dp - 15.0 * (d0 + d1), a[:, :n], a[:, n:], r[:n], r[n:])
+    with np.errstate(all="ignore"):
+        ref = reference_member(*args)
+    new = _least_energy_member(*args)
+    assert np.isfinite(new).all()
+    scale = np.abs(ref).max(axis=(0, 1))
+    differ = np.flatnonzero(np.abs(new - ref).max(axis=(0, 1)) > 1e-9 * scale)
+    worst = 0.0
+    if differ.size:
+        e_ref, e_new = bending_energies(ref[..., differ]), bending_energies(new[..., differ])
+        with np.errstate(all="ignore"):
+            rel = np.abs(e_new - e_ref) / np.maximum(np.abs(e_ref), np.abs(e_new))
+        rel[(e_ref == e_new)] = 0.0
+        worst = float(rel.max())
+    return n, differ.size, worst
+
+
+@pytest.mark.parametrize("kind", KINDS)
+def test_fast_selection_picks_the_reference_member(kind):
+    n, differ, worst = compare(*hermite_data(kind, 3000, seed=KINDS.index(kind)))
+    assert worst <= 1e-12, f"{kind}: {differ} of {n} members differ, energies by {worst:.1e}"
+
+
+def test_fast_selection_on_spline_segments():
+    n, differ, worst = compare(*spline_data(3000, seed=7))
+    assert worst <= 1e-12, f"{differ} of {n} members differ, energies by {worst:.1e}"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", KINDS + ("spline",))
+def test_fast_selection_on_many_segments(kind):
+    """1e5 segments of each kind (about 2 s each)."""
+    for seed in range(5):
+        data = spline_data(20_000, seed=100 + seed) if kind == "spline" else hermite_data(kind, 20_000, 100 + seed)
+        n, differ, worst = compare(*data)
+        assert worst <= 1e-12, f"{kind}: {differ} of {n} members differ, energies by {worst:.1e}"
+
+
+if __name__ == "__main__":
+    per_kind = int(sys.argv[1]) if len(sys.argv) > 1 else 100_000
+    for kind in KINDS + ("spline",):
+        totals = [0, 0, 0.0]
+        for seed in range(0, per_kind, 20_000):
+            m = min(20_000, per_kind - seed)
+            data = spline_data(m, 1000 + seed) if kind == "spline" else hermite_data(kind, m, 1000 + seed)
+            n, differ, worst = compare(*data)
+            totals = [totals[0] + n, totals[1] + differ, max(totals[2], worst)]
+        print(f"{kind:18s} segments {totals[0]:7d}  members differ {totals[1]:5d}  worst energy difference {totals[2]:.1e}")
