@@ -3,16 +3,17 @@
 A driver adds one sample per control period (:meth:`Recording.add`: job time, actual TCP pose, actual joints,
 actual digital output bits). Every ``block`` samples the block is reduced and dropped:
 
-- the largest distance of the actual TCP from the PLANNED PATH (the planned polyline at the controller rate,
-  :class:`drivers.report.PolylineIndex`) and its time; the smallest joint-limit margin; the first and last
-  time and the number of samples;
+- the largest distance of the actual TCP from the PLANNED PATH (the planned polyline at the controller rate, over
+  a window of it around the run's place: :class:`drivers.plan_window.PlanWindow`) and its time; the smallest
+  joint-limit margin; the first and last time and the number of samples; the recording's gaps (steps between
+  samples longer than 1.5 x its usual step: data packages missed);
 - the trace (:class:`ExecutionTrace`): times, TCP positions, TCP speed and output bits of at most ``max_trace``
   samples, decimated by distance travelled (one sample per ``spacing`` metres, the spacing doubled whenever the
   trace would pass its bound) and keeping EVERY sample at which an output changed together with the sample before
   it (so the I/O switches computed from the trace are the ones of the whole recording, exactly).
 
-So a run's memory does not grow with its length (the planned path it is compared with is the job's, computed
-once: see :func:`drivers.report.planned_path`).
+So a run's memory does not grow with its length, nor does the planned path's it is compared with (read lazily,
+a window of it at a time: :mod:`drivers.plan_window`).
 """
 
 from __future__ import annotations
@@ -22,12 +23,26 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from drivers.plan_window import PlannedPath, PlanWindow
 from drivers.report import PolylineIndex, joint_limit_margin
 
 #: Samples reduced at a time.
 BLOCK = 2500
 #: Samples of the trace at most.
 MAX_TRACE = 20_000
+#: A step between recorded samples longer than this many times the usual step is a gap (packages missed).
+GAP = 1.5
+
+
+class _WholePath:
+    """Planned positions (m, 3) already in memory, searched whole (:meth:`PlanWindow.distance`'s interface)."""
+
+    def __init__(self, xyz: np.ndarray) -> None:
+        self.index = PolylineIndex(xyz)
+        self.n = self.index.n
+
+    def distance(self, points: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        return self.index.distance(points)
 
 
 @dataclass(frozen=True, eq=False)
@@ -36,13 +51,14 @@ class ExecutionTrace:
 
     t (n,) job time, s; xyz (n, 3) actual TCP position, m (base frame); speed (n,) actual TCP speed, m/s (over
     the recorded step ending at the sample); io (n,) actual digital output bits; spacing: the distance
-    decimation's final spacing, m."""
+    decimation's final spacing, m; segment (n,): index of the planned segment nearest each sample (its start)."""
 
     t: np.ndarray
     xyz: np.ndarray
     speed: np.ndarray
     io: np.ndarray
     spacing: float
+    segment: np.ndarray | None = None
 
     def __len__(self) -> int:
         return int(self.t.size)
@@ -53,8 +69,9 @@ class Recording:
 
     Parameters
     ----------
-    planned_xyz : ndarray (m, 3)
-        The planned TCP positions at the controller rate, m (the path the actual TCP is measured against).
+    planned : PlannedPath or ndarray (m, 3)
+        The planned path the actual TCP is measured against: a :class:`drivers.plan_window.PlannedPath` (read a
+        window at a time), or its positions at the controller rate, m (in memory: searched whole).
     model : str or None
         UR model (for the joint-limit margin).
     path_length : float
@@ -62,11 +79,12 @@ class Recording:
         that follows it).
     """
 
-    def __init__(self, planned_xyz: np.ndarray, model: str | None, path_length: float = 0.0, *,
+    def __init__(self, planned: PlannedPath | np.ndarray, model: str | None, path_length: float = 0.0, *,
                  max_trace: int = MAX_TRACE, block: int = BLOCK) -> None:
         if max_trace < 16:
             raise ValueError(f"max_trace must be >= 16 samples, got {max_trace!r}")
-        self.planned = PolylineIndex(planned_xyz)
+        self.planned: PlanWindow | _WholePath = (PlanWindow(planned) if isinstance(planned, PlannedPath)
+                                                 else _WholePath(planned))
         self.model = model
         self.max_trace = int(max_trace)
         self.block = max(1, int(block))
@@ -77,13 +95,21 @@ class Recording:
         self.max_error = 0.0
         self.max_error_t = math.nan
         self.margin = math.inf
+        #: index of the planned segment nearest the last sample reduced (its start): where the run is
+        self.last_segment = 0
+        #: the recording's usual step between samples, s (the median of a block's); its gaps: steps longer than
+        #: GAP x that, the samples missed in them, the longest, s
+        self.step = math.nan
+        self.gaps = 0
+        self.missed = 0
+        self.longest_gap = 0.0
         self._t: list = []
         self._x: list = []
         self._q: list = []
         self._b: list = []
-        # the trace's undecided last sample: (t, xyz, speed, io, changed there, distance travelled to it)
+        # the trace's undecided last sample: (t, xyz, speed, io, changed there, distance travelled to it, segment)
         self._tail: tuple | None = None
-        self._trace: list[np.ndarray] = []  # blocks of rows (t, x, y, z, speed, io, keep-flag 1 = must keep)
+        self._trace: list[np.ndarray] = []  # blocks of rows (t, x, y, z, speed, io, keep-flag 1 = must keep, segment)
         self._rows = 0
 
     def add(self, t: float, x, q, bits: int) -> None:
@@ -134,27 +160,31 @@ class Recording:
             self.t_first = float(t[0])
         self.samples += n
         self.t_last = float(t[-1])
+        seg = np.zeros(n, np.int64)
         if self.planned.n:
-            d, _ = self.planned.distance(xyz)
+            d, seg = self.planned.distance(xyz, t)
             if np.isfinite(d).any():
                 w = int(np.nanargmax(d))
                 if d[w] > self.max_error or math.isnan(self.max_error_t):
                     self.max_error, self.max_error_t = float(d[w]), float(t[w])
+            self.last_segment = int(seg[-1])
         m = joint_limit_margin(self.model, q)
         if not math.isnan(m):
             self.margin = min(self.margin, m)
         # the trace: the undecided last sample of the previous block (the tail) first, then this block's; a sample's
         # fate is decided once the next one is known (kept before an output change)
         if self._tail is None:  # the run's first sample: the outputs were cleared before the run
-            tail = (float(t[0]), xyz[0], 0.0, 0, float(b[0] != 0), 0.0)
-            t, xyz, b = t[1:], xyz[1:], b[1:]
+            tail = (float(t[0]), xyz[0], 0.0, 0, float(b[0] != 0), 0.0, int(seg[0]))
+            t, xyz, b, seg = t[1:], xyz[1:], b[1:], seg[1:]
         else:
             tail = self._tail
         tt = np.concatenate(([tail[0]], t))
         pp = np.vstack((tail[1][None], xyz))
         bb = np.concatenate(([tail[3]], b))
+        ss = np.concatenate(([tail[6]], seg))
         step = np.linalg.norm(np.diff(pp, axis=0), axis=1)
         dt = np.diff(tt)
+        self._count_gaps(dt)
         speed = np.concatenate(([tail[2]], np.where(dt > 0, step / np.where(dt > 0, dt, 1.0), 0.0)))
         cum = tail[5] + np.concatenate(([0.0], np.cumsum(step)))
         change = np.concatenate(([tail[4] > 0], bb[1:] != bb[:-1]))
@@ -168,12 +198,27 @@ class Recording:
         # all but the last are decided; the last waits for the next block (or finish())
         idx = np.flatnonzero(keep[:-1])
         if idx.size:
-            rows = np.column_stack((tt[idx], pp[idx], speed[idx], bb[idx].astype(float), must[idx].astype(float)))
+            rows = np.column_stack((tt[idx], pp[idx], speed[idx], bb[idx].astype(float), must[idx].astype(float),
+                                    ss[idx].astype(float)))
             self._trace.append(rows)
             self._rows += rows.shape[0]
-        self._tail = (float(tt[-1]), pp[-1].copy(), float(speed[-1]), int(bb[-1]), float(change[-1]), float(cum[-1]))
+        self._tail = (float(tt[-1]), pp[-1].copy(), float(speed[-1]), int(bb[-1]), float(change[-1]), float(cum[-1]),
+                      int(ss[-1]))
         while self._rows > self.max_trace:
             self._thin()
+
+    def _count_gaps(self, dt: np.ndarray) -> None:
+        """Steps longer than GAP x the usual step (the median of a block of at least 20 steps): gaps."""
+        pos = dt[dt > 0]
+        if pos.size >= 20:
+            self.step = float(np.median(pos))
+        if not math.isfinite(self.step) or pos.size == 0:
+            return
+        long = pos[pos > GAP * self.step]
+        if long.size:
+            self.gaps += int(long.size)
+            self.missed += int(np.maximum(np.rint(long / self.step) - 1, 1).sum())
+            self.longest_gap = max(self.longest_gap, float(long.max()))
 
     def _thin(self) -> None:
         """Halve the trace's distance samples (double the spacing); the must-keep samples stay."""
@@ -192,8 +237,8 @@ class Recording:
         """Reduce what is left and keep the run's last sample (call once, when the run has ended)."""
         self._reduce()
         if self._tail is not None:
-            t, xyz, speed, io, _, _ = self._tail
-            self._trace.append(np.array([[t, *xyz, speed, float(io), 1.0]]))
+            t, xyz, speed, io, _, _, seg = self._tail
+            self._trace.append(np.array([[t, *xyz, speed, float(io), 1.0, float(seg)]]))
             self._rows += 1
             self._tail = None
 
@@ -203,6 +248,6 @@ class Recording:
 
     def trace(self) -> ExecutionTrace:
         """The bounded trace (after :meth:`finish`)."""
-        rows = np.concatenate(self._trace) if self._trace else np.zeros((0, 7))
+        rows = np.concatenate(self._trace) if self._trace else np.zeros((0, 8))
         return ExecutionTrace(rows[:, 0].copy(), rows[:, 1:4].copy(), rows[:, 4].copy(),
-                              rows[:, 5].astype(np.int64), self.spacing)
+                              rows[:, 5].astype(np.int64), self.spacing, rows[:, 7].astype(np.int64))

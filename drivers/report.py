@@ -6,9 +6,11 @@ outputs from RTDE, :class:`drivers.sim.SimDriver` from its in-process motion mod
 
 Figures: the tracked TCP path's largest distance from the PLANNED PATH (the distance to the planned path
 polyline at the controller rate, not a time-aligned difference: a run that is late but on the path has no
-path error); duration against the planned one; every switch of a digital output with its planned and actual
-arc length along the planned path and its distance from the planned station; the joints' smallest margin to
-their position limits; the failure, if any, with the robot's reason and the job's time, pose and line.
+path error; searched over a window of the plan around the run's place, so that the report's memory does not
+grow with the job: :mod:`drivers.plan_window`); duration against the planned one; every switch of a digital
+output with its planned and actual arc length along the planned path and its distance from the planned station;
+the joints' smallest margin to their position limits; the recording's gaps (data packages missed); the failure,
+if any, with the robot's reason and the job's time, pose and line.
 """
 
 from __future__ import annotations
@@ -22,6 +24,8 @@ from scipy.spatial import cKDTree
 
 from drivers.base import DriverError
 from drivers.pacing import LoopStats
+from drivers.plan_window import PlannedPath, drop_blips
+from drivers.plan_window import _switches as _switches_from
 
 if TYPE_CHECKING:  # pragma: no cover
     from drivers.recording import ExecutionTrace
@@ -88,7 +92,10 @@ class ExecutionReport:
     loop: the streaming loop's timing (:class:`drivers.pacing.LoopStats`: period p50/p99/max, missed periods) or
     None (no real-time loop: program mode, an in-process dry run);
     trace: a bounded trace of the recording (:class:`drivers.recording.ExecutionTrace`: times, actual TCP
-    positions and speed, output bits; at most ~20,000 samples, every output change kept): what a plot draws.
+    positions and speed, output bits; at most ~20,000 samples, every output change kept): what a plot draws;
+    recorded_every: the recording's usual step between samples, s; gaps: steps between recorded samples longer than
+    1.5 x that (data packages missed, ``missed`` of them in all; the longest ``longest_gap`` s);
+    recording: how the samples were recorded (e.g. "every data package" or "one reading per control period").
     """
 
     mode: str
@@ -105,6 +112,11 @@ class ExecutionReport:
     path_length: float = 0.0
     loop: LoopStats | None = None
     trace: ExecutionTrace | None = None
+    recorded_every: float = math.nan
+    gaps: int = 0
+    missed: int = 0
+    longest_gap: float = 0.0
+    recording: str = ""
 
     @property
     def max_io_distance_mm(self) -> float:
@@ -124,6 +136,11 @@ class ExecutionReport:
                      f"{self.samples} samples recorded")
         if self.loop is not None and self.loop.n:
             lines.append("  " + self.loop.describe())
+        if self.samples > 1 and math.isfinite(self.recorded_every):
+            how = f"{self.recording}, " if self.recording else ""
+            gaps = (f"{self.gaps} gap{'s' * (self.gaps != 1)}: ~{self.missed} samples missed, the longest "
+                    f"{1e3 * self.longest_gap:.1f} ms" if self.gaps else "no gap")
+            lines.append(f"  recording: {how}a sample every {1e3 * self.recorded_every:.1f} ms of job time; {gaps}")
         if self.samples:
             at = "" if math.isnan(self.max_path_error_t) else f" at t = {self.max_path_error_t:.3f} s"
             lines.append("  tracked TCP path: largest distance from the planned path "
@@ -229,21 +246,7 @@ def distance_to_polyline(points: np.ndarray, path: np.ndarray, *, k: int = 8) ->
 
 def _switches(times: np.ndarray, io: np.ndarray, first: int) -> list[tuple[int, bool, int]]:
     """(bit, value, index) of every change of a bit in the io samples, from the state ``first`` before them."""
-    io = np.asarray(io, dtype=np.int64)
-    if io.size == 0:
-        return []
-    prev = np.concatenate(([first], io[:-1]))
-    change = io ^ prev
-    out = []
-    for i in np.flatnonzero(change):
-        bits = int(change[i])
-        b = 0
-        while bits:
-            if bits & 1:
-                out.append((b, bool((int(io[i]) >> b) & 1), int(i)))
-            bits >>= 1
-            b += 1
-    return out
+    return _switches_from(io, first)
 
 
 def joint_limit_margin(model: str | None, joints: np.ndarray) -> float:
@@ -260,8 +263,8 @@ def joint_limit_margin(model: str | None, joints: np.ndarray) -> float:
 
 
 def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=None, recorded_io=None, *, mode: str,
-                     failure: DriverError | None = None, planned=None, loop: LoopStats | None = None
-                     ) -> ExecutionReport:
+                     failure: DriverError | None = None, planned=None, loop: LoopStats | None = None,
+                     recording: str = "") -> ExecutionReport:
     """The report of a run from what was recorded.
 
     Parameters
@@ -274,13 +277,14 @@ def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=Non
     recorded_io : (n,) actual digital output bits (standard 0-7, configurable 8-15, tool 16-17)
     mode : str
     failure : DriverError or None
-    planned : the result of :func:`planned_path` (computed from the job when None)
+    planned : the planned path: a :class:`drivers.plan_window.PlannedPath` (read from the job when None: bounded
+        memory, the path searched a window at a time) or the arrays of :func:`planned_path` (searched whole)
     loop : the streaming loop's timing, if any
+    recording : how the samples were recorded (said in the report)
     """
     from drivers.recording import Recording
 
-    pt, pp, pio, _, ps = planned if planned is not None else planned_path(job)
-    pp = pp[:, :3]
+    plan = as_planned(job, planned)
     if isinstance(recorded_times, Recording):
         rec = recorded_times
     else:
@@ -289,57 +293,61 @@ def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=Non
         io = np.asarray(recorded_io, dtype=np.int64).reshape(-1) if n else np.zeros(0, np.int64)
         if io.size != n:
             raise ValueError(f"recorded_io has {io.size} samples, recorded_times {n}")
-        rec = new_recording(job, (pt, pp, pio, None, ps))
+        rec = new_recording(job, plan)
         if n:
             rec.extend(t, recorded_tcp, recorded_joints, io)
     rec.finish()
     trace = rec.trace()
-    planned_duration = float(pt[-1] - pt[0]) if pt.size else 0.0
-    events = _io_events(trace.t, trace.xyz, trace.io, pt, pp, pio, ps)
+    events = _io_events(trace, plan)
     return ExecutionReport(
         mode=mode, ok=failure is None, reason="" if failure is None else failure.reason,
-        planned_duration=planned_duration, duration=rec.duration, samples=int(rec.samples),
+        planned_duration=plan.duration, duration=rec.duration, samples=int(rec.samples),
         max_path_error=rec.max_error if rec.samples else 0.0, max_path_error_t=rec.max_error_t,
         io_events=tuple(events), joint_limit_margin=rec.margin if math.isfinite(rec.margin) else math.nan,
-        failure=failure, path_length=float(ps[-1]) if ps.size else 0.0, loop=loop, trace=trace)
+        failure=failure, path_length=plan.length, loop=loop, trace=trace, recorded_every=rec.step, gaps=rec.gaps,
+        missed=rec.missed, longest_gap=rec.longest_gap, recording=recording)
+
+
+def as_planned(job, planned=None) -> PlannedPath:
+    """``planned`` as a :class:`drivers.plan_window.PlannedPath`: itself; the arrays of :func:`planned_path` (kept,
+    searched whole); read from ``job`` (a window at a time) when None."""
+    if isinstance(planned, PlannedPath):
+        return planned
+    if planned is None:
+        return PlannedPath(job)
+    return PlannedPath(job, arrays=tuple(planned))
 
 
 def new_recording(job, planned, *, block: int | None = None):
-    """An empty :class:`drivers.recording.Recording` for a run of ``job`` against its planned path (the result
-    of :func:`planned_path`); ``block``: samples reduced at a time (default :data:`drivers.recording.BLOCK`; a
-    real-time loop reduces small blocks, a fraction of its period each)."""
+    """An empty :class:`drivers.recording.Recording` for a run of ``job`` against its planned path (a
+    :class:`drivers.plan_window.PlannedPath`, or the arrays of :func:`planned_path`); ``block``: samples reduced
+    at a time (default :data:`drivers.recording.BLOCK`; a real-time loop reduces small blocks, a fraction of its
+    period each)."""
     from drivers.recording import BLOCK, Recording
 
-    pp, ps = planned[1], planned[4]
-    return Recording(pp[:, :3], job.settings.robot, float(ps[-1]) if ps.size else 0.0,
-                     block=BLOCK if block is None else block)
+    plan = as_planned(job, planned)
+    src = plan if plan.arrays is None else np.asarray(plan.arrays[1])[:, :3]
+    return Recording(src, job.settings.robot, plan.length, block=BLOCK if block is None else block)
 
 
 def planned_switches(times: np.ndarray, io: np.ndarray) -> list[tuple[int, bool, int]]:
     """(bit, value, index) of the planned switches of a trajectory's I/O column: every change of a bit, except a
     change undone one sample later (the trajectory's output is off for the one sample between two cuts joined at a
     corner: the drivers keep it on, :class:`drivers.stations.Stations`)."""
-    from drivers.stations import BLIP
-
-    sw = _switches(times, io, 0)
-    dropped: set[int] = set()
-    last: dict[int, int] = {}  # bit -> index in sw of its last switch kept
-    for n, (b, v, i) in enumerate(sw):
-        j = last.pop(b, None)
-        if j is not None and i - sw[j][2] <= BLIP and sw[j][1] != v:
-            dropped.update((j, n))  # undone at once: no switch
-            continue
-        last[b] = n
-    return [x for n, x in enumerate(sw) if n not in dropped]
+    return drop_blips(_switches(times, io, 0))
 
 
-def _io_events(t, tcp, io, pt, pp, pio, ps) -> list[IOSwitch]:
+def _io_events(trace, plan: PlannedPath) -> list[IOSwitch]:
     """Planned switches matched with the recorded ones, bit and value apart, by an ordered alignment (each
     planned switch to at most one recorded switch, in order) of least total distance from the stations, a switch
     left unmatched costing UNMATCHED_COST. A sparse recording (program mode in fast-forward) can miss an output
     that is off for a moment between two passes: such a pair is left unmatched (and marked unresolved when the
-    recording's samples there are further apart than it lasted) instead of shifting every later match."""
-    planned = planned_switches(pt, pio)
+    recording's samples there are further apart than it lasted) instead of shifting every later match.
+
+    ``trace``: the run's :class:`drivers.recording.ExecutionTrace` (every output change and the sample before it
+    kept, with the planned segment nearest each sample); ``plan``: the planned switches and their stations."""
+    t, tcp, io = trace.t, trace.xyz, trace.io
+    planned = plan.switches
     actual = _switches(t, io, 0)  # the driver clears the job's outputs before the run
     act_by: dict[tuple[int, bool], list[int]] = {}
     for b, v, j in actual:
@@ -351,27 +359,23 @@ def _io_events(t, tcp, io, pt, pp, pio, ps) -> list[IOSwitch]:
     for key, ns in plan_by.items():
         js = act_by.get(key, [])
         if js:
-            stations = pp[[planned[n][2] for n in ns]]
+            stations = np.array([plan.stations[planned[n][2]].xyz for n in ns]).reshape(-1, 3)
             for x, y in _align(stations, tcp, js):
                 match[ns[x]] = js[y]
     out = []
-    seg = None  # the planned segment nearest each recorded sample, for switches not matched
+    seg = trace.segment if trace.segment is not None else np.zeros(t.size, np.int64)
     for n, (b, v, i) in enumerate(planned):
-        station = pp[i]
-        tan = pp[min(i + 1, pp.shape[0] - 1)] - pp[max(i - 1, 0)]
-        nt = np.linalg.norm(tan)
-        tan = tan / nt if nt > 0 else tan
+        st = plan.stations[i]
+        station, tan = st.xyz, st.tangent
         if n not in match:
-            if seg is None:
-                seg = distance_to_polyline(tcp[:, :3], pp)[1] if t.size else np.zeros(0, np.int64)
-            out.append(IOSwitch(b, v, float(ps[i]), math.nan, math.nan, float(pt[i]), math.nan,
+            out.append(IOSwitch(b, v, st.s, math.nan, math.nan, st.t, math.nan,
                                 unresolved_ms=_unresolved_ms(n, planned, t, seg)))
             continue
         j = match[n]
         p, u, ls = _nearest_on_step(station, tcp, j)
         tj = float(t[max(j - 1, 0)] + u * (t[j] - t[max(j - 1, 0)]))
-        out.append(IOSwitch(b, v, float(ps[i]), float(ps[i] + np.dot(p - station, tan)),
-                            float(np.linalg.norm(p - station) * 1e3), float(pt[i]), tj, float(math.sqrt(ls) * 1e3)))
+        out.append(IOSwitch(b, v, st.s, float(st.s + np.dot(p - station, tan)),
+                            float(np.linalg.norm(p - station) * 1e3), st.t, tj, float(math.sqrt(ls) * 1e3)))
     return out
 
 

@@ -33,8 +33,10 @@ import time
 import numpy as np
 
 from drivers.base import DriverError, NotReadyError, ProtectiveStopError, RobotState
-from drivers.jobs import check_job, output_mask, stop_requested
-from drivers.report import ExecutionReport, distance_to_polyline, execution_report, new_recording, planned_path
+from drivers.feed import HISTORY
+from drivers.jobs import check_job, stop_requested
+from drivers.plan_window import PlannedPath
+from drivers.report import ExecutionReport, execution_report, new_recording
 from drivers.stations import Station, Stations
 from sim.core import RUNTIME_PAUSED, RUNTIME_PLAYING, RUNTIME_STOPPED, SAFETY_PROTECTIVE_STOP, Core
 from sim.io_state import IOState
@@ -269,9 +271,9 @@ class SimDriver:
             raise err
         self._stop.clear()
         self._paused.clear()
-        planned = planned_path(job)
+        planned = PlannedPath(job)  # read once, kept in summary: bounded memory
         self.move_to_start(job)
-        mask = output_mask(planned[2])
+        mask = planned.mask
         if mask:
             core.io.set_digital_out(mask, 0)
         self._mode = mode
@@ -285,16 +287,16 @@ class SimDriver:
             t, target, q, x, bits = (np.asarray(a, dtype=float) for a in rec.lists)
             self.recording = {"t": t, "target_q": target.reshape(-1, 6), "actual_q": q.reshape(-1, 6),
                               "tcp": x.reshape(-1, 6), "digital_out": bits.astype(np.int64)}
-        return execution_report(job, rec.rec, mode=mode, failure=failure, planned=planned)
+        return execution_report(job, rec.rec, mode=mode, failure=failure, planned=planned,
+                                recording="every control period")
 
     @staticmethod
-    def _locate(err: DriverError, k: int, job, planned) -> DriverError:
+    def _locate(err: DriverError, k: int, planned: PlannedPath, rec=None) -> DriverError:
         """``err`` at planned sample ``k``: its job time, planned TCP pose p[x, y, z, rx, ry, rz] and source line."""
-        pt, pp, _, plines, _ = planned
-        if pt.size == 0:
+        if planned.n == 0:
             return err
-        k = min(max(k, 0), pt.size - 1)
-        return err.located(float(pt[k]), pp[k], int(plines[k]))
+        t, pose, line = planned.at(k, rec.rec.planned if rec is not None else None)
+        return err.located(t, pose, line)
 
     def _halt(self, failure: DriverError, mask: int) -> None:
         """After a failure: a controlled stop of a moving arm (a faulted one is halted already), outputs off."""
@@ -312,8 +314,7 @@ class SimDriver:
     def _stream(self, job, planned, mask, progress, cancel):
         core = self._need()
         m = core.motion
-        pt, pp = planned[0], planned[1][:, :3]  # planned positions (planned_path gives whole poses)
-        total = pt.size
+        total = planned.n
         rate = float(job.settings.rate)
         ticks = round(1.0 / (rate * DT))
         dt = 1.0 / rate
@@ -324,10 +325,14 @@ class SimDriver:
         k = 0
         report_every = max(1, int(rate // 10))
         t_last, q_last = 0.0, None
+        tail = np.zeros((0, 3))  # the planned positions before the chunk (a station's direction of travel)
 
         try:
             for chunk in job.trajectory(rate).chunks():
                 qs, ios, times = chunk.joints, chunk.io.tolist(), chunk.times.tolist()
+                pos = np.vstack((tail, chunk.poses[:, :3]))
+                h0 = tail.shape[0]
+                tail = pos[-HISTORY:]
                 i, n = 0, len(times)
                 while i < n:
                     err = self._stopped(cancel)
@@ -340,7 +345,7 @@ class SimDriver:
                         except MotionError as exc:
                             core.protective_stop(str(exc))
                     if ios[i] != prev_io and not paused:
-                        stations.add(Station.on_path(k, ios[i] ^ prev_io, ios[i], pp, k, rate=rate))
+                        stations.add(Station.on_path(k, ios[i] ^ prev_io, ios[i], pos, h0 + i, rate=rate))
                         prev_io = ios[i]
                     self._tick(ticks)
                     t_last, q_last = times[i], qs[i]
@@ -371,7 +376,7 @@ class SimDriver:
             if progress is not None:
                 progress("execute", total, total)
         except DriverError as exc:
-            failure = self._locate(exc, k, job, planned)
+            failure = self._locate(exc, k, planned, rec)
             self._halt(failure, mask)
         return rec, failure
 
@@ -379,7 +384,6 @@ class SimDriver:
         from planner.export import job_program
 
         core = self._need()
-        pt, pp = planned[0], planned[1][:, :3]  # planned positions (planned_path gives whole poses)
         text = job_program(job)
         rec = _Recorder(new_recording(job, planned), self.record)
         failure = None
@@ -405,26 +409,27 @@ class SimDriver:
                     raise f
                 if core.runtime_state == RUNTIME_STOPPED:
                     break
-                if progress is not None and n % every == 0 and pp.size:
-                    _, seg = distance_to_polyline(rec.last_x[None, :3], pp)
-                    k = max(k, int(seg[0]))
-                    progress("execute", k, pt.size)
+                if progress is not None and n % every == 0 and planned.n:
+                    rec.rec.reduce_pending()  # the planned segment nearest the last sample: where the run is
+                    k = max(k, rec.rec.last_segment)
+                    progress("execute", k, planned.n)
             # the program ended: at the job's end, or halted by a runtime error
             halted = next((msg for _, src, msg in reversed(core.log) if src == "Program"), "")
-            last = np.asarray(rec.last_x[:3])[None]
-            d = distance_to_polyline(last, pp[-1:])[0][0] if pp.size else 0.0
+            d = float(np.linalg.norm(rec.last_x[:3] - planned.last_pose[:3])) if planned.n else 0.0
             if halted.startswith("Runtime error") or d > 1e-3:
-                if pp.size:
-                    k = int(distance_to_polyline(last, pp)[1][0])
+                if planned.n:
+                    rec.rec.reduce_pending()
+                    k = rec.rec.last_segment
                 raise ProgramError((halted or "the program ended early") + f"; the tool is {1e3 * d:.1f} mm from "
                                    "the job's last pose")
-            k = pt.size - 1
+            k = planned.n - 1
             if progress is not None:
-                progress("execute", pt.size, pt.size)
+                progress("execute", planned.n, planned.n)
         except DriverError as exc:
-            if rec.n and pp.size and not isinstance(exc, ProgramError):
-                k = int(distance_to_polyline(np.asarray(rec.last_x[:3])[None], pp)[1][0])
-            failure = self._locate(exc, k, job, planned)
+            if rec.n and planned.n and not isinstance(exc, ProgramError):
+                rec.rec.reduce_pending()
+                k = rec.rec.last_segment
+            failure = self._locate(exc, k, planned, rec)
             self._halt(failure, mask)
         with core.lock:
             if core.runtime_state == RUNTIME_PAUSED:

@@ -8,10 +8,11 @@ Two modes, one report (:func:`drivers.report.execution_report`):
   ending with ``servoStop`` (a controlled stop). The job's digital outputs switch at the samples where the
   trajectory's I/O bits change (RTDE I/O interface, or Modbus with ``io="modbus"``).
 - "program": the job's URScript program (:func:`planner.export.job_program`) sent to the script port
-  (30002); the driver watches it run (RTDE runtime state; progress by the actual TCP's arc length along the
-  planned path).
+  (30002); the driver watches it run (RTDE runtime state; progress by the planned sample nearest the actual TCP).
 
-In both modes the actual TCP, joints and digital outputs are recorded from ``RTDEReceiveInterface``. Every
+In both modes the actual TCP, joints and digital outputs are recorded from ``RTDEReceiveInterface``: in stream
+mode one reading per control period (of one data package: read again if a package arrived meanwhile); in program
+mode every data package, by ur_rtde's receive thread (:class:`drivers.package_log.PackageLog`). Every
 failure is a :class:`drivers.base.DriverError` subclass with the robot's reason and the job's time, planned
 pose and source line; the driver never retries a motion by itself. The driver connects only to the host it is
 given.
@@ -38,9 +39,11 @@ from drivers.base import (
     RobotState,
 )
 from drivers.feed import TargetFeed
-from drivers.jobs import check_job, output_mask, stop_requested
+from drivers.jobs import check_job, stop_requested
 from drivers.pacing import Schedule
-from drivers.report import ExecutionReport, distance_to_polyline, execution_report, new_recording, planned_path
+from drivers.package_log import PackageLog
+from drivers.plan_window import PlannedPath
+from drivers.report import ExecutionReport, execution_report, new_recording
 from drivers.stations import Station, Stations
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -60,6 +63,8 @@ _SAFETY_MODES = {1: "NORMAL", 2: "REDUCED", 3: "PROTECTIVE_STOP", 4: "RECOVERY",
 MODES = ("stream", "program")
 #: The streaming loop reduces its recording when this many samples wait and a period has this much time left, s.
 _RT_BLOCK, _RT_SPARE = 100, 1.2e-3
+#: Program mode reads the packages recorded so far (and reports progress) this often, s of wall time.
+_READ_EVERY = 0.05
 #: ur_rtde interfaces whose connection dropped: never disconnected or destroyed (see URDriver.close).
 _ABANDONED: list = []
 
@@ -440,12 +445,12 @@ class URDriver:
         self._stop.clear()
         self._paused.clear()
         cancel = cancel if cancel is not None else threading.Event()
-        planned = planned_path(job)
+        planned = PlannedPath(job)  # read once, kept in summary (bounded memory); the run reads it again in windows
         # stream: the targets are produced ahead by a thread of their own while the arm approaches the start
         feed = TargetFeed(job.trajectory(job.settings.rate)) if mode == "stream" else None
         try:
             self.move_to_start(job, speed=self.approach_speed, acceleration=self.approach_acceleration, cancel=cancel)
-            mask = output_mask(planned[2])
+            mask = planned.mask
             if mask:
                 self._outputs().set_bits(mask, 0)
             self._mode = mode
@@ -460,7 +465,8 @@ class URDriver:
         finally:
             if feed is not None:
                 feed.close()
-        return execution_report(job, rec, mode=mode, failure=failure, planned=planned, loop=loop)
+        how = "one reading per control period" if mode == "stream" else "every data package"
+        return execution_report(job, rec, mode=mode, failure=failure, planned=planned, loop=loop, recording=how)
 
     def _stopped(self, cancel) -> DriverError | None:
         return stop_requested(cancel, self._stop)
@@ -493,17 +499,21 @@ class URDriver:
 
     def _read(self) -> tuple:
         """One period's reading of the receive interface: (timestamp, tcp pose, joints, output bits, safety status
-        bits, safety mode, robot mode, runtime state). Kept as the run's snapshot for :meth:`state`."""
+        bits, safety mode, robot mode, runtime state), all of one data package (read again when the timestamp
+        changed meanwhile: a package arrived between the calls). Kept as the run's snapshot for :meth:`state`."""
         r = self._need()
-        snap = (r.getTimestamp(), r.getActualTCPPose(), r.getActualQ(), r.getActualDigitalOutputBits(),
-                r.getSafetyStatusBits(), r.getSafetyMode(), r.getRobotMode(), r.getRuntimeState())
+        for _ in range(3):
+            ts = r.getTimestamp()
+            snap = (ts, r.getActualTCPPose(), r.getActualQ(), r.getActualDigitalOutputBits(),
+                    r.getSafetyStatusBits(), r.getSafetyMode(), r.getRobotMode(), r.getRuntimeState())
+            if r.getTimestamp() == ts:
+                break
         self._snap = snap
         return snap
 
     def _stream(self, job, planned, mask, progress, cancel, feed):
         c, r = self._control(), self._need()
-        pt, pp, _, plines, _ = planned
-        total = pt.size
+        total = planned.n
         rate = float(job.settings.rate)
         dt = 1.0 / rate
         la, gain = self.lookahead, self.gain
@@ -591,10 +601,9 @@ class URDriver:
             if progress is not None:
                 progress("execute", total, total)
         except DriverError as exc:
-            failure = self._locate(exc, k, pt, pp, plines)
+            failure = self._locate(exc, k, planned, rec)
         except RuntimeError as exc:  # ur_rtde: the socket closed
-            failure = self._locate(ConnectionLostError(f"the connection to {host} dropped: {exc}"),
-                                   k, pt, pp, plines)
+            failure = self._locate(ConnectionLostError(f"the connection to {host} dropped: {exc}"), k, planned, rec)
         finally:
             sys.setswitchinterval(switch)
             gc.unfreeze()
@@ -609,6 +618,27 @@ class URDriver:
             self._confirm_outputs(mask, prev_io)
         return rec, failure, sched.stats()
 
+    @staticmethod
+    def _take(log: PackageLog, rec, ts0: float) -> int:
+        """The packages recorded since the last call into ``rec`` (those of the program: from ``ts0`` on, job time
+        0 there), reduced at once; the planned sample nearest the last one (where the run is)."""
+        rows = log.read()
+        rows = rows[rows[:, 0] >= ts0 - 1e-9]
+        if rows.shape[0]:
+            rec.extend(rows[:, 0] - ts0, rows[:, 1:7], rows[:, 7:13], rows[:, 13].astype(np.int64))
+        return rec.last_segment
+
+    def _last_place(self, log: PackageLog | None, rec, k: int, ts0: float | None) -> int:
+        """Where a failed program run was: the planned sample nearest the last package recorded (``k`` when none)."""
+        if log is None or ts0 is None:
+            return k
+        try:
+            log.stop()
+            self._take(log, rec, ts0)
+        except (RuntimeError, OSError, DriverError):
+            return k
+        return max(k, rec.last_segment) if rec.samples else k
+
     def _not_running_reason(self) -> str:
         state = self._need().getRuntimeState()
         return ("the program on the robot stopped (runtime state "
@@ -616,10 +646,13 @@ class URDriver:
                 "a stop from the dashboard or the pendant")
 
     @staticmethod
-    def _locate(err: DriverError, k: int, pt, pp, plines) -> DriverError:
-        k = min(max(k, 0), pt.size - 1)
-        pose = None if pp.size == 0 else pp[k]
-        return err.located(float(pt[k]), pose, int(plines[k]))
+    def _locate(err: DriverError, k: int, planned: PlannedPath, rec=None) -> DriverError:
+        """``err`` at planned sample ``k``: its job time, planned pose and source line (from the recording's window
+        of the plan when it holds the sample)."""
+        if planned.n == 0:
+            return err
+        t, pose, line = planned.at(k, rec.planned if rec is not None else None)
+        return err.located(t, pose, line)
 
     def _halt(self, failure: DriverError) -> None:
         """Bring the arm to rest after a failure (nothing to do when the connection or the program is gone)."""
@@ -641,20 +674,19 @@ class URDriver:
             pass
 
     def _program(self, job, planned, mask, progress, cancel):
-        from scipy.spatial import cKDTree
-
         from planner.export import job_program
 
         r, c = self._need(), self._control()
-        pt, pp, _, plines, ps = planned
         text = job_program(job)
         c.stopScript()  # hand the arm from ur_rtde's control script to the job's program
-        tree = cKDTree(pp[:, :3]) if pp.size else None
         rec = new_recording(job, planned)
-        x = None
         failure = None
         k = 0
+        log = None
+        ts0 = None
         try:
+            # every data package from here on, written by ur_rtde's receive thread (a stalled loop misses none)
+            log = PackageLog(r)
             try:
                 with socket.create_connection((self.host, 30002), timeout=2.0) as s:
                     s.sendall(text.encode() if text.endswith("\n") else (text + "\n").encode())
@@ -669,40 +701,44 @@ class URDriver:
                     raise ProgramStoppedError("the controller did not start the program within 5 s (refused)")
                 time.sleep(0.005)
             ts0 = r.getTimestamp()
-            last_prog = 0.0
+            last_read = time.monotonic()
             while True:
                 err = self._stopped(cancel)
                 if err is not None:
                     raise err
-                ts = r.getTimestamp()
-                x = r.getActualTCPPose()
-                rec.add(ts - ts0, x, r.getActualQ(), r.getActualDigitalOutputBits())
                 f = self._fault()
                 if f is not None:
                     raise f
                 state = r.getRuntimeState()
-                if tree is not None and time.monotonic() - last_prog > 0.1:
-                    last_prog = time.monotonic()
-                    _, idx = tree.query(x[:3])
-                    k = max(k, int(idx))
+                if time.monotonic() - last_read > _READ_EVERY:
+                    last_read = time.monotonic()
+                    k = max(k, self._take(log, rec, ts0))
                     if progress is not None:
-                        progress("execute", k, pt.size)
+                        progress("execute", k, planned.n)
                 if state not in (_PLAYING, _PAUSED):
                     break
                 time.sleep(0.002)
-            # the program ended: at the job's end, or stopped from outside
-            d, _ = distance_to_polyline(np.asarray(x[:3])[None], pp[-1:, :3])
-            if d[0] > 1e-3:
-                raise ProgramStoppedError(self._not_running_reason() + f"; the tool is {1e3 * d[0]:.1f} mm "
+            # the program ended: at the job's end, or stopped from outside; the last packages into the recording
+            time.sleep(0.01)
+            log.stop()
+            self._take(log, rec, ts0)
+            x = np.asarray(r.getActualTCPPose(), dtype=float)
+            d = float(np.linalg.norm(x[:3] - planned.last_pose[:3])) if planned.n else 0.0
+            k = max(k, rec.last_segment)
+            if d > 1e-3:
+                raise ProgramStoppedError(self._not_running_reason() + f"; the tool is {1e3 * d:.1f} mm "
                                           "from the job's last pose")
-            k = pt.size - 1
+            k = planned.n - 1
             if progress is not None:
-                progress("execute", pt.size, pt.size)
+                progress("execute", planned.n, planned.n)
         except DriverError as exc:
-            failure = self._locate(exc, k, pt, pp, plines)
+            failure = self._locate(exc, self._last_place(log, rec, k, ts0), planned, rec)
         except RuntimeError as exc:
             failure = self._locate(ConnectionLostError(f"the connection to {self.host} dropped: {exc}"),
-                                   k, pt, pp, plines)
+                                   self._last_place(log, rec, k, ts0), planned, rec)
+        finally:
+            if log is not None:
+                log.close()
         if isinstance(failure, ConnectionLostError):
             self._lost = True
         if failure is not None:
