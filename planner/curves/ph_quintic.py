@@ -100,6 +100,25 @@ def _times_e_i(q: np.ndarray, c: np.ndarray, s: np.ndarray, out: np.ndarray | No
     return out
 
 
+#: OpenBLAS runs a matrix product with m n k above 4 * 65536 on all cores; on a loaded machine waking the threads
+#: costs far more than the product (a 1000-waypoint C1 fit took 9 ms instead of 0.6 at a load of 2.6 on 2 cores),
+#: so _mm cuts larger products into column blocks below that size.
+_BLAS_ONE_THREAD = 262_144
+
+
+def _mm(M: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """M @ X (m, N) for M (m, k), X (k, N), on one thread (column blocks of at most _BLAS_ONE_THREAD / (m k))."""
+    m, k = M.shape
+    n = X.shape[1]
+    step = max(1, _BLAS_ONE_THREAD // (m * k))
+    if n <= step:
+        return M @ X
+    out = np.empty((m, n))
+    for a in range(0, n, step):
+        np.matmul(M, X[:, a:a + step], out=out[:, a:a + step])
+    return out
+
+
 def _dot(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Row-wise inner products (N,) of component rows."""
     return np.einsum("ij,ij->j", p, q)
@@ -191,30 +210,73 @@ def bending_energies(A: np.ndarray) -> np.ndarray:
     g = np.stack((_dot(A0, A0), _dot(A0, A1), _dot(A0, A2), _dot(A1, A1), _dot(A1, A2), _dot(A2, A2)))
     A0i, A1i = A0[_IPERM] * _ISIGN, A1[_IPERM] * _ISIGN  # A_j i
     h = np.stack((_dot(A0i, A1), _dot(A0i, A2), _dot(A1i, A2)))
-    return _energies_from_products(g, h, _FULL_RULE)
+    w, Msdx, Mh = _FULL_RULE
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return _energies_at_nodes(_mm(Msdx, g), _mm(Mh, h), w)
 
 
-def _energies_from_products(g, h, rule) -> np.ndarray:
-    """4 int kappa^2 sigma dt (M,) by a Gauss ``rule`` of :func:`_energy_matrices` from the inner products
-    g (6, M) and h (3, M) of A0, A1, A2 (see :func:`bending_energies`)."""
-    w, Msdx, Mh = rule
+def _energies_at_nodes(V: np.ndarray, Y: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """4 int kappa^2 sigma dt (M,) by a Gauss rule of weights w (K,) from the values at its nodes of sigma, |A'|^2,
+    <A, A'> (rows of V (3K [+ more], M)) and <A i, A'> (Y (K, M)); V and Y are overwritten (no temporaries: they
+    would be fresh pages). A cusp at a node (sigma <= 0) gives an infinite energy. Call under np.errstate."""
     k = w.size
-    sdx = Msdx @ g
-    s, d, x = sdx[:k], sdx[k:2 * k], sdx[2 * k:]
-    y = Mh @ h
+    s, d, x = V[:k], V[k:2 * k], V[2 * k:3 * k]
+    np.maximum(s, 0.0, out=s)  # sigma = |A|^2 >= 0 but for round-off: <= 0 is a cusp, f = 0 / 0 or x / 0
     d *= s
     x *= x
     d -= x
-    y *= y
-    d -= y
-    num = np.maximum(d, 0.0, out=d)  # |A|^2 |A'_perp|^2 >= 0 but for round-off
-    x[...] = s
-    x *= s
+    Y *= Y
+    d -= Y
+    np.maximum(d, 0.0, out=d)  # |A|^2 |A'_perp|^2 >= 0 but for round-off
+    np.multiply(s, s, out=x)
     x *= s  # sigma^3
-    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        f = np.divide(num, x, out=y)
-    f[~(x > 0)] = np.inf
-    return 4.0 * (w @ f)
+    d /= x
+    E = w @ d
+    E *= 4.0
+    E[~(E >= 0.0)] = np.inf  # nan (0 / 0) or -inf (x / -0) at a cusp
+    return E
+
+
+#: The candidates' inner products g00 g01 g02 g11 g12 g22 of A0, A1, A2 from (r0, r1, g02, P0, P2, qq) and
+#: h01 h02 h12 (h_jk = <A_j i, A_k>) from (e, V0, V2), for A1 = -(3/4)(A0 + A2) + Q/4 (see _least_energy_member)
+_LG = np.array(
+    [
+        [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
+        [-0.75, 0.0, -0.75, 0.25, 0.0, 0.0],
+        [0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
+        [0.5625, 0.5625, 1.125, -0.375, -0.375, 0.0625],
+        [0.0, -0.75, -0.75, 0.0, 0.25, 0.0],
+        [0.0, 1.0, 0.0, 0.0, 0.0, 0.0],
+    ]
+)
+_LH = np.array([[-0.75, 0.25, 0.0], [1.0, 0.0, 0.0], [-0.75, 0.0, -0.25]])
+
+
+def _candidate_rule(rule: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
+    """A rule of :func:`_energy_matrices` with the CC measure |A0 - 2 A1 + A2|^2 as a last row of its matrix
+    of sigma, |A'|^2, <A, A'> (3K + 1, 6), and the map (5, 6) of g to the Bernstein coefficients of sigma."""
+    w, Msdx, Mh = rule
+    Mb = np.zeros((5, 6))  # sigma = sum B^4_k (g00, g01, (g02 + 2 g11) / 3, g12, g22)
+    Mb[[0, 1, 2, 2, 3, 4], [0, 1, 2, 3, 4, 5]] = (1.0, 1.0, 1.0 / 3.0, 2.0 / 3.0, 1.0, 1.0)
+    return w, Msdx, Mh, Mb
+
+
+_SCREEN_NODES, _FULL_NODES = _candidate_rule(_SCREEN_RULE), _candidate_rule(_FULL_RULE)
+#: Two nodes of the screening rule (t = 0.17, 0.83) with their weights, rows of its matrices: lower bounds of
+#: its estimates (see _screen).
+_SCREEN_BOUND = (
+    _SCREEN_RULE[0][[1, 6]],
+    _SCREEN_RULE[1][[1, 6, 9, 14, 17, 22]],
+    _SCREEN_RULE[2][[1, 6]],
+)
+#: The full rule's nodes on the pieces 0, 1, 6, 7 of 8 (t < 1/4, t > 3/4) with their weights, rows of its
+#: matrices: lower bounds of its energies (see _rank_close).
+_FULL_NODE_BOUND = np.r_[0:16, 48:64]
+_FULL_BOUND = (
+    _FULL_RULE[0][_FULL_NODE_BOUND],
+    _FULL_RULE[1][np.r_[_FULL_NODE_BOUND, 64 + _FULL_NODE_BOUND, 128 + _FULL_NODE_BOUND]],
+    _FULL_RULE[2][_FULL_NODE_BOUND],
+)
 
 
 def _least_energy_member(dp, base, a0, a2, r0, r1) -> np.ndarray:
@@ -223,69 +285,144 @@ def _least_energy_member(dp, base, a0, a2, r0, r1) -> np.ndarray:
 
     The candidates are delta in {delta0, delta0 + pi} (``_pure_vector_axis``) and, for each, phi0 at the maximum
     of <A0 + A2, Q> and phi0 + pi. Their energies E = 4 int Lambda / sigma^3 dt (see :func:`bending_energies`)
-    follow from nine inner products of A0, A1, A2, themselves from a few inner products of a0, a2, Q
-    (A1 = -(3/4)(A0 + A2) + Q/4, <A0, A0> = |d0|, ...). A coarse Gauss rule screens them: where one candidate's
-    estimate is below 1 / _SCREEN of the other three's (smooth data: the others have cusps or loops) it is
-    taken; elsewhere the composite rule of :func:`bending_energies` decides among the candidates within
-    _SCREEN of the best estimate.
+    follow from nine inner products of A0, A1, A2, linear in r0 = <A0, A0>, r1 = <A2, A2>, g02 = <A0, A2>,
+    P0 = <A0, Q>, P2 = <A2, Q>, qq = |Q|^2 and e = <A0 i, A2>, V0 = <A0 i, Q>, V2 = <A2 i, Q> (A1 = -(3/4)(A0 +
+    A2) + Q/4), so a Gauss rule's node values are one matrix product of these (:func:`_candidate_rule`). A
+    coarse rule screens them: where one candidate's estimate is below 1 / _SCREEN of the other three's (smooth
+    data: the others have cusps or loops) it is taken; elsewhere the candidates within _SCREEN of the best
+    estimate are ranked by the middle rule where that is certain (see _MID_RULE) and by the composite rule of
+    :func:`bending_energies` otherwise. Ties of the energy go to the least CC measure (a _TIE weight of it).
     """
     n = dp.shape[1]
-    R = _PRODUCTS @ np.multiply(a0[:, None], a2[None]).reshape(16, n)  # a0 i a2* and a0 a2*, (vec, scalar)
-    Sc, Ss = R[:3], R[4:7]
-    c, s = _pure_vector_axis(Sc, Ss, R[3], R[7], r0 * r1, dp)
-    c02, e02 = R[7] * c - R[3] * s, R[3] * c + R[7] * s  # <a0, a2 e^{i delta}>, <a0 i, a2 e^{i delta}>
-    # per delta (rows 0: delta0, 1: delta0 + pi): a2 e^{i delta}, Q, phi0 and the inner products at phi0
-    a2d = np.stack((_times_e_i(a2, c, s), _times_e_i(a2, -c, -s)))  # (2, 4, N)
-    S = Sc * c + Ss * s
-    Q, qq = sqrt_rot(np.stack((base + 10.0 * S, base - 10.0 * S), axis=1).reshape(3, 2 * n))
-    Q = Q.reshape(4, 2, n).transpose(1, 0, 2)
-    qq = qq.reshape(2, n)  # |Q|^2 = |alpha|
-    u0, v0 = (a0 * Q).sum(axis=1), (a0[_IPERM] * _ISIGN * Q).sum(axis=1)  # <a0, Q>, <a0 i, Q>  (2, N)
-    u2, v2 = (a2d * Q).sum(axis=1), (a2d[:, _IPERM] * _ISIGN * Q).sum(axis=1)
-    x, y = u0 + u2, v0 + v2  # <(a0 + a2d) e^{i phi0}, Q> = x cos + y sin: the maximum at phi0 = atan2(y, x)
-    h = np.hypot(x, y)
-    ok = h > 0
-    with np.errstate(divide="ignore", invalid="ignore"):
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        R = _mm(_PRODUCTS, np.multiply(a0[:, None], a2[None]).reshape(16, n))  # a0 i a2* and a0 a2*, (vec, scalar)
+        c, s = _pure_vector_axis(R[:3], R[4:7], R[3], R[7], r0 * r1, dp)
+        a2d = _times_e_i(a2, c, s)  # a2 e^{i delta0}; delta0 + pi negates it
+        S = R[:3] * c
+        S += R[4:7] * s
+        S *= 10.0
+        alpha = np.empty((3, 2, n))  # per delta (delta0, delta0 + pi): Farouki's alpha = base + 10 S(delta)
+        np.add(base, S, out=alpha[:, 0])
+        np.subtract(base, S, out=alpha[:, 1])
+        Qf, qq = sqrt_rot(alpha.reshape(3, 2 * n))
+        Q = Qf.reshape(4, 2, n)
+        X = np.empty((4, 4, n))  # a0, a0 i, a2d, a2d i: their inner products with Q are <., Q>, <. i, Q>
+        X[0], X[2] = a0, a2d
+        np.multiply(a0[_IPERM], _ISIGN, out=X[1])
+        np.multiply(a2d[_IPERM], _ISIGN, out=X[3])
+        u0, v0, u2, v2 = np.einsum("vcn,ckn->vkn", X, Q)  # (2, N) each
+        u2[1] *= -1.0  # a2 e^{i (delta0 + pi)} = -a2d
+        v2[1] *= -1.0
+        x, y = u0 + u2, v0 + v2  # <(a0 + a2d) e^{i phi0}, Q> = x cos + y sin: the maximum at phi0 = atan2(y, x)
+        h = np.hypot(x, y)
+        ok = h > 0
         c0, s0 = np.where(ok, x / h, 1.0), np.where(ok, y / h, 0.0)
-    P0, P2 = c0 * u0 + s0 * v0, c0 * u2 + s0 * v2  # <A0, Q>, <A2, Q>
-    V0, V2 = c0 * v0 - s0 * u0, c0 * v2 - s0 * u2  # <A0 i, Q>, <A2 i, Q>
-    # candidates k = 2 * (delta index) + (phi0 + pi): the flip negates A0, A2 and so P, V
-    f = np.array([1.0, -1.0])[:, None]
-    sg = np.array([1.0, -1.0])[:, None]
-    g02 = np.repeat(sg * c02, 2, axis=0)  # (4, N)
-    e = np.repeat(sg * e02, 2, axis=0)
-    P0, P2, V0, V2 = ((f[:, None] * z[None]).transpose(1, 0, 2).reshape(4, n) for z in (P0, P2, V0, V2))
-    qq4 = np.repeat(qq, 2, axis=0)
-    g00, g22 = np.broadcast_to(r0, (4, n)), np.broadcast_to(r1, (4, n))
-    g01 = -0.75 * (r0 + g02) + 0.25 * P0
-    g12 = -0.75 * (g02 + r1) + 0.25 * P2
-    g11 = 0.5625 * (r0 + r1 + 2.0 * g02) - 0.375 * (P0 + P2) + 0.0625 * qq4
-    g = np.stack((g00, g01, g02, g11, g12, g22)).reshape(6, 4 * n)
-    hh = np.stack((-0.75 * e + 0.25 * V0, e, -0.75 * e - 0.25 * V2)).reshape(3, 4 * n)
-    # screening: the energies by the 2 x 4-node rule from the inner products; a candidate below 1 / _SCREEN of
-    # the other three is taken, elsewhere the full rule decides
-    est = _energies_from_products(g, hh, _SCREEN_RULE).reshape(4, n)
-    # ties (a straight segment and the same line with stops, both of zero energy) go to the least CC measure
-    # |A0 - 2 A1 + A2|^2 (FGMS 2008): _TIE of it, made dimensionless by (|d0| + |d1|)^2, joins the energy
-    cc = (g[0] + 4.0 * g[3] + g[5] - 4.0 * g[1] + 2.0 * g[2] - 4.0 * g[4]).reshape(4, n)
-    tie = _TIE / (r0 + r1) ** 2
-    est = est + tie * cc
-    best = np.argmin(est, axis=0)
-    cols = np.arange(n)
-    others = est.copy()
-    others[best, cols] = np.inf
-    bad = np.flatnonzero(~(others.min(axis=0) > _SCREEN * est[best, cols]))
-    if bad.size:  # the candidates within _SCREEN of the best estimate, by the full rule
-        k, col = np.nonzero(est[:, bad] < _SCREEN * est[best[bad], bad])
-        seg = bad[col]
-        kc = k * n + seg  # the candidates' columns of g, hh
-        E = np.full((4, bad.size), np.inf)
-        E[k, col] = _energies_from_products(g[:, kc], hh[:, kc], _FULL_RULE) \
-            + tie[seg] * cc.reshape(-1)[kc]
-        best[bad] = np.argmin(E, axis=0)
+        # the candidates' inner products (6, 4, N) and (3, 4, N), k = 2 * (delta index) + (phi0 + pi) (the flip
+        # negates A0, A2 and so P, V), in the order of operations of bending_energies' first version: the same bits,
+        # so that the choice between members of equal energy (straight ones) is the same to the last bit
+        g = np.empty((6, 2, 2, n))
+        hh = np.empty((3, 2, 2, n))
+        P = np.empty((2, 2, 2, n))  # P0, P2
+        g[0], g[5] = r0, r1
+        np.subtract(R[7] * c, R[3] * s, out=g[2, 0])  # <a0, a2 e^{i delta}>, <a0 i, a2 e^{i delta}>
+        np.negative(g[2, 0], out=g[2, 1])
+        e = hh[1]
+        np.add(R[3] * c, R[7] * s, out=e[0])
+        np.negative(e[0], out=e[1])
+        np.add(c0 * u0, s0 * v0, out=P[0, :, 0])  # <A0, Q>, <A2, Q> at phi0 ...
+        np.add(c0 * u2, s0 * v2, out=P[1, :, 0])
+        np.negative(P[:, :, 0], out=P[:, :, 1])
+        V0, V2 = c0 * v0 - s0 * u0, c0 * v2 - s0 * u2  # ... <A0 i, Q>, <A2 i, Q>
+        g, hh, P, e = g.reshape(6, 4, n), hh.reshape(3, 4, n), P.reshape(2, 4, n), e.reshape(4, n)
+        P0, P2 = P
+        np.add(-0.75 * (r0 + g[2]), 0.25 * P0, out=g[1])
+        np.add(-0.75 * (g[2] + r1), 0.25 * P2, out=g[4])
+        g11 = (0.5625 * (r0 + r1 + 2.0 * g[2]) - 0.375 * (P0 + P2)).reshape(2, 2, n)
+        np.add(g11, 0.0625 * qq.reshape(2, 1, n), out=g[3].reshape(2, 2, n))
+        hh[0, ::2], hh[0, 1::2] = -0.75 * e[::2] + 0.25 * V0, -0.75 * e[1::2] - 0.25 * V0
+        hh[2, ::2], hh[2, 1::2] = -0.75 * e[::2] - 0.25 * V2, -0.75 * e[1::2] + 0.25 * V2
+        cc = g[0] + 4.0 * g[3] + g[5] - 4.0 * g[1] + 2.0 * g[2] - 4.0 * g[4]
+        g, hh = g.reshape(6, 4 * n), hh.reshape(3, 4 * n)
+        tie = _TIE / (r0 + r1) ** 2
+        # ties (a straight segment and the same line with stops, both of zero energy) go to the least CC measure
+        # |A0 - 2 A1 + A2|^2 (FGMS 2008): _TIE of it, made dimensionless by (|d0| + |d1|)^2, joins the energy
+        tcc = (cc * tie).reshape(-1)
+        best = _screen(g, hh, tcc, n)
     j, fl = best // 2, best % 2
     sign = 1.0 - 2.0 * fl
-    return _member(a0, a2d[j, :, cols].T, Q[j, :, cols].T, sign * c0[j, cols], sign * s0[j, cols])
+    cols = np.arange(n)
+    return _member(a0, a2d * (1.0 - 2.0 * j), Q[:, j, cols], sign * c0[j, cols], sign * s0[j, cols])
+
+
+def _screen(g, hh, tcc, n) -> np.ndarray:
+    """The best candidate (N,) (index 0-3) from the candidates' inner products g (6, 4N), hh (3, 4N) and tie terms
+    tcc (4N,) (columns k N + segment): the screening rule's choice where one candidate's estimate is below
+    1 / _SCREEN of the other three's, :func:`_rank_close` elsewhere.
+
+    Most segments of smooth data are decided by candidate 0's estimate and lower bounds of the other three's
+    from two of the screening rule's eight nodes (t = 0.17, 0.83, where their loops or near-cusps lie), each a
+    part of their estimate's sum of nonnegative terms: where those exceed _SCREEN times candidate 0's (with a
+    margin for round-off) the screen would take candidate 0. The other segments get the whole screen.
+    """
+    w, M1, M2, _ = _SCREEN_NODES
+    E0 = _energies_at_nodes(_mm(M1, g[:, :n]), _mm(M2, hh[:, :n]), w) + tcc[:n]
+    wl, M1l, M2l = _SCREEN_BOUND
+    lb = (_energies_at_nodes(_mm(M1l, g[:, n:]), _mm(M2l, hh[:, n:]), wl) + tcc[n:]).reshape(3, n)
+    best = np.zeros(n, dtype=np.intp)
+    rest = np.flatnonzero(~(lb > (_SCREEN * (1.0 + 1e-9)) * E0).all(axis=0))
+    if rest.size:
+        m = rest.size
+        cols = (np.arange(4)[:, None] * n + rest).ravel()
+        best[rest] = _screen_all(g[:, cols], hh[:, cols], tcc[cols], m)
+    return best
+
+
+def _screen_all(g, hh, tcc, n) -> np.ndarray:
+    """:func:`_screen` by the whole screening rule on every candidate."""
+    w, M1, M2, _ = _SCREEN_NODES
+    est = (_energies_at_nodes(_mm(M1, g), _mm(M2, hh), w) + tcc).reshape(4, n)
+    best = np.argmin(est, axis=0)
+    cols = np.arange(n)
+    eb = est[best, cols]
+    others = est.copy()
+    others[best, cols] = np.inf
+    bad = np.flatnonzero(~(others.min(axis=0) > _SCREEN * eb))
+    if bad.size:
+        best[bad] = _rank_close(g, hh, tcc, est, best, bad, n)
+    return best
+
+
+def _rank_close(g, hh, tcc, est, best, bad, n) -> np.ndarray:
+    """The best candidate (index 0-3) of each segment ``bad`` among those within _SCREEN of the best screening
+    estimate, by the full rule.
+
+    The screen's best is confirmed without the full rule on the others where its full-rule energy is below lower
+    bounds of theirs: their full rule's terms on the pieces 0, 1, 6, 7 of its 8 (t < 1/4 and t > 3/4, where their
+    loops or near-cusps lie; part of the same sum of nonnegative terms). Elsewhere the full rule decides.
+    """
+    m = bad.size
+    cols = np.arange(m)
+    b, eb = best[bad], est[best[bad], bad]
+    k, col = np.nonzero(est[:, bad] < _SCREEN * eb)
+    kc = k * n + bad[col]  # the candidates' columns
+    cb = b * n + bad
+    w, M1, M2, _ = _FULL_NODES
+    E = np.full((4, m), np.inf)
+    E[b, cols] = _energies_at_nodes(_mm(M1, g[:, cb]), _mm(M2, hh[:, cb]), w) + tcc[cb]
+    o = k != b[col]
+    wl, M1l, M2l = _FULL_BOUND
+    low = np.full((4, m), np.inf)
+    low[k[o], col[o]] = _energies_at_nodes(_mm(M1l, g[:, kc[o]]), _mm(M2l, hh[:, kc[o]]), wl) + tcc[kc[o]]
+    has_b = np.zeros(m, dtype=bool)
+    has_b[col[~o]] = True  # the best is a candidate unless its estimate is 0 or infinite (then none is)
+    redo = np.flatnonzero(~(has_b & (low.min(axis=0) > E[b, cols] * (1.0 + 1e-9))))
+    if redo.size:  # the full rule on those segments' candidates
+        pick = np.isin(col, redo) & o
+        kf, colf, kcf = k[pick], col[pick], kc[pick]
+        E[kf, colf] = _energies_at_nodes(_mm(M1, g[:, kcf]), _mm(M2, hh[:, kcf]), w) + tcc[kcf]
+        E[:, redo[~has_b[redo]]] = np.inf
+        b[redo] = np.argmin(E[:, redo], axis=0)
+    return b
 
 
 def hermite_rows(dp, d0, d1, a0, a2, r0, r1, angles=None, root_scale=None) -> np.ndarray:
