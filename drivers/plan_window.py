@@ -129,15 +129,15 @@ class PlannedPath:
             ext = xyz if prev_xyz is None else np.vstack((prev_xyz[None], xyz))
             step = np.linalg.norm(np.diff(ext, axis=0), axis=1)
             s = length + (np.cumsum(step) if prev_xyz is not None else np.concatenate(([0.0], np.cumsum(step))))
-            for i in waiting:  # their next sample is this piece's first
-                st[i][4] = xyz[0]
+            for i in waiting:  # their next sample is this piece's first (copies: a view would keep the piece)
+                st[i][4] = xyz[0].copy()
             waiting = []
             sw = _switches(io, prev_io, k0)
             for _, _, i in sw:
                 j = i - k0
                 if i not in st:
                     before = xyz[j - 1] if j > 0 else (prev_xyz if prev_xyz is not None else xyz[0])
-                    after = xyz[j + 1] if j + 1 < m else None
+                    after = xyz[j + 1].copy() if j + 1 < m else None
                     st[i] = [float(t[j]), xyz[j].copy(), float(s[j]), np.asarray(before, float).copy(), after]
                     if after is None:
                         waiting.append(i)
@@ -166,35 +166,37 @@ class PlannedPath:
         """Planned duration, s (0 without samples)."""
         return self.t_last - self.t_first if self.n else 0.0
 
-    def pieces(self, size: int = PIECE):
+    def pieces(self, size: int | None = None):
         """The planned path again, in order: (first sample index, times (m,), poses (m, 6), io (m,), lines (m,)),
-        chunks of the trajectory merged into pieces of at least ``size`` samples (the last may be shorter)."""
+        the trajectory's chunks cut and joined into pieces of ``size`` samples (default :data:`PIECE`; the last one
+        shorter)."""
+        size = PIECE if size is None else int(size)
         if self.arrays is not None:
             t, p, io, ln, _ = self.arrays
             yield 0, np.asarray(t, float), np.asarray(p, float), np.asarray(io, np.int64), np.asarray(ln, np.int64)
             return
         k0 = 0
-        buf: list = []
+        buf: list[tuple] = []
         count = 0
         for c in self.job.trajectory(self.rate).chunks(joints=False):
             if not len(c):
                 continue
-            buf.append(c)
+            buf.append((c.times, c.poses, c.io, c.lines))
             count += len(c)
-            if count >= size:
-                yield k0, *self._merge(buf)
-                k0 += count
-                buf, count = [], 0
-        if buf:
+            while count >= size:
+                whole = self._merge(buf)
+                yield k0, *(a[:size] for a in whole)
+                k0 += size
+                count -= size
+                buf = [tuple(a[size:] for a in whole)] if count else []
+        if count:
             yield k0, *self._merge(buf)
 
     @staticmethod
     def _merge(buf):
         if len(buf) == 1:
-            c = buf[0]
-            return c.times, c.poses, c.io, c.lines
-        return (np.concatenate([c.times for c in buf]), np.concatenate([c.poses for c in buf]),
-                np.concatenate([c.io for c in buf]), np.concatenate([c.lines for c in buf]))
+            return buf[0]
+        return tuple(np.concatenate([b[i] for b in buf]) for i in range(4))
 
     def at(self, k: int, window=None) -> tuple[float, np.ndarray, int]:
         """Sample ``k``'s (clipped to the path) job time s, pose (6,) and source line: from ``window`` (a
@@ -236,9 +238,14 @@ class PlanWindow:
     """Distances of recorded samples (in time order) from a :class:`PlannedPath` (see the module doc):
     :meth:`distance`. A plan given as arrays is searched whole (one piece, never dropped)."""
 
-    def __init__(self, plan: PlannedPath, *, back: float = BACK, ahead: float = AHEAD, span: float = SPAN) -> None:
+    def __init__(self, plan: PlannedPath, *, back: float | None = None, ahead: float | None = None,
+                 span: float | None = None) -> None:
         self.plan = plan
-        self.back, self.ahead, self.span = float(back), float(ahead), float(span)
+        self.back = BACK if back is None else float(back)
+        self.ahead = AHEAD if ahead is None else float(ahead)
+        self.span = SPAN if span is None else float(span)
+        #: the most planned samples the window held at once (its memory: ~100 B a sample with the k-d tree)
+        self.max_held = 0
         self.whole = plan.arrays is not None
         self._it = plan.pieces()
         self._pieces: deque[_Piece] = deque()
@@ -270,6 +277,7 @@ class PlanWindow:
             pass
         while len(self._pieces) > 1 and self._pieces[0].t_end < lo:
             self._pieces.popleft()
+        self.max_held = max(self.max_held, sum(pc.t.size for pc in self._pieces))
 
     def distance(self, points: np.ndarray, times: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Distance (m) of each recorded position (m, 3) at recorded job times (m,) s from the planned path, and the

@@ -12,7 +12,8 @@ Two modes, one report (:func:`drivers.report.execution_report`):
 
 In both modes the actual TCP, joints and digital outputs are recorded from ``RTDEReceiveInterface``: in stream
 mode one reading per control period (of one data package: read again if a package arrived meanwhile); in program
-mode every data package, by ur_rtde's receive thread (:class:`drivers.package_log.PackageLog`). Every
+mode every data package, whole, through a recording connection of its own (:class:`drivers.package_log.PackageLog`:
+a polled reading mixes packages and misses those between polls). Every
 failure is a :class:`drivers.base.DriverError` subclass with the robot's reason and the job's time, planned
 pose and source line; the driver never retries a motion by itself. The driver connects only to the host it is
 given.
@@ -633,7 +634,6 @@ class URDriver:
         if log is None or ts0 is None:
             return k
         try:
-            log.stop()
             self._take(log, rec, ts0)
         except (RuntimeError, OSError, DriverError):
             return k
@@ -685,8 +685,8 @@ class URDriver:
         log = None
         ts0 = None
         try:
-            # every data package from here on, written by ur_rtde's receive thread (a stalled loop misses none)
-            log = PackageLog(r)
+            # every data package from here on, through a connection of its own (a stalled loop misses none)
+            log = PackageLog(self.host, self.frequency)
             try:
                 with socket.create_connection((self.host, 30002), timeout=2.0) as s:
                     s.sendall(text.encode() if text.endswith("\n") else (text + "\n").encode())
@@ -720,7 +720,6 @@ class URDriver:
                 time.sleep(0.002)
             # the program ended: at the job's end, or stopped from outside; the last packages into the recording
             time.sleep(0.01)
-            log.stop()
             self._take(log, rec, ts0)
             x = np.asarray(r.getActualTCPPose(), dtype=float)
             d = float(np.linalg.norm(x[:3] - planned.last_pose[:3])) if planned.n else 0.0

@@ -175,3 +175,99 @@ def test_a_sparse_recording_that_misses_a_brief_off_leaves_it_unresolved_not_shi
     rep = execution_report(job, c.times, c.poses, c.joints, stuck, mode="replay")
     assert [(e.switched, e.unresolved) for e in rep.io_events[1:3]] == [(False, False), (False, False)]
     assert all(e.switched for e in rep.io_events[3:]) and "2 not made" in "\n".join(rep.describe())
+
+
+@pytest.fixture
+def small_window(monkeypatch):
+    """The plan window in pieces of 400 samples (0.8 s), 1 s back and ahead, spans of 0.5 s: the demo pass (62 s,
+    31,000 samples) then moves through ~80 pieces, as a 7-hour job through its pieces of 65,536."""
+    from drivers import plan_window
+
+    monkeypatch.setattr(plan_window, "PIECE", 400)
+    monkeypatch.setattr(plan_window, "BACK", 1.0)
+    monkeypatch.setattr(plan_window, "AHEAD", 1.0)
+    monkeypatch.setattr(plan_window, "SPAN", 0.5)
+
+
+def _recordings(c):
+    """(name, times, poses, io) of runs that follow the plan differently: noisy, 0.4 s late, paused 3 s mid-way,
+    3 % slower throughout (a program's timing drifting 1.9 s from the plan's), offset 0.3 mm."""
+    rng = np.random.default_rng(5)
+    n = len(c.times)
+    noisy = c.poses.copy()
+    noisy[:, :3] += rng.normal(scale=2e-5, size=(n, 3))
+    yield "noisy", c.times, noisy, c.io
+    late = np.concatenate((np.repeat(c.poses[:1], 200, axis=0), c.poses))
+    yield "late", np.arange(len(late)) / 500.0, late, np.concatenate((np.zeros(200, np.int64), c.io))
+    h = n // 2
+    held = np.concatenate((c.poses[:h], np.repeat(c.poses[h:h + 1], 1500, axis=0), c.poses[h:]))
+    io = np.concatenate((c.io[:h], np.repeat(c.io[h:h + 1], 1500), c.io[h:]))
+    yield "paused", np.arange(len(held)) / 500.0, held, io
+    yield "slower", c.times * 1.03, noisy, c.io
+    off = c.poses.copy()
+    off[:, 2] += 0.3e-3
+    yield "offset", c.times, off, c.io
+
+
+def test_the_plan_window_gives_the_whole_paths_figures_in_bounded_memory(job, small_window):
+    """The report against the plan read a window at a time (a few pieces of 400 samples held at once) has the
+    figures of the report against the whole planned path in memory: the same largest distance at the same time,
+    the same switches at the same places, for runs late, paused, drifting in time, off the path."""
+    from drivers.report import new_recording
+
+    c = job.trajectory().collect()
+    whole = planned_path(job)
+    for name, t, x, io in _recordings(c):
+        q = np.zeros((len(t), 6))
+        rec = new_recording(job, None)
+        rec.extend(t, x, q, io)
+        lazy = execution_report(job, rec, mode="replay")
+        full = execution_report(job, t, x, q, io, mode="replay", planned=whole)
+        assert lazy.max_path_error == full.max_path_error, name
+        assert lazy.max_path_error_t == full.max_path_error_t, name
+        assert len(lazy.io_events) == len(full.io_events) == 2, name
+        for e, f in zip(lazy.io_events, full.io_events, strict=True):  # arc lengths summed in pieces: to 1e-12
+            assert (e.bit, e.value, e.distance_mm, e.planned_t, e.actual_t, e.resolution_mm) == \
+                (f.bit, f.value, f.distance_mm, f.planned_t, f.actual_t, f.resolution_mm), name
+            assert e.planned_s == pytest.approx(f.planned_s, rel=1e-12, abs=1e-15)
+            assert e.actual_s == pytest.approx(f.actual_s, rel=1e-12, abs=1e-15)
+        assert lazy.planned_duration == full.planned_duration and lazy.path_length == pytest.approx(full.path_length)
+        assert np.array_equal(lazy.trace.segment, full.trace.segment), name
+        held = rec.planned.max_held
+        assert held <= 6 * 400 + 400, (name, held)  # the window, not the 31,000 samples of the plan
+    assert len(c.times) > 12 * held
+
+
+def test_planned_path_summary_and_samples_match_the_arrays(job, small_window):
+    from drivers.plan_window import PlannedPath
+
+    pt, pp, pio, pl, ps = planned_path(job)
+    lazy, arrays = PlannedPath(job), PlannedPath(job, arrays=(pt, pp, pio, pl, ps))
+    assert lazy.n == arrays.n == pt.size and lazy.duration == arrays.duration == pt[-1]
+    assert lazy.length == pytest.approx(ps[-1], rel=1e-12) and lazy.mask == arrays.mask == 1
+    assert lazy.switches == arrays.switches and len(lazy.switches) == 2
+    for i in lazy.stations:
+        a, b = lazy.stations[i], arrays.stations[i]
+        assert a.t == b.t and np.array_equal(a.xyz, b.xyz) and np.allclose(a.tangent, b.tangent, atol=1e-12)
+        assert a.s == pytest.approx(b.s, rel=1e-12)
+    for k in (0, 399, 400, 12345, pt.size - 1, pt.size + 5):
+        t, pose, line = lazy.at(k)
+        kk = min(k, pt.size - 1)
+        assert t == pt[kk] and np.array_equal(pose, pp[kk]) and line == pl[kk]
+
+
+def test_the_recordings_gaps_are_counted_and_reported(job):
+    """Three stretches of 10 samples missing from a recording at the controller rate: 3 gaps, 30 samples missed,
+    the longest 22 ms; a whole recording has none."""
+    c = job.trajectory().collect()
+    keep = np.ones(len(c.times), bool)
+    for a in (3000, 9000, 20000):
+        keep[a:a + 10] = False
+    rep = execution_report(job, c.times[keep], c.poses[keep], c.joints[keep], c.io[keep], mode="replay",
+                           recording="every data package")
+    assert (rep.gaps, rep.missed) == (3, 30) and rep.longest_gap == pytest.approx(0.022)
+    assert rep.recorded_every == pytest.approx(0.002)
+    assert "recording: every data package, a sample every 2.0 ms of job time; 3 gaps: ~30 samples missed, " \
+           "the longest 22.0 ms" in "\n".join(rep.describe())
+    full = execution_report(job, c.times, c.poses, c.joints, c.io, mode="replay")
+    assert full.gaps == full.missed == 0 and "no gap" in "\n".join(full.describe())
