@@ -35,8 +35,8 @@ from __future__ import annotations
 
 import subprocess
 import sys
+import tempfile
 import time
-import types
 from dataclasses import replace
 from pathlib import Path
 
@@ -219,17 +219,36 @@ def joint_speed_table() -> None:
 IK_BASELINE_COMMIT = "545be10"
 
 
-def _baseline_inverse_path():
-    """``inverse_path`` as of IK_BASELINE_COMMIT, from git history (None if that is not available)."""
+def _baseline_inverse_path(poses: np.ndarray) -> tuple[float, np.ndarray] | None:
+    """Best time (s) of 3 and joints of ``inverse_path`` as of IK_BASELINE_COMMIT on ``poses``: that commit's
+    ``planner`` package from git history, run in a child process of its own (its modules import helpers the
+    present package no longer has); None if git or the commit is not available."""
     root = Path(__file__).resolve().parents[1]
-    try:
-        text = subprocess.run(["git", "show", f"{IK_BASELINE_COMMIT}:planner/kinematics/inverse.py"], cwd=root,
-                              capture_output=True, text=True, check=True, timeout=30).stdout
-        module = types.ModuleType("inverse_baseline")
-        exec(compile(text, f"{IK_BASELINE_COMMIT}:planner/kinematics/inverse.py", "exec"), module.__dict__)
-        return module.inverse_path
-    except (OSError, subprocess.SubprocessError, SyntaxError, ImportError, AttributeError):
-        return None
+    with tempfile.TemporaryDirectory() as tmp:
+        try:
+            tar = subprocess.run(["git", "archive", IK_BASELINE_COMMIT, "planner"], cwd=root, capture_output=True,
+                                 check=True, timeout=60).stdout
+            subprocess.run(["tar", "-x", "-C", tmp], input=tar, check=True, timeout=60)
+        except (OSError, subprocess.SubprocessError):
+            return None
+        np.save(Path(tmp) / "poses.npy", poses)
+        code = (
+            "import sys, time, numpy as np\n"
+            f"sys.path.insert(0, {tmp!r})\n"
+            "from planner.kinematics.inverse import inverse_path\n"
+            f"p = np.load({str(Path(tmp) / 'poses.npy')!r})\n"
+            "best = float('inf')\n"
+            "for _ in range(3):\n"
+            "    t0 = time.perf_counter(); q = inverse_path('ur5e', p); best = min(best, time.perf_counter() - t0)\n"
+            f"np.save({str(Path(tmp) / 'q.npy')!r}, q)\n"
+            "print(best)\n"
+        )
+        try:
+            out = subprocess.run([sys.executable, "-c", code], cwd=tmp, capture_output=True, text=True, check=True,
+                                 timeout=600).stdout
+        except (OSError, subprocess.SubprocessError):
+            return None
+        return float(out.split()[-1]), np.load(Path(tmp) / "q.npy")
 
 
 def ik_table() -> None:
@@ -241,12 +260,11 @@ def ik_table() -> None:
     rows = []
     t = best_time(lambda: inverse_path("ur5e", poses), repeat=3)
     rows.append(["inverse_path (this version)", n, f"{t:.3f}", f"{n / t:,.0f}", f"{t / n * 1e6:.2f}", "-"])
-    old = _baseline_inverse_path()
+    old = _baseline_inverse_path(poses)
     if old is None:
         rows.append([f"inverse_path as of {IK_BASELINE_COMMIT}", n, "-", "not available (no git history)", "-", "-"])
     else:
-        q_old = old("ur5e", poses)
-        t_old = best_time(lambda: old("ur5e", poses), repeat=3)
+        t_old, q_old = old
         rows.append([f"inverse_path as of {IK_BASELINE_COMMIT}", n, f"{t_old:.3f}", f"{n / t_old:,.0f}",
                      f"{t_old / n * 1e6:.2f}", f"{np.abs(q - q_old).max():.1e}"])
     print(f"\nInverse kinematics along the spiral (UR5e, {n} poses at 2 kHz, every pose reachable)")
