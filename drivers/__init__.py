@@ -6,7 +6,9 @@
   job's URScript program through the script port);
 - :mod:`drivers.modbus_io`: tool I/O through the controller's Modbus server (pymodbus);
 - :mod:`drivers.sim`: :class:`~drivers.sim.SimDriver`, the simulator's motion model in-process (dry runs);
-- :mod:`drivers.report`: :class:`~drivers.report.ExecutionReport`, computed from what a run recorded;
+- :mod:`drivers.report`: :class:`~drivers.report.ExecutionReport`, computed from what a run recorded
+  (:mod:`drivers.recording`: reduced as it goes; :mod:`drivers.plan_window`: the planned path summarized once and
+  searched a window at a time; :mod:`drivers.package_log`: every RTDE data package of a program run);
 - :mod:`drivers.cli`: ``planner run``.
 
 The planning core never imports this package; the drivers read the planner's one trajectory
