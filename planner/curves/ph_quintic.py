@@ -134,13 +134,13 @@ def _pure_vector_axis(Sc, Ss, sc, ss, lam, dp):
     is the point (x^2 - y^2, 2 x y)), the second with the weight _AXIS_FALLBACK, so that the result is a
     continuous function of the data wherever the blend is nonzero. Both axes are carried onto themselves by
     every isometry of the data (rotations; the reflections that fix planar data or map mirror-symmetric data
-    onto their reversal), so their blend is too. lam = |a0|^2 |a2|^2, dp = p1 - p0 (3, N).
+    onto their reversal), so their blend is too. lam = |a0|^2 |a2|^2, dp = p1 - p0 (3, N). Call under
+    np.errstate(divide="ignore", invalid="ignore").
     """
     bc, bs = _dot(Sc, dp), _dot(Ss, dp)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        w = _AXIS_FALLBACK / (lam * _dot(dp, dp))
-        w = np.where(np.isfinite(w), w, 0.0)
-        il = np.where(lam > 0, 1.0 / lam, 0.0)
+    w = _AXIS_FALLBACK / (lam * _dot(dp, dp))  # the caller ignores division by zero (errstate)
+    w = np.where(np.isfinite(w), w, 0.0)
+    il = np.where(lam > 0, 1.0 / lam, 0.0)
     Dx = (ss * ss - sc * sc) * il + (bc * bc - bs * bs) * w  # doubled angle of sigma_perp = (-ss, sc) ...
     Dy = (-2.0 * il) * ss * sc + (2.0 * w) * bc * bs  # ... and of b
     r = np.hypot(Dx, Dy)
@@ -149,8 +149,7 @@ def _pure_vector_axis(Sc, Ss, sc, ss, lam, dp):
     x, y = np.where(pos, r + Dx, Dy), np.where(pos, Dy, r - Dx)
     n = np.hypot(x, y)
     ok = n > 0  # no axis at all: d1 antiparallel to d0 and p1 - p0 along them (a straight hairpin)
-    with np.errstate(divide="ignore", invalid="ignore"):
-        return np.where(ok, x / n, 1.0), np.where(ok, y / n, 0.0)
+    return np.where(ok, x / n, 1.0), np.where(ok, y / n, 0.0)
 
 
 def _member(a0, a2d, Q, c0, s0) -> np.ndarray:
@@ -237,31 +236,6 @@ def _energies_at_nodes(V: np.ndarray, Y: np.ndarray, w: np.ndarray) -> np.ndarra
     return E
 
 
-#: The candidates' inner products g00 g01 g02 g11 g12 g22 of A0, A1, A2 from (r0, r1, g02, P0, P2, qq) and
-#: h01 h02 h12 (h_jk = <A_j i, A_k>) from (e, V0, V2), for A1 = -(3/4)(A0 + A2) + Q/4 (see _least_energy_member)
-_LG = np.array(
-    [
-        [1.0, 0.0, 0.0, 0.0, 0.0, 0.0],
-        [-0.75, 0.0, -0.75, 0.25, 0.0, 0.0],
-        [0.0, 0.0, 1.0, 0.0, 0.0, 0.0],
-        [0.5625, 0.5625, 1.125, -0.375, -0.375, 0.0625],
-        [0.0, -0.75, -0.75, 0.0, 0.25, 0.0],
-        [0.0, 1.0, 0.0, 0.0, 0.0, 0.0],
-    ]
-)
-_LH = np.array([[-0.75, 0.25, 0.0], [1.0, 0.0, 0.0], [-0.75, 0.0, -0.25]])
-
-
-def _candidate_rule(rule: tuple[np.ndarray, ...]) -> tuple[np.ndarray, ...]:
-    """A rule of :func:`_energy_matrices` with the CC measure |A0 - 2 A1 + A2|^2 as a last row of its matrix
-    of sigma, |A'|^2, <A, A'> (3K + 1, 6), and the map (5, 6) of g to the Bernstein coefficients of sigma."""
-    w, Msdx, Mh = rule
-    Mb = np.zeros((5, 6))  # sigma = sum B^4_k (g00, g01, (g02 + 2 g11) / 3, g12, g22)
-    Mb[[0, 1, 2, 2, 3, 4], [0, 1, 2, 3, 4, 5]] = (1.0, 1.0, 1.0 / 3.0, 2.0 / 3.0, 1.0, 1.0)
-    return w, Msdx, Mh, Mb
-
-
-_SCREEN_NODES, _FULL_NODES = _candidate_rule(_SCREEN_RULE), _candidate_rule(_FULL_RULE)
 #: Two nodes of the screening rule (t = 0.17, 0.83) with their weights, rows of its matrices: lower bounds of
 #: its estimates (see _screen).
 _SCREEN_BOUND = (
@@ -285,13 +259,17 @@ def _least_energy_member(dp, base, a0, a2, r0, r1) -> np.ndarray:
 
     The candidates are delta in {delta0, delta0 + pi} (``_pure_vector_axis``) and, for each, phi0 at the maximum
     of <A0 + A2, Q> and phi0 + pi. Their energies E = 4 int Lambda / sigma^3 dt (see :func:`bending_energies`)
-    follow from nine inner products of A0, A1, A2, linear in r0 = <A0, A0>, r1 = <A2, A2>, g02 = <A0, A2>,
-    P0 = <A0, Q>, P2 = <A2, Q>, qq = |Q|^2 and e = <A0 i, A2>, V0 = <A0 i, Q>, V2 = <A2 i, Q> (A1 = -(3/4)(A0 +
-    A2) + Q/4), so a Gauss rule's node values are one matrix product of these (:func:`_candidate_rule`). A
-    coarse rule screens them: where one candidate's estimate is below 1 / _SCREEN of the other three's (smooth
-    data: the others have cusps or loops) it is taken; elsewhere the candidates within _SCREEN of the best
-    estimate are ranked by the middle rule where that is certain (see _MID_RULE) and by the composite rule of
-    :func:`bending_energies` otherwise. Ties of the energy go to the least CC measure (a _TIE weight of it).
+    follow from nine inner products of A0, A1, A2, themselves from a few inner products of a0, a2, Q
+    (A1 = -(3/4)(A0 + A2) + Q/4, <A0, A0> = |d0|, ...). The rule: a coarse Gauss rule (_SCREEN_RULE) screens
+    them; where one candidate's estimate is below 1 / _SCREEN of the other three's (smooth data: the others have
+    cusps or loops) it is taken; elsewhere the composite rule of :func:`bending_energies` decides among the
+    candidates within _SCREEN of the best estimate. Ties of the energy go to the least CC measure (a _TIE
+    weight of it).
+
+    The work is cut without changing the choice (tests/test_member_selection.py checks it against the rule as
+    first written): most segments are decided by candidate 0's estimate and lower bounds of the others' (see
+    :func:`_screen`), and where the full rule decides, the screen's best is confirmed by lower bounds of the
+    others' full-rule energies (see :func:`_rank_close`).
     """
     n = dp.shape[1]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
@@ -363,32 +341,31 @@ def _screen(g, hh, tcc, n) -> np.ndarray:
     from two of the screening rule's eight nodes (t = 0.17, 0.83, where their loops or near-cusps lie), each a
     part of their estimate's sum of nonnegative terms: where those exceed _SCREEN times candidate 0's (with a
     margin for round-off) the screen would take candidate 0. The other segments get the whole screen.
+    The estimates are those of the first version (the same operations on the same numbers), so that the
+    choice is the same also where it rests on round-off (members of equal energy, such as straight ones).
     """
-    w, M1, M2, _ = _SCREEN_NODES
+    w, M1, M2 = _SCREEN_RULE
     E0 = _energies_at_nodes(_mm(M1, g[:, :n]), _mm(M2, hh[:, :n]), w) + tcc[:n]
     wl, M1l, M2l = _SCREEN_BOUND
     lb = (_energies_at_nodes(_mm(M1l, g[:, n:]), _mm(M2l, hh[:, n:]), wl) + tcc[n:]).reshape(3, n)
     best = np.zeros(n, dtype=np.intp)
     rest = np.flatnonzero(~(lb > (_SCREEN * (1.0 + 1e-9)) * E0).all(axis=0))
-    if rest.size:
+    if rest.size:  # the whole screen: the other three's estimates
         m = rest.size
         cols = (np.arange(4)[:, None] * n + rest).ravel()
-        best[rest] = _screen_all(g[:, cols], hh[:, cols], tcc[cols], m)
-    return best
-
-
-def _screen_all(g, hh, tcc, n) -> np.ndarray:
-    """:func:`_screen` by the whole screening rule on every candidate."""
-    w, M1, M2, _ = _SCREEN_NODES
-    est = (_energies_at_nodes(_mm(M1, g), _mm(M2, hh), w) + tcc).reshape(4, n)
-    best = np.argmin(est, axis=0)
-    cols = np.arange(n)
-    eb = est[best, cols]
-    others = est.copy()
-    others[best, cols] = np.inf
-    bad = np.flatnonzero(~(others.min(axis=0) > _SCREEN * eb))
-    if bad.size:
-        best[bad] = _rank_close(g, hh, tcc, est, best, bad, n)
+        g, hh, tcc = g[:, cols], hh[:, cols], tcc[cols]
+        est = np.empty((4, m))
+        est[0] = E0[rest]
+        est[1:] = (_energies_at_nodes(_mm(M1, g[:, m:]), _mm(M2, hh[:, m:]), w) + tcc[m:]).reshape(3, m)
+        b = np.argmin(est, axis=0)
+        sub = np.arange(m)
+        eb = est[b, sub]
+        others = est.copy()
+        others[b, sub] = np.inf
+        bad = np.flatnonzero(~(others.min(axis=0) > _SCREEN * eb))
+        if bad.size:
+            b[bad] = _rank_close(g, hh, tcc, est, b, bad, m)
+        best[rest] = b
     return best
 
 
@@ -406,7 +383,7 @@ def _rank_close(g, hh, tcc, est, best, bad, n) -> np.ndarray:
     k, col = np.nonzero(est[:, bad] < _SCREEN * eb)
     kc = k * n + bad[col]  # the candidates' columns
     cb = b * n + bad
-    w, M1, M2, _ = _FULL_NODES
+    w, M1, M2 = _FULL_RULE
     E = np.full((4, m), np.inf)
     E[b, cols] = _energies_at_nodes(_mm(M1, g[:, cb]), _mm(M2, hh[:, cb]), w) + tcc[cb]
     o = k != b[col]
@@ -443,9 +420,12 @@ def hermite_rows(dp, d0, d1, a0, a2, r0, r1, angles=None, root_scale=None) -> np
         a2d = _times_e_i(a2, np.cos(delta), np.sin(delta))
         Q = sqrt_rot(base + 10.0 * _i_product(a0, a2d))[0]  # Farouki: (3A0+4A1+3A2) i (..)* = alpha
         A = _member(a0, a2d, Q, np.cos(phi0), np.sin(phi0))
-    if root_scale is not None:
-        A *= root_scale
-    return A.transpose(2, 0, 1).copy()
+    out = np.empty((n, 3, 4))
+    if root_scale is None:
+        out[...] = A.transpose(2, 0, 1)
+    else:
+        np.multiply(A.transpose(2, 0, 1), root_scale[:, None, None], out=out)
+    return out
 
 
 def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
