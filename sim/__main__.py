@@ -8,6 +8,7 @@ stop, switch between local and remote control, show the state.
 from __future__ import annotations
 
 import argparse
+import os
 import signal
 import sys
 import threading
@@ -81,6 +82,7 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--allow-remote", action="store_true", help="allow a non-loopback --host")
     ap.add_argument("--local-control", action="store_true", help="start in local control mode (the pendant's)")
     args = ap.parse_args(argv)
+    started = time.time()
     try:
         sim = SimController(args.host, args.model, None if args.no_modbus else args.modbus_port, args.speed,
                             args.record, allow_remote=args.allow_remote,
@@ -88,20 +90,26 @@ def main(argv: list[str] | None = None) -> int:
     except (ValueError, SimError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
-    print(f"simulated {sim.model} on {sim.host}: RTDE 30004, dashboard 29999, script 30001-30003"
-          + (f", Modbus {sim.ports.get('modbus')}" if sim.ports.get("modbus") else "")
-          + " (Ctrl-C stops; type 'help' for commands)", flush=True)
-    signal.signal(signal.SIGTERM, lambda *_: sim.stop())
-    threading.Thread(target=_console, args=(sim,), name="console", daemon=True).start()
+    except KeyboardInterrupt:  # Ctrl-C while it starts (the child is stopped at exit)
+        return 130
     try:
+        print(f"simulated {sim.model} on {sim.host}: RTDE 30004, dashboard 29999, script 30001-30003"
+              + (f", Modbus {sim.ports.get('modbus')}" if sim.ports.get("modbus") else "")
+              + " (Ctrl-C stops; type 'help' for commands)", flush=True)
+        signal.signal(signal.SIGTERM, lambda *_: sim.stop())
+        threading.Thread(target=_console, args=(sim,), name="console", daemon=True).start()
         while sim.running:
             time.sleep(0.2)
     except KeyboardInterrupt:
         pass
     finally:
         sim.stop()
-        if args.record:
-            print(f"recording written to {args.record}")
+    if args.record:
+        if not (os.path.exists(args.record) and os.path.getmtime(args.record) >= started):
+            reason = (sim.stderr().strip().splitlines() or ["no reason given"])[-1]
+            print(f"error: the recording was not written to {args.record}: {reason}", file=sys.stderr)
+            return 1
+        print(f"recording written to {args.record}")
     return 0
 
 

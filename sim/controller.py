@@ -25,7 +25,7 @@ import time
 import weakref
 from pathlib import Path
 
-from sim.hosts import check_host
+from sim.hosts import check_host, check_speed
 
 _LIVE: weakref.WeakSet = weakref.WeakSet()
 _REPO = Path(__file__).resolve().parents[1]
@@ -74,12 +74,18 @@ class SimController:
         if modbus_port is not None and (isinstance(modbus_port, bool) or not 0 <= int(modbus_port) <= 65535):
             raise ValueError(f"modbus_port must be within 0..65535 or None, got {modbus_port!r}")
         self.modbus_port = modbus_port
-        if not (isinstance(speed, int | float) and speed > 0):
-            raise ValueError(f"speed must be a number > 0, got {speed!r}")
-        self.speed = float(speed)
+        self.speed = check_speed(speed)
         self.record = Path(record) if record is not None else None
-        if self.record is not None and self.record.suffix not in (".npz", ".csv"):
-            raise ValueError(f"record: use a .npz or .csv file name, got {self.record}")
+        if self.record is not None:
+            if self.record.suffix not in (".npz", ".csv"):
+                raise ValueError(f"record: use a .npz or .csv file name, got {self.record}")
+            if self.record.is_dir():
+                raise ValueError(f"record: {self.record} is a directory; name a .npz or .csv file")
+            folder = self.record.parent
+            while not folder.exists() and folder != folder.parent:
+                folder = folder.parent
+            if not os.access(folder, os.W_OK):
+                raise ValueError(f"record: cannot write {self.record} (no write permission in {folder})")
         self.allow_remote = allow_remote
         self.startup_timeout = startup_timeout
         self.realtime = realtime
@@ -233,10 +239,9 @@ class SimController:
 
     def set_speed(self, speed: float) -> None:
         """Change the simulated seconds per wall-clock second (e.g. fast-forward once a long program runs)."""
-        if isinstance(speed, bool) or not isinstance(speed, int | float) or not speed > 0:
-            raise ValueError(f"speed must be a number > 0, got {speed!r}")
-        self._ask({"cmd": "speed", "speed": float(speed)})
-        self.speed = float(speed)
+        speed = check_speed(speed)
+        self._ask({"cmd": "speed", "speed": speed})
+        self.speed = speed
 
     def set_remote_control(self, on: bool) -> None:
         """Switch between remote (True) and local (False) control, as on the teach pendant."""

@@ -27,3 +27,14 @@ def set_realtime_priority(priority: int = 10) -> bool:
         return True
     except (OSError, AttributeError):
         return False
+
+
+#: Largest fast-forward factor: simulated time this much faster than the wall clock (more only starves the machine).
+MAX_SPEED = 10_000.0
+
+
+def check_speed(speed) -> float:
+    """``speed`` (simulated seconds per wall-clock second) as a float, or ValueError naming it."""
+    if isinstance(speed, bool) or not isinstance(speed, int | float) or not 0 < speed <= MAX_SPEED:
+        raise ValueError(f"speed must be a number > 0 and <= {MAX_SPEED:g}, got {speed!r}")
+    return float(speed)

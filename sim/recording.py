@@ -12,11 +12,12 @@ from __future__ import annotations
 
 import csv
 import os
-import tempfile
 from dataclasses import dataclass
 from pathlib import Path
 
 import numpy as np
+
+from planner.export.files import atomic_binary, atomic_text
 
 COLUMNS = (
     ["t"] + [f"target_q{j}" for j in range(6)] + [f"actual_q{j}" for j in range(6)]
@@ -66,44 +67,20 @@ class Recorder:
     def save(self) -> Path:
         """Write the recording atomically (temporary file in the same directory, then rename)."""
         data = self.samples()
-        self.path.parent.mkdir(parents=True, exist_ok=True)
         if self.path.suffix == ".npz":
-            _atomic(self.path, lambda f: np.savez_compressed(
-                f, samples=data, columns=np.array(COLUMNS),
-                event_t=np.array([e[0] for e in self.events], dtype=float),
-                event_source=np.array([e[1] for e in self.events], dtype=str),
-                event_text=np.array([e[2] for e in self.events], dtype=str)))
+            with atomic_binary(self.path) as f:
+                np.savez_compressed(f, samples=data, columns=np.array(COLUMNS),
+                                    event_t=np.array([e[0] for e in self.events], dtype=float),
+                                    event_source=np.array([e[1] for e in self.events], dtype=str),
+                                    event_text=np.array([e[2] for e in self.events], dtype=str))
         else:
-            def write_csv(f):
+            with atomic_binary(self.path) as f:
                 np.savetxt(f, data, delimiter=",", header=",".join(COLUMNS), comments="", fmt="%.10g")
-            _atomic(self.path, write_csv)
-
-            def write_events(f):
-                w = csv.writer(_TextWrapper(f))
+            with atomic_text(self.path.with_suffix(".events.csv")) as f:
+                w = csv.writer(f)
                 w.writerow(["t", "source", "text"])
                 w.writerows(self.events)
-            _atomic(self.path.with_suffix(".events.csv"), write_events)
         return self.path
-
-
-class _TextWrapper:
-    def __init__(self, f) -> None:
-        self.f = f
-
-    def write(self, s: str) -> None:
-        self.f.write(s.encode("utf-8"))
-
-
-def _atomic(path: Path, write) -> None:
-    fd, tmp = tempfile.mkstemp(dir=path.parent, prefix=path.name + ".", suffix=".tmp")
-    try:
-        with os.fdopen(fd, "wb") as f:
-            write(f)
-        os.replace(tmp, path)
-    except BaseException:
-        if os.path.exists(tmp):
-            os.unlink(tmp)
-        raise
 
 
 @dataclass(frozen=True)
@@ -185,14 +162,9 @@ def plot(rec: Recording, out: str | os.PathLike, title: str = "Simulated UR: pla
     ax2.legend(ncol=6, fontsize=7)
     fig.tight_layout()
     out = Path(out)
-    out.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(dir=out.parent, suffix=out.suffix)
-    os.close(fd)
     try:
-        fig.savefig(tmp)
-        os.replace(tmp, out)
+        with atomic_binary(out) as f:
+            fig.savefig(f, format=out.suffix.lstrip(".").lower() or "png")
     finally:
         plt.close(fig)
-        if os.path.exists(tmp):
-            os.unlink(tmp)
     return out

@@ -30,7 +30,7 @@ import time
 
 from sim.core import Core
 from sim.dashboard import DashboardServer
-from sim.hosts import check_host, set_realtime_priority
+from sim.hosts import check_host, check_speed, set_realtime_priority
 from sim.motion import DT
 from sim.rtde_server import RTDEServer
 from sim.script_server import ScriptServer
@@ -125,10 +125,7 @@ def _commands(core: Core, io, stop: threading.Event, loop: Loop) -> None:
                     else:
                         reply = {"ok": core.release_emergency_stop()}
             elif cmd == "speed":
-                speed = req["speed"]
-                if isinstance(speed, bool) or not isinstance(speed, int | float) or not speed > 0:
-                    raise ValueError(f"speed must be a number > 0, got {speed!r}")
-                loop.set_speed(float(speed))
+                loop.set_speed(check_speed(req["speed"]))
                 reply = {"ok": True}
             elif cmd == "remote_control":
                 on = req["on"]
@@ -161,8 +158,10 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--local-control", action="store_true", help="start in local control mode")
     args = ap.parse_args(argv)
     host = check_host(args.host, args.allow_remote)
-    if not args.speed > 0:
-        raise SystemExit(f"--speed must be > 0, got {args.speed}")
+    try:
+        check_speed(args.speed)
+    except ValueError as exc:
+        raise SystemExit(f"--{exc}") from None
     sys.setswitchinterval(0.0002)  # bound the GIL hand-over latency seen by the control loop
     if not args.no_realtime:
         # every thread of the process real-time (they inherit it), so that none is preempted by other

@@ -5,6 +5,8 @@ control mode (dashboard refusals, script ports refusing programs, ur_rtde's own 
 
 from __future__ import annotations
 
+import re
+import signal
 import socket
 import subprocess
 import sys
@@ -18,11 +20,12 @@ import rtde_control
 import rtde_receive
 
 from planner.kinematics import forward, get_model
+from sim import SimController
 from sim.__main__ import command
 from sim.dashboard import LOCAL_REFUSAL
 from sim.motion import HOME, JOINT_ACCEL_MAX
 from tests import sim_fixtures
-from tests.sim_fixtures import eventually
+from tests.sim_fixtures import eventually, next_host
 
 make_sim = sim_fixtures.make_sim  # fixture
 REPO = Path(__file__).resolve().parents[1]
@@ -308,3 +311,40 @@ def test_speed_changed_while_running(make_sim):
     t2, w2 = sim.state()["time"], time.monotonic()
     assert (t1 - t0) / (w1 - w0) == pytest.approx(1.0, rel=0.2)
     assert (t2 - t1) / (w2 - w1) == pytest.approx(20.0, rel=0.25)
+
+
+@pytest.mark.parametrize(("kwargs", "message"), [
+    ({"speed": float("inf")}, "speed must be a number > 0 and <= 10000, got inf"),
+    ({"speed": float("nan")}, "speed must be a number > 0 and <= 10000, got nan"),
+    ({"speed": 1e6}, "speed must be a number > 0 and <= 10000"),
+    ({"speed": True}, "speed must be a number"),
+    ({"record": "run.txt"}, "record: use a .npz or .csv file name"),
+    ({"modbus_port": 70000}, "modbus_port must be within 0..65535"),
+])
+def test_absurd_controller_arguments_are_refused_before_a_process_starts(kwargs, message):
+    with pytest.raises(ValueError, match=re.escape(message)):
+        SimController("127.0.0.2", **kwargs)
+
+
+def test_record_naming_a_directory_is_refused(tmp_path):
+    (tmp_path / "d.npz").mkdir()
+    with pytest.raises(ValueError, match="is a directory"):
+        SimController("127.0.0.2", record=tmp_path / "d.npz")
+
+
+def test_the_command_line_says_when_the_recording_could_not_be_written(tmp_path):
+    """``python -m sim --record`` into a place the child cannot write (/proc): an error naming the file and
+    the reason, exit status 1, never 'recording written'."""
+    host = next_host()
+    proc = subprocess.Popen([sys.executable, "-m", "sim", "--host", host, "--no-modbus", "--record", "/proc/run.npz"],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True,
+                            cwd=REPO)
+    try:
+        assert "simulated ur5e on" in proc.stdout.readline()
+        proc.send_signal(signal.SIGINT)
+        out, err = proc.communicate(timeout=30)
+    finally:
+        proc.kill()
+    assert proc.returncode == 1, (out, err)
+    assert "recording written" not in out
+    assert "error: the recording was not written to /proc/run.npz" in err and "run.npz" in err

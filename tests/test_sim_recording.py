@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import signal
+import stat
 import subprocess
 import sys
 import time
@@ -40,7 +41,11 @@ def test_recording_reads_back_moves_io_and_safety_events(make_sim, tmp_path, suf
         c.disconnect()
         io.disconnect()
     sim.stop()
-    assert path.exists() and not list(tmp_path.glob("*.tmp"))
+    assert path.exists() and [p.name for p in tmp_path.iterdir()] in ([path.name], [path.name, "run.events.csv"],
+                                                                   ["run.events.csv", path.name])
+    umask = os.umask(0)
+    os.umask(umask)
+    assert stat.S_IMODE(path.stat().st_mode) == 0o666 & ~umask  # the umask's mode, not mkstemp's 0600
     rec = recording.load(path)
     assert np.all(np.diff(rec.t) > 0)
     k = int(np.argmax(np.all(np.abs(rec.actual_q - q1) < 1e-9, axis=1)))

@@ -5,7 +5,7 @@ and their planned movep targets) and never plan. Every export carries the genera
 and figures, and is written atomically.
 """
 
-from planner.export.files import atomic_text, check_output, write_bytes_atomic
+from planner.export.files import atomic_binary, atomic_text, check_output, write_bytes_atomic
 from planner.export.header import ExportError, generator, trajectory_parameters
 from planner.export.job_script import ProgramMove, job_program, plan_job_program
 from planner.export.movep import MovePPlan, plan_movep
@@ -17,6 +17,7 @@ __all__ = [
     "ExportError",
     "MovePPlan",
     "ProgramMove",
+    "atomic_binary",
     "atomic_text",
     "check_output",
     "csv_text",

@@ -68,11 +68,16 @@ def atomic_text(target):
     return _atomic(target, "w", encoding="utf-8", newline="\n")
 
 
+def atomic_binary(target):
+    """A binary file that appears at ``target`` only when the block completes (for writers that stream)."""
+    return _atomic(target, "wb")
+
+
 def write_bytes_atomic(target, data: bytes) -> None:
     """Write ``data`` (bytes) to ``target`` atomically."""
     if not isinstance(data, bytes | bytearray | memoryview):
         raise PlannerError(f"data must be bytes, got {type(data).__name__}")
-    with _atomic(target, "wb") as f:
+    with atomic_binary(target) as f:
         f.write(data)
 
 
