@@ -12,6 +12,10 @@ waypoints < 1 s; PH arc length relative error < 1e-12.
 The C1 and CubicSpline fits are timed in alternation, best of ``--repeat`` rounds each, so that their
 ratio compares like with like on a shared machine; the load average is printed with the table.
 
+Issue 12's figure: the C1 fit with the member rule of issue 12 (least bending energy of four members)
+against the same fit with the former rule (the global minimum of the CC measure, kept below as the
+baseline ``fit_c1_cc``), timed in alternation with the other two: "C1 new/former" (target <= 1.10).
+
 A second table (issue 12): waypoints of a rough random walk in a randomly oriented plane (15 as in the
 issue, and 1000), the largest distance of the C1 and C2 paths from that plane over the path's extent
 (round-off, about 1e-16; with the former CC member selection 4 % and 8 % for 15 waypoints).
