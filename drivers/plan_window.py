@@ -21,6 +21,8 @@ instead: that is the exact distance to the whole polyline, as before the window.
 
 from __future__ import annotations
 
+import queue
+import threading
 from collections import deque
 from dataclasses import dataclass
 
@@ -239,7 +241,7 @@ class PlanWindow:
     :meth:`distance`. A plan given as arrays is searched whole (one piece, never dropped)."""
 
     def __init__(self, plan: PlannedPath, *, back: float | None = None, ahead: float | None = None,
-                 span: float | None = None) -> None:
+                 span: float | None = None, prefetch: bool = False) -> None:
         self.plan = plan
         self.back = BACK if back is None else float(back)
         self.ahead = AHEAD if ahead is None else float(ahead)
@@ -247,27 +249,70 @@ class PlanWindow:
         #: the most planned samples the window held at once (its memory: ~100 B a sample with the k-d tree)
         self.max_held = 0
         self.whole = plan.arrays is not None
-        self._it = plan.pieces()
+        self._it = self._produce()
         self._pieces: deque[_Piece] = deque()
         self._done = False
-        self._last_xyz: np.ndarray | None = None
+        self._queue: queue.Queue | None = None
+        self._stop = threading.Event()
+        if prefetch and not self.whole:
+            # a real-time loop reduces its recording between its periods: the next pieces (sampled, their k-d trees
+            # built: tens of ms each) are made ahead by a thread of their own, never in a period
+            self._queue = queue.Queue(maxsize=2)
+            threading.Thread(target=self._prefetch, name="plan-window", daemon=True).start()
         #: planned job time minus recorded time, s, as last measured (the run's lag behind the plan, negated)
         self.offset = 0.0
         if self.whole:
             self._load()
         self.n = plan.n
 
+    def _produce(self):
+        before = None
+        for k0, t, p, _, ln in self.plan.pieces():
+            yield _Piece(k0, t, p, ln, before)
+            before = p[-1, :3].copy()
+
+    def _prefetch(self) -> None:
+        q = self._queue
+        assert q is not None
+        try:
+            for pc in self._it:
+                while not self._stop.is_set():
+                    try:
+                        q.put(pc, timeout=0.1)
+                        break
+                    except queue.Full:
+                        continue
+                if self._stop.is_set():
+                    return
+            q.put(None)
+        except BaseException as exc:  # handed to the consumer
+            q.put(exc)
+
     def _load(self) -> bool:
         if self._done:
             return False
-        nxt = next(self._it, None)
+        if self._queue is not None:
+            nxt = self._queue.get()
+            if isinstance(nxt, BaseException):
+                self._done = True
+                raise nxt
+        else:
+            nxt = next(self._it, None)
         if nxt is None:
             self._done = True
             return False
-        k0, t, p, _, ln = nxt
-        self._pieces.append(_Piece(k0, t, p, ln, self._last_xyz))
-        self._last_xyz = p[-1, :3].copy()
+        self._pieces.append(nxt)
         return True
+
+    def close(self) -> None:
+        """Stop the prefetching thread, if any (the window answers no more)."""
+        self._stop.set()
+        if self._queue is not None:
+            try:
+                while True:
+                    self._queue.get_nowait()
+            except queue.Empty:
+                pass
 
     def _cover(self, lo: float, hi: float) -> None:
         """Load pieces up to planned time ``hi``; drop those ending before ``lo`` (the last one kept)."""

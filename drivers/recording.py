@@ -77,14 +77,16 @@ class Recording:
     path_length : float
         The planned path's length, m (sets the trace's first spacing: about ``max_trace / 2`` samples for a run
         that follows it).
+    prefetch : bool
+        Make the plan window's next pieces ahead in a thread of their own (a real-time loop's recording).
     """
 
     def __init__(self, planned: PlannedPath | np.ndarray, model: str | None, path_length: float = 0.0, *,
-                 max_trace: int = MAX_TRACE, block: int = BLOCK) -> None:
+                 max_trace: int = MAX_TRACE, block: int = BLOCK, prefetch: bool = False) -> None:
         if max_trace < 16:
             raise ValueError(f"max_trace must be >= 16 samples, got {max_trace!r}")
-        self.planned: PlanWindow | _WholePath = (PlanWindow(planned) if isinstance(planned, PlannedPath)
-                                                 else _WholePath(planned))
+        self.planned: PlanWindow | _WholePath = (PlanWindow(planned, prefetch=prefetch)
+                                                 if isinstance(planned, PlannedPath) else _WholePath(planned))
         self.model = model
         self.max_trace = int(max_trace)
         self.block = max(1, int(block))
@@ -241,6 +243,8 @@ class Recording:
             self._trace.append(np.array([[t, *xyz, speed, float(io), 1.0, float(seg)]]))
             self._rows += 1
             self._tail = None
+        if isinstance(self.planned, PlanWindow):
+            self.planned.close()
 
     @property
     def duration(self) -> float:

@@ -318,16 +318,17 @@ def as_planned(job, planned=None) -> PlannedPath:
     return PlannedPath(job, arrays=tuple(planned))
 
 
-def new_recording(job, planned, *, block: int | None = None):
+def new_recording(job, planned, *, block: int | None = None, prefetch: bool = False):
     """An empty :class:`drivers.recording.Recording` for a run of ``job`` against its planned path (a
     :class:`drivers.plan_window.PlannedPath`, or the arrays of :func:`planned_path`); ``block``: samples reduced
     at a time (default :data:`drivers.recording.BLOCK`; a real-time loop reduces small blocks, a fraction of its
-    period each)."""
+    period each); ``prefetch``: the plan window's pieces made ahead in a thread (for a real-time loop)."""
     from drivers.recording import BLOCK, Recording
 
     plan = as_planned(job, planned)
     src = plan if plan.arrays is None else np.asarray(plan.arrays[1])[:, :3]
-    return Recording(src, job.settings.robot, plan.length, block=BLOCK if block is None else block)
+    return Recording(src, job.settings.robot, plan.length, block=BLOCK if block is None else block,
+                     prefetch=prefetch)
 
 
 def planned_switches(times: np.ndarray, io: np.ndarray) -> list[tuple[int, bool, int]]:

@@ -519,8 +519,9 @@ class URDriver:
         dt = 1.0 / rate
         la, gain = self.lookahead, self.gain
         # reduced as it goes (bounded memory), in periods with time to spare, ~100 samples at a time (~0.5 ms; 2500
-        # at a time took 10-15 ms, several missed periods every 5 s)
-        rec = new_recording(job, planned)
+        # at a time took 10-15 ms, several missed periods every 5 s); the plan's pieces it is compared with are made
+        # ahead by a thread
+        rec = new_recording(job, planned, prefetch=True)
         t_rec = 0.0
         failure = None
         prev_io = 0

@@ -217,9 +217,9 @@ def test_the_plan_window_gives_the_whole_paths_figures_in_bounded_memory(job, sm
 
     c = job.trajectory().collect()
     whole = planned_path(job)
-    for name, t, x, io in _recordings(c):
+    for n, (name, t, x, io) in enumerate(_recordings(c)):
         q = np.zeros((len(t), 6))
-        rec = new_recording(job, None)
+        rec = new_recording(job, None, prefetch=n % 2 == 1)  # the pieces made ahead by a thread, or not
         rec.extend(t, x, q, io)
         lazy = execution_report(job, rec, mode="replay")
         full = execution_report(job, t, x, q, io, mode="replay", planned=whole)
