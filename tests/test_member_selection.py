@@ -1,9 +1,9 @@
 """The default PH quintic member (issue 12) picked by the fast selection equals the rule as first written.
 
-``reference_member`` below is the selection as it landed with issue 12 (commit b5e9ab5..9106e5f: the four
-members with A0 i A2* a pure vector, a 2 x 4-node Gauss screen, the 8 x 8-node rule where the screen is
-not clear by a factor 10), frozen here verbatim as the oracle; ``ph_quintic._least_energy_member`` is the
-faster implementation of the same rule. On random Hermite data of every kind (rough spatial and planar,
+``reference_member`` below is the selection as it landed with issue 12 (planner/curves/ph_quintic.py at
+commit 0ffa5ec: the four members with A0 i A2* a pure vector, a 2 x 4-node Gauss screen, the 8 x 8-node
+rule where the screen is not clear by a factor 10), frozen here verbatim as the oracle;
+``ph_quintic._least_energy_member`` is the faster implementation of the same rule. On random Hermite data of every kind (rough spatial and planar,
 smooth spline segments, near-straight, hairpins, exact degenerate cases) both must return the same member
 (A equal to round-off), or, where they differ, members whose bending energies are equal to 1e-12 (a tie).
 The default suite checks a few thousand segments of each kind; ``-m slow`` (or running this file as a
