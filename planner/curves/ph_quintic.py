@@ -156,8 +156,7 @@ def _member(a0, a2d, Q, c0, s0) -> np.ndarray:
     """A (3, 4, N) of the member A0 = a0 e^{i phi0}, A2 = a2d e^{i phi0}, A1 = -(3/4)(A0 + A2) + Q / 4
     (Farouki's solution of the end-point condition), c0, s0 = cos, sin phi0."""
     A = np.empty((3,) + a0.shape)
-    _times_e_i(a0, c0, s0, A[0])
-    _times_e_i(a2d, c0, s0, A[2])
+    _times_e_i(np.stack((a0, a2d), axis=1), c0, s0, A[::2].transpose(1, 0, 2))  # A0 and A2 in one pass
     np.multiply(A[0] + A[2], -0.75, out=A[1])
     A[1] += 0.25 * Q
     return A
@@ -331,8 +330,8 @@ def _least_energy_block(dp, base, a0, a2, r0, r1) -> np.ndarray:
         V0, V2 = c0 * v0 - s0 * u0, c0 * v2 - s0 * u2  # ... <A0 i, Q>, <A2 i, Q>
         g, hh, P, e = g.reshape(6, 4, n), hh.reshape(3, 4, n), P.reshape(2, 4, n), e.reshape(4, n)
         P0, P2 = P
-        np.add(-0.75 * (r0 + g[2]), 0.25 * P0, out=g[1])
-        np.add(-0.75 * (g[2] + r1), 0.25 * P2, out=g[4])
+        r01 = np.stack((r0, r1))[:, None]
+        np.add(-0.75 * (r01 + g[2]), 0.25 * P, out=g[1::3])  # g01 and g12
         g11 = (0.5625 * (r0 + r1 + 2.0 * g[2]) - 0.375 * (P0 + P2)).reshape(2, 2, n)
         np.add(g11, 0.0625 * qq.reshape(2, 1, n), out=g[3].reshape(2, 2, n))
         hh[0, ::2], hh[0, 1::2] = -0.75 * e[::2] + 0.25 * V0, -0.75 * e[1::2] - 0.25 * V0
