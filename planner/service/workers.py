@@ -16,20 +16,20 @@ runs in the event loop (nor in the service process at all).
 
 from __future__ import annotations
 
+import asyncio
 import contextlib
 import json
 import logging
 import multiprocessing as mp
 import os
-import queue
 import shutil
 import threading
 import time
-from concurrent.futures import Future
 from pathlib import Path
 from typing import Any
 
-from sqlalchemy import Table, func, select, update
+from sqlalchemy import Table, bindparam, func, select, update
+from sqlalchemy.engine import Engine
 from sqlalchemy.orm import sessionmaker
 
 from planner.service.config import ServiceConfig
@@ -39,6 +39,15 @@ from planner.service.store import STATES, Job, now
 log = logging.getLogger("planner.service")
 #: The jobs table itself (inserts without the ORM's per-row bookkeeping).
 JOBS: Table = Job.__table__  # type: ignore[assignment]
+
+#: Claim the oldest queued job: running, one more attempt; its id, attempt and input (no row if none is queued; the
+#: state test in the outer WHERE keeps two claimers from both taking one job).
+_CLAIM = (update(Job).where(Job.id == select(Job.id).where(Job.state == "queued").order_by(Job.seq).limit(1)
+                            .scalar_subquery(), Job.state == "queued")
+          .values(state="running", started_at=bindparam("now"), attempts=Job.attempts + 1, stage="starting", done=0,
+                  total=0)
+          .returning(Job.id, Job.attempts, Job.input_kind, Job.input_json, Job.input_name, Job.settings,
+                     Job.read_options))
 
 #: Seconds between progress writes to the store for one job.
 PROGRESS_WRITE_EVERY = 0.5
@@ -216,6 +225,7 @@ class WorkerPool:
 
     def __init__(self, sessions: sessionmaker, cfg: ServiceConfig, metrics: Metrics):
         self.sessions = sessions
+        self.engine: Engine = sessions.kw["bind"]  # the transitions below: Core, one short transaction each
         self.cfg = cfg
         self.metrics = metrics
         self.stopping = threading.Event()
@@ -253,37 +263,27 @@ class WorkerPool:
 
     # -- store transitions ----------------------------------------------------------------------
     def claim(self) -> dict | None:
-        """The oldest queued job, now running with one more attempt; None after a short wait if none."""
-        with self.write_lock:
-            with self.sessions() as s:
-                job = s.scalars(select(Job).where(Job.state == "queued").order_by(Job.seq).limit(1)).first()
-                if job is not None:
-                    s.expunge(job)  # its values as read: the update below does not refresh them
-                if job is not None:
-                    n = s.execute(update(Job).where(Job.id == job.id, Job.state == "queued").values(
-                        state="running", started_at=now(), attempts=Job.attempts + 1, stage="starting", done=0,
-                        total=0)).rowcount
-                    s.commit()
-                    if n == 1:
-                        return {"id": job.id, "attempts": job.attempts + 1, "input_kind": job.input_kind,
-                                "input_json": job.input_json, "input_name": job.input_name, "settings": job.settings,
-                                "read_options": job.read_options}
+        """The oldest queued job, now running with one more attempt; None after a short wait if none. One statement
+        (UPDATE ... RETURNING on SQLite 3.35+ and PostgreSQL) through SQLAlchemy Core: a slot thread holds the GIL
+        briefly, so the event loop it shares the process with is not kept waiting."""
+        with self.write_lock, self.engine.begin() as conn:
+            row = conn.execute(_CLAIM, {"now": now()}).mappings().first()
+        if row is not None:
+            return dict(row)
         with self._cond:
             self._cond.wait(0.5)
         return None
 
     def progress(self, job_id: str, attempt: int, stage: str, done: int, total: int) -> None:
-        with self.write_lock, self.sessions() as s:
-            s.execute(update(Job).where(Job.id == job_id, Job.state == "running", Job.attempts == attempt).values(
+        with self.write_lock, self.engine.begin() as conn:
+            conn.execute(update(Job).where(Job.id == job_id, Job.state == "running", Job.attempts == attempt).values(
                 stage=stage, done=done, total=total))
-            s.commit()
 
     def finish(self, job_id: str, attempt: int, state: str, **values) -> bool:
         """Move a running job of this attempt to ``state``; False (and its file removed) if it is no longer so."""
-        with self.write_lock, self.sessions() as s:
-            n = s.execute(update(Job).where(Job.id == job_id, Job.state == "running", Job.attempts == attempt).values(
-                state=state, finished_at=now(), **values)).rowcount
-            s.commit()
+        with self.write_lock, self.engine.begin() as conn:
+            n = conn.execute(update(Job).where(Job.id == job_id, Job.state == "running", Job.attempts == attempt)
+                             .values(state=state, finished_at=now(), **values)).rowcount
         if n != 1 and values.get("job_file"):
             with contextlib.suppress(OSError):
                 (job_dir(self.cfg, job_id) / values["job_file"]).unlink()
@@ -320,52 +320,43 @@ class WorkerPool:
         return {state: int(rows.get(state, 0)) for state in STATES}
 
 
-class Inserter(threading.Thread):
-    """The one thread that stores new jobs: every row waiting is committed in one transaction (group commit), so a
-    burst of submissions costs one commit, not one each, and no request thread waits on another's commit."""
+class Inserter:
+    """New jobs stored by the event loop itself, every row that arrives in one turn of the loop committed in one
+    transaction (group commit): a burst of submissions costs one commit, not one each.
 
-    def __init__(self, pool: WorkerPool, batch: int = 200):
-        super().__init__(name="planner-inserter", daemon=True)
+    Why in the loop and not in a thread of its own: Python's sqlite3 releases the GIL around every statement step
+    (one per row of an executemany), and a thread taking it back waits for the busy event loop to give it up (up to
+    the interpreter's switch interval each time), so a commit of 20 rows took 7-15 ms in a thread against well under
+    a millisecond here; the requests waiting for it waited that long. The loop is blocked for the commit itself only
+    (SQLite in WAL mode with synchronous=NORMAL: no fsync in a commit)."""
+
+    def __init__(self, pool: WorkerPool):
         self.pool = pool
-        self.batch = batch
-        self.queue: queue.SimpleQueue = queue.SimpleQueue()
+        self._pending: list[tuple[dict, asyncio.Future]] = []
 
-    def submit(self, row: dict) -> Future:
-        """Store a job row (the columns of :class:`Job`); the future is done once it is committed."""
-        done: Future = Future()
-        self.queue.put((row, done))
-        return done
+    async def store(self, row: dict) -> None:
+        """Store a job row (the columns of :class:`Job`); returns once it is committed (raises what the commit
+        raised, e.g. the database is gone)."""
+        loop = asyncio.get_running_loop()
+        done = loop.create_future()
+        self._pending.append((row, done))
+        if len(self._pending) == 1:  # the first of this turn: the commit runs after the turn's other requests
+            loop.call_soon(self._commit)
+        await asyncio.shield(done)  # a request cancelled meanwhile (its client went away) is committed all the same
 
-    def stop(self) -> None:
-        self.queue.put(None)
-        self.join(10.0)
-
-    def run(self) -> None:
-        while True:
-            item = self.queue.get()
-            if item is None:
-                return
-            batch = [item]
-            while len(batch) < self.batch:
-                try:
-                    more = self.queue.get_nowait()
-                except queue.Empty:
-                    break
-                if more is None:
-                    self.queue.put(None)
-                    break
-                batch.append(more)
-            try:
-                with self.pool.write_lock, self.pool.sessions() as s:
-                    s.connection().execute(JOBS.insert(), [row for row, _ in batch])  # one executemany, Core
-                    s.commit()
-            except Exception as exc:  # e.g. the database is gone: every waiting request gets the error
-                for _, done in batch:
-                    done.set_exception(exc)
-                continue
+    def _commit(self) -> None:
+        batch, self._pending = self._pending, []
+        try:
+            with self.pool.write_lock, self.pool.engine.begin() as conn:
+                conn.execute(JOBS.insert(), [row for row, _ in batch])  # one executemany, Core
+        except Exception as exc:  # every waiting request gets the error
             for _, done in batch:
-                done.set_result(None)
-            self.pool.wake(all_slots=len(batch) > 1)
+                done.set_exception(exc)
+                done.exception()  # (retrieved: no 'never retrieved' warning for a request that went away)
+            return
+        for _, done in batch:
+            done.set_result(None)
+        self.pool.wake(all_slots=len(batch) > 1)
 
 
 def remove_job_files(cfg: ServiceConfig, job_id: str) -> None:
