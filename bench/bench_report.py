@@ -12,7 +12,8 @@ position, joints zero, the planned output bits) is fed chunk by chunk into the r
 Each runs in a fresh process: the peak of Python's traced allocations (``tracemalloc``, numpy included) from the
 start of the report's work (the job planned before) and the process's peak RSS (``ru_maxrss``: includes
 planning). The figures of both must agree: the largest distance and its time exactly, every switch (its distance
-from its station exactly, its arc lengths within 1e-9 m: the plan's arc length is summed piece by piece).
+from its station exactly, its arc lengths to 1e-9 of the path's length: the plan's arc length is summed piece by
+piece, ~2e-10 apart over the NX job's 110 m).
 
 Jobs: a synthetic straight pass (2 m at 1 mm/s: 10^6 samples; with ``--long``, at 0.1 mm/s: 10^7), and the
 whole NX job of ``../shared/data`` (12.9 million samples, outputs on during its cuts) when it is there.
@@ -97,16 +98,15 @@ def main() -> None:
         for name, src, frame, path in jobs:
             res = {way: run(src, way, frame, path) for way in ("before", "after")}
             b, a = res["before"], res["after"]
+            ds = [abs(x[k] - y[k]) for x, y in zip(b["events"], a["events"], strict=False) for k in (2, 3)
+                  if x[k] == x[k]]
+            ds_rel = max((d / max(abs(x[2]), 1.0) for d, x in zip(ds[::2], b["events"], strict=False)), default=0.0)
             same = (b["err"] == a["err"] and b["err_t"] == a["err_t"] and len(b["events"]) == len(a["events"])
-                    and all(x[:2] == y[:2] and x[4] == y[4] and abs(x[2] - y[2]) <= 1e-9
-                            and (abs(x[3] - y[3]) <= 1e-9 or x[3] != x[3] and y[3] != y[3])
-                            for x, y in zip(b["events"], a["events"], strict=True)))
-            if not same:
-                print(f"{name}: figures differ: largest distance {b['err']!r} at {b['err_t']!r} s before, {a['err']!r} "
-                      f"at {a['err_t']!r} s after", file=sys.stderr)
-                for x, y in zip(b["events"], a["events"], strict=False):
-                    if x != y:
-                        print(f"  switch before {x}\n         after  {y}", file=sys.stderr)
+                    and all(x[:2] == y[:2] and x[4] == y[4] for x, y in zip(b["events"], a["events"], strict=True))
+                    and max(ds, default=0.0) <= 1e-9 * max(1.0, max((abs(x[2]) for x in b["events"]), default=0.0)))
+            print(f"{name}: largest distance {b['err']!r} m at {b['err_t']!r} s before, {a['err']!r} m at "
+                  f"{a['err_t']!r} s after; switches' arc lengths differ by at most {max(ds, default=0.0):.2e} m "
+                  f"({ds_rel:.1e} of the arc length)", file=sys.stderr)
             for way in ("before", "after"):
                 r = res[way]
                 rows.append([name, way, f"{r['n']:,}", f"{r['peak']:.0f}", f"{r['rss']:.0f}", f"{r['rss_planned']:.0f}",
