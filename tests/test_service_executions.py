@@ -40,18 +40,28 @@ def slow_cell():
     sim.stop()
 
 
-def _robots(cell, slow_cell=None) -> str:
+@pytest.fixture(scope="module")
+def stop_cell():
+    """A third controller, whose emergency stop a test presses during an execution."""
+    sim = start_sim(model="ur5e")
+    yield sim
+    sim.stop()
+
+
+def _robots(cell, slow_cell=None, stop_cell=None) -> str:
     robots = {"sim": {"sim": True, "sim_speed": 10, **FAST}, "cell": {"host": cell.host, "model": "ur5e", **FAST},
               "big": {"host": "127.0.0.1", "model": "ur10e"}}
     if slow_cell is not None:
         robots["slow"] = {"host": slow_cell.host, "model": "ur5e", "approach_speed": 0.3, "approach_acceleration": 0.5}
+    if stop_cell is not None:
+        robots["estop"] = {"host": stop_cell.host, "model": "ur5e", **FAST}
     return json.dumps(robots)
 
 
 @pytest.fixture(scope="module")
-def server(tmp_path_factory, cell, slow_cell):
+def server(tmp_path_factory, cell, slow_cell, stop_cell):
     s = ServiceProcess(tmp_path_factory.mktemp("executions"), workers=1, dev=False,
-                       env={"PLANNER_ROBOTS": _robots(cell, slow_cell)}).start()
+                       env={"PLANNER_ROBOTS": _robots(cell, slow_cell, stop_cell)}).start()
     s.operator = s.keys("create", "--name", "cell operator", "--role", "operator").split("key ")[1].split()[0]
     s.other = s.keys("create", "--name", "other operator", "--role", "operator").split("key ")[1].split()[0]
     s.planner = s.keys("create", "--name", "cam station", "--role", "planner").split("key ")[1].split()[0]
@@ -102,7 +112,7 @@ def test_program_on_the_simulated_robot_follows_the_plan_and_holds_the_robot(ser
     # one execution per robot: a second one is refused while the first runs; another robot is free
     again = op.post(f"/v1/jobs/{job_id}/executions", json={"robot": "sim", "mode": "program"})
     assert again.status_code == 409 and "busy" in again.json()["detail"]
-    assert _busy(op) == {"sim": True, "cell": False, "big": False, "slow": False}
+    assert _busy(op) == {"sim": True, "cell": False, "big": False, "slow": False, "estop": False}
     wait_until(lambda: len(server.children("planner-exec")) == 1, 10, "the execution's own process")
     seen = []
     while (v := op.get(f"/v1/executions/{eid}").json())["state"] not in ENDED:
@@ -133,6 +143,66 @@ def test_program_on_the_simulated_robot_follows_the_plan_and_holds_the_robot(ser
     assert [e["id"] for e in op.get("/v1/executions", params={"job_id": job_id}).json()["executions"]][0] == eid
 
 
+def metrics(client) -> dict[str, float]:
+    """The execution series of ``/metrics``: {'name{labels}': value}."""
+    out = {}
+    for line in client.get("/metrics").text.splitlines():
+        if line.startswith(("planner_execution", "planner_executions")):
+            name, value = line.rsplit(" ", 1)
+            out[name] = float(value)
+    return out
+
+
+def test_metrics_count_executions_by_state_robot_time_and_failure(server, op, demo_job, stop_cell):
+    before = metrics(op)
+    assert before["planner_executions_running{robot=\"sim\"}"] == 0
+    assert {k for k in before if k.startswith("planner_executions_running")} == {
+        f'planner_executions_running{{robot="{r}"}}' for r in ("sim", "cell", "big", "slow", "estop")}
+    assert {k for k in before if k.startswith("planner_executions{")} == {
+        f'planner_executions{{state="{s}"}}' for s in ("starting", "running", "stopping", "done", "failed",
+                                                       "cancelled")}
+    count0 = before["planner_execution_seconds_count"]
+    done0 = before.get('planner_executions_finished_total{state="done"}', 0)
+    # a run to its end on the simulated robot: running while it runs, then done with its time in the histogram
+    eid = op.post(f"/v1/jobs/{demo_job['id']}/executions", json={"robot": "sim", "mode": "program"}).json()["id"]
+    wait_execution(op, eid, states=("running",) + ENDED)
+    during = metrics(op)
+    assert during["planner_executions_running{robot=\"sim\"}"] == 1
+    assert during["planner_executions_running{robot=\"cell\"}"] == 0
+    assert sum(during[f'planner_executions{{state="{s}"}}'] for s in ("starting", "running", "stopping")) == 1
+    view = wait_execution(op, eid)
+    assert view["state"] == "done", view
+    after = metrics(op)
+    took = view["finished_at"] - view["created_at"]
+    assert after["planner_executions_running{robot=\"sim\"}"] == 0
+    assert after['planner_executions_finished_total{state="done"}'] == done0 + 1
+    assert after['planner_executions{state="done"}'] == before['planner_executions{state="done"}'] + 1
+    assert after["planner_execution_seconds_count"] == count0 + 1
+    assert after["planner_execution_seconds_sum"] - before["planner_execution_seconds_sum"] == pytest.approx(took,
+                                                                                                             abs=0.05)
+    bucket = next(b for b in (1, 5, 10, 30, 60, 120) if took <= b)  # the first bucket holding it counts it
+    assert after[f'planner_execution_seconds_bucket{{le="{bucket}"}}'] == (
+        before[f'planner_execution_seconds_bucket{{le="{bucket}"}}'] + 1)
+    assert after['planner_execution_seconds_bucket{le="+Inf"}'] == count0 + 1
+    # a failure: the cell's emergency stop pressed during the run, counted by its kind
+    eid = op.post(f"/v1/jobs/{demo_job['id']}/executions", json={"robot": "estop", "mode": "program"}).json()["id"]
+    try:
+        wait_execution(op, eid, states=("running",) + ENDED)
+        wait_until(lambda: op.get(f"/v1/executions/{eid}").json()["progress"]["done"] > 0, 30, "the run's progress")
+        stop_cell.press_emergency_stop()
+        view = wait_execution(op, eid, timeout=30)
+    finally:
+        stop_cell.release_emergency_stop()
+    assert view["state"] == "failed" and view["error"]["kind"] == "emergency stop", view
+    last = metrics(op)
+    assert last['planner_execution_failures_total{kind="emergency stop"}'] == (
+        after.get('planner_execution_failures_total{kind="emergency stop"}', 0) + 1)
+    assert last['planner_executions_finished_total{state="failed"}'] == (
+        after.get('planner_executions_finished_total{state="failed"}', 0) + 1)
+    assert last["planner_execution_seconds_count"] == count0 + 2
+    assert last['planner_executions_running{robot="estop"}'] == 0
+
+
 def test_refusals_name_the_problem(server, op, demo_job):
     job_id = demo_job["id"]
     url = f"/v1/jobs/{job_id}/executions"
@@ -151,7 +221,7 @@ def test_refusals_name_the_problem(server, op, demo_job):
     assert r.status_code == 422
     assert r.json()["detail"] == [{"loc": ["body", "robot"], "type": "value_error",
                                    "msg": "no robot named 'lab' in this service's configuration (configured: sim, "
-                                          "cell, big, slow)"}]
+                                          "cell, big, slow, estop)"}]
     r = op.post(url, json={"robot": "cell", "host": "10.0.0.9"})  # a request never carries a host
     assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "host"]
     r = op.post(url, json={"robot": "cell", "mode": "teach"})

@@ -119,7 +119,7 @@ class Service:
         self.pool = WorkerPool(self.sessions, cfg, self.metrics)
         self.inserter = Inserter(self.pool)
         self.plotter = Plotter()
-        self.executions = Executions(self.sessions, cfg, self.pool.write_lock)
+        self.executions = Executions(self.sessions, cfg, self.pool.write_lock, self.metrics)
 
     def start(self) -> dict:
         self.cfg.data_dir.mkdir(parents=True, exist_ok=True)
@@ -278,7 +278,8 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
     @app.get("/metrics", tags=["service"], response_class=PlainTextResponse)
     def metrics(request: Request) -> PlainTextResponse:
         svc = _service(request)
-        text = svc.metrics.text(svc.pool.counts(), svc.pool.alive, svc.pool.busy)
+        text = svc.metrics.text(svc.pool.counts(), svc.pool.alive, svc.pool.busy, svc.executions.counts(),
+                                svc.executions.running())
         return PlainTextResponse(text, media_type="text/plain; version=0.0.4; charset=utf-8")
 
     @app.post(f"{API}/jobs", status_code=202, response_model=JobCreated, tags=["jobs"], openapi_extra=_JOB_BODY,

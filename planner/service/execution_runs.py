@@ -21,12 +21,13 @@ import threading
 import time
 import uuid
 
-from sqlalchemy import select, update
+from sqlalchemy import func, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import sessionmaker
 
 from planner.service.config import RobotConfig, ServiceConfig
-from planner.service.store import ACTIVE_EXECUTION_STATES, Execution, now
+from planner.service.metrics import Metrics
+from planner.service.store import ACTIVE_EXECUTION_STATES, EXECUTION_STATES, Execution, now
 
 log = logging.getLogger("planner.service")
 
@@ -43,10 +44,12 @@ class RobotBusy(Exception):
 class Executions:
     """The service's executions: :meth:`create` (and run), :meth:`stop`, :meth:`recover`, :meth:`shutdown`."""
 
-    def __init__(self, sessions: sessionmaker, cfg: ServiceConfig, write_lock: threading.Lock):
+    def __init__(self, sessions: sessionmaker, cfg: ServiceConfig, write_lock: threading.Lock,
+                 metrics: Metrics | None = None):
         self.sessions = sessions
         self.cfg = cfg
         self.write_lock = write_lock
+        self.metrics = metrics or Metrics()
         self._lock = threading.Lock()
         self.runners: dict[str, Runner] = {}
         self.stopping = threading.Event()
@@ -60,6 +63,8 @@ class Executions:
                 error="the service stopped during this execution (the controller stops the arm when its connection "
                       "drops); it is not started again")).rowcount
             s.commit()
+        for _ in range(n):
+            self.metrics.count_execution("failed", None, "interrupted")
         return int(n)
 
     def shutdown(self, timeout: float = STOP_GRACE + 5.0) -> None:
@@ -71,6 +76,21 @@ class Executions:
             r.request_stop("the service is shutting down")
         for r in runners:
             r.join(timeout)
+
+    # -- figures ----------------------------------------------------------------------------------
+    def counts(self) -> dict[str, int]:
+        """Stored executions by state (every state, zeros included)."""
+        with self.sessions() as s:
+            rows = dict(s.execute(select(Execution.state, func.count()).group_by(Execution.state)).tuples().all())
+        return {state: int(rows.get(state, 0)) for state in EXECUTION_STATES}
+
+    def running(self) -> dict[str, int]:
+        """Active executions of each configured robot (0 or 1; a robot no longer configured is listed while one of
+        its executions is active)."""
+        with self.sessions() as s:
+            rows = dict(s.execute(select(Execution.robot, func.count()).where(
+                Execution.state.in_(ACTIVE_EXECUTION_STATES)).group_by(Execution.robot)).tuples().all())
+        return {**{r.name: 0 for r in self.cfg.robots}, **{k: int(v) for k, v in rows.items()}}
 
     # -- requests ---------------------------------------------------------------------------------
     def busy(self, robot: str) -> bool:
@@ -99,7 +119,7 @@ class Executions:
                 "name": robot.name, "host": robot.host, "model": robot.model, "io": robot.io,
                 "modbus_port": robot.modbus_port, "sim_speed": robot.sim_speed, "approach_speed": robot.approach_speed,
                 "approach_acceleration": robot.approach_acceleration}}
-            runner = Runner(self, execution_id, task)
+            runner = Runner(self, execution_id, task, row.created_at)
             self.runners[execution_id] = runner
         runner.start()
         return execution_id
@@ -136,11 +156,12 @@ class Executions:
 class Runner(threading.Thread):
     """One execution's process and the thread that relays its messages."""
 
-    def __init__(self, owner: Executions, execution_id: str, task: dict):
+    def __init__(self, owner: Executions, execution_id: str, task: dict, created_at: float):
         super().__init__(name=f"execution-{execution_id[:8]}", daemon=True)
         self.owner = owner
         self.id = execution_id
         self.task = task
+        self.created_at = created_at
         self._stop_reason: str | None = None
         self._stop_asked = threading.Event()
 
@@ -238,4 +259,6 @@ class Runner(threading.Thread):
                           error_line=error.get("line"))
         if state == "cancelled" and self._stop_reason:
             values["note"] = self._stop_reason
-        self.owner._update(self.id, ACTIVE_EXECUTION_STATES, **values)
+        if self.owner._update(self.id, ACTIVE_EXECUTION_STATES, **values):
+            self.owner.metrics.count_execution(state, values["finished_at"] - self.created_at,
+                                               None if error is None else str(error["kind"]))

@@ -1,4 +1,5 @@
-"""Prometheus text exposition (format 0.0.4) of the service: jobs by state, queue depth, planning times."""
+"""Prometheus text exposition (format 0.0.4) of the service: jobs by state, queue depth, planning times; executions by
+state, running per robot, execution times, failures by kind (protective stop, connection lost, ...)."""
 
 from __future__ import annotations
 
@@ -6,6 +7,8 @@ import threading
 
 #: Upper bounds of the planning-time histogram buckets, s.
 BUCKETS = (0.05, 0.1, 0.25, 0.5, 1.0, 2.5, 5.0, 10.0, 30.0, 60.0, 300.0, 1800.0)
+#: Upper bounds of the execution-time histogram buckets, s (a run on a robot: seconds to hours).
+EXECUTION_BUCKETS = (1.0, 5.0, 10.0, 30.0, 60.0, 120.0, 300.0, 600.0, 1800.0, 3600.0, 7200.0, 14400.0)
 
 
 class Histogram:
@@ -41,6 +44,9 @@ class Metrics:
         self.planning = Histogram()
         self.submitted = 0
         self.finished: dict[str, int] = {}
+        self.execution_time = Histogram(EXECUTION_BUCKETS)
+        self.executions_finished: dict[str, int] = {}
+        self.execution_failures: dict[str, int] = {}
         self._lock = threading.Lock()
 
     def count_submitted(self) -> None:
@@ -53,8 +59,21 @@ class Metrics:
         if planning_s is not None:
             self.planning.observe(planning_s)
 
-    def text(self, by_state: dict[str, int], workers_alive: int, workers_busy: int) -> str:
-        """The exposition text; ``by_state`` counts the stored jobs (every state present, zeros included)."""
+    def count_execution(self, state: str, seconds: float | None, kind: str | None = None) -> None:
+        """An execution that ended in ``state`` after ``seconds`` (request to end; None: not known, e.g. one a
+        restart failed), failed with ``kind`` (the driver's: "protective stop", "connection lost", ...)."""
+        with self._lock:
+            self.executions_finished[state] = self.executions_finished.get(state, 0) + 1
+            if state == "failed":
+                kind = kind or "unknown"
+                self.execution_failures[kind] = self.execution_failures.get(kind, 0) + 1
+        if seconds is not None:
+            self.execution_time.observe(seconds)
+
+    def text(self, by_state: dict[str, int], workers_alive: int, workers_busy: int,
+             executions: dict[str, int] | None = None, running: dict[str, int] | None = None) -> str:
+        """The exposition text; ``by_state`` counts the stored jobs and ``executions`` the stored executions by state
+        (every state present, zeros included), ``running`` the active executions of each configured robot."""
         lines = ["# HELP planner_jobs Jobs in the store by state.", "# TYPE planner_jobs gauge"]
         lines += [f'planner_jobs{{state="{s}"}} {n}' for s, n in by_state.items()]
         lines += ["# HELP planner_queue_depth Jobs waiting for a worker.", "# TYPE planner_queue_depth gauge",
@@ -71,4 +90,28 @@ class Metrics:
             lines += [f'planner_jobs_finished_total{{state="{s}"}} {n}' for s, n in sorted(self.finished.items())]
         lines += ["# HELP planner_planning_seconds Planning time of finished jobs (worker, parse to saved plan).",
                   "# TYPE planner_planning_seconds histogram", *self.planning.lines("planner_planning_seconds")]
+        lines += ["# HELP planner_executions Executions in the store by state.", "# TYPE planner_executions gauge"]
+        lines += [f'planner_executions{{state="{s}"}} {n}' for s, n in (executions or {}).items()]
+        lines += ["# HELP planner_executions_running Active executions (starting, running or stopping) by robot.",
+                  "# TYPE planner_executions_running gauge"]
+        lines += [f'planner_executions_running{{robot="{_label(r)}"}} {n}' for r, n in (running or {}).items()]
+        lines += ["# HELP planner_executions_finished_total Executions that ended since the service started, by state.",
+                  "# TYPE planner_executions_finished_total counter"]
+        with self._lock:
+            lines += [f'planner_executions_finished_total{{state="{s}"}} {n}'
+                      for s, n in sorted(self.executions_finished.items())]
+            lines += ["# HELP planner_execution_failures_total Executions that failed since the service started, by "
+                      "the kind of failure (protective stop, emergency stop, connection lost, period overrun, not "
+                      "ready, interrupted, internal, ...).",
+                      "# TYPE planner_execution_failures_total counter"]
+            lines += [f'planner_execution_failures_total{{kind="{_label(k)}"}} {n}'
+                      for k, n in sorted(self.execution_failures.items())]
+        lines += ["# HELP planner_execution_seconds Time of ended executions, from the request to the end (controller, "
+                  "connection, approach and run).", "# TYPE planner_execution_seconds histogram",
+                  *self.execution_time.lines("planner_execution_seconds")]
         return "\n".join(lines) + "\n"
+
+
+def _label(value: str) -> str:
+    """A label value escaped for the text format (backslash, double quote, newline)."""
+    return value.replace("\\", "\\\\").replace('"', '\\"').replace("\n", "\\n")
