@@ -350,6 +350,58 @@ def test_a_crash_of_the_service_fails_the_execution_it_interrupted(tmp_path, cel
         s.stop()
 
 
+@pytest.mark.realtime
+def test_sigterm_during_a_streamed_execution_stops_the_arm_and_the_restart_shows_it_cancelled(tmp_path, cell):
+    """SIGTERM (graceful shutdown) while the arm follows a streamed job: the arm is at rest within a second of the
+    signal (seen through a real rtde_receive client), the job's output off, the service exits 0; started again, the
+    service shows the execution cancelled with the reason and the robot free."""
+    import signal
+
+    s = ServiceProcess(tmp_path, workers=1, env={"PLANNER_ROBOTS": _robots(cell)}).start()
+    watch = rtde_receive.RTDEReceiveInterface(cell.host)
+    try:
+        with s.client() as c:
+            with open(DEMO, "rb") as f:
+                r = c.post("/v1/jobs", files={"file": ("nx_first_pass.cls", f)},
+                           data={"settings": json.dumps(SETTINGS)})
+            job = wait_state(c, r.json()["id"])
+            eid = c.post(f"/v1/jobs/{job['id']}/executions", json={"robot": "cell", "mode": "stream"}).json()["id"]
+            assert wait_execution(c, eid, states=("running",) + ENDED, timeout=60)["state"] == "running"
+            deadline = time.monotonic() + 30
+            while c.get(f"/v1/executions/{eid}").json()["progress"]["done"] < 1500:  # 3 s into the pass
+                assert time.monotonic() < deadline
+                time.sleep(0.05)
+        assert np.abs(watch.getActualQd()).max() > 0.01  # moving
+        assert watch.getActualDigitalOutputBits() & 1 == 1  # cutting
+        asked = time.monotonic()
+        s.proc.send_signal(signal.SIGTERM)
+        rest = None
+        while time.monotonic() - asked < 5.0:
+            if np.abs(watch.getActualQd()).max() < 1e-3:
+                rest = time.monotonic() - asked
+                break
+            time.sleep(0.002)
+        assert rest is not None and rest < 1.0, f"the arm still moves {time.monotonic() - asked:.2f} s after SIGTERM"
+        print(f"arm at rest {rest:.3f} s after SIGTERM")
+        assert s.proc.wait(30) == 0, s.log.read_text()
+        s.proc.stdout.close()
+        time.sleep(0.3)
+        assert np.abs(watch.getActualQd()).max() < 1e-3  # and stays there
+        assert watch.getActualDigitalOutputBits() & 1 == 0  # the job's output off
+        s.start()
+        with s.client() as c:
+            view = c.get(f"/v1/executions/{eid}").json()
+            assert view["state"] == "cancelled" and view["note"] == "the service is shutting down", view
+            err = view["error"]
+            assert err["kind"] == "cancelled" and "cancelled by the caller" in err["reason"]
+            assert 2.5 < err["t"] < view["report"]["planned_duration_s"] and len(err["pose"]) == 6
+            assert view["report"]["ok"] is False and view["report"]["max_path_error_m"] < 0.2e-3
+            assert _busy(c)["cell"] is False
+    finally:
+        watch.disconnect()
+        s.stop()
+
+
 @pytest.mark.parametrize("text, message", [
     ('{"cell": {"host": "cell.local", "model": "ur5e"}}', "robot 'cell': host must be an IP address, got 'cell.local'"),
     ('{"cell": {"model": "ur5e"}}', "robot 'cell': give either host (the controller's IP address) or \"sim\": true"),

@@ -83,3 +83,39 @@ def test_kill_and_restart_loses_nothing_and_runs_nothing_twice(tmp_path):
     with sqlite3.connect(tmp_path / "jobs.sqlite") as conn:
         states = dict(conn.execute("select id, state from jobs").fetchall())
     assert states == {a: "done", b: "done", d: "failed", e: "done"}
+
+
+def test_sigterm_while_jobs_plan_requeues_them_and_each_runs_once_after_restart(tmp_path):
+    s1 = ServiceProcess(tmp_path, workers=2).start()
+    try:
+        with s1.client() as c:
+            planning = [c.post("/v1/jobs", json=big()).json()["id"] for _ in range(2)]
+            queued = [c.post("/v1/jobs", json=SMALL).json()["id"] for _ in range(3)]
+            for j in planning:
+                wait_state(c, j, states=("running",), timeout=60)
+            assert [c.get(f"/v1/jobs/{j}").json()["state"] for j in queued] == ["queued"] * 3
+            workers = s1.worker_pids()
+            assert len(workers) == 2
+    finally:
+        assert s1.stop() == 0  # graceful
+    assert all(gone(p) for p in workers)
+    with sqlite3.connect(tmp_path / "jobs.sqlite") as conn:
+        rows = {j: (state, attempts, started) for j, state, attempts, started in
+                conn.execute("select id, state, attempts, started_at from jobs")}
+    # back in the queue as they were: no start counted, no saved plan left behind
+    assert {j: r[:2] for j, r in rows.items()} == {j: ("queued", 0) for j in planning + queued}
+    assert all(saved_files(tmp_path, j) == [] for j in planning + queued)
+
+    s2 = ServiceProcess(tmp_path, workers=2).start()
+    try:
+        with s2.client() as c:
+            views = {j: wait_state(c, j) for j in planning + queued}
+            metrics = c.get("/metrics").text
+    finally:
+        assert s2.stop() == 0
+    assert all(v["state"] == "done" and v["attempts"] == 1 for v in views.values()), views
+    assert all(saved_files(tmp_path, j) == ["plan.1.job"] for j in views)  # each planned to its end once
+    assert all(views[j]["started_at"] > rows[j][2] for j in planning)  # started again, after the restart
+    assert 'planner_jobs_finished_total{state="done"} 5' in metrics
+    with sqlite3.connect(tmp_path / "jobs.sqlite") as conn:
+        assert conn.execute("select count(*), count(distinct id) from jobs").fetchone() == (5, 5)
