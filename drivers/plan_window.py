@@ -304,6 +304,10 @@ class PlanWindow:
         self._pieces.append(nxt)
         return True
 
+    def prime(self) -> None:
+        """Load the window's first pieces now (before a real-time loop starts: never waited for in a period)."""
+        self._cover(-self.back, self.ahead + self.span)
+
     def close(self) -> None:
         """Stop the prefetching thread, if any (the window answers no more)."""
         self._stop.set()

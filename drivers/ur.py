@@ -43,7 +43,7 @@ from drivers.feed import TargetFeed
 from drivers.jobs import check_job, stop_requested
 from drivers.pacing import Schedule
 from drivers.package_log import PackageLog
-from drivers.plan_window import PlannedPath
+from drivers.plan_window import PlannedPath, PlanWindow
 from drivers.report import ExecutionReport, execution_report, new_recording
 from drivers.stations import Station, Stations
 
@@ -522,6 +522,8 @@ class URDriver:
         # at a time took 10-15 ms, several missed periods every 5 s); the plan's pieces it is compared with are made
         # ahead by a thread
         rec = new_recording(job, planned, prefetch=True)
+        if isinstance(rec.planned, PlanWindow):
+            rec.planned.prime()  # its first pieces made before the first period
         t_rec = 0.0
         failure = None
         prev_io = 0
