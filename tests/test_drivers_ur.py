@@ -418,8 +418,9 @@ def test_whole_nx_job_excerpt_program_in_fast_forward(make_sim, tmp_path):
         rep = d.execute(job, mode="program")
     assert rep.ok, rep.describe()
     assert rep.max_path_error <= job.settings.tolerance, rep.describe()
-    # every switch made; the recording polls the controller and a stall of the polling loop at 20x may hide
-    # the brief off-on of a rapid: such a pair is reported unresolved, never as a switch far from its station
+    # every switch made; at 20x a data package comes every 40 ms of job time, and a stall of the simulated
+    # controller (a gap the report counts) may hide the brief off-on of a rapid: such a pair is reported
+    # unresolved, never as a switch far from its station
     ev = rep.io_events
     assert len(ev) == 14 and all(e.switched or e.unresolved for e in ev), rep.describe()
     assert sum(e.switched for e in ev) >= 12 and ev[0].switched and ev[-1].switched, rep.describe()
