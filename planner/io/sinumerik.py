@@ -267,7 +267,7 @@ class Expression:
 def split_words(text: str) -> list[str]:
     """The block's words: split at blanks outside parentheses and strings."""
     if "(" in text or '"' in text or "[" in text:
-        words = _split_nested(text)
+        words = [w for w in _split_top_level(text, " \t") if w]
     else:
         words = text.split()
     # an expression may hold blanks around its operators: "R2=7 DIV 2", "X=_X0 + 5"
@@ -285,9 +285,13 @@ def split_words(text: str) -> list[str]:
     return merged
 
 
-def _split_nested(text: str) -> list[str]:
-    """Words of ``text`` split at blanks outside parentheses, brackets and strings."""
-    words: list[str] = []
+def _split_top_level(text: str, seps: str = ",") -> list[str]:
+    """Parts of ``text`` between the characters of ``seps`` that stand outside parentheses, brackets and strings.
+
+    Every separator ends a part, so parts may be empty (``"a,,b"`` -> ``["a", "", "b"]``, ``""`` -> ``[""]``):
+    argument lists keep their positions; word splitting at blanks and tabs drops the empty ones.
+    """
+    parts: list[str] = []
     cur: list[str] = []
     depth, quote = 0, False
     for ch in text:
@@ -298,15 +302,13 @@ def _split_nested(text: str) -> list[str]:
                 depth += 1
             elif ch in ")]":
                 depth -= 1
-            elif ch in " \t" and depth == 0:
-                if cur:
-                    words.append("".join(cur))
-                    cur = []
+            elif ch in seps and depth == 0:
+                parts.append("".join(cur))
+                cur = []
                 continue
         cur.append(ch)
-    if cur:
-        words.append("".join(cur))
-    return words
+    parts.append("".join(cur))
+    return parts
 
 
 def strip_comment(text: str) -> str:
@@ -429,7 +431,7 @@ class Sinumerik:
         frame p_part = X0 + R (X1 + p) for the following blocks (R: rotations axis by axis, each about the axis
         already turned, sequence from _MODE); CYCLE800() or one with every offset and angle 0 resets it."""
         out = self.r.out
-        parts = [p.strip() for p in _split_commas(args)] if args.strip() else []
+        parts = [p.strip() for p in _split_top_level(args)] if args.strip() else []
 
         def value(k: int, pname: str) -> float:
             return 0.0 if k >= len(parts) or not parts[k] else self.eval(line, f"CYCLE800 {pname}", parts[k])
@@ -486,7 +488,7 @@ class Sinumerik:
     def drill_cycle(self, line: int, name: str, args: str) -> DrillCycle:
         """CYCLE81(RTP, RFP, SDIS, DP, DPR) / CYCLE82(RTP, RFP, SDIS, DP, DPR, DTB): absolute levels along the drilling
         axis of the plane (retract plane, reference plane, its safety distance, depth DP or DPR below RFP)."""
-        parts = [p.strip() for p in _split_commas(args)]
+        parts = [p.strip() for p in _split_top_level(args)]
         names = ("RTP", "RFP", "SDIS", "DP", "DPR", "DTB")[: 6 if name == "CYCLE82" else 5]
         if len(parts) > len(names):
             self.fail(line, name, f"{name} takes {len(names)} parameters ({', '.join(names)}), got {len(parts)}")
@@ -552,7 +554,7 @@ class Sinumerik:
             self.fail(line, "DEF", f"DEF: cannot read the declaration {text.strip()!r} (type REAL, INT, BOOL, CHAR, "
                       "STRING[n], AXIS or FRAME, then names)")  # fmt: skip
         kind = m.group(1).upper()
-        for part in _split_commas(m.group(2)):
+        for part in _split_top_level(m.group(2)):
             name, eq, expr = part.partition("=")
             name = name.strip().upper()
             if not _IDENT.fullmatch(name) or "[" in part.split("=")[0]:
@@ -765,7 +767,7 @@ class Sinumerik:
             out.event("insert", line, msg.strip('"'), math.nan, text)
             return []
         if name == "CYCLE832":
-            parts = _split_commas(args)
+            parts = _split_top_level(args)
             tol = math.nan
             if parts and parts[0].strip():
                 try:
@@ -815,25 +817,3 @@ def _axis_rotation(axis: int, angle: float) -> np.ndarray:
     R = np.eye(3)
     R[i, i], R[i, j], R[j, i], R[j, j] = c, -s, s, c
     return R
-
-
-def _split_commas(text: str) -> list[str]:
-    """Comma-separated parts of ``text`` outside parentheses and strings."""
-    parts: list[str] = []
-    cur: list[str] = []
-    depth, quote = 0, False
-    for ch in text:
-        if ch == '"':
-            quote = not quote
-        elif not quote:
-            if ch in "([":
-                depth += 1
-            elif ch in ")]":
-                depth -= 1
-            elif ch == "," and depth == 0:
-                parts.append("".join(cur))
-                cur = []
-                continue
-        cur.append(ch)
-    parts.append("".join(cur))
-    return parts
