@@ -102,6 +102,14 @@ class Loop:
                 conn.flush()
 
 
+def _flag(req: dict, key: str) -> bool:
+    """The boolean ``req[key]`` of a command; ValueError naming the command and the key if it is not one."""
+    value = req[key]
+    if not isinstance(value, bool):
+        raise ValueError(f"{req.get('cmd')}: {key!r} must be true or false, got {value!r}")
+    return value
+
+
 def _commands(core: Core, io, stop: threading.Event, loop: Loop) -> None:
     """JSON commands from the parent on stdin; EOF means the parent is gone."""
     for line in sys.stdin:
@@ -115,9 +123,7 @@ def _commands(core: Core, io, stop: threading.Event, loop: Loop) -> None:
                 io.set_digital_in(int(req["mask"]), int(req["value"]))
                 reply = {"ok": True}
             elif cmd == "emergency_stop":
-                pressed = req["pressed"]
-                if not isinstance(pressed, bool):
-                    raise ValueError(f"emergency_stop: 'pressed' must be true or false, got {pressed!r}")
+                pressed = _flag(req, "pressed")
                 with core.lock:
                     if pressed:
                         core.press_emergency_stop(str(req.get("kind", "robot")))
@@ -128,9 +134,7 @@ def _commands(core: Core, io, stop: threading.Event, loop: Loop) -> None:
                 loop.set_speed(check_speed(req["speed"]))
                 reply = {"ok": True}
             elif cmd == "remote_control":
-                on = req["on"]
-                if not isinstance(on, bool):
-                    raise ValueError(f"remote_control: 'on' must be true or false, got {on!r}")
+                on = _flag(req, "on")
                 with core.lock:
                     core.set_remote_control(on)
                 reply = {"ok": True}
