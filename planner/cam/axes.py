@@ -29,8 +29,12 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.interpolate import PchipInterpolator
 
-from planner import quaternion as qt
-from planner.frames.spherical_rmm import base_starts, shortest_arc_quaternions, spin_rate  # the same RMM (seed eq. 3)
+from planner.frames.spherical_rmm import (  # the same RMM (seed eq. 3)
+    base_starts,
+    based_quaternions,
+    piece_start_quaternions,
+    spin_rate,
+)
 from planner.protocols import Path
 from planner.rotations import matrix_to_quaternion, matrix_to_rotvec, quaternion_to_matrix, rotate_vectors
 
@@ -215,11 +219,7 @@ class SpinTable:
         u = np.atleast_1d(np.asarray(u, dtype=float))
         theta, k = self._spin(u)
         piece = self.panel_piece[k]
-        half = 0.5 * theta
-        spin = np.zeros((u.size, 4))
-        spin[:, 0], spin[:, 3] = np.cos(half), np.sin(half)
-        ref = shortest_arc_quaternions(self.bases[piece], self.z(u))
-        return qt.mul(qt.mul(ref, self.base_quaternions[piece]), spin)
+        return based_quaternions(self.bases[piece], self.base_quaternions[piece], self.z(u), theta)
 
 
 #: Chebyshev points per spin panel.
@@ -276,14 +276,8 @@ def _rmm(z, dz, knots: np.ndarray, F0: np.ndarray) -> SpinTable:
     cum = np.concatenate(([0.0], np.cumsum(total)))
     first_panel = np.searchsorted(pa, pieces[:-1])
     spin_start = cum[:-1] - cum[first_panel][po]
-    base_q = np.empty((len(starts), 4))
-    base_q[0] = matrix_to_quaternion(F0[None])[0]
-    for p in range(1, len(starts)):
-        last = first_panel[p] - 1
-        theta = float(spin_start[last] + total[last])
-        spin = np.array([np.cos(theta / 2), 0.0, 0.0, np.sin(theta / 2)])
-        ref = shortest_arc_quaternions(bases[p - 1][None], bases[p][None])[0]
-        base_q[p] = qt.mul(qt.mul(ref, base_q[p - 1]), spin)
+    last = first_panel[1:] - 1
+    base_q = piece_start_quaternions(matrix_to_quaternion(F0[None])[0], bases, spin_start[last] + total[last])
     return SpinTable(z, dz, pieces, bases, base_q, np.append(pa, pb[-1]), po, spin_start, C)
 
 

@@ -68,6 +68,32 @@ def shortest_arc_quaternions(b: np.ndarray, z: np.ndarray) -> np.ndarray:
     return q / np.sqrt(2.0 * s)[:, None]
 
 
+def based_quaternions(bases: np.ndarray, base_quaternions: np.ndarray, z: np.ndarray, theta: np.ndarray) -> np.ndarray:
+    """Unit quaternions (n, 4) of the frames q_ref(b, z) q_base spin(theta) (seed eq. 3).
+
+    q_ref is the shortest-arc rotation from the base direction b (n, 3) to the axis z (n, 3), q_base
+    (n, 4) the frame at the piece start (its column 2 on b), spin(theta) the turn by theta (n,) rad
+    about the frame's column 2.
+    """
+    half = theta / 2
+    zero = np.zeros_like(theta)
+    spin = np.stack((np.cos(half), zero, zero, np.sin(half)), axis=1)
+    return quat.mul(quat.mul(shortest_arc_quaternions(bases, z), base_quaternions), spin)
+
+
+def piece_start_quaternions(q0: np.ndarray, bases: np.ndarray, end_spins: np.ndarray) -> np.ndarray:
+    """Unit quaternions (p, 4) of the frames at the starts of p pieces, each the end frame of the previous one.
+
+    q0 (4,) is the frame at the first start, bases (p, 3) the pieces' base directions (piece k ends
+    on bases[k + 1]), end_spins (p - 1,) the spin (rad) at each piece's end relative to its base frame.
+    """
+    q = np.empty((len(bases), 4))
+    q[0] = q0
+    for k in range(1, len(bases)):  # each start needs the previous one: a short sequential product
+        q[k] = based_quaternions(bases[k - 1 : k], q[k - 1 : k], bases[k : k + 1], end_spins[k - 1 : k])[0]
+    return q
+
+
 @dataclass(frozen=True, eq=False)
 class ExactSphericalRMM:
     """The exact RMM of z(t) on [t0, t1], frames with column 2 = z(t).
@@ -133,10 +159,7 @@ class ExactSphericalRMM:
         piece = self.panel_piece[k]
         b = self.bases[piece]
         z = val.curve_values(self.z, t, "z", True)
-        theta = self._spin(t, k)
-        zero = np.zeros_like(theta)
-        spin = np.stack((np.cos(theta / 2), zero, zero, np.sin(theta / 2)), axis=1)
-        q = quat.mul(quat.mul(shortest_arc_quaternions(b, z), self.base_quaternions[piece]), spin)
+        q = based_quaternions(b, self.base_quaternions[piece], z, self._spin(t, k))
         return q, t, b, z
 
     def quaternion(self, t) -> np.ndarray:
@@ -258,14 +281,8 @@ def exact_spherical_rmm(z: Callable, dz: Callable, start=None, *, interval: tupl
     spin_start = cum[:-1] - cum[first_panel][own]
 
     # frames at the piece starts: each piece starts from the end frame of the previous one
-    base_q = np.empty((len(starts), 4))
-    base_q[0] = q0
-    for p in range(1, len(starts)):
-        last = first_panel[p] - 1
-        theta = float(spin_start[last] + v[last])
-        spin = np.array([np.cos(theta / 2), 0.0, 0.0, np.sin(theta / 2)])
-        ref = shortest_arc_quaternions(bases[p - 1][None], bases[p][None])[0]
-        base_q[p] = quat.mul(quat.mul(ref, base_q[p - 1]), spin)
+    last = first_panel[1:] - 1
+    base_q = piece_start_quaternions(q0, bases, spin_start[last] + v[last])
     panels = np.append(a, b[-1])
     return ExactSphericalRMM(z, dz, pieces, bases, base_q, panels, own, spin_start)
 
