@@ -32,7 +32,7 @@ from scipy.interpolate import PchipInterpolator
 from planner.frames.spherical_rmm import (  # the same RMM (seed eq. 3)
     base_starts,
     based_quaternions,
-    piece_start_quaternions,
+    chain_pieces,
     spin_rate,
 )
 from planner.protocols import Path
@@ -273,11 +273,7 @@ def _rmm(z, dz, knots: np.ndarray, F0: np.ndarray) -> SpinTable:
     order = np.argsort(pa)
     pa, pb, po, C = pa[order], pb[order], po[order], C[order]
     total = np.polynomial.chebyshev.chebval(1.0, C.T)  # theta over each whole panel
-    cum = np.concatenate(([0.0], np.cumsum(total)))
-    first_panel = np.searchsorted(pa, pieces[:-1])
-    spin_start = cum[:-1] - cum[first_panel][po]
-    last = first_panel[1:] - 1
-    base_q = piece_start_quaternions(matrix_to_quaternion(F0[None])[0], bases, spin_start[last] + total[last])
+    spin_start, base_q = chain_pieces(pa, total, po, pieces, bases, matrix_to_quaternion(F0[None])[0])
     return SpinTable(z, dz, pieces, bases, base_q, np.append(pa, pb[-1]), po, spin_start, C)
 
 

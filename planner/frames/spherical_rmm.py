@@ -81,17 +81,37 @@ def based_quaternions(bases: np.ndarray, base_quaternions: np.ndarray, z: np.nda
     return quat.mul(quat.mul(shortest_arc_quaternions(bases, z), base_quaternions), spin)
 
 
-def piece_start_quaternions(q0: np.ndarray, bases: np.ndarray, end_spins: np.ndarray) -> np.ndarray:
-    """Unit quaternions (p, 4) of the frames at the starts of p pieces, each the end frame of the previous one.
+def chain_pieces(panel_starts: np.ndarray, panel_spins: np.ndarray, panel_piece: np.ndarray, pieces: np.ndarray,
+                 bases: np.ndarray, q0: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Spins at the panel starts and frames at the piece starts of a piecewise-based RMM.
 
-    q0 (4,) is the frame at the first start, bases (p, 3) the pieces' base directions (piece k ends
-    on bases[k + 1]), end_spins (p - 1,) the spin (rad) at each piece's end relative to its base frame.
+    Parameters
+    ----------
+    panel_starts : ndarray (k,)
+        Sorted panel start parameters; ``panel_spins`` (k,) the spin (rad) over each whole panel,
+        ``panel_piece`` (k,) each panel's piece.
+    pieces : ndarray (p + 1,)
+        Piece breakpoints; ``bases`` (p, 3) the pieces' base directions (piece j ends on bases[j + 1]).
+    q0 : ndarray (4,)
+        Unit quaternion of the frame at the first piece start.
+
+    Returns
+    -------
+    spin_start : ndarray (k,)
+        Spin (rad) at each panel start, restarted at 0 at each piece start.
+    base_quaternions : ndarray (p, 4)
+        Frames at the piece starts, each the end frame of the previous piece.
     """
+    cum = np.concatenate(([0.0], np.cumsum(panel_spins)))
+    first_panel = np.searchsorted(panel_starts, pieces[:-1])
+    spin_start = cum[:-1] - cum[first_panel][panel_piece]
+    last = first_panel[1:] - 1
+    end_spins = spin_start[last] + panel_spins[last]
     q = np.empty((len(bases), 4))
     q[0] = q0
-    for k in range(1, len(bases)):  # each start needs the previous one: a short sequential product
-        q[k] = based_quaternions(bases[k - 1 : k], q[k - 1 : k], bases[k : k + 1], end_spins[k - 1 : k])[0]
-    return q
+    for j in range(1, len(bases)):  # each start needs the previous one: a short sequential product
+        q[j] = based_quaternions(bases[j - 1 : j], q[j - 1 : j], bases[j : j + 1], end_spins[j - 1 : j])[0]
+    return spin_start, q
 
 
 @dataclass(frozen=True, eq=False)
@@ -275,14 +295,9 @@ def exact_spherical_rmm(z: Callable, dz: Callable, start=None, *, interval: tupl
     a, b, v, own = (np.concatenate(x) for x in (done_a, done_b, done_v, done_p))
     order = np.argsort(a)
     a, b, v, own = a[order], b[order], v[order], own[order]
-    # spin at panel starts, restarted at 0 at each piece start
-    cum = np.concatenate(([0.0], np.cumsum(v)))
-    first_panel = np.searchsorted(a, pieces[:-1])
-    spin_start = cum[:-1] - cum[first_panel][own]
 
-    # frames at the piece starts: each piece starts from the end frame of the previous one
-    last = first_panel[1:] - 1
-    base_q = piece_start_quaternions(q0, bases, spin_start[last] + v[last])
+    # spins at the panel starts (0 at each piece start), frames at the piece starts (the previous end frames)
+    spin_start, base_q = chain_pieces(a, v, own, pieces, bases, q0)
     panels = np.append(a, b[-1])
     return ExactSphericalRMM(z, dz, pieces, bases, base_q, panels, own, spin_start)
 
