@@ -30,8 +30,8 @@ import numpy as np
 from scipy.interpolate import PchipInterpolator
 
 from planner.frames.spherical_rmm import (  # the same RMM (seed eq. 3)
+    PieceBasedRMM,
     base_starts,
-    based_quaternions,
     chain_pieces,
     spin_rate,
 )
@@ -166,7 +166,7 @@ def _clenshaw(C: np.ndarray, x: np.ndarray) -> np.ndarray:
 
 
 @dataclass(frozen=True, eq=False)
-class SpinTable:
+class SpinTable(PieceBasedRMM):
     """The exact RMM of z(u) as a table: reference motion from a base direction plus a spin.
 
     Frame at u (juttler seed Prop. 1 and eq. 3): F(u) = q_ref(b, z(u)) q_base spin(theta(u)), with
@@ -178,30 +178,11 @@ class SpinTable:
 
     Attributes
     ----------
-    z, dz : callable
-        u (n,) -> unit axes (n, 3), and their derivative.
-    pieces : ndarray (p + 1,)
-        Parameters where the base direction is renewed.
-    bases : ndarray (p, 3), base_quaternions : ndarray (p, 4)
-        Base direction and frame (unit quaternion) at each piece start.
-    panels : ndarray (k + 1,)
-        Panel breakpoints.
-    panel_piece : ndarray (k,)
-        Piece of each panel.
-    spin_start : ndarray (k,)
-        theta at each panel start, relative to its piece's base frame.
     coeffs : ndarray (k, CHEB_N + 1)
-        Chebyshev coefficients of theta - spin_start on each panel, in x = 2 (u - a) / (b - a) - 1.
+        Chebyshev coefficients of theta - spin_start on each panel, in x = 2 (u - a) / (b - a) - 1;
+        the others as in :class:`~planner.frames.spherical_rmm.PieceBasedRMM` (t is u here).
     """
 
-    z: Callable[..., np.ndarray]
-    dz: Callable[..., np.ndarray]
-    pieces: np.ndarray
-    bases: np.ndarray
-    base_quaternions: np.ndarray
-    panels: np.ndarray
-    panel_piece: np.ndarray
-    spin_start: np.ndarray
     coeffs: np.ndarray
 
     def spin(self, u) -> np.ndarray:
@@ -218,8 +199,7 @@ class SpinTable:
         """Unit quaternions (n, 4) of the frames at u (n,)."""
         u = np.atleast_1d(np.asarray(u, dtype=float))
         theta, k = self._spin(u)
-        piece = self.panel_piece[k]
-        return based_quaternions(self.bases[piece], self.base_quaternions[piece], self.z(u), theta)
+        return self._frames_on_panels(k, self.z(u), theta)
 
 
 #: Chebyshev points per spin panel.

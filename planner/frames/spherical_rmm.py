@@ -115,13 +115,18 @@ def chain_pieces(panel_starts: np.ndarray, panel_spins: np.ndarray, panel_piece:
 
 
 @dataclass(frozen=True, eq=False)
-class ExactSphericalRMM:
-    """The exact RMM of z(t) on [t0, t1], frames with column 2 = z(t).
+class PieceBasedRMM:
+    """An RMM of z(t) on the sphere stored as pieces and spin panels (seed eq. 3).
+
+    The frame at t is ``based_quaternions(b, q_base, z(t), theta(t))`` with b, q_base the base
+    direction and start frame of t's piece and theta(t) the spin from that frame; subclasses say how
+    theta is evaluated on a panel (:class:`ExactSphericalRMM`: adaptive quadrature;
+    :class:`planner.cam.axes.SpinTable`: Chebyshev series).
 
     Attributes
     ----------
     z, dz : callable
-        The curve (m,) -> (m, 3) (unit vectors) and its derivative.
+        The curve t (m,) -> unit vectors (m, 3) and its derivative.
     pieces : ndarray (p + 1,)
         Parameters where the base direction is renewed.
     bases : ndarray (p, 3)
@@ -129,21 +134,32 @@ class ExactSphericalRMM:
     base_quaternions : ndarray (p, 4)
         Unit quaternions of the frames at the piece starts (signs continuous).
     panels : ndarray (k + 1,)
-        Quadrature panel breakpoints (the pieces' breakpoints among them).
+        Panel breakpoints (the pieces' breakpoints among them).
     panel_piece : ndarray (k,)
         Piece of each panel.
     spin_start : ndarray (k,)
         Spin theta (rad) at the start of each panel, relative to its piece's base frame.
     """
 
-    z: Callable
-    dz: Callable
+    z: Callable[..., np.ndarray]
+    dz: Callable[..., np.ndarray]
     pieces: np.ndarray
     bases: np.ndarray
     base_quaternions: np.ndarray
     panels: np.ndarray
     panel_piece: np.ndarray
     spin_start: np.ndarray
+
+    def _frames_on_panels(self, k: np.ndarray, z: np.ndarray, theta: np.ndarray) -> np.ndarray:
+        """Unit quaternions (n, 4) of the frames with axes z (n, 3) and spins theta (n,) rad on panels k (n,)."""
+        piece = self.panel_piece[k]
+        return based_quaternions(self.bases[piece], self.base_quaternions[piece], z, theta)
+
+
+@dataclass(frozen=True, eq=False)
+class ExactSphericalRMM(PieceBasedRMM):
+    """The exact RMM of z(t) on [t0, t1], frames with column 2 = z(t); the spin on a panel by
+    Gauss-Legendre quadrature from its start (see :class:`PieceBasedRMM` for the attributes)."""
 
     def _locate(self, t):
         t = np.atleast_1d(finite_floats(t, "t"))
@@ -176,11 +192,8 @@ class ExactSphericalRMM:
 
     def _eval(self, t):
         t, k = self._locate(t)
-        piece = self.panel_piece[k]
-        b = self.bases[piece]
         z = val.curve_values(self.z, t, "z", True)
-        q = based_quaternions(b, self.base_quaternions[piece], z, self._spin(t, k))
-        return q, t, b, z
+        return self._frames_on_panels(k, z, self._spin(t, k)), t, self.bases[self.panel_piece[k]], z
 
     def quaternion(self, t) -> np.ndarray:
         """Unit quaternions (n, 4) of the frames at t (n,), signs continuous."""
