@@ -456,7 +456,7 @@ async def accept_json(svc: Service, who: Principal, body: bytes) -> str:
 
 class FastSubmit:
     """``POST /v1/jobs`` with a JSON body, accepted without the framework's routing, request and dependency
-    machinery (a third of the event loop's CPU for a submit of 100 waypoints: with 20 clients submitting at once,
+    machinery (a quarter of the event loop's CPU for a submit of 100 waypoints: with 20 clients submitting at once,
     every request waits for the others' share). The same :func:`accept_json` as the route; a request it does not
     accept (no valid key, a bad body, another content type) goes to the route with its body replayed, which answers
     it exactly as it answers any request."""
