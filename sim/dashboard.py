@@ -16,9 +16,9 @@ emergency stop), and what URSim answers in local mode.
 from __future__ import annotations
 
 import socket
-import threading
 
 from sim import core as c
+from sim.listeners import Listeners
 from sim.rtde_server import CONTROLLER_VERSION
 
 GREETING = "Connected: Universal Robots Dashboard Server"
@@ -33,61 +33,33 @@ REMOTE_ONLY = ("load", "load installation", "play", "stop", "pause", "power on",
                "unlock protective stop", "restart safety", "shutdown")
 
 
-class DashboardServer:
+class DashboardServer(Listeners):
     """The dashboard listener of one simulated controller."""
 
+    name = "dashboard"
+
     def __init__(self, core, host: str, port: int = 29999) -> None:
+        super().__init__(host, (port,))
         self.core = core
-        self.sock = socket.create_server((host, port))
         self.user_role = "PROGRAMMER"
-        self._thread = threading.Thread(target=self._accept, name="dashboard-accept", daemon=True)
-        self._clients: list[socket.socket] = []
 
-    def start(self) -> None:
-        self._thread.start()
-
-    def close(self) -> None:
-        self.sock.close()
-        for s in list(self._clients):
-            try:
-                s.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
-            s.close()
-
-    def _accept(self) -> None:
+    def serve(self, sock: socket.socket) -> None:
+        sock.sendall((GREETING + "\n").encode())
+        buf = b""
         while True:
-            try:
-                sock, _ = self.sock.accept()
-            except OSError:
+            chunk = sock.recv(4096)
+            if not chunk:
                 return
-            self._clients.append(sock)
-            threading.Thread(target=self._serve, args=(sock,), name="dashboard", daemon=True).start()
-
-    def _serve(self, sock: socket.socket) -> None:
-        try:
-            sock.sendall((GREETING + "\n").encode())
-            buf = b""
-            while True:
-                chunk = sock.recv(4096)
-                if not chunk:
+            buf += chunk
+            while b"\n" in buf:
+                line, buf = buf.split(b"\n", 1)
+                text = line.decode("utf-8", "replace").strip()
+                if not text:
+                    continue
+                reply, close = self.reply(text)
+                sock.sendall((reply + "\n").encode())
+                if close:
                     return
-                buf += chunk
-                while b"\n" in buf:
-                    line, buf = buf.split(b"\n", 1)
-                    text = line.decode("utf-8", "replace").strip()
-                    if not text:
-                        continue
-                    reply, close = self.reply(text)
-                    sock.sendall((reply + "\n").encode())
-                    if close:
-                        return
-        except OSError:
-            return
-        finally:
-            if sock in self._clients:
-                self._clients.remove(sock)
-            sock.close()
 
     def reply(self, text: str) -> tuple[str, bool]:  # noqa: C901 - one branch per command
         """The controller's reply to one command line, and whether it closes the connection."""

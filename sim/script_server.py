@@ -10,59 +10,29 @@ served: ur_rtde never reads them.
 from __future__ import annotations
 
 import socket
-import threading
 
+from sim.listeners import Listeners
 from sim.programs import ProgramFramer
 
 SCRIPT_PORTS = (30001, 30002, 30003)
 
 
-class ScriptServer:
+class ScriptServer(Listeners):
     """One listener per script port of one simulated controller."""
 
+    name = "script"
+
     def __init__(self, core, host: str, ports=SCRIPT_PORTS) -> None:
+        super().__init__(host, ports)
         self.core = core
-        self.socks = [socket.create_server((host, p)) for p in ports]
-        self._clients: list[socket.socket] = []
 
-    def start(self) -> None:
-        for s in self.socks:
-            threading.Thread(target=self._accept, args=(s,), name="script-accept", daemon=True).start()
-
-    def close(self) -> None:
-        for s in self.socks:
-            s.close()
-        for s in list(self._clients):
-            try:
-                s.shutdown(socket.SHUT_RDWR)
-            except OSError:
-                pass
-            s.close()
-
-    def _accept(self, listener: socket.socket) -> None:
-        while True:
-            try:
-                sock, _ = listener.accept()
-            except OSError:
-                return
-            self._clients.append(sock)
-            threading.Thread(target=self._serve, args=(sock,), name="script", daemon=True).start()
-
-    def _serve(self, sock: socket.socket) -> None:
+    def serve(self, sock: socket.socket) -> None:
         framer = ProgramFramer()
         port = sock.getsockname()[1]
-        try:
-            while True:
-                try:
-                    chunk = sock.recv(65536)
-                except OSError:
-                    return
-                if not chunk:
-                    return
-                for text in framer.feed(chunk):
-                    with self.core.lock:
-                        self.core.load_program(text, port)
-        finally:
-            if sock in self._clients:
-                self._clients.remove(sock)
-            sock.close()
+        while True:
+            chunk = sock.recv(65536)
+            if not chunk:
+                return
+            for text in framer.feed(chunk):
+                with self.core.lock:
+                    self.core.load_program(text, port)

@@ -113,8 +113,11 @@ def _flag(req: dict, key: str) -> bool:
 def _commands(core: Core, io, stop: threading.Event, loop: Loop) -> None:
     """JSON commands from the parent on stdin; EOF means the parent is gone."""
     for line in sys.stdin:
+        cmd = None
         try:
             req = json.loads(line)
+            if not isinstance(req, dict):
+                raise ValueError(f"a command is a JSON object, got {line.strip()[:80]!r}")
             cmd = req.get("cmd")
             if cmd == "state":
                 with core.lock:
@@ -144,7 +147,9 @@ def _commands(core: Core, io, stop: threading.Event, loop: Loop) -> None:
                 break
             else:
                 reply = {"error": f"unknown command {cmd!r}"}
-        except (ValueError, KeyError, TypeError) as exc:
+        except KeyError as exc:
+            reply = {"error": f"{cmd}: missing field {exc}"}
+        except (ValueError, TypeError) as exc:
             reply = {"error": str(exc)}
         print(json.dumps(reply), flush=True)
     stop.set()
@@ -209,10 +214,11 @@ def main(argv: list[str] | None = None) -> int:
     for srv in (rtde, dash, script):
         srv.start()
     loop.thread.start()
-    threading.Thread(target=_commands, args=(core, io, stop, loop), name="commands", daemon=True).start()
     ports = {"rtde": 30004, "dashboard": 29999, "script": [30001, 30002, 30003],
              "modbus": modbus.port if modbus else None}
     print("READY " + json.dumps({"host": host, "pid": os.getpid(), "ports": ports}), flush=True)
+    # replies to the parent's commands only after READY (the parent reads READY first)
+    threading.Thread(target=_commands, args=(core, io, stop, loop), name="commands", daemon=True).start()
     try:
         stop.wait()  # no periodic wake-ups: a woken thread of ours would take the GIL from the loop
     finally:

@@ -5,6 +5,7 @@ control mode (dashboard refusals, script ports refusing programs, ur_rtde's own 
 
 from __future__ import annotations
 
+import json
 import re
 import signal
 import socket
@@ -348,3 +349,32 @@ def test_the_command_line_says_when_the_recording_could_not_be_written(tmp_path)
     assert proc.returncode == 1, (out, err)
     assert "recording written" not in out
     assert "error: the recording was not written to /proc/run.npz" in err and "run.npz" in err
+
+
+def test_the_command_channel_refuses_malformed_commands_and_keeps_serving():
+    """The parent's JSON command channel of ``python -m sim.server``: READY first, then one reply per line; a
+    malformed command gets an error naming it and the channel goes on."""
+    host = next_host()
+    proc = subprocess.Popen([sys.executable, "-m", "sim.server", "--host", host, "--no-realtime"],
+                            stdin=subprocess.PIPE, stdout=subprocess.PIPE, stderr=subprocess.DEVNULL, text=True,
+                            cwd=REPO)
+    try:
+        lines = ['{"cmd": "emergency_stop", "pressed": 1}', '{"cmd": "remote_control"}', '{"cmd": "speed", "speed": '
+                 '"fast"}', '{"cmd": "speed", "speed": 1e300}', '{"cmd": "warp"}', 'not json', '[1, 2]', '{"cmd": "state"}']
+        proc.stdin.write("\n".join(lines) + "\n")
+        proc.stdin.flush()
+        assert proc.stdout.readline().startswith("READY ")
+        replies = [json.loads(proc.stdout.readline()) for _ in lines]
+        proc.stdin.write('{"cmd": "stop"}\n')
+        proc.stdin.flush()
+        assert proc.wait(20) == 0
+    finally:
+        proc.kill()
+    assert replies[0] == {"error": "emergency_stop: 'pressed' must be true or false, got 1"}
+    assert replies[1] == {"error": "remote_control: missing field 'on'"}
+    assert replies[2]["error"].startswith("speed must be a number > 0 and <= 10000, got 'fast'")
+    assert replies[3]["error"].startswith("speed must be a number > 0 and <= 10000, got 1e+300")
+    assert replies[4] == {"error": "unknown command 'warp'"}
+    assert "error" in replies[5]
+    assert replies[6] == {"error": "a command is a JSON object, got '[1, 2]'"}
+    assert replies[7]["safety_mode"] == "NORMAL" and replies[7]["runtime_state"] == "STOPPED"
