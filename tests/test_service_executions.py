@@ -135,6 +135,10 @@ def test_program_on_the_simulated_robot_follows_the_plan_and_holds_the_robot(ser
     assert rep["planned_duration_s"] == pytest.approx(demo_job["summary"]["duration_s"], abs=0.01)
     assert 0.95 * rep["planned_duration_s"] <= rep["duration_s"] <= 1.1 * rep["planned_duration_s"]
     assert rep["samples"] > 100 and rep["joint_limit_margin_rad"] > 0
+    # the recording's sampling and its gaps, as the report's text gives them
+    assert 0 < rep["recorded_every_s"] < 0.1 and rep["recording_gaps"] >= 0
+    assert (rep["recording_samples_missed"] == 0) == (rep["recording_gaps"] == 0) == (rep["recording_longest_gap_s"] == 0)
+    assert any(line.strip().startswith("recording: ") for line in rep["describe"]), rep["describe"]
     assert rep["path_length_m"] == pytest.approx(0.318, abs=0.01)
     assert rep["describe"][0] == "execution (program): ok"
     # the robot is free again, its process (and the simulated controller it started) gone; the execution is listed

@@ -60,6 +60,8 @@ def report_figures(report) -> dict:
         "path_length_m": getattr(report, "path_length", math.nan),
         "max_path_error_m": report.max_path_error, "max_path_error_t_s": report.max_path_error_t,
         "joint_limit_margin_rad": report.joint_limit_margin,
+        "recorded_every_s": report.recorded_every, "recording_gaps": report.gaps,
+        "recording_samples_missed": report.missed, "recording_longest_gap_s": report.longest_gap,
         "io_switches_planned": len(events), "io_switches_made": len(made),
         "max_io_distance_mm": None if math.isinf(worst) else worst,
         "io_events": [{"bit": e.bit, "output": bit_name(e.bit), "value": bool(e.value), "planned_s_m": e.planned_s,
