@@ -75,15 +75,27 @@ def op(server):
         yield c
 
 
-@pytest.fixture(scope="module")
-def demo_job(op):
-    """A done job of the demo pass for the ur5e (its id)."""
+def plan_demo(client) -> dict:
+    """The demo pass for the ur5e submitted as a file and planned: the done job's view."""
     with open(DEMO, "rb") as f:
-        r = op.post("/v1/jobs", files={"file": ("nx_first_pass.cls", f)}, data={"settings": json.dumps(SETTINGS)})
+        r = client.post("/v1/jobs", files={"file": ("nx_first_pass.cls", f)}, data={"settings": json.dumps(SETTINGS)})
     assert r.status_code == 202, r.text
-    view = wait_state(op, r.json()["id"])
+    view = wait_state(client, r.json()["id"])
     assert view["state"] == "done", view["error"]
     return view
+
+
+def start_running(client, job_id: str, **request) -> str:
+    """An execution of the job started on a robot (``request``: robot, mode) and seen running: its id."""
+    eid = client.post(f"/v1/jobs/{job_id}/executions", json=request).json()["id"]
+    assert wait_execution(client, eid, states=("running",) + ENDED, timeout=60)["state"] == "running"
+    return eid
+
+
+@pytest.fixture(scope="module")
+def demo_job(op):
+    """A done job of the demo pass for the ur5e (its view)."""
+    return plan_demo(op)
 
 
 def wait_execution(client, execution_id: str, states=ENDED, timeout: float = 120.0) -> dict:
@@ -332,12 +344,8 @@ def test_a_crash_of_the_service_fails_the_execution_it_interrupted(tmp_path, cel
     s = ServiceProcess(tmp_path, workers=1, env={"PLANNER_ROBOTS": _robots(cell)}).start()
     try:
         with s.client() as c:
-            with open(DEMO, "rb") as f:
-                r = c.post("/v1/jobs", files={"file": ("nx_first_pass.cls", f)},
-                           data={"settings": json.dumps(SETTINGS)})
-            job = wait_state(c, r.json()["id"])
-            eid = c.post(f"/v1/jobs/{job['id']}/executions", json={"robot": "cell"}).json()["id"]
-            assert wait_execution(c, eid, states=("running",) + ENDED, timeout=60)["state"] == "running"
+            job = plan_demo(c)
+            eid = start_running(c, job["id"], robot="cell")
         s.kill()
         s.start()
         with s.client() as c:
@@ -365,12 +373,8 @@ def test_sigterm_during_a_streamed_execution_stops_the_arm_and_the_restart_shows
     watch = rtde_receive.RTDEReceiveInterface(cell.host)
     try:
         with s.client() as c:
-            with open(DEMO, "rb") as f:
-                r = c.post("/v1/jobs", files={"file": ("nx_first_pass.cls", f)},
-                           data={"settings": json.dumps(SETTINGS)})
-            job = wait_state(c, r.json()["id"])
-            eid = c.post(f"/v1/jobs/{job['id']}/executions", json={"robot": "cell", "mode": "stream"}).json()["id"]
-            assert wait_execution(c, eid, states=("running",) + ENDED, timeout=60)["state"] == "running"
+            job = plan_demo(c)
+            eid = start_running(c, job["id"], robot="cell", mode="stream")
             deadline = time.monotonic() + 30
             while c.get(f"/v1/executions/{eid}").json()["progress"]["done"] < 1500:  # 3 s into the pass
                 assert time.monotonic() < deadline
