@@ -81,6 +81,12 @@ def _wait_mode(d: URDriver, mode: str, then: float, timeout: float = 30.0) -> No
     time.sleep(then)
 
 
+def _wait_job_program(sim, then: float, timeout: float = 30.0) -> None:
+    """Until the controller runs the job's own program (not ur_rtde's control script), then ``then`` s more."""
+    assert eventually(lambda: sim.state()["program"] == "planner_job", timeout=timeout), "the program did not start"
+    time.sleep(then)
+
+
 def test_servo_target_that_jumps_is_a_protective_stop_with_time_pose_and_line(make_sim, fast_job):
     sim = make_sim()
     with URDriver(sim.host, "ur5e", **FAST) as d:
@@ -130,7 +136,7 @@ def test_emergency_stop_mid_program(make_sim, demo_job):
     sim = make_sim(speed=5.0)
     with URDriver(sim.host, "ur5e", **FAST) as d:
         th, out = _run_in_thread(d, demo_job, mode="program")
-        _wait_mode(d, "program", 1.0)
+        _wait_job_program(sim, 1.0)
         sim.press_emergency_stop("system")
         th.join(30)
         assert not th.is_alive()
@@ -149,7 +155,7 @@ def test_stop_from_the_dashboard_mid_program(make_sim, demo_job):
     sim = make_sim(speed=5.0)
     with URDriver(sim.host, "ur5e", **FAST) as d:
         th, out = _run_in_thread(d, demo_job, mode="program")
-        _wait_mode(d, "program", 1.0)
+        _wait_job_program(sim, 1.0)
         dash = dashboard_client.DashboardClient(sim.host)
         dash.connect()
         dash.stop()
