@@ -394,7 +394,7 @@ class PlannedJob:
             *["  worst     " + "; ".join(f"pass {p.index} (lines {p.first_line}-{p.last_line}) "
                                          f"{1e3 * p.max_deviation:.4f} mm" for p in worst)] * bool(worst),
             self._axes_line(s),
-            f"  motion    {s['duration_s']:.1f} s, planned in {s['planning_s']:.2f} s",
+            f"  motion    {s['duration_s']:.1f} s; paths, frames and feed planned in {_seconds(s['planning_s'])}",
         ]
         if self.settings.robot is not None:
             if self.placement is not None:
@@ -469,3 +469,10 @@ def load_job(source) -> PlannedJob:
     if not isinstance(job, PlannedJob):
         raise PlannerError(f"{name}: not a saved planner job")
     return job
+
+
+def _seconds(t: float) -> str:
+    """A duration for people: ms below 0.1 s, s above ("3.2 ms", "1.55 s"); "-" when unknown."""
+    if not math.isfinite(t):
+        return "-"
+    return f"{1e3 * t:.1f} ms" if t < 0.1 else f"{t:.2f} s"

@@ -4,6 +4,7 @@ robot, the tool-axis convention of every input, settings refused by name, bad in
 from __future__ import annotations
 
 import io
+import re
 
 import numpy as np
 import pytest
@@ -108,6 +109,11 @@ def test_summary_names_passes_and_deviation():
     assert "3 passes" in text and "largest deviation from the CAM polyline" in text and "pass 0 (lines 14-53)" in text
     s = job.summary()
     assert s["passes"] == 3 and s["max_deviation_mm"] <= 0.01 and s["corners"] == 0
+    # the planning time in a unit people read (a few ms here, not "0.00 s")
+    m = re.search(r"planned in (\d+\.\d+) (ms|s)$", text.split("  motion    ")[1].split("\n")[0])
+    assert m is not None and float(m.group(1)) > 0
+    ms = m.group(2) == "ms"
+    assert float(m.group(1)) * (1e-3 if ms else 1.0) == pytest.approx(s["planning_s"], abs=0.051e-3 if ms else 0.0051)
 
 
 @pytest.mark.parametrize(
