@@ -48,7 +48,7 @@ class PlannedStation:
     tangent: np.ndarray
 
 
-def _switches(io: np.ndarray, first: int, offset: int = 0) -> list[tuple[int, bool, int]]:
+def bit_switches(io: np.ndarray, first: int, offset: int = 0) -> list[tuple[int, bool, int]]:
     """(bit, value, index + offset) of every change of a bit in the io samples, from the state ``first`` before
     them."""
     io = np.asarray(io, dtype=np.int64)
@@ -134,7 +134,7 @@ class PlannedPath:
             for i in waiting:  # their next sample is this piece's first (copies: a view would keep the piece)
                 st[i][4] = xyz[0].copy()
             waiting = []
-            sw = _switches(io, prev_io, k0)
+            sw = bit_switches(io, prev_io, k0)
             for _, _, i in sw:
                 j = i - k0
                 if i not in st:

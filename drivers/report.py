@@ -24,8 +24,7 @@ from scipy.spatial import cKDTree
 
 from drivers.base import DriverError
 from drivers.pacing import LoopStats
-from drivers.plan_window import PlannedPath, drop_blips
-from drivers.plan_window import _switches as _switches_from
+from drivers.plan_window import PlannedPath, bit_switches
 
 if TYPE_CHECKING:  # pragma: no cover
     from drivers.recording import ExecutionTrace
@@ -244,11 +243,6 @@ def distance_to_polyline(points: np.ndarray, path: np.ndarray, *, k: int = 8) ->
     return PolylineIndex(path).distance(points, k=k)
 
 
-def _switches(times: np.ndarray, io: np.ndarray, first: int) -> list[tuple[int, bool, int]]:
-    """(bit, value, index) of every change of a bit in the io samples, from the state ``first`` before them."""
-    return _switches_from(io, first)
-
-
 def joint_limit_margin(model: str | None, joints: np.ndarray) -> float:
     """Smallest distance of the recorded joints (n, 6) rad from the model's position limits, rad (NaN without)."""
     q = np.asarray(joints, dtype=float).reshape(-1, 6)
@@ -331,13 +325,6 @@ def new_recording(job, planned, *, block: int | None = None, prefetch: bool = Fa
                      prefetch=prefetch)
 
 
-def planned_switches(times: np.ndarray, io: np.ndarray) -> list[tuple[int, bool, int]]:
-    """(bit, value, index) of the planned switches of a trajectory's I/O column: every change of a bit, except a
-    change undone one sample later (the trajectory's output is off for the one sample between two cuts joined at a
-    corner: the drivers keep it on, :class:`drivers.stations.Stations`)."""
-    return drop_blips(_switches(times, io, 0))
-
-
 def _io_events(trace, plan: PlannedPath) -> list[IOSwitch]:
     """Planned switches matched with the recorded ones, bit and value apart, by an ordered alignment (each
     planned switch to at most one recorded switch, in order) of least total distance from the stations, a switch
@@ -349,7 +336,7 @@ def _io_events(trace, plan: PlannedPath) -> list[IOSwitch]:
     kept, with the planned segment nearest each sample); ``plan``: the planned switches and their stations."""
     t, tcp, io = trace.t, trace.xyz, trace.io
     planned = plan.switches
-    actual = _switches(t, io, 0)  # the driver clears the job's outputs before the run
+    actual = bit_switches(io, 0)  # the driver clears the job's outputs before the run
     act_by: dict[tuple[int, bool], list[int]] = {}
     for b, v, j in actual:
         act_by.setdefault((b, v), []).append(j)

@@ -76,7 +76,7 @@ class Stations:
     def add(self, station: Station) -> None:
         """A new switch; one that undoes the pending switch of the sample just before it (the trajectory's output
         off for the one sample between two cuts joined at a corner) cancels it instead: the output stays as it
-        is (see :func:`drivers.report.planned_switches`)."""
+        is (the planned switches drop it too: :func:`drivers.plan_window.drop_blips`)."""
         last = self.pending[-1] if self.pending else None
         if (last is not None and last.mask == station.mask and station.k - last.k <= BLIP
                 and last.value & last.mask != station.value & station.mask):
