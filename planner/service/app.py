@@ -294,7 +294,6 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
             job_id = await accept_json(svc, who, await request.body())
         elif ctype.startswith("multipart/form-data"):
             job_id = await _submit_file(svc, who, request)
-            svc.metrics.count_submitted()
         else:
             raise HTTPException(415, "send application/json (waypoints) or multipart/form-data (a toolpath file)")
         location = f"{API}/jobs/{job_id}"
@@ -587,6 +586,7 @@ async def _submit_file(svc: Service, who: Principal, request: Request) -> str:
         except Exception:  # the commit failed: no job refers to the files
             remove_job_files(svc.cfg, job_id)
             raise
+        svc.metrics.count_submitted()  # as accept_json counts a JSON job: once stored
         return job_id
     finally:
         await form.close()
