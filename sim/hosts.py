@@ -1,4 +1,5 @@
-"""Process-level rules of the simulator: loopback addresses only (unless asked otherwise), thread priorities."""
+"""Process-level rules of the simulator: loopback addresses only (unless asked otherwise), thread priorities, the
+fast-forward factor's bounds."""
 
 from __future__ import annotations
 
