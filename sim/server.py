@@ -75,8 +75,8 @@ class Loop:
             core.max_late_ms = max(core.max_late_ms, (now - t0 - (k + 1) * period) * 1e3)
             if behind > 1:
                 # the loop was held up: simulated time still follows the wall clock, the missed periods
-                # are integrated and (at speed <= 1) their data packages sent late, in a burst: a client
-                # recording every package sees no hole, as from a controller that never stalls
+                # are integrated and their data packages sent late, in a burst: a client recording every
+                # package sees no hole, as from a controller that never stalls
                 self.late += behind - 1
                 core.late_ticks += behind - 1
             k += max(behind, 1)
@@ -89,14 +89,14 @@ class Loop:
                 n, owed = self.max_batch, 0.0
             start = time.perf_counter()
             with core.lock:
-                if behind > 1 and n == behind:  # catching up in real time: one package per period
-                    for _ in range(n):
+                # one package per wall-clock period due, the n control periods spread over them
+                wall = max(behind, 1)
+                done = 0
+                for w in range(1, wall + 1):
+                    for _ in range(n * w // wall - done):
                         core.tick()
-                        core.packages_sent += rtde.publish(1)
-                else:
-                    for _ in range(n):
-                        core.tick()
-                    core.packages_sent += rtde.publish(max(behind, 1))
+                    done = n * w // wall
+                    core.packages_sent += rtde.publish(1)
             core.execution_time_ms = (time.perf_counter() - start) * 1e3
             for conn in list(rtde.conns):
                 conn.flush()
