@@ -99,7 +99,7 @@ class Recording:
         self.margin = math.inf
         #: index of the planned segment nearest the last sample reduced (its start): where the run is
         self.last_segment = 0
-        #: the recording's usual step between samples, s (the median of a block's); its gaps: steps longer than
+        #: the recording's usual step between samples, s (the largest median of a block's); its gaps: steps longer than
         #: GAP x that, the samples missed in them, the longest, s
         self.step = math.nan
         self.gaps = 0
@@ -210,10 +210,12 @@ class Recording:
             self._thin()
 
     def _count_gaps(self, dt: np.ndarray) -> None:
-        """Steps longer than GAP x the usual step (the median of a block of at least 20 steps): gaps."""
+        """Steps longer than GAP x the usual step (the largest median of a block of at least 20 steps so far: a
+        controller catching up after a stall sends its packages closer together, never further apart): gaps."""
         pos = dt[dt > 0]
         if pos.size >= 20:
-            self.step = float(np.median(pos))
+            med = float(np.median(pos))
+            self.step = med if not math.isfinite(self.step) else max(self.step, med)
         if not math.isfinite(self.step) or pos.size == 0:
             return
         long = pos[pos > GAP * self.step]

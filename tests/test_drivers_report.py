@@ -9,7 +9,7 @@ import numpy as np
 import pytest
 
 from drivers.base import DriverError, ProtectiveStopError
-from drivers.report import distance_to_polyline, execution_report, planned_path
+from drivers.report import distance_to_polyline, execution_report, new_recording, planned_path
 from planner import PlanSettings, plan
 
 PART = (0.4, 0.9965, -0.1, 0.0, 0.0, 0.0)
@@ -271,3 +271,22 @@ def test_the_recordings_gaps_are_counted_and_reported(job):
            "the longest 22.0 ms" in "\n".join(rep.describe())
     full = execution_report(job, c.times, c.poses, c.joints, c.io, mode="replay")
     assert full.gaps == full.missed == 0 and "no gap" in "\n".join(full.describe())
+
+
+def test_packages_closer_together_after_a_stall_are_not_gaps(job):
+    """A fast-forward program recording (a package every 10 control periods, 20 ms of job time), read and reduced
+    25 packages at a time as program mode does, in which a controller catching up after three stalls sent 50
+    packages 2 ms apart each time: no gap, the usual step still 20 ms (the catch-up blocks' median is 2 ms: the
+    20 ms steps after them counted as gaps before); a real hole of 6 packages later is one gap."""
+    c = job.trajectory().collect()
+    k = np.arange(0, len(c.times), 10)
+    for a in (3000, 12000, 21000):  # 50 packages 2 ms apart instead of 5 packages 20 ms apart
+        k = np.r_[k[k < a], np.arange(a, a + 50), k[k >= a + 50]]
+    k = k[(k < 25000) | (k >= 25060)]  # the 6 packages of 25000-25050 lost
+    rec = new_recording(job, None, block=25)
+    for a in range(0, k.size, 25):
+        b = k[a:a + 25]
+        rec.extend(c.times[b], c.poses[b], c.joints[b], c.io[b])
+    rep = execution_report(job, rec, mode="program")
+    assert rep.recorded_every == pytest.approx(0.020)
+    assert (rep.gaps, rep.missed) == (1, 6) and rep.longest_gap == pytest.approx(0.140)
