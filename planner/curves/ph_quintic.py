@@ -28,8 +28,8 @@ from planner.validation import ArgumentError, check_vector, finite_floats
 #: Weight of the fallback axis in :func:`_pure_vector_axis` (relative, squared): it decides the axis only where
 #: the end tangents are antiparallel to about 1e-6 (|sigma| below about 1e-6 |a0| |a2|).
 _AXIS_FALLBACK = 1e-12
-#: Composite Gauss-Legendre rule of the bending energy of the four candidates (see _least_energy_member): nodes
-#: on each of the pieces of [0, 1]. The energy of a candidate near a cusp is a sharp peak; on 5e4 rough random
+#: Composite Gauss-Legendre rule of the bending energy of the four candidates (see bending_energies): nodes on
+#: each of the pieces of [0, 1]. The energy of a candidate near a cusp is a sharp peak; on 5e4 rough random
 #: planar data 8 x 8 nodes rank the candidates as 64 x 16 nodes do wherever their energies differ by 1e-3
 #: (6 x 8 too, 4 x 8 not: 3 differ).
 _GL_NODES, _GL_PIECES = 8, 8
@@ -100,6 +100,25 @@ def _times_e_i(q: np.ndarray, c: np.ndarray, s: np.ndarray, out: np.ndarray | No
     return out
 
 
+#: OpenBLAS runs a matrix product with m n k above 4 * 65536 on all cores; on a loaded machine waking the threads
+#: costs far more than the product (a 1000-waypoint C1 fit took 9 ms instead of 0.6 at a load of 2.6 on 2 cores),
+#: so _mm cuts larger products into column blocks below that size.
+_BLAS_ONE_THREAD = 262_144
+
+
+def _mm(M: np.ndarray, X: np.ndarray) -> np.ndarray:
+    """M @ X (m, N) for M (m, k), X (k, N), on one thread (column blocks of at most _BLAS_ONE_THREAD / (m k))."""
+    m, k = M.shape
+    n = X.shape[1]
+    step = max(1, _BLAS_ONE_THREAD // (m * k))
+    if n <= step:
+        return M @ X
+    out = np.empty((m, n))
+    for a in range(0, n, step):
+        np.matmul(M, X[:, a:a + step], out=out[:, a:a + step])
+    return out
+
+
 def _dot(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Row-wise inner products (N,) of component rows."""
     return np.einsum("ij,ij->j", p, q)
@@ -143,66 +162,261 @@ def _member(a0, a2d, Q, c0, s0) -> np.ndarray:
     return A
 
 
-def _gauss_rule(nodes: int, pieces: int = 1) -> tuple[np.ndarray, np.ndarray]:
-    """Weights w (K,) of the composite Gauss-Legendre rule on [0, 1] (``pieces`` equal pieces, ``nodes`` each) and
-    B (K, 6): the Bernstein basis of A(t) = b0 A0 + b1 A1 + b2 A2 and its derivative (b0, b1, b2, b0', b1', b2')
-    at the K nodes."""
+def _energy_matrices(nodes: int, pieces: int = 1) -> tuple[np.ndarray, ...]:
+    """Weights (K,) of the composite Gauss-Legendre rule on [0, 1] (``pieces`` equal pieces, ``nodes`` each) and
+    the matrices that map the inner products of A0, A1, A2 to sigma = |A|^2, |A'|^2 and sigma' / 2 = <A, A'>
+    (stacked: 3K, 6 products g00 g01 g02 g11 g12 g22), and to <A i, A'> (K, 3 products h01 h02 h12,
+    h_jk = <A_j i, A_k> = -h_kj) at the K nodes."""
     x, wx = np.polynomial.legendre.leggauss(nodes)
     t = ((0.5 * (x + 1.0))[None] + np.arange(pieces)[:, None]).ravel() / pieces
     w = np.tile(wx, pieces) / (2.0 * pieces)
-    B = np.stack(((1 - t) ** 2, 2 * t * (1 - t), t * t, -2 * (1 - t), 2 - 4 * t, 2 * t), axis=1)
-    return w, B
+    nodes = t.size
+    b = np.stack(((1 - t) ** 2, 2 * t * (1 - t), t * t), axis=1)  # A(t) = sum b_j A_j
+    db = np.stack((-2 * (1 - t), 2 - 4 * t, 2 * t), axis=1)  # A'(t) = sum db_j A_j
+    pairs = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+    Ms, Md, Mx = (np.zeros((nodes, 6)) for _ in range(3))
+    for q, (j, k) in enumerate(pairs):
+        f = 1.0 if j == k else 2.0  # g_jk appears as jk and kj
+        Ms[:, q] = f * b[:, j] * b[:, k]
+        Md[:, q] = f * db[:, j] * db[:, k]
+        Mx[:, q] = b[:, j] * db[:, k] + (b[:, k] * db[:, j] if j != k else 0.0)
+    Mh = np.zeros((nodes, 3))
+    for q, (j, k) in enumerate(((0, 1), (0, 2), (1, 2))):  # <A i, A'> = sum b_j db_k h_jk, h_kj = -h_jk
+        Mh[:, q] = b[:, j] * db[:, k] - b[:, k] * db[:, j]
+    return w, np.vstack((Ms, Md, Mx)), Mh  # one product for s, d, x: one temporary, not three (page faults)
 
 
-_FULL_RULE = _gauss_rule(_GL_NODES, _GL_PIECES)
+_FULL_RULE = _energy_matrices(_GL_NODES, _GL_PIECES)
 #: The screening rule of _least_energy_member (2 x 4 nodes): a candidate whose estimate is below 1 / _SCREEN of
 #: the others' is taken without the full rule (on 1e5 rough random planar data: no difference from the full
 #: rule; a 3-node rule with a factor 3 differed on 1 %).
-_SCREEN_RULE = _gauss_rule(4, 2)
+_SCREEN_RULE = _energy_matrices(4, 2)
 _SCREEN = 10.0
-#: Weight of the speed-evenness term that breaks ties of the bending energy (see _least_energy_member): far
-#: below the round-off of any curved member's energy, far above a straight member's (round-off squared).
-_TIE = 1e-15
+#: Weight of the CC measure that breaks ties of the bending energy (see _least_energy_member).
+_TIE = 1e-9
 
 
-#: Two nodes of the screening rule (t = 0.17, 0.83, where the other candidates' loops or near-cusps lie) with
-#: their weights: partial sums of an estimate's nonnegative terms, lower bounds of it.
-_SCREEN_BOUND = (_SCREEN_RULE[0][[1, 6]], _SCREEN_RULE[1][[1, 6]])
+def bending_energies(A: np.ndarray) -> np.ndarray:
+    """Bending energy integral of kappa^2 ds (M,) of PH quintics A (3, 4, M) (coefficients, component rows),
+    by the composite Gauss-Legendre rule _GL_PIECES x _GL_NODES (a cusp at a node counts as infinite energy).
+
+    With r' = A i A*: sigma = |A|^2, r'' = 2 vec(A' i A*), so kappa^2 sigma = (|r''|^2 - sigma'^2) / sigma^3
+    = 4 (|A|^2 |A'|^2 - <A, A'>^2 - <A i, A'>^2) / |A|^6; each term is a quadratic form in A0, A1, A2, so the
+    values at the nodes are matrix products of their nine inner products.
+    """
+    A0, A1, A2 = A
+    g = np.stack((_dot(A0, A0), _dot(A0, A1), _dot(A0, A2), _dot(A1, A1), _dot(A1, A2), _dot(A2, A2)))
+    A0i, A1i = A0[_IPERM] * _ISIGN, A1[_IPERM] * _ISIGN  # A_j i
+    h = np.stack((_dot(A0i, A1), _dot(A0i, A2), _dot(A1i, A2)))
+    w, Msdx, Mh = _FULL_RULE
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        return _energies_at_nodes(_mm(Msdx, g), _mm(Mh, h), w)
 
 
-def _least_energy_member(dp, base, a0, a2, r0, r1, root_scale=None) -> np.ndarray:
-    """A (N, 3, 4) of the default member (see :func:`batch_hermite`), times ``root_scale`` (N,) if given: of the
-    four members with A0 i A2* a pure vector, the one of least bending energy.
+def _energies_at_nodes(V: np.ndarray, Y: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """4 int kappa^2 sigma dt (M,) by a Gauss rule of weights w (K,) from the values at its nodes of sigma, |A'|^2,
+    <A, A'> (rows of V (3K [+ more], M)) and <A i, A'> (Y (K, M)); V and Y are overwritten (no temporaries: they
+    would be fresh pages). A cusp at a node (sigma <= 0) gives an infinite energy. Call under np.errstate."""
+    k = w.size
+    s, d, x = V[:k], V[k:2 * k], V[2 * k:3 * k]
+    np.maximum(s, 0.0, out=s)  # sigma = |A|^2 >= 0 but for round-off: <= 0 is a cusp, f = 0 / 0 or x / 0
+    d *= s
+    x *= x
+    d -= x
+    Y *= Y
+    d -= Y
+    np.maximum(d, 0.0, out=d)  # |A|^2 |A'_perp|^2 >= 0 but for round-off
+    np.multiply(s, s, out=x)
+    x *= s  # sigma^3
+    d /= x
+    E = w @ d
+    E *= 4.0
+    E[~(E >= 0.0)] = np.inf  # nan (0 / 0) or -inf (x / -0) at a cusp
+    return E
+
+
+#: Two nodes of the screening rule (t = 0.17, 0.83) with their weights, rows of its matrices: lower bounds of
+#: its estimates (see _screen).
+_SCREEN_BOUND = (
+    _SCREEN_RULE[0][[1, 6]],
+    _SCREEN_RULE[1][[1, 6, 9, 14, 17, 22]],
+    _SCREEN_RULE[2][[1, 6]],
+)
+#: The full rule's nodes on the pieces 0, 1, 6, 7 of 8 (t < 1/4, t > 3/4) with their weights, rows of its
+#: matrices: lower bounds of its energies (see _rank_close).
+_FULL_NODE_BOUND = np.r_[0:16, 48:64]
+_FULL_BOUND = (
+    _FULL_RULE[0][_FULL_NODE_BOUND],
+    _FULL_RULE[1][np.r_[_FULL_NODE_BOUND, 64 + _FULL_NODE_BOUND, 128 + _FULL_NODE_BOUND]],
+    _FULL_RULE[2][_FULL_NODE_BOUND],
+)
+
+
+#: Segments per block of _least_energy_member: its temporaries (about 60 kB per 100 segments) stay small enough to
+#: be reused from the allocator's free lists instead of being fresh pages each time (10000 segments in one
+#: block took twice as long, half of it page faults).
+_BLOCK = 2048
+
+
+def _least_energy_member(dp, base, a0, a2, r0, r1) -> np.ndarray:
+    """A (3, 4, N) of the default member (see :func:`_least_energy_block`), in blocks of _BLOCK segments."""
+    n = dp.shape[1]
+    if n <= _BLOCK:
+        return _least_energy_block(dp, base, a0, a2, r0, r1)
+    A = np.empty((3, 4, n))
+    for a in range(0, n, _BLOCK):
+        b = slice(a, a + _BLOCK)
+        A[..., b] = _least_energy_block(dp[:, b], base[:, b], a0[:, b], a2[:, b], r0[b], r1[b])
+    return A
+
+
+def _least_energy_block(dp, base, a0, a2, r0, r1) -> np.ndarray:
+    """A (3, 4, N) of the default member (see :func:`batch_hermite`): of the four members with A0 i A2* a pure
+    vector, the one of least bending energy.
 
     The candidates are delta in {delta0, delta0 + pi} (``_pure_vector_axis``) and, for each, phi0 at the maximum
-    of <A0 + A2, Q> and phi0 + pi. Their energies E = int kappa^2 ds = 4 int (W_j^2 + W_k^2) / |A|^6 dt with
-    W = A* A' (r' = A i A*, sigma = |A|^2, r'' = 2 vec(A' i A*): kappa^2 sigma = (|r''|^2 - sigma'^2) / sigma^3
-    = 4 (|A|^2 |A'|^2 - <A, A'>^2 - <A i, A'>^2) / |A|^6, and |A|^2 |A'|^2 = |W|^2 with W's scalar and i parts
-    <A, A'> and <A i, A'>, so the difference is W_j^2 + W_k^2 without cancellation: a straight member gets 0
-    to round-off squared) by Gauss rules on A(t), A'(t). The rule: a coarse rule (_SCREEN_RULE, 2 x 4 nodes)
-    screens them; where one candidate's estimate is below 1 / _SCREEN of the other three's (smooth data: the
-    others have cusps or loops) it is taken; elsewhere the composite rule _FULL_RULE (8 x 8 nodes) decides among
-    the candidates within _SCREEN of the best estimate. A cusp at a node counts as infinite energy. Ties of the
-    energy (straight members: the segment itself and the same line with a stop, all of zero energy) go to the
-    most even parametric speed: _TIE int (sigma' / sigma)^2 dt / (|d0| + |d1|) joins the energy (a stop makes
-    it large; the CC measure |A0 - 2 A1 + A2|^2, the tie-break before, preferred a member with a stop, whose
-    tangent is undefined there and whose round-off wiggle has a curvature peak).
+    of <A0 + A2, Q> and phi0 + pi. Their energies E = 4 int Lambda / sigma^3 dt (see :func:`bending_energies`)
+    follow from nine inner products of A0, A1, A2, themselves from a few inner products of a0, a2, Q
+    (A1 = -(3/4)(A0 + A2) + Q/4, <A0, A0> = |d0|, ...). The rule: a coarse Gauss rule (_SCREEN_RULE) screens
+    them; where one candidate's estimate is below 1 / _SCREEN of the other three's (smooth data: the others have
+    cusps or loops) it is taken; elsewhere the composite rule of :func:`bending_energies` decides among the
+    candidates within _SCREEN of the best estimate. Ties of the energy go to the least CC measure (a _TIE
+    weight of it).
 
-    Computed by the compiled kernel of :mod:`planner.curves.hermite_member`; tests/test_member_selection.py
-    checks it against the rule as first written in numpy (which lost the straight members' zero energy to
-    cancellation, so that its choice on near-straight segments rested on round-off).
+    The work is cut without changing the choice (tests/test_member_selection.py checks it against the rule as
+    first written): most segments are decided by candidate 0's estimate and lower bounds of the others' (see
+    :func:`_screen`), and where the full rule decides, the screen's best is confirmed by lower bounds of the
+    others' full-rule energies (see :func:`_rank_close`).
     """
-    from planner.curves import hermite_member as hm  # numba: imported when first needed
-
     n = dp.shape[1]
-    X = np.empty((hm.X_ROWS, n))
-    X[hm.X_DP:hm.X_DP + 3], X[hm.X_BASE:hm.X_BASE + 3] = dp, base
-    X[hm.X_A0:hm.X_A0 + 4], X[hm.X_A2:hm.X_A2 + 4] = a0, a2
-    X[hm.X_R0], X[hm.X_R1] = r0, r1
-    out = np.empty((n, 3, 4))
-    scale = np.ones(n) if root_scale is None else np.ascontiguousarray(root_scale, dtype=float)
-    hm.least_energy_members(X, scale, _AXIS_FALLBACK, _TIE, _SCREEN, _SCREEN_RULE, _SCREEN_BOUND, _FULL_RULE, out)
-    return out
+    with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
+        R = _mm(_PRODUCTS, np.multiply(a0[:, None], a2[None]).reshape(16, n))  # a0 i a2* and a0 a2*, (vec, scalar)
+        c, s = _pure_vector_axis(R[:3], R[4:7], R[3], R[7], r0 * r1, dp)
+        a2d = _times_e_i(a2, c, s)  # a2 e^{i delta0}; delta0 + pi negates it
+        S = R[:3] * c
+        S += R[4:7] * s
+        S *= 10.0
+        alpha = np.empty((3, 2, n))  # per delta (delta0, delta0 + pi): Farouki's alpha = base + 10 S(delta)
+        np.add(base, S, out=alpha[:, 0])
+        np.subtract(base, S, out=alpha[:, 1])
+        Qf, qq = sqrt_rot(alpha.reshape(3, 2 * n))
+        Q = Qf.reshape(4, 2, n)
+        X = np.empty((4, 4, n))  # a0, a0 i, a2d, a2d i: their inner products with Q are <., Q>, <. i, Q>
+        X[0], X[2] = a0, a2d
+        np.multiply(a0[_IPERM], _ISIGN, out=X[1])
+        np.multiply(a2d[_IPERM], _ISIGN, out=X[3])
+        u0, v0, u2, v2 = np.einsum("vcn,ckn->vkn", X, Q)  # (2, N) each
+        u2[1] *= -1.0  # a2 e^{i (delta0 + pi)} = -a2d
+        v2[1] *= -1.0
+        x, y = u0 + u2, v0 + v2  # <(a0 + a2d) e^{i phi0}, Q> = x cos + y sin: the maximum at phi0 = atan2(y, x)
+        h = np.hypot(x, y)
+        ok = h > 0
+        c0, s0 = np.where(ok, x / h, 1.0), np.where(ok, y / h, 0.0)
+        # the candidates' inner products (6, 4, N) and (3, 4, N), k = 2 * (delta index) + (phi0 + pi) (the flip
+        # negates A0, A2 and so P, V), in the order of operations of bending_energies' first version: the same bits,
+        # so that the choice between members of equal energy (straight ones) is the same to the last bit
+        g = np.empty((6, 2, 2, n))
+        hh = np.empty((3, 2, 2, n))
+        P = np.empty((2, 2, 2, n))  # P0, P2
+        g[0], g[5] = r0, r1
+        np.subtract(R[7] * c, R[3] * s, out=g[2, 0])  # <a0, a2 e^{i delta}>, <a0 i, a2 e^{i delta}>
+        np.negative(g[2, 0], out=g[2, 1])
+        e = hh[1]
+        np.add(R[3] * c, R[7] * s, out=e[0])
+        np.negative(e[0], out=e[1])
+        np.add(c0 * u0, s0 * v0, out=P[0, :, 0])  # <A0, Q>, <A2, Q> at phi0 ...
+        np.add(c0 * u2, s0 * v2, out=P[1, :, 0])
+        np.negative(P[:, :, 0], out=P[:, :, 1])
+        V0, V2 = c0 * v0 - s0 * u0, c0 * v2 - s0 * u2  # ... <A0 i, Q>, <A2 i, Q>
+        g, hh, P, e = g.reshape(6, 4, n), hh.reshape(3, 4, n), P.reshape(2, 4, n), e.reshape(4, n)
+        P0, P2 = P
+        r01 = np.stack((r0, r1))[:, None]
+        np.add(-0.75 * (r01 + g[2]), 0.25 * P, out=g[1::3])  # g01 and g12
+        g11 = (0.5625 * (r0 + r1 + 2.0 * g[2]) - 0.375 * (P0 + P2)).reshape(2, 2, n)
+        np.add(g11, 0.0625 * qq.reshape(2, 1, n), out=g[3].reshape(2, 2, n))
+        hh[0, ::2], hh[0, 1::2] = -0.75 * e[::2] + 0.25 * V0, -0.75 * e[1::2] - 0.25 * V0
+        hh[2, ::2], hh[2, 1::2] = -0.75 * e[::2] - 0.25 * V2, -0.75 * e[1::2] + 0.25 * V2
+        cc = g[0] + 4.0 * g[3] + g[5] - 4.0 * g[1] + 2.0 * g[2] - 4.0 * g[4]
+        g, hh = g.reshape(6, 4 * n), hh.reshape(3, 4 * n)
+        tie = _TIE / (r0 + r1) ** 2
+        # ties (a straight segment and the same line with stops, both of zero energy) go to the least CC measure
+        # |A0 - 2 A1 + A2|^2 (FGMS 2008): _TIE of it, made dimensionless by (|d0| + |d1|)^2, joins the energy
+        tcc = (cc * tie).reshape(-1)
+        best = _screen(g, hh, tcc, n)
+    j, fl = best // 2, best % 2
+    sign = 1.0 - 2.0 * fl
+    cols = np.arange(n)
+    return _member(a0, a2d * (1.0 - 2.0 * j), Q[:, j, cols], sign * c0[j, cols], sign * s0[j, cols])
+
+
+def _screen(g, hh, tcc, n) -> np.ndarray:
+    """The best candidate (N,) (index 0-3) from the candidates' inner products g (6, 4N), hh (3, 4N) and tie terms
+    tcc (4N,) (columns k N + segment): the screening rule's choice where one candidate's estimate is below
+    1 / _SCREEN of the other three's, :func:`_rank_close` elsewhere.
+
+    Most segments of smooth data are decided by candidate 0's estimate and lower bounds of the other three's
+    from two of the screening rule's eight nodes (t = 0.17, 0.83, where their loops or near-cusps lie), each a
+    part of their estimate's sum of nonnegative terms: where those exceed _SCREEN times candidate 0's (with a
+    margin for round-off) the screen would take candidate 0. The other segments get the whole screen.
+    The estimates are those of the first version (the same operations on the same numbers), so that the
+    choice is the same also where it rests on round-off (members of equal energy, such as straight ones).
+    """
+    w, M1, M2 = _SCREEN_RULE
+    E0 = _energies_at_nodes(_mm(M1, g[:, :n]), _mm(M2, hh[:, :n]), w) + tcc[:n]
+    wl, M1l, M2l = _SCREEN_BOUND
+    lb = (_energies_at_nodes(_mm(M1l, g[:, n:]), _mm(M2l, hh[:, n:]), wl) + tcc[n:]).reshape(3, n)
+    best = np.zeros(n, dtype=np.intp)
+    rest = np.flatnonzero(~(lb > (_SCREEN * (1.0 + 1e-9)) * E0).all(axis=0))
+    if rest.size:  # the whole screen: the other three's estimates
+        m = rest.size
+        cols = (np.arange(4)[:, None] * n + rest).ravel()
+        g, hh, tcc = g[:, cols], hh[:, cols], tcc[cols]
+        est = np.empty((4, m))
+        est[0] = E0[rest]
+        est[1:] = (_energies_at_nodes(_mm(M1, g[:, m:]), _mm(M2, hh[:, m:]), w) + tcc[m:]).reshape(3, m)
+        b = np.argmin(est, axis=0)
+        sub = np.arange(m)
+        eb = est[b, sub]
+        others = est.copy()
+        others[b, sub] = np.inf
+        bad = np.flatnonzero(~(others.min(axis=0) > _SCREEN * eb))
+        if bad.size:
+            b[bad] = _rank_close(g, hh, tcc, est, b, bad, m)
+        best[rest] = b
+    return best
+
+
+def _rank_close(g, hh, tcc, est, best, bad, n) -> np.ndarray:
+    """The best candidate (index 0-3) of each segment ``bad`` among those within _SCREEN of the best screening
+    estimate, by the full rule.
+
+    The screen's best is confirmed without the full rule on the others where its full-rule energy is below lower
+    bounds of theirs: their full rule's terms on the pieces 0, 1, 6, 7 of its 8 (t < 1/4 and t > 3/4, where their
+    loops or near-cusps lie; part of the same sum of nonnegative terms). Elsewhere the full rule decides.
+    """
+    m = bad.size
+    cols = np.arange(m)
+    b, eb = best[bad], est[best[bad], bad]
+    k, col = np.nonzero(est[:, bad] < _SCREEN * eb)
+    kc = k * n + bad[col]  # the candidates' columns
+    cb = b * n + bad
+    w, M1, M2 = _FULL_RULE
+    E = np.full((4, m), np.inf)
+    E[b, cols] = _energies_at_nodes(_mm(M1, g[:, cb]), _mm(M2, hh[:, cb]), w) + tcc[cb]
+    o = k != b[col]
+    wl, M1l, M2l = _FULL_BOUND
+    low = np.full((4, m), np.inf)
+    low[k[o], col[o]] = _energies_at_nodes(_mm(M1l, g[:, kc[o]]), _mm(M2l, hh[:, kc[o]]), wl) + tcc[kc[o]]
+    has_b = np.zeros(m, dtype=bool)
+    has_b[col[~o]] = True  # the best is a candidate unless its estimate is 0 or infinite (then none is)
+    redo = np.flatnonzero(~(has_b & (low.min(axis=0) > E[b, cols] * (1.0 + 1e-9))))
+    if redo.size:  # the full rule on those segments' candidates
+        pick = np.isin(col, redo) & o
+        kf, colf, kcf = k[pick], col[pick], kc[pick]
+        E[kf, colf] = _energies_at_nodes(_mm(M1, g[:, kcf]), _mm(M2, hh[:, kcf]), w) + tcc[kcf]
+        E[:, redo[~has_b[redo]]] = np.inf
+        b[redo] = np.argmin(E[:, redo], axis=0)
+    return b
 
 
 def hermite_rows(dp, d0, d1, a0, a2, r0, r1, angles=None, root_scale=None) -> np.ndarray:
@@ -212,16 +426,17 @@ def hermite_rows(dp, d0, d1, a0, a2, r0, r1, angles=None, root_scale=None) -> np
     n = dp.shape[1]
     base = 120.0 * dp - 15.0 * (d0 + d1)  # Farouki: alpha = base + 5 (A0 i A2* + A2 i A0*)
     if angles is None:
-        return _least_energy_member(dp, base, a0, a2, r0, r1, root_scale)
-    ang = finite_floats(angles, "angles", ((2,), (2, None)))
-    if ang.ndim == 2 and ang.shape[1] not in (1, n):
-        raise ArgumentError("angles", f"must be (phi0, phi2), each one angle or one per segment ({n}), "
-                                      f"got shape {ang.shape}")
-    phi0 = np.broadcast_to(ang[0], (n,))
-    delta = np.broadcast_to(ang[1], (n,)) - phi0
-    a2d = _times_e_i(a2, np.cos(delta), np.sin(delta))
-    Q = sqrt_rot(base + 10.0 * _i_product(a0, a2d))[0]  # Farouki: (3A0+4A1+3A2) i (..)* = alpha
-    A = _member(a0, a2d, Q, np.cos(phi0), np.sin(phi0))
+        A = _least_energy_member(dp, base, a0, a2, r0, r1)
+    else:
+        ang = finite_floats(angles, "angles", ((2,), (2, None)))
+        if ang.ndim == 2 and ang.shape[1] not in (1, n):
+            raise ArgumentError("angles", f"must be (phi0, phi2), each one angle or one per segment ({n}), "
+                                          f"got shape {ang.shape}")
+        phi0 = np.broadcast_to(ang[0], (n,))
+        delta = np.broadcast_to(ang[1], (n,)) - phi0
+        a2d = _times_e_i(a2, np.cos(delta), np.sin(delta))
+        Q = sqrt_rot(base + 10.0 * _i_product(a0, a2d))[0]  # Farouki: (3A0+4A1+3A2) i (..)* = alpha
+        A = _member(a0, a2d, Q, np.cos(phi0), np.sin(phi0))
     out = np.empty((n, 3, 4))
     if root_scale is None:
         out[...] = A.transpose(2, 0, 1)
@@ -245,8 +460,7 @@ def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
        :func:`_pure_vector_axis`); for each delta, phi0 is where |A0 - 2 A1 + A2| (the CC measure of Farouki,
        Giannelli, Manni, Sestini 2008) is extremal, a sinusoid in phi0 with two extremes phi0, phi0 + pi.
     2. Of the four, the one of least bending energy integral of kappa^2 ds (the criterion of Farouki 1996,
-       "The elastic bending energy of Pythagorean-hodograph curves", CAGD 13; Gauss-Legendre quadrature);
-       between members of equal energy (straight ones), the one of most even parametric speed.
+       "The elastic bending energy of Pythagorean-hodograph curves", CAGD 13; Gauss-Legendre quadrature).
 
     Why these four: the curve depends on the data alone, not on coordinates, and every isometry of the data
     carries them onto themselves. For data in a plane (p1 - p0, d0, d1 coplanar) they are exactly the four
