@@ -94,7 +94,7 @@ class ExecutionReport:
     positions and speed, output bits; at most ~20,000 samples, every output change kept): what a plot draws;
     recorded_every: the recording's usual step between samples, s; gaps: steps between recorded samples longer than
     1.5 x that (data packages missed, ``missed`` of them in all; the longest ``longest_gap`` s);
-    recording: how the samples were recorded (e.g. "every data package" or "one reading per control period").
+    recording: how the samples were recorded (the drivers: "every data package", through a connection of its own).
     """
 
     mode: str

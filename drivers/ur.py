@@ -10,10 +10,11 @@ Two modes, one report (:func:`drivers.report.execution_report`):
 - "program": the job's URScript program (:func:`planner.export.job_program`) sent to the script port
   (30002); the driver watches it run (RTDE runtime state; progress by the planned sample nearest the actual TCP).
 
-In both modes the actual TCP, joints and digital outputs are recorded from ``RTDEReceiveInterface``: in stream
-mode one reading per control period (of one data package: read again if a package arrived meanwhile); in program
-mode every data package, whole, through a recording connection of its own (:class:`drivers.package_log.PackageLog`:
-a polled reading mixes packages and misses those between polls). Every
+In both modes the actual TCP, joints and digital outputs of every data package are recorded, whole, through a
+recording connection of its own (:class:`drivers.package_log.PackageLog`: a polled reading mixes packages and
+misses those between polls; in stream mode one reading per control period missed a package whenever the loop's
+phase drifted against the controller's, some 20 in a minute); the streaming loop still reads
+``RTDEReceiveInterface`` each period for its checks (faults, runtime state, the outputs' stations). Every
 failure is a :class:`drivers.base.DriverError` subclass with the robot's reason and the job's time, planned
 pose and source line; the driver never retries a motion by itself. The driver connects only to the host it is
 given.
@@ -62,7 +63,8 @@ _SAFETY_MODES = {1: "NORMAL", 2: "REDUCED", 3: "PROTECTIVE_STOP", 4: "RECOVERY",
                  10: "VALIDATE_JOINT_ID", 11: "UNDEFINED_SAFETY_MODE", 12: "AUTOMATIC_MODE_SAFEGUARD_STOP",
                  13: "SYSTEM_THREE_POSITION_ENABLING_STOP"}
 MODES = ("stream", "program")
-#: The streaming loop reduces its recording when this many samples wait and a period has this much time left, s.
+#: The streaming loop takes the recorded packages into its recording (reduced at once) after this many periods, in
+#: a period with this much time left, s.
 _RT_BLOCK, _RT_SPARE = 100, 1.2e-3
 #: Program mode reads the packages recorded so far (and reports progress) this often, s of wall time.
 _READ_EVERY = 0.05
@@ -466,8 +468,8 @@ class URDriver:
         finally:
             if feed is not None:
                 feed.close()
-        how = "one reading per control period" if mode == "stream" else "every data package"
-        return execution_report(job, rec, mode=mode, failure=failure, planned=planned, loop=loop, recording=how)
+        return execution_report(job, rec, mode=mode, failure=failure, planned=planned, loop=loop,
+                                recording="every data package")
 
     def _stopped(self, cancel) -> DriverError | None:
         return stop_requested(cancel, self._stop)
@@ -518,13 +520,14 @@ class URDriver:
         rate = float(job.settings.rate)
         dt = 1.0 / rate
         la, gain = self.lookahead, self.gain
-        # reduced as it goes (bounded memory), in periods with time to spare, ~100 samples at a time (~0.5 ms; 2500
-        # at a time took 10-15 ms, several missed periods every 5 s); the plan's pieces it is compared with are made
-        # ahead by a thread
+        # every data package, from the recording connection, reduced as it goes (bounded memory), in periods with time
+        # to spare, ~100 packages at a time (~0.5 ms; 2500 at a time took 10-15 ms, several missed periods every 5 s);
+        # the plan's pieces it is compared with are made ahead by a thread
         rec = new_recording(job, planned, prefetch=True)
+        log = None
+        untaken = 0  # periods since the packages were last taken into the recording
         if isinstance(rec.planned, PlanWindow):
             rec.planned.prime()  # its first pieces made before the first period
-        t_rec = 0.0
         failure = None
         prev_io = 0
         stations = Stations(self._outputs().set_bits)  # switches whose station the actual TCP has not reached yet
@@ -545,6 +548,7 @@ class URDriver:
         gc.disable()
         gc.freeze()
         try:
+            log = PackageLog(self.host, self.frequency)
             last = sched.start()
             for sl in feed:
                 qs, ios, times, pos, h0 = sl.q, sl.io, sl.t, sl.positions, sl.history
@@ -563,11 +567,9 @@ class URDriver:
                     if ios[i] != prev_io and not paused:
                         stations.add(Station.on_path(k, ios[i] ^ prev_io, ios[i], pos, h0 + i, rate=rate))
                         prev_io = ios[i]
-                    ts, x, qa, bits, sbits, smode, rmode, runtime = self._read()
+                    ts, x, _, _, sbits, smode, rmode, runtime = self._read()
                     if ts0 is None:
                         ts0 = ts - times[i]  # the controller's clock, 0 at the job's start
-                    t_rec = ts - ts0
-                    rec.add(t_rec, x, qa, bits)
                     if stations:
                         stations.reached(x, k)
                     f = self._fault_of(sbits, smode, rmode)
@@ -581,15 +583,16 @@ class URDriver:
                         k += 1
                         if progress is not None and k % report_every == 0:
                             progress("execute", k, total)
-                    if rec.pending >= _RT_BLOCK and sched.time_left() > _RT_SPARE:
-                        rec.reduce_pending()
+                    untaken += 1
+                    if untaken >= _RT_BLOCK and sched.time_left() > _RT_SPARE:
+                        self._take(log, rec, ts0)
+                        untaken = 0
                     now = sched.wait()
                     if now - last > overrun:
                         raise PeriodOverrunError(f"the control loop missed its period: {1e3 * (now - last):.1f} ms "
                                                  f"between targets (limit {1e3 * overrun:.0f} ms)")
                     last = now
             # hold the last target until the arm, lagging its targets, has arrived; then a controlled stop
-            t_end = t_rec
             n_settle = int(self.settle * rate)
             for j in range(n_settle + 10):
                 if j < n_settle and q_last is not None:
@@ -597,8 +600,7 @@ class URDriver:
                 elif j == n_settle:
                     stations.flush()
                     c.servoStop(self.deceleration)
-                ts, x, qa, bits = self._read()[:4]
-                rec.add(ts - ts0 if ts0 is not None else t_end + (j + 1) * dt, x, qa, bits)
+                x = self._read()[1]
                 if stations:
                     stations.reached(x, k)
                 sched.wait()
@@ -613,6 +615,13 @@ class URDriver:
             gc.unfreeze()
             if gc_enabled:
                 gc.enable()
+        if log is not None:  # the packages up to the end (or the failure) into the recording
+            try:
+                if ts0 is not None:
+                    self._take(log, rec, ts0)
+            except (RuntimeError, OSError, DriverError):
+                pass
+            log.close()
         if isinstance(failure, ConnectionLostError):
             self._lost = True
         if failure is not None:

@@ -85,6 +85,11 @@ def test_stream_demo_pass_followed_within_0_2_mm_outputs_at_their_stations_throu
     _check_followed(fast_job, rep, 0.2e-3)
     assert rep.mode == "stream"
     assert seen[-1][1] == seen[-1][2] and all(s == "execute" for s, _, _ in seen)
+    # every data package recorded, whole, 2 ms apart: none missed (one reading per control period, as before,
+    # missed one whenever the loop's phase drifted against the controller's: ~20 gaps in a minute)
+    assert rep.recording == "every data package" and rep.recorded_every == pytest.approx(0.002, abs=1e-9)
+    assert (rep.gaps, rep.missed) == (0, 0), rep.describe()
+    assert rep.samples == round(rep.duration / 0.002) + 1, rep.describe()
     # the outputs read back through real pymodbus: off after the job
     with ModbusTcpClient(sim.host, port=sim.modbus_port) as m:
         assert m.read_holding_registers(1, count=1).registers[0] == 0
