@@ -633,7 +633,7 @@ class URDriver:
 
     @staticmethod
     def _take(log: PackageLog, rec, ts0: float) -> int:
-        """The packages recorded since the last call into ``rec`` (those of the program: from ``ts0`` on, job time
+        """The packages recorded since the last call into ``rec`` (those of the run: from ``ts0`` on, job time
         0 there), reduced at once; the planned sample nearest the last one (where the run is)."""
         rows = log.read()
         rows = rows[rows[:, 0] >= ts0 - 1e-9]
