@@ -38,8 +38,9 @@ _IPERM, _ISIGN = np.array([1, 0, 3, 2]), np.array([[-1.0], [1.0], [1.0], [-1.0]]
 
 
 def _products_matrix() -> np.ndarray:
-    """(8, 16): rows (vec, scalar) of p i q* and of p q* from the 16 products p_k q_l (row 4 k + l)."""
-    M = np.zeros((8, 16))
+    """(10, 16): rows (vec, scalar) of p i q* and of p q*, and the j, k parts of p* q, from the 16 products p_k q_l
+    (row 4 k + l)."""
+    M = np.zeros((10, 16))
     terms = (  # (row, k, l, sign)
         [(0, 0, 0, 1), (0, 1, 1, 1), (0, 2, 2, -1), (0, 3, 3, -1), (1, 1, 2, 1), (1, 2, 1, 1), (1, 0, 3, 1)]
         + [(1, 3, 0, 1), (2, 1, 3, 1), (2, 3, 1, 1), (2, 0, 2, -1), (2, 2, 0, -1)]
@@ -47,6 +48,8 @@ def _products_matrix() -> np.ndarray:
         + [(4, 1, 0, 1), (4, 0, 1, -1), (4, 3, 2, 1), (4, 2, 3, -1), (5, 2, 0, 1), (5, 0, 2, -1), (5, 1, 3, 1)]
         + [(5, 3, 1, -1), (6, 3, 0, 1), (6, 0, 3, -1), (6, 2, 1, 1), (6, 1, 2, -1)]
         + [(7, 0, 0, 1), (7, 1, 1, 1), (7, 2, 2, 1), (7, 3, 3, 1)]
+        + [(8, 0, 2, 1), (8, 2, 0, -1), (8, 3, 1, -1), (8, 1, 3, 1), (9, 0, 3, 1), (9, 3, 0, -1), (9, 1, 2, -1)]
+        + [(9, 2, 1, 1)]
     )
     for row, k, l_, sign in terms:
         M[row, 4 * k + l_] = sign
@@ -124,21 +127,43 @@ def _dot(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     return np.einsum("ij,ij->j", p, q)
 
 
-def _pure_vector_axis(Sc, Ss, sc, ss, lam, dp):
+#: Where |sigma|^2 / (|a0|^2 |a2|^2) (the squared cosine of half the angle between the end tangents) is below this,
+#: the fallback axis joins the blend of :func:`_pure_vector_axis`, with a weight fading to 0 at it (tangents more
+#: than 143 degrees apart); above it the axis is sigma's alone.
+_AXIS_FADE = 0.1
+
+
+def _pure_vector_axis(R, lam, dp):
     """(cos, sin) (N,) of the delta = phi2 - phi0 (defined up to pi) at which A0 i A2* is a pure vector.
 
-    The quaternion a0 i (a2 e^{i delta})* = (sc cos + ss sin) + S(delta) has the scalar part sigma.z with
-    sigma = (sc, ss), z = (cos delta, sin delta): it vanishes on the axis z = +-sigma_perp. Where the end
-    tangents are antiparallel sigma = 0 and every delta qualifies; there the axis maximizing |<S(delta), dp>|
-    (b = (<Sc, dp>, <Ss, dp>)) decides. Both axes are blended sign-free, on doubled angles (an axis z ~ -z
-    is the point (x^2 - y^2, 2 x y)), the second with the weight _AXIS_FALLBACK, so that the result is a
-    continuous function of the data wherever the blend is nonzero. Both axes are carried onto themselves by
-    every isometry of the data (rotations; the reflections that fix planar data or map mirror-symmetric data
-    onto their reversal), so their blend is too. lam = |a0|^2 |a2|^2, dp = p1 - p0 (3, N). Call under
-    np.errstate(divide="ignore", invalid="ignore").
+    R (8, N): the vector and scalar parts of a0 i a2* (Sc, sc) and of a0 a2* (Ss, ss); lam = |a0|^2 |a2|^2,
+    dp = p1 - p0 (3, N). The quaternion a0 i (a2 e^{i delta})* = (sc cos + ss sin) + S(delta) has the scalar part
+    sigma.z with sigma = (sc, ss), z = (cos delta, sin delta): it vanishes on the axis z = +-sigma_perp. Where the
+    end tangents are antiparallel sigma = 0 and every delta qualifies; there the axis maximizing |<S(delta), dp>|
+    (b = (<Sc, dp>, <Ss, dp>)) decides. Both axes are blended sign-free, on doubled angles (an axis z ~ -z is the
+    point (x^2 - y^2, 2 x y)), the second with the weight _AXIS_FALLBACK (fading out as |sigma|^2 / lam rises to
+    _AXIS_FADE), so that the result is a continuous function of the data wherever the blend is nonzero. Both axes
+    are carried onto themselves by every isometry of the data (rotations; the reflections that fix planar data or
+    map mirror-symmetric data onto their reversal), and so is the weight (|sigma| is invariant), so their blend
+    is too. The sign of z is that of the half angle: cos delta >= 0 where |ss| >= |sc|, sin delta > 0 elsewhere.
+    Call under np.errstate(divide="ignore", invalid="ignore").
     """
-    bc, bs = _dot(Sc, dp), _dot(Ss, dp)
-    w = _AXIS_FALLBACK / (lam * _dot(dp, dp))  # the caller ignores division by zero (errstate)
+    sc, ss = R[3], R[7]
+    s2 = sc * sc + ss * ss
+    k = 1.0 / np.sqrt(s2)
+    np.copysign(k, np.where(np.abs(ss) >= np.abs(sc), -ss, sc), out=k)  # the sign of the half angle (see above)
+    c, s = -ss * k, sc * k
+    near = np.flatnonzero(~(s2 >= _AXIS_FADE * lam))
+    if near.size:
+        c[near], s[near] = _blended_axis(R[:, near], lam[near], dp[:, near], s2[near])
+    return c, s
+
+
+def _blended_axis(R, lam, dp, s2):
+    """:func:`_pure_vector_axis` where |sigma|^2 < _AXIS_FADE lam: sigma's axis blended with b's (see there)."""
+    sc, ss = R[3], R[7]
+    bc, bs = _dot(R[:3], dp), _dot(R[4:7], dp)
+    w = _AXIS_FALLBACK * (1.0 - s2 / (_AXIS_FADE * lam)) / (lam * _dot(dp, dp))
     w = np.where(np.isfinite(w), w, 0.0)
     il = np.where(lam > 0, 1.0 / lam, 0.0)
     Dx = (ss * ss - sc * sc) * il + (bc * bc - bs * bs) * w  # doubled angle of sigma_perp = (-ss, sc) ...
@@ -164,26 +189,21 @@ def _member(a0, a2d, Q, c0, s0) -> np.ndarray:
 
 def _energy_matrices(nodes: int, pieces: int = 1) -> tuple[np.ndarray, ...]:
     """Weights (K,) of the composite Gauss-Legendre rule on [0, 1] (``pieces`` equal pieces, ``nodes`` each) and
-    the matrices that map the inner products of A0, A1, A2 to sigma = |A|^2, |A'|^2 and sigma' / 2 = <A, A'>
-    (stacked: 3K, 6 products g00 g01 g02 g11 g12 g22), and to <A i, A'> (K, 3 products h01 h02 h12,
-    h_jk = <A_j i, A_k> = -h_kj) at the K nodes."""
+    the matrices that map the inner products of A0, A1, A2 to the values at its K nodes of sigma = |A|^2 (K, 6
+    products g00 g01 g02 g11 g12 g22, g_jk = <A_j, A_k>) and of a vector part of A* A' (K, 3 products of that
+    part, u01 u02 u12 with u_jk = <A_j u, A_k> = -u_kj for u = j or k)."""
     x, wx = np.polynomial.legendre.leggauss(nodes)
     t = ((0.5 * (x + 1.0))[None] + np.arange(pieces)[:, None]).ravel() / pieces
     w = np.tile(wx, pieces) / (2.0 * pieces)
-    nodes = t.size
     b = np.stack(((1 - t) ** 2, 2 * t * (1 - t), t * t), axis=1)  # A(t) = sum b_j A_j
     db = np.stack((-2 * (1 - t), 2 - 4 * t, 2 * t), axis=1)  # A'(t) = sum db_j A_j
-    pairs = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
-    Ms, Md, Mx = (np.zeros((nodes, 6)) for _ in range(3))
-    for q, (j, k) in enumerate(pairs):
-        f = 1.0 if j == k else 2.0  # g_jk appears as jk and kj
-        Ms[:, q] = f * b[:, j] * b[:, k]
-        Md[:, q] = f * db[:, j] * db[:, k]
-        Mx[:, q] = b[:, j] * db[:, k] + (b[:, k] * db[:, j] if j != k else 0.0)
-    Mh = np.zeros((nodes, 3))
-    for q, (j, k) in enumerate(((0, 1), (0, 2), (1, 2))):  # <A i, A'> = sum b_j db_k h_jk, h_kj = -h_jk
-        Mh[:, q] = b[:, j] * db[:, k] - b[:, k] * db[:, j]
-    return w, np.vstack((Ms, Md, Mx)), Mh  # one product for s, d, x: one temporary, not three (page faults)
+    Ms = np.zeros((t.size, 6))
+    for q, (j, k) in enumerate(((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))):
+        Ms[:, q] = (1.0 if j == k else 2.0) * b[:, j] * b[:, k]  # g_jk appears as jk and kj
+    Mw = np.zeros((t.size, 3))
+    for q, (j, k) in enumerate(((0, 1), (0, 2), (1, 2))):  # <A u, A'> = sum b_j db_k u_jk, u_kj = -u_jk, u_jj = 0
+        Mw[:, q] = b[:, j] * db[:, k] - b[:, k] * db[:, j]
+    return w, Ms, Mw
 
 
 _FULL_RULE = _energy_matrices(_GL_NODES, _GL_PIECES)
@@ -192,64 +212,68 @@ _FULL_RULE = _energy_matrices(_GL_NODES, _GL_PIECES)
 #: rule; a 3-node rule with a factor 3 differed on 1 %).
 _SCREEN_RULE = _energy_matrices(4, 2)
 _SCREEN = 10.0
-#: Weight of the CC measure that breaks ties of the bending energy (see _least_energy_member).
-_TIE = 1e-9
+#: Weight of the CC measure that breaks ties of the bending energy (see _least_energy_member): above the round-off
+#: of a straight member's energy (W's round-off squared, about 1e-32 of the scale), below any bend's (a bend of
+#: 1e-10 of the chord has an energy of about 1e-20).
+_TIE = 1e-24
+#: Right multiplication by 1, i, j, k on component rows: (q u)[c] = _RSIGN[u, c] q[_RPERM[u, c]].
+_RPERM = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
+_RSIGN = np.array([[1.0, 1.0, 1.0, 1.0], [-1.0, 1.0, 1.0, -1.0], [-1.0, -1.0, 1.0, 1.0], [-1.0, 1.0, -1.0, 1.0]])
 
 
 def bending_energies(A: np.ndarray) -> np.ndarray:
     """Bending energy integral of kappa^2 ds (M,) of PH quintics A (3, 4, M) (coefficients, component rows),
     by the composite Gauss-Legendre rule _GL_PIECES x _GL_NODES (a cusp at a node counts as infinite energy).
 
-    With r' = A i A*: sigma = |A|^2, r'' = 2 vec(A' i A*), so kappa^2 sigma = (|r''|^2 - sigma'^2) / sigma^3
-    = 4 (|A|^2 |A'|^2 - <A, A'>^2 - <A i, A'>^2) / |A|^6; each term is a quadratic form in A0, A1, A2, so the
-    values at the nodes are matrix products of their nine inner products.
+    With r' = A i A*: sigma = |A|^2 and r'' = 2 vec(A' i A*), so kappa^2 sigma = |r' x r''|^2 / sigma^6
+    = 4 (W_j^2 + W_k^2) / |A|^6 with W = A* A' (its j, k parts are r'' across the tangent, in the frame of A:
+    a sum of squares, free of the cancellation of |A|^2 |A'|^2 - <A, A'>^2 - <A i, A'>^2). W_u = <A u, A'> and
+    sigma are quadratic forms in A0, A1, A2, so their values at the nodes are matrix products of inner products.
     """
     A0, A1, A2 = A
     g = np.stack((_dot(A0, A0), _dot(A0, A1), _dot(A0, A2), _dot(A1, A1), _dot(A1, A2), _dot(A2, A2)))
-    A0i, A1i = A0[_IPERM] * _ISIGN, A1[_IPERM] * _ISIGN  # A_j i
-    h = np.stack((_dot(A0i, A1), _dot(A0i, A2), _dot(A1i, A2)))
-    w, Msdx, Mh = _FULL_RULE
+    u = np.empty((3, 2) + A0.shape[1:])  # u01, u02, u12 for u = j, k
+    for k, U in enumerate((2, 3)):
+        A0u, A1u = A0[_RPERM[U]] * _RSIGN[U][:, None], A1[_RPERM[U]] * _RSIGN[U][:, None]
+        u[0, k], u[1, k], u[2, k] = _dot(A0u, A1), _dot(A0u, A2), _dot(A1u, A2)
+    w, Ms, Mw = _FULL_RULE
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        return _energies_at_nodes(_mm(Msdx, g), _mm(Mh, h), w)
+        return _energies_at_nodes(_mm(Ms, g), _mm(Mw, u.reshape(3, -1)), w)
 
 
-def _energies_at_nodes(V: np.ndarray, Y: np.ndarray, w: np.ndarray) -> np.ndarray:
-    """4 int kappa^2 sigma dt (M,) by a Gauss rule of weights w (K,) from the values at its nodes of sigma, |A'|^2,
-    <A, A'> (rows of V (3K [+ more], M)) and <A i, A'> (Y (K, M)); V and Y are overwritten (no temporaries: they
-    would be fresh pages). A cusp at a node (sigma <= 0) gives an infinite energy. Call under np.errstate."""
-    k = w.size
-    s, d, x = V[:k], V[k:2 * k], V[2 * k:3 * k]
-    np.maximum(s, 0.0, out=s)  # sigma = |A|^2 >= 0 but for round-off: <= 0 is a cusp, f = 0 / 0 or x / 0
-    d *= s
-    x *= x
-    d -= x
+def _energies_at_nodes(S: np.ndarray, Y: np.ndarray, w: np.ndarray) -> np.ndarray:
+    """4 int kappa^2 sigma dt (M,) by a Gauss rule of weights w (K,) from the values at its nodes of sigma (S (K, M))
+    and of W_j, W_k (W = A* A'; Y (K, 2 M), W_j of the M curves then W_k): 4 (W_j^2 + W_k^2) / sigma^3 (see
+    :func:`bending_energies`); S and Y are overwritten (no temporaries: they would be fresh pages). A cusp at a
+    node (sigma <= 0) gives an infinite energy. Call under np.errstate."""
+    m = S.shape[1]
+    np.abs(S, out=S)  # sigma = |A|^2 >= 0 but for round-off: near a cusp W^2 / |sigma|^3 ~ 1 / |sigma| is huge, at one
+    # (sigma = 0) 0 / 0
     Y *= Y
-    d -= Y
-    np.maximum(d, 0.0, out=d)  # |A|^2 |A'_perp|^2 >= 0 but for round-off
-    np.multiply(s, s, out=x)
-    x *= s  # sigma^3
-    d /= x
-    E = w @ d
+    L = Y[:, :m]
+    L += Y[:, m:]
+    np.multiply(S, S, out=Y[:, m:])
+    S *= Y[:, m:]  # sigma^3
+    L /= S
+    E = w @ L
     E *= 4.0
-    E[~(E >= 0.0)] = np.inf  # nan (0 / 0) or -inf (x / -0) at a cusp
+    E[~(E >= 0.0)] = np.inf  # nan (0 / 0) at a cusp
     return E
 
 
 #: Two nodes of the screening rule (t = 0.17, 0.83) with their weights, rows of its matrices: lower bounds of
 #: its estimates (see _screen).
-_SCREEN_BOUND = (
-    _SCREEN_RULE[0][[1, 6]],
-    _SCREEN_RULE[1][[1, 6, 9, 14, 17, 22]],
-    _SCREEN_RULE[2][[1, 6]],
-)
+_SCREEN_BOUND = tuple(m[[1, 6]] for m in _SCREEN_RULE)
 #: The full rule's nodes on the pieces 0, 1, 6, 7 of 8 (t < 1/4, t > 3/4) with their weights, rows of its
 #: matrices: lower bounds of its energies (see _rank_close).
-_FULL_NODE_BOUND = np.r_[0:16, 48:64]
-_FULL_BOUND = (
-    _FULL_RULE[0][_FULL_NODE_BOUND],
-    _FULL_RULE[1][np.r_[_FULL_NODE_BOUND, 64 + _FULL_NODE_BOUND, 128 + _FULL_NODE_BOUND]],
-    _FULL_RULE[2][_FULL_NODE_BOUND],
-)
+_FULL_BOUND = tuple(m[np.r_[0:16, 48:64]] for m in _FULL_RULE)
+
+
+def _estimates(g, u, tcc, cols, rule) -> np.ndarray:
+    """Energy estimates plus tie terms (M,) of the candidates in columns ``cols`` (M,) of g (6, C), u (3, 2, C),
+    tcc (C,) by ``rule`` (weights and matrices of :func:`_energy_matrices`, or a subset of its nodes)."""
+    w, Ms, Mw = rule
+    return _energies_at_nodes(_mm(Ms, g[:, cols]), _mm(Mw, u[:, :, cols].reshape(3, -1)), w) + tcc[cols]
 
 
 #: Segments per block of _least_energy_member: its temporaries (about 60 kB per 100 segments) stay small enough to
@@ -275,12 +299,14 @@ def _least_energy_block(dp, base, a0, a2, r0, r1) -> np.ndarray:
     vector, the one of least bending energy.
 
     The candidates are delta in {delta0, delta0 + pi} (``_pure_vector_axis``) and, for each, phi0 at the maximum
-    of <A0 + A2, Q> and phi0 + pi. Their energies E = 4 int Lambda / sigma^3 dt (see :func:`bending_energies`)
-    follow from nine inner products of A0, A1, A2, themselves from a few inner products of a0, a2, Q
-    (A1 = -(3/4)(A0 + A2) + Q/4, <A0, A0> = |d0|, ...). The rule: a coarse Gauss rule (_SCREEN_RULE) screens
-    them; where one candidate's estimate is below 1 / _SCREEN of the other three's (smooth data: the others have
-    cusps or loops) it is taken; elsewhere the composite rule of :func:`bending_energies` decides among the
-    candidates within _SCREEN of the best estimate. Ties of the energy go to the least CC measure (a _TIE
+    of <A0 + A2, Q> and phi0 + pi. Their energies E = 4 int (W_j^2 + W_k^2) / sigma^3 dt (see
+    :func:`bending_energies`) follow from the inner products g_jk = <A_j, A_k> (sigma) and <A_j u, A_k> (u = j, k:
+    W_j, W_k) of A0, A1, A2, themselves from a few inner products of a0, a2, Q (A1 = -(3/4)(A0 + A2) + Q/4,
+    <A0, A0> = |d0|, ...). The common phase e^{i phi0} of A0, A1, A2 does not change the curve, so the candidates
+    are built as a0, a2 e^{i delta}, A1 e^{-i phi0}. The rule: a coarse Gauss rule (_SCREEN_RULE) screens them;
+    where one candidate's estimate is below 1 / _SCREEN of the other three's (smooth data: the others have cusps
+    or loops) it is taken; elsewhere the composite rule of :func:`bending_energies` decides among the candidates
+    within _SCREEN of the best estimate. Ties of the energy (straight members) go to the least CC measure (a _TIE
     weight of it).
 
     The work is cut without changing the choice (tests/test_member_selection.py checks it against the rule as
@@ -290,9 +316,14 @@ def _least_energy_block(dp, base, a0, a2, r0, r1) -> np.ndarray:
     """
     n = dp.shape[1]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        R = _mm(_PRODUCTS, np.multiply(a0[:, None], a2[None]).reshape(16, n))  # a0 i a2* and a0 a2*, (vec, scalar)
-        c, s = _pure_vector_axis(R[:3], R[4:7], R[3], R[7], r0 * r1, dp)
-        a2d = _times_e_i(a2, c, s)  # a2 e^{i delta0}; delta0 + pi negates it
+        # a0 i a2*, a0 a2* (vector, scalar) and the j, k parts of a0* a2
+        R = _mm(_PRODUCTS, np.multiply(a0[:, None], a2[None]).reshape(16, n))
+        c, s = _pure_vector_axis(R, r0 * r1, dp)
+        X = np.empty((8, 4, n))  # a0 u and a2d u for u = 1, i, j, k, a2d = a2 e^{i delta0} (delta0 + pi negates it)
+        np.multiply(a0[_RPERM], _RSIGN[..., None], out=X[:4])
+        a2d = a2 * c
+        a2d += a2[_IPERM] * (_ISIGN * s)  # a2 cos + (a2 i) sin
+        np.multiply(a2d[_RPERM], _RSIGN[..., None], out=X[4:])
         S = R[:3] * c
         S += R[4:7] * s
         S *= 10.0
@@ -301,79 +332,96 @@ def _least_energy_block(dp, base, a0, a2, r0, r1) -> np.ndarray:
         np.subtract(base, S, out=alpha[:, 1])
         Qf, qq = sqrt_rot(alpha.reshape(3, 2 * n))
         Q = Qf.reshape(4, 2, n)
-        X = np.empty((4, 4, n))  # a0, a0 i, a2d, a2d i: their inner products with Q are <., Q>, <. i, Q>
-        X[0], X[2] = a0, a2d
-        np.multiply(a0[_IPERM], _ISIGN, out=X[1])
-        np.multiply(a2d[_IPERM], _ISIGN, out=X[3])
-        u0, v0, u2, v2 = np.einsum("vcn,ckn->vkn", X, Q)  # (2, N) each
-        u2[1] *= -1.0  # a2 e^{i (delta0 + pi)} = -a2d
-        v2[1] *= -1.0
-        x, y = u0 + u2, v0 + v2  # <(a0 + a2d) e^{i phi0}, Q> = x cos + y sin: the maximum at phi0 = atan2(y, x)
-        h = np.hypot(x, y)
-        ok = h > 0
-        c0, s0 = np.where(ok, x / h, 1.0), np.where(ok, y / h, 0.0)
-        # the candidates' inner products (6, 4, N) and (3, 4, N), k = 2 * (delta index) + (phi0 + pi) (the flip
-        # negates A0, A2 and so P, V), in the order of operations of bending_energies' first version: the same bits,
-        # so that the choice between members of equal energy (straight ones) is the same to the last bit
+        uv = np.einsum("vcn,ckn->vkn", X, Q)  # <a0 u, Q>, <a2d u, Q> per delta (8, 2, N)
+        uv[4:, 1] *= -1.0  # a2 e^{i (delta0 + pi)} = -a2d
+        x, y = uv[0] + uv[4], uv[1] + uv[5]  # <(a0 + a2d) e^{i phi0}, Q> = x cos + y sin: the maximum at atan2(y, x)
+        ih = 1.0 / np.sqrt(x * x + y * y)
+        c0, s0 = x * ih, y * ih
+        if not np.isfinite(ih).all():  # x = y = 0: every phi0 alike
+            ok = np.isfinite(ih)
+            c0, s0 = np.where(ok, c0, 1.0), np.where(ok, s0, 0.0)
+        # the candidates' inner products, k = 2 * (delta index) + (phi0 + pi) (the flip negates A0, A2 and so the
+        # products with Q): g (6, 2, 2, N) = <A_j, A_k> (00 01 02 11 12 22), w (3, 2, 2, 2, N) = <A_j u, A_k>
+        # (01 02 12) for u = j, k, of a0, a2 e^{i delta}, A1 e^{-i phi0} (Q e^{-i phi0} in A1)
+        P = c0 * uv[0::4]  # <A0, Q>, <A2, Q> at phi0 (2, 2, N)
+        P += s0 * uv[1::4]
+        P *= 0.25
+        Z = np.empty((2, 2, 2, n))  # <a0 u, Q e^{-i phi0}>, <a2d u, ..> (u = j, k): u e^{i phi0} = u cos -+ (k, j) sin
+        np.multiply(c0, uv[2::4], out=Z[0])
+        Z[0] -= s0 * uv[3::4]
+        np.multiply(c0, uv[3::4], out=Z[1])
+        Z[1] += s0 * uv[2::4]
+        Z *= 0.25
         g = np.empty((6, 2, 2, n))
-        hh = np.empty((3, 2, 2, n))
-        P = np.empty((2, 2, 2, n))  # P0, P2
         g[0], g[5] = r0, r1
-        np.subtract(R[7] * c, R[3] * s, out=g[2, 0])  # <a0, a2 e^{i delta}>, <a0 i, a2 e^{i delta}>
-        np.negative(g[2, 0], out=g[2, 1])
-        e = hh[1]
-        np.add(R[3] * c, R[7] * s, out=e[0])
-        np.negative(e[0], out=e[1])
-        np.add(c0 * u0, s0 * v0, out=P[0, :, 0])  # <A0, Q>, <A2, Q> at phi0 ...
-        np.add(c0 * u2, s0 * v2, out=P[1, :, 0])
-        np.negative(P[:, :, 0], out=P[:, :, 1])
-        V0, V2 = c0 * v0 - s0 * u0, c0 * v2 - s0 * u2  # ... <A0 i, Q>, <A2 i, Q>
-        g, hh, P, e = g.reshape(6, 4, n), hh.reshape(3, 4, n), P.reshape(2, 4, n), e.reshape(4, n)
-        P0, P2 = P
-        r01 = np.stack((r0, r1))[:, None]
-        np.add(-0.75 * (r01 + g[2]), 0.25 * P, out=g[1::3])  # g01 and g12
-        g11 = (0.5625 * (r0 + r1 + 2.0 * g[2]) - 0.375 * (P0 + P2)).reshape(2, 2, n)
-        np.add(g11, 0.0625 * qq.reshape(2, 1, n), out=g[3].reshape(2, 2, n))
-        hh[0, ::2], hh[0, 1::2] = -0.75 * e[::2] + 0.25 * V0, -0.75 * e[1::2] - 0.25 * V0
-        hh[2, ::2], hh[2, 1::2] = -0.75 * e[::2] - 0.25 * V2, -0.75 * e[1::2] + 0.25 * V2
-        cc = g[0] + 4.0 * g[3] + g[5] - 4.0 * g[1] + 2.0 * g[2] - 4.0 * g[4]
-        g, hh = g.reshape(6, 4 * n), hh.reshape(3, 4 * n)
-        tie = _TIE / (r0 + r1) ** 2
+        G = R[7] * c  # <A0, A2> = <a0, a2 e^{i delta}>
+        G -= R[3] * s
+        g[2, 0] = G
+        np.negative(G, out=g[2, 1, 0])
+        g[2, 1, 1] = g[2, 1, 0]
+        b01 = -0.75 * (r0 + g[2, :, 0])  # <A0, A1> = -3/4 (|A0|^2 + <A0, A2>) + <A0, Q> / 4, <A1, A2> alike
+        b12 = -0.75 * (r1 + g[2, :, 0])
+        np.add(b01, P[0], out=g[1, :, 0])
+        np.subtract(b01, P[0], out=g[1, :, 1])
+        np.add(b12, P[1], out=g[4, :, 0])
+        np.subtract(b12, P[1], out=g[4, :, 1])
+        T = 2.0 * g[2, :, 0]
+        T += r0 + r1  # |A0 + A2|^2
+        b11 = 0.5625 * T  # |A1|^2 = 9/16 |A0 + A2|^2 - 3/8 <A0 + A2, Q> + |Q|^2 / 16
+        Pm = 1.5 * (P[0] + P[1])
+        np.subtract(b11, Pm, out=g[3, :, 0])
+        np.add(b11, Pm, out=g[3, :, 1])
+        g[3] += (0.0625 * qq.reshape(2, n))[:, None]
+        w = np.empty((3, 2, 2, 2, n))
+        Eu = np.empty((2, n))  # <a0 u, a2 e^{i delta0}> for u = j, k: e^{-i delta} u = u cos + (k, -j) sin
+        np.multiply(R[8], c, out=Eu[0])
+        Eu[0] += R[9] * s
+        np.multiply(R[9], c, out=Eu[1])
+        Eu[1] -= R[8] * s
+        w[1, :, 0] = Eu[:, None]
+        np.negative(Eu[:, None], out=w[1, :, 1, 0:1])
+        w[1, :, 1, 1] = w[1, :, 1, 0]
+        b = -0.75 * w[1, :, :, 0]  # <A0 u, A1> = -3/4 <A0 u, A2> + <A0 u, Q> / 4, <A1 u, A2> = ... - <A2 u, Q> / 4
+        np.add(b, Z[:, 0], out=w[0, :, :, 0])
+        np.subtract(b, Z[:, 0], out=w[0, :, :, 1])
+        np.subtract(b, Z[:, 1], out=w[2, :, :, 0])
+        np.add(b, Z[:, 1], out=w[2, :, :, 1])
         # ties (a straight segment and the same line with stops, both of zero energy) go to the least CC measure
-        # |A0 - 2 A1 + A2|^2 (FGMS 2008): _TIE of it, made dimensionless by (|d0| + |d1|)^2, joins the energy
-        tcc = (cc * tie).reshape(-1)
-        best = _screen(g, hh, tcc, n)
+        # |A0 - 2 A1 + A2|^2 = |A0 + A2|^2 + 4 (|A1|^2 - <A0, A1> - <A1, A2>) (FGMS 2008): _TIE of it, made
+        # dimensionless by (|d0| + |d1|)^2, joins the energy
+        tcc = g[3] - g[1]
+        tcc -= g[4]
+        tcc *= 4.0
+        tcc += T[:, None]
+        tcc *= _TIE / (r0 + r1) ** 2
+        best = _screen(g.reshape(6, 4 * n), w.reshape(3, 2, 4 * n), tcc.reshape(-1), n)
     j, fl = best // 2, best % 2
     sign = 1.0 - 2.0 * fl
     cols = np.arange(n)
     return _member(a0, a2d * (1.0 - 2.0 * j), Q[:, j, cols], sign * c0[j, cols], sign * s0[j, cols])
 
 
-def _screen(g, hh, tcc, n) -> np.ndarray:
-    """The best candidate (N,) (index 0-3) from the candidates' inner products g (6, 4N), hh (3, 4N) and tie terms
-    tcc (4N,) (columns k N + segment): the screening rule's choice where one candidate's estimate is below
+def _screen(g, u, tcc, n) -> np.ndarray:
+    """The best candidate (N,) (index 0-3) from the candidates' inner products g (6, 4N), u (3, 2, 4N) and tie
+    terms tcc (4N,) (columns k N + segment): the screening rule's choice where one candidate's estimate is below
     1 / _SCREEN of the other three's, :func:`_rank_close` elsewhere.
 
     Most segments of smooth data are decided by candidate 0's estimate and lower bounds of the other three's
     from two of the screening rule's eight nodes (t = 0.17, 0.83, where their loops or near-cusps lie), each a
     part of their estimate's sum of nonnegative terms: where those exceed _SCREEN times candidate 0's (with a
     margin for round-off) the screen would take candidate 0. The other segments get the whole screen.
-    The estimates are those of the first version (the same operations on the same numbers), so that the
-    choice is the same also where it rests on round-off (members of equal energy, such as straight ones).
     """
-    w, M1, M2 = _SCREEN_RULE
-    E0 = _energies_at_nodes(_mm(M1, g[:, :n]), _mm(M2, hh[:, :n]), w) + tcc[:n]
-    wl, M1l, M2l = _SCREEN_BOUND
-    lb = (_energies_at_nodes(_mm(M1l, g[:, n:]), _mm(M2l, hh[:, n:]), wl) + tcc[n:]).reshape(3, n)
+    E0 = _estimates(g, u, tcc, slice(0, n), _SCREEN_RULE)
+    lb = _estimates(g, u, tcc, slice(n, 4 * n), _SCREEN_BOUND).reshape(3, n)
     best = np.zeros(n, dtype=np.intp)
     rest = np.flatnonzero(~(lb > (_SCREEN * (1.0 + 1e-9)) * E0).all(axis=0))
     if rest.size:  # the whole screen: the other three's estimates
         m = rest.size
         cols = (np.arange(4)[:, None] * n + rest).ravel()
-        g, hh, tcc = g[:, cols], hh[:, cols], tcc[cols]
+        g, u, tcc = g[:, cols], u[:, :, cols], tcc[cols]
         est = np.empty((4, m))
         est[0] = E0[rest]
-        est[1:] = (_energies_at_nodes(_mm(M1, g[:, m:]), _mm(M2, hh[:, m:]), w) + tcc[m:]).reshape(3, m)
+        est[1:] = _estimates(g, u, tcc, slice(m, 4 * m), _SCREEN_RULE).reshape(3, m)
         b = np.argmin(est, axis=0)
         sub = np.arange(m)
         eb = est[b, sub]
@@ -381,12 +429,12 @@ def _screen(g, hh, tcc, n) -> np.ndarray:
         others[b, sub] = np.inf
         bad = np.flatnonzero(~(others.min(axis=0) > _SCREEN * eb))
         if bad.size:
-            b[bad] = _rank_close(g, hh, tcc, est, b, bad, m)
+            b[bad] = _rank_close(g, u, tcc, est, b, bad, m)
         best[rest] = b
     return best
 
 
-def _rank_close(g, hh, tcc, est, best, bad, n) -> np.ndarray:
+def _rank_close(g, u, tcc, est, best, bad, n) -> np.ndarray:
     """The best candidate (index 0-3) of each segment ``bad`` among those within _SCREEN of the best screening
     estimate, by the full rule.
 
@@ -399,21 +447,17 @@ def _rank_close(g, hh, tcc, est, best, bad, n) -> np.ndarray:
     b, eb = best[bad], est[best[bad], bad]
     k, col = np.nonzero(est[:, bad] < _SCREEN * eb)
     kc = k * n + bad[col]  # the candidates' columns
-    cb = b * n + bad
-    w, M1, M2 = _FULL_RULE
     E = np.full((4, m), np.inf)
-    E[b, cols] = _energies_at_nodes(_mm(M1, g[:, cb]), _mm(M2, hh[:, cb]), w) + tcc[cb]
+    E[b, cols] = _estimates(g, u, tcc, b * n + bad, _FULL_RULE)
     o = k != b[col]
-    wl, M1l, M2l = _FULL_BOUND
     low = np.full((4, m), np.inf)
-    low[k[o], col[o]] = _energies_at_nodes(_mm(M1l, g[:, kc[o]]), _mm(M2l, hh[:, kc[o]]), wl) + tcc[kc[o]]
+    low[k[o], col[o]] = _estimates(g, u, tcc, kc[o], _FULL_BOUND)
     has_b = np.zeros(m, dtype=bool)
     has_b[col[~o]] = True  # the best is a candidate unless its estimate is 0 or infinite (then none is)
     redo = np.flatnonzero(~(has_b & (low.min(axis=0) > E[b, cols] * (1.0 + 1e-9))))
     if redo.size:  # the full rule on those segments' candidates
         pick = np.isin(col, redo) & o
-        kf, colf, kcf = k[pick], col[pick], kc[pick]
-        E[kf, colf] = _energies_at_nodes(_mm(M1, g[:, kcf]), _mm(M2, hh[:, kcf]), w) + tcc[kcf]
+        E[k[pick], col[pick]] = _estimates(g, u, tcc, kc[pick], _FULL_RULE)
         E[:, redo[~has_b[redo]]] = np.inf
         b[redo] = np.argmin(E[:, redo], axis=0)
     return b
@@ -460,7 +504,9 @@ def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
        :func:`_pure_vector_axis`); for each delta, phi0 is where |A0 - 2 A1 + A2| (the CC measure of Farouki,
        Giannelli, Manni, Sestini 2008) is extremal, a sinusoid in phi0 with two extremes phi0, phi0 + pi.
     2. Of the four, the one of least bending energy integral of kappa^2 ds (the criterion of Farouki 1996,
-       "The elastic bending energy of Pythagorean-hodograph curves", CAGD 13; Gauss-Legendre quadrature).
+       "The elastic bending energy of Pythagorean-hodograph curves", CAGD 13), by Gauss-Legendre quadrature of
+       kappa^2 sigma = 4 (W_j^2 + W_k^2) / |A|^6, W = A* A' (a sum of squares: a nearly straight member's energy
+       carries no cancellation, so the choice on nearly straight data is the least energy, not round-off).
 
     Why these four: the curve depends on the data alone, not on coordinates, and every isometry of the data
     carries them onto themselves. For data in a plane (p1 - p0, d0, d1 coplanar) they are exactly the four
