@@ -5,8 +5,10 @@ and the fit of the path.
 The frame panel shows what the options make worth seeing: with the tool normal to the path and a method
 other than the exact RMF, its twist against the exact RMF along the cut; with tool axes, the spin about the
 tool axis per pass against slerping the orientations, and the axes' distance from the great circles between
-the given axes. The fit panel shows the distance from the polyline against the tolerance ("cam") or how far
-the interpolating spline bows from the chords ("interpolate").
+the given axes. Where there is nothing of the frames to plot (the exact RMF about the path; tool axes constant
+along every pass) the 3D panel takes the frame panel's place and its title says why. The fit panel shows the
+distance from the polyline against the tolerance ("cam") or how far the interpolating spline bows from the
+chords ("interpolate").
 
 A whole job is millions of poses. The trajectory is read once, chunk by chunk (:func:`digest`): the speed
 panel keeps the lowest and highest TCP speed of each time bin, the joint panel every k-th sample (and each
@@ -267,7 +269,8 @@ def plot_job(job, target, *, rate: float | None = None, title: str | None = None
     fig = new_figure(head, size=(17, 14 if run is not None else 10))
     grid = fig.add_gridspec(3, 3, height_ratios=(1.0, 1.0, 0.55)) if run is not None else fig.add_gridspec(2, 3)
 
-    ax = fig.add_subplot(grid[0, 0:2], projection="3d")
+    note = _frames_note(job)  # nothing to plot about the frames: the path panel takes the whole row
+    ax = fig.add_subplot(grid[0, 0:3] if note else grid[0, 0:2], projection="3d")
     cuts, rapids = _path_lines(job)
     cmap = matplotlib.colormaps["viridis"]
     if cuts:
@@ -292,9 +295,9 @@ def plot_job(job, target, *, rate: float | None = None, title: str | None = None
     if run is not None:
         _execution_path(ax, run)
     label_path_axes(ax, f"paths (part frame, {st.path}): {s['cut_length_mm']:.0f} mm of cut, {s['rapids']} rapids, "
-                        f"{s['reorientations']} turns in place")
-
-    _frames_panel(fig.add_subplot(grid[0, 2]), job, s)
+                        f"{s['reorientations']} turns in place" + (f"; {note}" if note else ""))
+    if not note:
+        _frames_panel(fig.add_subplot(grid[0, 2]), job, s)
 
     ax = fig.add_subplot(grid[1, 0] if st.robot is not None else grid[1, 0:2])  # no empty joint panel
     t_mid = 0.5 * (dg.edges[1:] + dg.edges[:-1])
@@ -413,15 +416,20 @@ def _execution_io_panel(ax, run: dict) -> None:
     ax.grid(alpha=0.3)
 
 
+def _frames_note(job) -> str | None:
+    """Why the job has no tool frames' figure (the path panel takes its place and says so), or None."""
+    if job.settings.axes == "path":
+        return "exact RMF about the tangent: no twist" if job.settings.frame == "rmf" else None
+    if all(max(abs(p.slerp_spin_deg), abs(p.spin_deg), abs(p.max_axis_departure_deg)) < 1e-9 for p in job.passes):
+        return "tool axis constant along every pass: no spin"
+    return None
+
+
 def _frames_panel(ax, job, s: dict) -> None:
-    """The tool frames' figure for the chosen options (see the module doc)."""
+    """The tool frames' figure for the chosen options (see the module doc; a job with :func:`_frames_note` has
+    none)."""
     idx = np.array([p.index for p in job.passes])
     if job.settings.axes == "path":
-        if job.settings.frame == "rmf":
-            ax.text(0.5, 0.5, "exact RMF about the path tangent:\nno twist to show (0 by construction)",
-                    ha="center", va="center")
-            ax.set_axis_off()
-            return
         offset = 0.0
         for m in job.moves:
             if m.kind != "cut":
@@ -433,11 +441,6 @@ def _frames_panel(ax, job, s: dict) -> None:
         ax.set_ylabel("twist against the exact RMF [deg]")
         ax.set_title(f"{job.settings.frame}: largest twist {s['max_twist_vs_exact_rmf_deg']:.3g} deg")
         ax.grid(alpha=0.3)
-        return
-    if max(max(abs(p.slerp_spin_deg), abs(p.spin_deg), abs(p.max_axis_departure_deg)) for p in job.passes) < 1e-9:
-        ax.text(0.5, 0.5, "the tool axis is constant along every pass:\nno spin about it, nothing to show",
-                ha="center", va="center")
-        ax.set_axis_off()
         return
     ax.plot(idx, [p.slerp_spin_deg for p in job.passes], ".", ms=4, color="tab:orange",
             label=f"orientations slerped point to point (total {s['slerp_spin_deg']:.4g} deg)")

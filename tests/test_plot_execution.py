@@ -116,3 +116,41 @@ def test_planner_run_plot_writes_the_run(tmp_path, capsys):
     assert f"wrote {out}" in text and out.read_bytes()[:4] == b"\x89PNG"
     assert main(["run", DEMO, "--robot", "ur5e", "--sim", "--plot", str(tmp_path / "x.gif")]) == 2
     assert "unknown image type" in capsys.readouterr().err
+
+
+def test_a_job_with_nothing_to_show_of_its_frames_gets_a_wide_path_panel(tmp_path):
+    """The demo job holds the tool axis constant: no frame panel (once an empty panel of text), the 3D panel takes
+    the row and says why; a job whose axes turn keeps the frames' figure."""
+    import matplotlib.figure
+
+    from planner import plot as plot_module
+
+    made = []
+    real = plot_module.new_figure
+
+    def keep(*args, **kwargs):
+        fig = real(*args, **kwargs)
+        made.append(fig)
+        return fig
+
+    flat = plan(DEMO, PlanSettings(robot="ur5e", part_frame=PART))
+    turning = plan("../shared/data/nx_clsf_variable_contour_ust_a2.cls", PlanSettings())
+    assert plot_module._frames_note(flat) == "tool axis constant along every pass: no spin"
+    assert plot_module._frames_note(turning) is None
+    plot_module.new_figure = keep
+    try:
+        plot_job(flat, tmp_path / "flat.png", max_points=2000)
+        plot_job(turning, tmp_path / "turning.png", max_points=2000)
+    finally:
+        plot_module.new_figure = real
+    flat_fig, turning_fig = made
+    assert isinstance(flat_fig, matplotlib.figure.Figure)
+    for fig in made:
+        assert all(a.get_title() for a in fig.axes)  # no panel of text only
+    # the flat job: path (the whole row: 3 of 3 grid columns), speed, joints, fit; no frames' figure
+    assert flat_fig.axes[0].get_subplotspec().colspan == range(0, 3)
+    assert "tool axis constant along every pass" in flat_fig.axes[0].get_title()
+    assert not any(a.get_title().startswith("tool axes") for a in flat_fig.axes)
+    # the turning job: path in 2 columns and the frames' figure beside it
+    assert turning_fig.axes[0].get_subplotspec().colspan == range(0, 2)
+    assert turning_fig.axes[1].get_title().startswith("tool axes: spin about them")
