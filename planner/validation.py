@@ -189,9 +189,16 @@ def checked_waypoint_steps(waypoints, *, min_count: int = 2, dim: int = 3):
         i = int(np.argmax(~np.isfinite(p).all(axis=1)))
         raise WaypointError(f"coordinates must be finite, got {p[i].tolist()}", i)
     rows = np.ascontiguousarray(p.T)  # reductions along contiguous rows are fast
-    d = rows[:, 1:] - rows[:, :-1]
-    step = np.sqrt(np.einsum("ij,ij->j", d, d))
-    extent = float((rows.max(axis=1) - rows.min(axis=1)).max()) if p.shape[0] > 1 else 0.0
+    with np.errstate(over="ignore"):  # refused below
+        d = rows[:, 1:] - rows[:, :-1]
+        extent = float((rows.max(axis=1) - rows.min(axis=1)).max()) if p.shape[0] > 1 else 0.0
+    if not np.isfinite(extent):
+        raise WaypointError(f"coordinates span more than the largest float ({extent}): far too large")
+    if 1e-100 <= extent <= 1e100 or extent == 0.0:
+        step = np.sqrt(np.einsum("ij,ij->j", d, d))
+    else:  # |d|^2 would underflow or overflow: the steps scaled by a power of two
+        e = 2.0 ** -round(np.log2(extent))
+        step = np.sqrt(np.einsum("ij,ij->j", d * e, d * e)) / e
     dup = step <= DUPLICATE_RTOL * max(extent, np.finfo(float).tiny)
     if dup.any():
         i = int(np.argmax(dup)) + 1

@@ -223,3 +223,36 @@ def test_symmetric_hermite_data_give_a_symmetric_curve(seed):
     c = PHQuintic.hermite(p0, (p0 - o) @ M.T + o, d0, -(d0 @ M.T))
     cp = c.control_points
     assert np.abs(((cp - o) @ M.T + o) - cp[::-1]).max() <= 1e-11 * _scale(cp)
+
+
+@pytest.mark.parametrize("kind", FITS)
+@pytest.mark.parametrize("k", [1e-300, 1e-200, 1e-100, 1e100, 1e200, 1e300])
+def test_absurd_scales_give_the_curve_scaled(kind, k):
+    """Data in any representable scale (here 1e-300 to 1e300) give the same curve scaled, to round-off: the
+    squares in the member rule's energies and in the chord lengths would underflow or overflow there (once a
+    different member at 1e100, NaN at 1e200, a false 'duplicate waypoint' at 1e-200)."""
+    rng = np.random.default_rng(11)
+    p, d = _data(kind, rng, 9)
+    cp = _fit(kind, p, d)
+    with np.errstate(over="ignore", under="ignore"):
+        scaled = _fit(kind, k * p, None if d is None else k * d)
+    assert np.isfinite(scaled).all()
+    assert np.abs(scaled / k - cp).max() <= 1e-12 * _scale(cp)
+
+
+def test_scaling_by_powers_of_four_is_exact():
+    """The Hermite interpolant of data divided by 4^k is the curve divided by 4^k to the last bit (each segment is
+    brought to magnitudes of about 1 by such a factor)."""
+    rng = np.random.default_rng(12)
+    p, d = _data("hermite", rng, 2)
+    ref = PHQuintic.hermite(p[0], p[1], d[0], d[1]).A
+    for k in (-60, -7, 3, 80):
+        f = 4.0 ** k
+        assert np.array_equal(PHQuintic.hermite(f * p[0], f * p[1], f * d[0], f * d[1]).A, ref * 2.0 ** k)
+
+
+def test_waypoints_spanning_more_than_a_float_are_refused_by_name():
+    from planner.errors import WaypointError
+
+    with pytest.raises(WaypointError, match="far too large"):
+        fit_ph_spline([[0.0, 0.0, 0.0], [1e308, 0.0, 0.0], [-1e308, 0.0, 0.0]])

@@ -535,8 +535,13 @@ def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
     rows = np.empty((3, 3, n))  # p1 - p0, d0, d1 on contiguous rows
     np.subtract(p1.T, p0.T, out=rows[0])
     rows[1], rows[2] = d0.T, d1.T
+    # the interpolant of the data divided by 4^k is the curve divided by 4^k (A by 2^k, the same angles; exact in
+    # floating point): each segment's data are brought to magnitudes of about 1, where the squares in its
+    # energies neither overflow nor underflow
+    k = np.frexp(np.abs(rows).max(axis=(0, 1)))[1] // 2
+    rows *= np.ldexp(1.0, -2 * k)
     a, r = sqrt_rot(rows[1:].transpose(1, 0, 2).reshape(3, 2 * n))
-    return hermite_rows(rows[0], rows[1], rows[2], a[:, :n], a[:, n:], r[:n], r[n:], angles)
+    return hermite_rows(rows[0], rows[1], rows[2], a[:, :n], a[:, n:], r[:n], r[n:], angles, np.ldexp(1.0, k))
 
 
 # ---------------------------------------------------------------------------------------------

@@ -339,6 +339,11 @@ def fit_ph_spline(
     p, dp, h = checked_waypoint_steps(waypoints)  # dp: p[k + 1] - p[k] as rows (3, N)
     if continuity not in ("C1", "C2"):
         raise PlannerError(f"continuity must be 'C1' or 'C2', got {continuity!r}")
+    size = float(h.max())
+    if not 1e-100 <= size <= 1e100:  # squares of lengths would underflow or overflow: fit the data scaled by 4^-k
+        k = round(np.log2(size) / 2.0)  # (exact), and scale the path back: the fit commutes with scaling
+        s = fit_ph_spline(p * 4.0**-k, tangents, continuity=continuity, end_tangents=end_tangents, angles=angles)
+        return PHSpline(s.A * 2.0**k, p[:-1], s.knots * 4.0**k, s.continuity, s.iterations, s.waypoint_index)
     u = np.concatenate(([0.0], np.cumsum(h)))  # chord_knots(p)
     if tangents is not None:
         if continuity == "C2":
