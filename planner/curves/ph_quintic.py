@@ -212,9 +212,9 @@ _FULL_RULE = _energy_matrices(_GL_NODES, _GL_PIECES)
 #: rule; a 3-node rule with a factor 3 differed on 1 %).
 _SCREEN_RULE = _energy_matrices(4, 2)
 _SCREEN = 10.0
-#: Weight of the CC measure that breaks ties of the bending energy (see _least_energy_member): above the round-off
-#: of a straight member's energy (W's round-off squared, about 1e-32 of the scale), below any bend's (a bend of
-#: 1e-10 of the chord has an energy of about 1e-20).
+#: Weight of the tie term int dt / sigma (see _energies_at_nodes): above the round-off of a straight member's energy
+#: (W's round-off squared, about 1e-32 of the scale 1 / |p1 - p0|), below any bend's (a bend of 1e-10 of the chord
+#: has an energy of about 1e-20 of it).
 _TIE = 1e-24
 #: Right multiplication by 1, i, j, k on component rows: (q u)[c] = _RSIGN[u, c] q[_RPERM[u, c]].
 _RPERM = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
@@ -238,26 +238,30 @@ def bending_energies(A: np.ndarray) -> np.ndarray:
         u[0, k], u[1, k], u[2, k] = _dot(A0u, A1), _dot(A0u, A2), _dot(A1u, A2)
     w, Ms, Mw = _FULL_RULE
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
-        return _energies_at_nodes(_mm(Ms, g), _mm(Mw, u.reshape(3, -1)), w)
+        return _energies_at_nodes(_mm(Ms, g), _mm(Mw, u.reshape(3, -1)), w, tie=0.0)
 
 
-def _energies_at_nodes(S: np.ndarray, Y: np.ndarray, w: np.ndarray) -> np.ndarray:
+def _energies_at_nodes(S: np.ndarray, Y: np.ndarray, w: np.ndarray, tie: float = _TIE) -> np.ndarray:
     """4 int kappa^2 sigma dt (M,) by a Gauss rule of weights w (K,) from the values at its nodes of sigma (S (K, M))
     and of W_j, W_k (W = A* A'; Y (K, 2 M), W_j of the M curves then W_k): 4 (W_j^2 + W_k^2) / sigma^3 (see
-    :func:`bending_energies`); S and Y are overwritten (no temporaries: they would be fresh pages). A cusp at a
-    node (sigma <= 0) gives an infinite energy. Call under np.errstate."""
+    :func:`bending_energies`), plus ``tie`` times int dt / sigma, which breaks ties of the energy (straight
+    members, of zero energy) towards the most even parametric speed (int dt / sigma >= 1 / int sigma dt, equal
+    for a constant speed; a momentary stop makes it infinite). S and Y are overwritten (no temporaries: they
+    would be fresh pages). A cusp at a node (sigma = 0) gives an infinite energy. Call under np.errstate."""
     m = S.shape[1]
-    np.abs(S, out=S)  # sigma = |A|^2 >= 0 but for round-off: near a cusp W^2 / |sigma|^3 ~ 1 / |sigma| is huge, at one
-    # (sigma = 0) 0 / 0
+    np.abs(S, out=S)  # sigma = |A|^2 >= 0 but for round-off: near a cusp W^2 / |sigma|^3 ~ 1 / |sigma| is huge
+    np.divide(1.0, S, out=S)
     Y *= Y
     L = Y[:, :m]
     L += Y[:, m:]
     np.multiply(S, S, out=Y[:, m:])
-    S *= Y[:, m:]  # sigma^3
-    L /= S
+    Y[:, m:] *= S  # 1 / sigma^3
+    L *= Y[:, m:]
     E = w @ L
     E *= 4.0
-    E[~(E >= 0.0)] = np.inf  # nan (0 / 0) at a cusp
+    if tie:
+        E += tie * (w @ S)
+    E[~(E >= 0.0)] = np.inf  # nan (0 * inf) at a cusp
     return E
 
 
@@ -269,11 +273,11 @@ _SCREEN_BOUND = tuple(m[[1, 6]] for m in _SCREEN_RULE)
 _FULL_BOUND = tuple(m[np.r_[0:16, 48:64]] for m in _FULL_RULE)
 
 
-def _estimates(g, u, tcc, cols, rule) -> np.ndarray:
-    """Energy estimates plus tie terms (M,) of the candidates in columns ``cols`` (M,) of g (6, C), u (3, 2, C),
-    tcc (C,) by ``rule`` (weights and matrices of :func:`_energy_matrices`, or a subset of its nodes)."""
+def _estimates(g, u, cols, rule) -> np.ndarray:
+    """Energy estimates plus tie terms (M,) of the candidates in columns ``cols`` (M,) of g (6, C), u (3, 2, C) by
+    ``rule`` (weights and matrices of :func:`_energy_matrices`, or a subset of its nodes)."""
     w, Ms, Mw = rule
-    return _energies_at_nodes(_mm(Ms, g[:, cols]), _mm(Mw, u[:, :, cols].reshape(3, -1)), w) + tcc[cols]
+    return _energies_at_nodes(_mm(Ms, g[:, cols]), _mm(Mw, u[:, :, cols].reshape(3, -1)), w)
 
 
 #: Segments per block of _least_energy_member: its temporaries (about 60 kB per 100 segments) stay small enough to
@@ -306,8 +310,8 @@ def _least_energy_block(dp, base, a0, a2, r0, r1) -> np.ndarray:
     are built as a0, a2 e^{i delta}, A1 e^{-i phi0}. The rule: a coarse Gauss rule (_SCREEN_RULE) screens them;
     where one candidate's estimate is below 1 / _SCREEN of the other three's (smooth data: the others have cusps
     or loops) it is taken; elsewhere the composite rule of :func:`bending_energies` decides among the candidates
-    within _SCREEN of the best estimate. Ties of the energy (straight members) go to the least CC measure (a _TIE
-    weight of it).
+    within _SCREEN of the best estimate. Ties of the energy (straight members) go to the most even parametric speed
+    (a _TIE weight of int dt / sigma, see :func:`_energies_at_nodes`).
 
     The work is cut without changing the choice (tests/test_member_selection.py checks it against the rule as
     first written): most segments are decided by candidate 0's estimate and lower bounds of the others' (see
@@ -386,24 +390,16 @@ def _least_energy_block(dp, base, a0, a2, r0, r1) -> np.ndarray:
         np.subtract(b, Z[:, 0], out=w[0, :, :, 1])
         np.subtract(b, Z[:, 1], out=w[2, :, :, 0])
         np.add(b, Z[:, 1], out=w[2, :, :, 1])
-        # ties (a straight segment and the same line with stops, both of zero energy) go to the least CC measure
-        # |A0 - 2 A1 + A2|^2 = |A0 + A2|^2 + 4 (|A1|^2 - <A0, A1> - <A1, A2>) (FGMS 2008): _TIE of it, made
-        # dimensionless by (|d0| + |d1|)^2, joins the energy
-        tcc = g[3] - g[1]
-        tcc -= g[4]
-        tcc *= 4.0
-        tcc += T[:, None]
-        tcc *= _TIE / (r0 + r1) ** 2
-        best = _screen(g.reshape(6, 4 * n), w.reshape(3, 2, 4 * n), tcc.reshape(-1), n)
+        best = _screen(g.reshape(6, 4 * n), w.reshape(3, 2, 4 * n), n)
     j, fl = best // 2, best % 2
     sign = 1.0 - 2.0 * fl
     cols = np.arange(n)
     return _member(a0, a2d * (1.0 - 2.0 * j), Q[:, j, cols], sign * c0[j, cols], sign * s0[j, cols])
 
 
-def _screen(g, u, tcc, n) -> np.ndarray:
-    """The best candidate (N,) (index 0-3) from the candidates' inner products g (6, 4N), u (3, 2, 4N) and tie
-    terms tcc (4N,) (columns k N + segment): the screening rule's choice where one candidate's estimate is below
+def _screen(g, u, n) -> np.ndarray:
+    """The best candidate (N,) (index 0-3) from the candidates' inner products g (6, 4N) and u (3, 2, 4N) (columns
+    k N + segment): the screening rule's choice where one candidate's estimate is below
     1 / _SCREEN of the other three's, :func:`_rank_close` elsewhere.
 
     Most segments of smooth data are decided by candidate 0's estimate and lower bounds of the other three's
@@ -411,17 +407,17 @@ def _screen(g, u, tcc, n) -> np.ndarray:
     part of their estimate's sum of nonnegative terms: where those exceed _SCREEN times candidate 0's (with a
     margin for round-off) the screen would take candidate 0. The other segments get the whole screen.
     """
-    E0 = _estimates(g, u, tcc, slice(0, n), _SCREEN_RULE)
-    lb = _estimates(g, u, tcc, slice(n, 4 * n), _SCREEN_BOUND).reshape(3, n)
+    E0 = _estimates(g, u, slice(0, n), _SCREEN_RULE)
+    lb = _estimates(g, u, slice(n, 4 * n), _SCREEN_BOUND).reshape(3, n)
     best = np.zeros(n, dtype=np.intp)
     rest = np.flatnonzero(~(lb > (_SCREEN * (1.0 + 1e-9)) * E0).all(axis=0))
     if rest.size:  # the whole screen: the other three's estimates
         m = rest.size
         cols = (np.arange(4)[:, None] * n + rest).ravel()
-        g, u, tcc = g[:, cols], u[:, :, cols], tcc[cols]
+        g, u = g[:, cols], u[:, :, cols]
         est = np.empty((4, m))
         est[0] = E0[rest]
-        est[1:] = _estimates(g, u, tcc, slice(m, 4 * m), _SCREEN_RULE).reshape(3, m)
+        est[1:] = _estimates(g, u, slice(m, 4 * m), _SCREEN_RULE).reshape(3, m)
         b = np.argmin(est, axis=0)
         sub = np.arange(m)
         eb = est[b, sub]
@@ -429,12 +425,12 @@ def _screen(g, u, tcc, n) -> np.ndarray:
         others[b, sub] = np.inf
         bad = np.flatnonzero(~(others.min(axis=0) > _SCREEN * eb))
         if bad.size:
-            b[bad] = _rank_close(g, u, tcc, est, b, bad, m)
+            b[bad] = _rank_close(g, u, est, b, bad, m)
         best[rest] = b
     return best
 
 
-def _rank_close(g, u, tcc, est, best, bad, n) -> np.ndarray:
+def _rank_close(g, u, est, best, bad, n) -> np.ndarray:
     """The best candidate (index 0-3) of each segment ``bad`` among those within _SCREEN of the best screening
     estimate, by the full rule.
 
@@ -448,16 +444,16 @@ def _rank_close(g, u, tcc, est, best, bad, n) -> np.ndarray:
     k, col = np.nonzero(est[:, bad] < _SCREEN * eb)
     kc = k * n + bad[col]  # the candidates' columns
     E = np.full((4, m), np.inf)
-    E[b, cols] = _estimates(g, u, tcc, b * n + bad, _FULL_RULE)
+    E[b, cols] = _estimates(g, u, b * n + bad, _FULL_RULE)
     o = k != b[col]
     low = np.full((4, m), np.inf)
-    low[k[o], col[o]] = _estimates(g, u, tcc, kc[o], _FULL_BOUND)
+    low[k[o], col[o]] = _estimates(g, u, kc[o], _FULL_BOUND)
     has_b = np.zeros(m, dtype=bool)
     has_b[col[~o]] = True  # the best is a candidate unless its estimate is 0 or infinite (then none is)
     redo = np.flatnonzero(~(has_b & (low.min(axis=0) > E[b, cols] * (1.0 + 1e-9))))
     if redo.size:  # the full rule on those segments' candidates
         pick = np.isin(col, redo) & o
-        E[k[pick], col[pick]] = _estimates(g, u, tcc, kc[pick], _FULL_RULE)
+        E[k[pick], col[pick]] = _estimates(g, u, kc[pick], _FULL_RULE)
         E[:, redo[~has_b[redo]]] = np.inf
         b[redo] = np.argmin(E[:, redo], axis=0)
     return b
