@@ -503,6 +503,7 @@ def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
        "The elastic bending energy of Pythagorean-hodograph curves", CAGD 13), by Gauss-Legendre quadrature of
        kappa^2 sigma = 4 (W_j^2 + W_k^2) / |A|^6, W = A* A' (a sum of squares: a nearly straight member's energy
        carries no cancellation, so the choice on nearly straight data is the least energy, not round-off).
+       Ties (straight members, of zero energy) go to the most even parametric speed (least int dt / sigma).
 
     Why these four: the curve depends on the data alone, not on coordinates, and every isometry of the data
     carries them onto themselves. For data in a plane (p1 - p0, d0, d1 coplanar) they are exactly the four
