@@ -225,7 +225,7 @@ def bending_energies(A: np.ndarray) -> np.ndarray:
     """Bending energy integral of kappa^2 ds (M,) of PH quintics A (3, 4, M) (coefficients, component rows),
     by the composite Gauss-Legendre rule _GL_PIECES x _GL_NODES (a cusp at a node counts as infinite energy).
 
-    With r' = A i A*: sigma = |A|^2 and r'' = 2 vec(A' i A*), so kappa^2 sigma = |r' x r''|^2 / sigma^6
+    With r' = A i A*: sigma = |A|^2 and r'' = 2 vec(A' i A*), so kappa^2 sigma = |r' x r''|^2 / sigma^5
     = 4 (W_j^2 + W_k^2) / |A|^6 with W = A* A' (its j, k parts are r'' across the tangent, in the frame of A:
     a sum of squares, free of the cancellation of |A|^2 |A'|^2 - <A, A'>^2 - <A i, A'>^2). W_u = <A u, A'> and
     sigma are quadratic forms in A0, A1, A2, so their values at the nodes are matrix products of inner products.
@@ -314,9 +314,10 @@ def _least_energy_block(dp, base, a0, a2, r0, r1) -> np.ndarray:
     (a _TIE weight of int dt / sigma, see :func:`_energies_at_nodes`).
 
     The work is cut without changing the choice (tests/test_member_selection.py checks it against the rule as
-    first written): most segments are decided by candidate 0's estimate and lower bounds of the others' (see
-    :func:`_screen`), and where the full rule decides, the screen's best is confirmed by lower bounds of the
-    others' full-rule energies (see :func:`_rank_close`).
+    first written, whose integrand cancelled: the same member, or one of no larger energy): most segments are
+    decided by candidate 0's estimate and lower bounds of the others' (see :func:`_screen`), and where the full
+    rule decides, the screen's best is confirmed by lower bounds of the others' full-rule energies (see
+    :func:`_rank_close`).
     """
     n = dp.shape[1]
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
