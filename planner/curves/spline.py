@@ -275,7 +275,8 @@ class PHSpline:
         right = np.vstack((cp[:, 0], cp[-1:, -1]))
         idx = slice(None) if self.waypoint_index is None else self.waypoint_index
         w = finite_floats(waypoints, "waypoints", (len(left[idx]), 3))
-        return np.maximum(np.linalg.norm(left[idx] - w, axis=1), np.linalg.norm(right[idx] - w, axis=1))
+        # hypot: no overflow of the squares, whatever the scale of the waypoints
+        return np.maximum(np.hypot.reduce(left[idx] - w, axis=1), np.hypot.reduce(right[idx] - w, axis=1))
 
 
 def _align_phases(A: np.ndarray) -> np.ndarray:
