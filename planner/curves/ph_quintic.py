@@ -34,7 +34,10 @@ _AXIS_FALLBACK = 1e-12
 #: (6 x 8 too, 4 x 8 not: 3 differ).
 _GL_NODES, _GL_PIECES = 8, 8
 _FLIP = np.array([2, 3, 0, 1])
-_IPERM, _ISIGN = np.array([1, 0, 3, 2]), np.array([[-1.0], [1.0], [1.0], [-1.0]])  # <B i, Q> = sum B[_IPERM] Q _ISIGN
+#: Right multiplication by 1, i, j, k on component rows: (q u)[c] = _RSIGN[u, c] q[_RPERM[u, c]].
+_RPERM = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
+_RSIGN = np.array([[1.0, 1.0, 1.0, 1.0], [-1.0, 1.0, 1.0, -1.0], [-1.0, -1.0, 1.0, 1.0], [-1.0, 1.0, -1.0, 1.0]])
+_IPERM, _ISIGN = _RPERM[1], _RSIGN[1][:, None]  # q i on rows: <B i, Q> = sum B[_IPERM] Q _ISIGN
 
 
 def _products_matrix() -> np.ndarray:
@@ -136,7 +139,8 @@ _AXIS_FADE = 0.1
 def _pure_vector_axis(R, lam, dp):
     """(cos, sin) (N,) of the delta = phi2 - phi0 (defined up to pi) at which A0 i A2* is a pure vector.
 
-    R (8, N): the vector and scalar parts of a0 i a2* (Sc, sc) and of a0 a2* (Ss, ss); lam = |a0|^2 |a2|^2,
+    R (10, N): the vector and scalar parts of a0 i a2* (Sc, sc) and of a0 a2* (Ss, ss), rows 0-7 of
+    _PRODUCTS (8-9 unused here); lam = |a0|^2 |a2|^2,
     dp = p1 - p0 (3, N). The quaternion a0 i (a2 e^{i delta})* = (sc cos + ss sin) + S(delta) has the scalar part
     sigma.z with sigma = (sc, ss), z = (cos delta, sin delta): it vanishes on the axis z = +-sigma_perp. Where the
     end tangents are antiparallel sigma = 0 and every delta qualifies; there the axis maximizing |<S(delta), dp>|
@@ -216,9 +220,6 @@ _SCREEN = 10.0
 #: (W's round-off squared, about 1e-32 of the scale 1 / |p1 - p0|), below any bend's (a bend of 1e-10 of the chord
 #: has an energy of about 1e-20 of it).
 _TIE = 1e-24
-#: Right multiplication by 1, i, j, k on component rows: (q u)[c] = _RSIGN[u, c] q[_RPERM[u, c]].
-_RPERM = np.array([[0, 1, 2, 3], [1, 0, 3, 2], [2, 3, 0, 1], [3, 2, 1, 0]])
-_RSIGN = np.array([[1.0, 1.0, 1.0, 1.0], [-1.0, 1.0, 1.0, -1.0], [-1.0, -1.0, 1.0, 1.0], [-1.0, 1.0, -1.0, 1.0]])
 
 
 def bending_energies(A: np.ndarray) -> np.ndarray:
