@@ -191,9 +191,13 @@ def checked_waypoint_steps(waypoints, *, min_count: int = 2, dim: int = 3):
     rows = np.ascontiguousarray(p.T)  # reductions along contiguous rows are fast
     with np.errstate(over="ignore"):  # refused below
         d = rows[:, 1:] - rows[:, :-1]
-        extent = float((rows.max(axis=1) - rows.min(axis=1)).max()) if p.shape[0] > 1 else 0.0
-    if not np.isfinite(extent):
-        raise WaypointError(f"coordinates span more than the largest float ({extent}): far too large")
+        spans = rows.max(axis=1) - rows.min(axis=1)
+    extent = float(spans.max()) if p.shape[0] > 1 else 0.0
+    if not np.isfinite(extent):  # name the two waypoints furthest apart along the first such axis
+        ax = int(np.argmax(~np.isfinite(spans)))
+        lo, hi = int(np.argmin(rows[ax])), int(np.argmax(rows[ax]))
+        raise WaypointError(f"{'xyz'[ax] if dim == 3 else f'coordinate {ax}'} differs from waypoint {lo}'s by more "
+                            "than the largest float: far too large", hi)
     if 1e-100 <= extent <= 1e100 or extent == 0.0:
         step = np.sqrt(np.einsum("ij,ij->j", d, d))
     else:  # |d|^2 would underflow or overflow: the steps scaled by a power of two

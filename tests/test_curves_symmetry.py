@@ -256,5 +256,6 @@ def test_scaling_by_powers_of_four_is_exact():
 def test_waypoints_spanning_more_than_a_float_are_refused_by_name():
     from planner.errors import WaypointError
 
-    with pytest.raises(WaypointError, match="far too large"):
-        fit_ph_spline([[0.0, 0.0, 0.0], [1e308, 0.0, 0.0], [-1e308, 0.0, 0.0]])
+    with pytest.raises(WaypointError, match="far too large") as e:
+        fit_ph_spline([[0.0, 0.0, 0.0], [0.0, 1e308, 0.0], [0.0, -1e308, 0.0]])
+    assert str(e.value).startswith("waypoint 1: y differs from waypoint 2's") and e.value.index == 1
