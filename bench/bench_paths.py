@@ -14,7 +14,9 @@ ratio compares like with like on a shared machine; the load average is printed w
 
 Issue 12's figure: the C1 fit with the member rule of issue 12 (least bending energy of four members)
 against the same fit with the former rule (the global minimum of the CC measure, kept below as the
-baseline ``fit_c1_cc``), timed in alternation with the other two: "C1 new/former" (target <= 1.10); and the
+baseline ``fit_c1_cc``), timed in alternation with the other two: "C1 new/former" (target <= 1.10; the rule runs
+compiled, planner/curves/_hermite_member.c, and "C1 numpy rule ms" is the same fit with its numpy implementation,
+what an install without a C compiler runs); and the
 default C2 fit against the same fit started from the former rule's C1 spline, timed in alternation: "C2
 new/former".
 
@@ -40,7 +42,7 @@ from scipy.interpolate import CubicSpline
 sys.path.insert(0, str(Path(__file__).resolve().parent))
 from _common import best_time, print_table  # noqa: E402
 
-from planner.curves import spline  # noqa: E402
+from planner.curves import ph_quintic, spline  # noqa: E402
 from planner.curves.ph_quintic import (  # noqa: E402
     _IPERM,
     _ISIGN,
@@ -403,6 +405,16 @@ def fit_c1_cc(points: np.ndarray, continuity: str = "C1") -> PHSpline:
         spline.hermite_rows = hermite_rows
 
 
+def fit_c1_numpy(points: np.ndarray) -> PHSpline:
+    """fit_ph_spline(points, continuity="C1") with the numpy implementation of the member rule (what an install
+    without a C compiler runs) instead of the compiled one."""
+    compiled, ph_quintic._hermite_member = ph_quintic._hermite_member, None
+    try:
+        return fit_ph_spline(points, continuity="C1")
+    finally:
+        ph_quintic._hermite_member = compiled
+
+
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
     ap.add_argument("--sizes", default="10,100,1000,10000")
@@ -417,10 +429,11 @@ def main() -> None:
         fits = {
             "c1": lambda p=p: fit_ph_spline(p, continuity="C1"),
             "cc": lambda p=p: fit_c1_cc(p),
+            "np": lambda p=p: fit_c1_numpy(p),
             "cs": lambda p=p, u=u: CubicSpline(u, p),
         }
         t = best_times(fits, args.repeat)
-        t_c1, t_cc, t_cs = t["c1"], t["cc"], t["cs"]
+        t_c1, t_cc, t_cs, t_np = t["c1"], t["cc"], t["cs"], t["np"]
         t2 = best_times({"c2": lambda p=p: fit_ph_spline(p, continuity="C2"),
                          "cc2": lambda p=p: fit_c1_cc(p, "C2")}, 2 if n >= 10000 else 4)
         t_c2, t_cc2 = t2["c2"], t2["cc2"]
@@ -444,6 +457,7 @@ def main() -> None:
                 f"{t_c1 * 1e3:.3f}",
                 f"{t_cc * 1e3:.3f}",
                 f"{t_c1 / t_cc:.2f}",
+                f"{t_np * 1e3:.3f}",
                 f"{t_c2 * 1e3:.1f}",
                 f"{t_c2 / t_cc2:.2f}",
                 f"{t_cs * 1e3:.3f}",
@@ -458,12 +472,16 @@ def main() -> None:
             ]
         )
     print(f"load average before / after: {load[0]:.2f} / {os.getloadavg()[0]:.2f} ({os.cpu_count()} cpus)")
+    built = ph_quintic._hermite_member is not None
+    print("member rule: " + ("compiled (planner/curves/_hermite_member.c)" if built else
+                             "numpy (the compiled module is not built: no C compiler at install)"))
     print_table(
         [
             "N",
             "PH C1 fit ms",
             "C1 former rule ms",
             "C1 new/former",
+            "C1 numpy rule ms",
             "PH C2 fit ms",
             "C2 new/former",
             "CubicSpline fit ms",

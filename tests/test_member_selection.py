@@ -17,6 +17,9 @@ energy (free of cancellation, on a finer rule) must not exceed the reference's b
 or of the scale 1 / |p1 - p0| of a bend's energy: a tie); on exactly collinear data any straight member will do.
 The default suite checks a few thousand segments of each kind; ``-m slow`` (or running this file as a
 script: ``python -m tests.test_member_selection [segments per kind]``) checks 1e5 and more.
+
+The compiled rule (planner/curves/_hermite_member.c, what the fits use where a C compiler built it) is checked
+against ``_least_energy_member`` the same way: the same member to round-off, or one of the same energy.
 """
 
 from __future__ import annotations
@@ -26,12 +29,14 @@ import sys
 import numpy as np
 import pytest
 
+from planner.curves import ph_quintic
 from planner.curves.ph_quintic import (
     _AXIS_FALLBACK,
     _IPERM,
     _ISIGN,
     _PRODUCTS,
     _dot,
+    _least_energy_compiled,
     _least_energy_member,
     _member,
     _times_e_i,
@@ -320,15 +325,22 @@ def _off_line(A: np.ndarray, dp: np.ndarray, d0: np.ndarray, d1: np.ndarray) -> 
     return float(np.linalg.norm(np.cross(pts, u), axis=1).max() / L)
 
 
-def compare(dp: np.ndarray, d0: np.ndarray, d1: np.ndarray) -> tuple[int, int, float]:
-    """(segments, segments where the members differ, largest relative energy excess of the fast selection's member
-    over the reference's among those) on Hermite data rows; asserts the result is finite."""
+def compiled_member(dp, base, a0, a2, r0, r1) -> np.ndarray:
+    """A (3, 4, N) of the compiled rule (planner/curves/_hermite_member.c), as the numpy rule returns it."""
+    assert ph_quintic._hermite_member is not None, COMPILED_MISSING
+    return _least_energy_compiled(dp, base, a0, a2, r0, r1).transpose(1, 2, 0)
+
+
+def compare(dp: np.ndarray, d0: np.ndarray, d1: np.ndarray, fast=_least_energy_member,
+            reference=reference_member) -> tuple[int, int, float]:
+    """(segments, segments where the members differ, largest relative energy excess of the ``fast`` selection's
+    member over the ``reference``'s among those) on Hermite data rows; asserts the result is finite."""
     n = dp.shape[1]
     a, r = sqrt_rot(np.hstack((d0, d1)))
     args = (dp, 120.0 * dp - 15.0 * (d0 + d1), a[:, :n], a[:, n:], r[:n], r[n:])
     with np.errstate(all="ignore"):
-        ref = reference_member(*args)
-    new = _least_energy_member(*args)
+        ref = reference(*args)
+    new = fast(*args)
     assert np.isfinite(new).all()
     scale = np.abs(ref).max(axis=(0, 1))
     differ = np.flatnonzero(np.abs(new - ref).max(axis=(0, 1)) > 1e-9 * scale)
@@ -380,8 +392,12 @@ def all_members(dp, base, a0, a2, r0, r1) -> list[np.ndarray]:
             for k in range(4)]
 
 
+RULES = {"numpy": _least_energy_member, "compiled": compiled_member}
+
+
+@pytest.mark.parametrize("rule", RULES)
 @pytest.mark.parametrize("kind, seed", [("near straight", 501), ("near straight", 503), ("smooth", 0)])
-def test_the_selection_is_the_least_energy_member(kind, seed):
+def test_the_selection_is_the_least_energy_member(kind, seed, rule):
     """Against the accurate energies of the four candidates, the selected member is the least (to 1e-9 of the
     larger of that energy and the scale 1 / |p1 - p0|). On these near-straight seeds the rule as first written
     (the oracle above, whose integrand cancels) picks a member of far larger energy on 3 and 2 of 20,000 segments
@@ -392,7 +408,7 @@ def test_the_selection_is_the_least_energy_member(kind, seed):
     args = (dp, 120.0 * dp - 15.0 * (d0 + d1), a[:, :n], a[:, n:], r[:n], r[n:])
     with np.errstate(divide="ignore", invalid="ignore"):
         least = np.min([accurate_energies(m) for m in all_members(*args)], axis=0)
-        chosen = accurate_energies(_least_energy_member(*args))
+        chosen = accurate_energies(RULES[rule](*args))
         excess = (chosen - least) / np.maximum(least, 1.0 / np.linalg.norm(dp, axis=0))
     assert excess.max() <= 1e-9, f"{kind}: {(excess > 1e-9).sum()} of {n} members exceed the least energy, worst {excess.max():.2g}"
 
@@ -415,6 +431,40 @@ def test_fast_selection_on_many_segments(kind):
     for seed in range(5):
         data = spline_data(20_000, seed=100 + seed) if kind == "spline" else hermite_data(kind, 20_000, 100 + seed)
         n, differ, worst = compare(*data)
+        assert worst <= 1e-12, f"{kind}: {differ} of {n} members differ, energies by {worst:.1e}"
+
+
+COMPILED_MISSING = (
+    "planner/curves/_hermite_member.c is not built: the install found no C compiler (or Python's headers); "
+    "install gcc (Debian: apt-get install gcc python3-dev) and run `pip install -e .` again"
+)
+
+
+def test_the_compiled_rule_is_built():
+    """The install built the compiled rule (setup.py makes it optional for users; the test command's machine has a
+    C compiler, and without the module every fit would silently take the numpy rule, 1.8 times slower)."""
+    assert ph_quintic._hermite_member is not None, COMPILED_MISSING
+
+
+@pytest.mark.parametrize("kind", KINDS + ("spline",))
+def test_compiled_rule_picks_the_numpy_rules_member(kind):
+    """The compiled rule (what hermite_rows, the splines and PHQuintic.hermite use where it is built) returns the
+    numpy rule's member to round-off, or one of the same energy where the four tie (exact degenerate data: members
+    related by a symmetry of the data, chosen by round-off in both)."""
+    data = spline_data(5000, seed=11) if kind == "spline" else hermite_data(kind, 5000, seed=20 + KINDS.index(kind))
+    n, differ, worst = compare(*data, fast=compiled_member, reference=_least_energy_member)
+    assert worst <= 1e-12, f"{kind}: {differ} of {n} members differ, energies by {worst:.1e}"
+    if kind not in ("exact degenerate",):
+        assert differ == 0, f"{kind}: {differ} of {n} members differ (with equal energies)"
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("kind", KINDS + ("spline",))
+def test_compiled_rule_on_many_segments(kind):
+    """1e5 segments of each kind against the numpy rule."""
+    for seed in range(5):
+        data = spline_data(20_000, seed=300 + seed) if kind == "spline" else hermite_data(kind, 20_000, 300 + seed)
+        n, differ, worst = compare(*data, fast=compiled_member, reference=_least_energy_member)
         assert worst <= 1e-12, f"{kind}: {differ} of {n} members differ, energies by {worst:.1e}"
 
 
@@ -444,7 +494,8 @@ if __name__ == "__main__":
         )
 
 
-def test_straight_ties_go_to_a_member_without_a_stop():
+@pytest.mark.parametrize("rule", RULES)
+def test_straight_ties_go_to_a_member_without_a_stop(rule):
     """Collinear Hermite data with unequal end speeds: every straight candidate has zero energy, and the tie goes to
     the most even parametric speed (int dt / sigma), so not to a member that stops on the way where one of the four
     does not. On 1000 random such data (speeds and chord e^N(0, 1) apart) with a stop-free straight candidate, the
@@ -468,6 +519,6 @@ def test_straight_ties_go_to_a_member_without_a_stop():
         if not any(c.speed(t).min() > 1e-3 * np.median(c.speed(t)) for c in straight):
             continue
         checked += 1
-        sp = PHQuintic.from_quaternions(*_least_energy_member(*args)[..., 0]).speed(t)
+        sp = PHQuintic.from_quaternions(*RULES[rule](*args)[..., 0]).speed(t)
         stops += sp.min() <= 1e-3 * np.median(sp)
     assert checked > 800 and stops <= 2, (checked, stops)

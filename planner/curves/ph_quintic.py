@@ -21,6 +21,11 @@ from planner.curves.ph_curve import PHSegment
 from planner.errors import PlannerError
 from planner.validation import ArgumentError, check_vector, finite_floats
 
+try:  # the member rule compiled (built at install where a C compiler is; see setup.py), else its numpy version
+    from planner.curves import _hermite_member
+except ImportError:  # pragma: no cover - an install without a C compiler
+    _hermite_member = None  # type: ignore[assignment]
+
 # ---------------------------------------------------------------------------------------------
 # C1 Hermite interpolation (Farouki's family with two free angles)
 # ---------------------------------------------------------------------------------------------
@@ -461,12 +466,29 @@ def _rank_close(g, u, est, best, bad, n) -> np.ndarray:
     return b
 
 
+def _least_energy_compiled(dp, base, a0, a2, r0, r1, root_scale=None) -> np.ndarray:
+    """A (N, 3, 4) of the default member (arguments as :func:`_least_energy_member` takes them), times
+    ``root_scale`` (N,) if given, by the compiled rule (planner/curves/_hermite_member.c: the arithmetic of
+    :func:`_least_energy_block` one segment at a time, with its constants and Gauss rules)."""
+    n = dp.shape[1]
+    X = np.empty((16, n))  # the rows the kernel reads: dp, base, a0, a2, |d0|, |d1|
+    X[:3], X[3:6], X[6:10], X[10:14], X[14], X[15] = dp, base, a0, a2, r0, r1
+    scale = np.ones(n) if root_scale is None else np.ascontiguousarray(root_scale, dtype=float)
+    out = np.empty((n, 3, 4))
+    assert _hermite_member is not None
+    _hermite_member.least_energy_members(X, scale, out, _SCREEN, _TIE, _AXIS_FALLBACK, _AXIS_FADE, _SCREEN_RULE,
+                                         _SCREEN_BOUND, _FULL_RULE, _FULL_BOUND)
+    return out
+
+
 def hermite_rows(dp, d0, d1, a0, a2, r0, r1, angles=None, root_scale=None) -> np.ndarray:
     """batch_hermite on component rows: dp = p1 - p0, d0, d1 (3, N), a0, a2 = sqrt_rot(d0), sqrt_rot(d1)
     (4, N) and r0, r1 = |d0|, |d1|; returns A (N, 3, 4), multiplied by ``root_scale`` (N,) if given (the
     interpolant of data scaled by h is h times the curve, sqrt(h) times A, with the same free angles)."""
     n = dp.shape[1]
     base = 120.0 * dp - 15.0 * (d0 + d1)  # Farouki: alpha = base + 5 (A0 i A2* + A2 i A0*)
+    if angles is None and _hermite_member is not None:
+        return _least_energy_compiled(dp, base, a0, a2, r0, r1, root_scale)
     if angles is None:
         A = _least_energy_member(dp, base, a0, a2, r0, r1)
     else:
