@@ -529,6 +529,10 @@ def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
        carries no cancellation, so the choice on nearly straight data is the least energy, not round-off).
        Ties (straight members, of zero energy) go to the most even parametric speed (least int dt / sigma).
 
+    The rule runs compiled (planner/curves/_hermite_member.c, one pass per segment) where the install built it,
+    else as numpy array operations (:func:`_least_energy_member`; a C1 fit then takes about twice as long): the same
+    members to round-off (tests/test_member_selection.py).
+
     Why these four: the curve depends on the data alone, not on coordinates, and every isometry of the data
     carries them onto themselves. For data in a plane (p1 - p0, d0, d1 coplanar) they are exactly the four
     planar PH quintic interpolants of Farouki and Neff (1995, "Hermite interpolation by Pythagorean hodograph
