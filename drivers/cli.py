@@ -17,6 +17,7 @@ import socket
 import sys
 
 from drivers.base import ConnectionLostError, DriverError
+from planner.wording import counted
 
 _UR_PORTS = (30004, 29999, 30001, 30002, 30003)
 
@@ -122,7 +123,7 @@ def plot_run(job, report, target) -> None:
 
     s = job.summary()
     plot_job(job, target, execution=report,
-             title=f"{job.source}: {s['passes']} pass{'es' * (s['passes'] != 1)}, executed on a {job.settings.robot}")
+             title=f"{job.source}: {counted(s['passes'], 'pass')}, executed on a {job.settings.robot}")
 
 
 def cmd_run(args: argparse.Namespace) -> int:

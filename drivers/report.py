@@ -25,6 +25,7 @@ from scipy.spatial import cKDTree
 from drivers.base import DriverError
 from drivers.pacing import LoopStats
 from drivers.plan_window import PlannedPath, bit_switches
+from planner.wording import counted
 
 if TYPE_CHECKING:  # pragma: no cover
     from drivers.recording import ExecutionTrace
@@ -137,7 +138,7 @@ class ExecutionReport:
             lines.append("  " + self.loop.describe())
         if self.samples > 1 and math.isfinite(self.recorded_every):
             how = f"{self.recording}, " if self.recording else ""
-            gaps = (f"{self.gaps} gap{'s' * (self.gaps != 1)}: ~{self.missed} samples missed, the longest "
+            gaps = (f"{counted(self.gaps, 'gap')}: ~{self.missed} samples missed, the longest "
                     f"{1e3 * self.longest_gap:.1f} ms" if self.gaps else "no gap")
             lines.append(f"  recording: {how}a sample every {1e3 * self.recorded_every:.1f} ms of job time; {gaps}")
         if self.samples:
@@ -157,10 +158,11 @@ class ExecutionReport:
                          + (f"; largest distance from its station {worst:.3f} mm" if done else ""))
             for e in self.io_events[:8]:
                 state = "on " if e.value else "off"
-                if e.switched:
+                if e.switched:  # under 0.5 um between the samples around it: the arm stood still (a stop)
+                    there = (f"sampled every {e.resolution_mm:.3f} mm of travel there" if e.resolution_mm >= 5e-4
+                             else "the TCP at rest there")
                     lines.append(f"    {bit_name(e.bit)} {state} at s = {e.actual_s:.4f} m "
-                                 f"(planned {e.planned_s:.4f} m, {e.distance_mm:.3f} mm from the station; "
-                                 f"sampled every {e.resolution_mm:.3f} mm of travel there)")
+                                 f"(planned {e.planned_s:.4f} m, {e.distance_mm:.3f} mm from the station; {there})")
                 elif e.unresolved:
                     lines.append(f"    {bit_name(e.bit)} {state} planned at s = {e.planned_s:.4f} m: not seen, the "
                                  f"recording's samples there are {e.unresolved_ms:.1f} ms apart")

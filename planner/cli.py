@@ -17,6 +17,7 @@ import numpy as np
 
 from planner.errors import NumericalError, PlannerError
 from planner.settings import AXIS_SOURCES, FRAME_METHODS, PATH_MODELS, PlanSettings
+from planner.wording import counted
 
 #: The bundled example the demo runs on (first pass of a real Siemens NX toolpath).
 EXAMPLE_NAME = "nx_first_pass.csv"
@@ -321,7 +322,7 @@ def cmd_plan(args: argparse.Namespace):
         from planner.plot import plot_job
 
         s = job.summary()
-        dg = plot_job(job, args.plot, title=(f"{path_in.name}: {s['passes']} pass{'es' * (s['passes'] != 1)}, "
+        dg = plot_job(job, args.plot, title=(f"{path_in.name}: {counted(s['passes'], 'pass')}, "
                                              f"{s['cut_length_mm']:.0f} mm of cut, {s['duration_s']:.1f} s"))
         print(f"  wrote     {args.plot} (speeds from all {dg.samples} poses, joints from 1 in {dg.step})")
     if out is not None:

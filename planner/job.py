@@ -27,6 +27,7 @@ from planner.io.toolpath import Toolpath
 from planner.motion.profile import FeedProfile
 from planner.protocols import FrameField, Path
 from planner.settings import PlanSettings
+from planner.wording import counted
 
 if TYPE_CHECKING:
     from planner.cam.placement import Placement
@@ -385,10 +386,10 @@ class PlannedJob:
         s = self.summary()
         worst = sorted(self.passes, key=lambda p: -p.max_deviation)[:3 if self.settings.path == "cam" else 0]
         lines = [
-            f"{s['source']}: {s['points']} points -> {s['passes']} passes, {s['rapids']} rapids, "
-            f"{s['reorientations']} reorientations, {s['skipped']} skipped"
-            + (f", {s['dwells']} dwells ({s['dwell_s']:.3g} s)" if s["dwells"] else "")
-            + f"; {s['corners']} corners "
+            f"{s['source']}: {counted(s['points'], 'point')} -> {counted(s['passes'], 'pass')}, "
+            f"{counted(s['rapids'], 'rapid')}, {counted(s['reorientations'], 'reorientation')}, {s['skipped']} skipped"
+            + (f", {counted(s['dwells'], 'dwell')} ({s['dwell_s']:.3g} s)" if s["dwells"] else "")
+            + f"; {counted(s['corners'], 'corner')} "
             f"> {self.settings.corner_deg:g} deg",
             self._path_line(s),
             *["  worst     " + "; ".join(f"pass {p.index} (lines {p.first_line}-{p.last_line}) "

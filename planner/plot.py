@@ -25,6 +25,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.errors import PlannerError
+from planner.wording import counted
 
 #: Image types the plot writes (by the target's suffix).
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
@@ -263,7 +264,7 @@ def plot_job(job, target, *, rate: float | None = None, title: str | None = None
     s = job.summary()
     st = job.settings
     run = _execution_view(job, execution, dg) if execution is not None else None
-    head = title or f"{job.source}: {s['passes']} pass{'es' * (s['passes'] != 1)}"
+    head = title or f"{job.source}: {counted(s['passes'], 'pass')}"
     if run is not None:
         head += "\n" + run["title"]
     fig = new_figure(head, size=(17, 14 if run is not None else 10))
@@ -276,7 +277,7 @@ def plot_job(job, target, *, rate: float | None = None, title: str | None = None
     if cuts:
         colors = cmap(np.linspace(0.0, 1.0, len(cuts)))
         ax.add_collection3d(Line3DCollection(cuts, colors=colors, linewidths=1.0))
-        ax.plot([], [], color=cmap(0.5), label=f"{len(cuts)} pass{'es' * (len(cuts) != 1)} (colour: order)")
+        ax.plot([], [], color=cmap(0.5), label=f"{counted(len(cuts), 'pass')} (colour: order)")
     if rapids.size:
         ax.plot(rapids[:, 0], rapids[:, 1], rapids[:, 2], color="0.45", lw=0.7, ls="--", label="rapids")
     allp = np.vstack([*cuts, rapids[np.isfinite(rapids).all(axis=1)]]) if cuts or rapids.size else np.zeros((1, 3))

@@ -290,3 +290,26 @@ def test_packages_closer_together_after_a_stall_are_not_gaps(job):
     rep = execution_report(job, rec, mode="program")
     assert rep.recorded_every == pytest.approx(0.020)
     assert (rep.gaps, rep.missed) == (1, 6) and rep.longest_gap == pytest.approx(0.140)
+
+
+def test_the_switch_lines_say_how_finely_the_recording_placed_them(job):
+    """Both switches of the plan happen with the arm at rest (the cut starts and ends at a stop): recorded at the
+    controller rate, the step around each is under 0.5 um, said as "the TCP at rest there" (not "sampled every
+    0.000 mm"); recorded every 20 ms, the spray comes on 3 um into the start, said as such. One missing stretch
+    is "1 gap"."""
+    c = job.trajectory().collect()
+    rep = execution_report(job, c.times, c.poses, c.joints, c.io, mode="replay")
+    assert all(e.resolution_mm < 5e-4 for e in rep.io_events)
+    text = "\n".join(rep.describe())
+    assert text.count("mm from the station; the TCP at rest there)") == 2 and "sampled every" not in text
+    i = np.unique(np.r_[0:len(c.times):10, len(c.times) - 1])
+    rep = execution_report(job, c.times[i], c.poses[i], c.joints[i], c.io[i], mode="replay")
+    on = rep.io_events[0]
+    assert on.resolution_mm > 1e-3
+    assert f"on  at s = {on.actual_s:.4f} m (planned {on.planned_s:.4f} m, {on.distance_mm:.3f} mm from the " \
+           f"station; sampled every {on.resolution_mm:.3f} mm of travel there)" in "\n".join(rep.describe())
+    keep = np.ones(len(c.times), bool)
+    keep[3000:3010] = False
+    rep = execution_report(job, c.times[keep], c.poses[keep], c.joints[keep], c.io[keep], mode="replay",
+                           recording="every data package")
+    assert "; 1 gap: ~10 samples missed" in "\n".join(rep.describe())

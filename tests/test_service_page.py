@@ -75,7 +75,7 @@ def test_paste_waypoints_watch_the_job_and_see_the_plot(server, browser, tmp_pat
     d.find_element("id", "submit").click()
     assert until_done(d) == "done", d.find_element("id", "job-error").text
     summary = d.find_element("id", "summary").text
-    assert summary.startswith("<waypoints>: 4 points -> 1 passes")
+    assert summary.startswith("<waypoints>: 4 points -> 1 pass, 0 rapids")
     wait(d, lambda d: d.execute_script("const p = document.getElementById('plot'); "
                                        "return p.complete && p.naturalWidth > 1000;"))
     job_id = d.find_element("id", "job-id").text

@@ -15,6 +15,8 @@ import threading
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
+from planner.wording import counted
+
 
 def _start(parent_pid: int) -> None:
     """In the drawing process: die with the service, yield to requests, and import matplotlib now (not on the
@@ -46,7 +48,7 @@ def draw(job_path: str, input_name: str, target: str) -> int:
     job = load_job(job_path)
     s = job.summary()
     buf = io.BytesIO()
-    plot_job(job, buf, title=(f"{input_name}: {s['passes']} pass{'es' * (s['passes'] != 1)}, "
+    plot_job(job, buf, title=(f"{input_name}: {counted(s['passes'], 'pass')}, "
                               f"{s['cut_length_mm']:.0f} mm of cut, {s['duration_s']:.1f} s"))
     write_bytes_atomic(target, buf.getvalue())
     return len(buf.getvalue())
