@@ -441,7 +441,7 @@ COMPILED_MISSING = (
 
 
 def test_the_compiled_rule_is_built():
-    """The install built the compiled rule (setup.py makes it optional for users; the test command's machine has a
+    """The install built the compiled rule (pyproject.toml makes it optional for users; the test command's machine has a
     C compiler, and without the module every fit would silently take the numpy rule, 1.8 times slower)."""
     assert ph_quintic._hermite_member is not None, COMPILED_MISSING
 

@@ -8,7 +8,7 @@
  * ph_quintic, so they are written once. tests/test_member_selection.py checks that both implementations choose
  * the same members.
  *
- * No -ffast-math: a cusp (sigma = 0) must give 1 / 0 = inf and 0 * inf = nan, as in numpy; setup.py also turns
+ * No -ffast-math: a cusp (sigma = 0) must give 1 / 0 = inf and 0 * inf = nan, as in numpy; pyproject.toml also turns
  * off the contraction of a * b + c into fused multiply-adds, as numpy rounds both. The members agree with the numpy
  * rule's to round-off (its sums run in BLAS's order), and so do the choices but for exact ties.
  */

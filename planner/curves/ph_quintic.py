@@ -21,7 +21,7 @@ from planner.curves.ph_curve import PHSegment
 from planner.errors import PlannerError
 from planner.validation import ArgumentError, check_vector, finite_floats
 
-try:  # the member rule compiled (built at install where a C compiler is; see setup.py), else its numpy version
+try:  # the member rule compiled (built at install where a C compiler is; see pyproject.toml), else its numpy version
     from planner.curves import _hermite_member
 except ImportError:  # pragma: no cover - an install without a C compiler
     _hermite_member = None  # type: ignore[assignment]
