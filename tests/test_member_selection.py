@@ -458,6 +458,23 @@ def test_compiled_rule_picks_the_numpy_rules_member(kind):
         assert differ == 0, f"{kind}: {differ} of {n} members differ (with equal energies)"
 
 
+@pytest.mark.parametrize("continuity", ["C1", "C2"])
+def test_fits_without_the_compiled_rule_are_the_same(monkeypatch, continuity):
+    """An install without a C compiler (the module absent: hermite_rows takes the numpy rule) fits the same splines,
+    C1 and C2, through rough random waypoints and a helix: the same control points to round-off."""
+    from planner.curves.spline import fit_ph_spline
+
+    rng = np.random.default_rng(8)
+    t = np.linspace(0.0, 12.0, 400)
+    for points in (np.cumsum(rng.normal(size=(300, 3)), axis=0), np.c_[np.cos(t), np.sin(t), 0.1 * t]):
+        compiled = fit_ph_spline(points, continuity=continuity).control_points
+        with monkeypatch.context() as m:
+            m.setattr(ph_quintic, "_hermite_member", None)
+            numpy_rule = fit_ph_spline(points, continuity=continuity).control_points
+        scale = np.abs(points).max()
+        assert np.abs(numpy_rule - compiled).max() <= 1e-12 * scale
+
+
 @pytest.mark.slow
 @pytest.mark.parametrize("kind", KINDS + ("spline",))
 def test_compiled_rule_on_many_segments(kind):
