@@ -53,7 +53,13 @@ static double dot4(const double *p, const double *q)
     return p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3];
 }
 
-/* <p j, q> and <p k, q>: p j = (-p2, -p3, p0, p1), p k = (-p3, p2, -p1, p0) (ph_quintic._RPERM, _RSIGN) */
+/* <p i, q>, <p j, q> and <p k, q>: p i = (-p1, p0, p3, -p2), p j = (-p2, -p3, p0, p1), p k = (-p3, p2, -p1, p0)
+ * (ph_quintic._RPERM, _RSIGN) */
+static double doti(const double *p, const double *q)
+{
+    return -p[1] * q[0] + p[0] * q[1] + p[3] * q[2] - p[2] * q[3];
+}
+
 static double dotj(const double *p, const double *q)
 {
     return -p[2] * q[0] - p[3] * q[1] + p[0] * q[2] + p[1] * q[3];
@@ -152,12 +158,12 @@ static void pure_vector_axis(const double *R, double lam, const double *dp, cons
 static int rank_close(const Products *p, const double *est, int b, const Constants *k)
 {
     double lim = k->screen_factor * est[b];
-    double E[4] = {INFINITY, INFINITY, INFINITY, INFINITY};
-    int in[4], has_b = 0;
-    for (int q = 0; q < 4; q++) {
+    int in[4];
+    for (int q = 0; q < 4; q++)
         in[q] = est[q] < lim;
-        has_b |= in[q] && q == b;
-    }
+    if (!in[b])
+        return 0; /* no candidate within the factor: the best estimate is 0 or infinite */
+    double E[4] = {INFINITY, INFINITY, INFINITY, INFINITY};
     E[b] = estimate(p + b, &k->full, k->tie);
     double low = INFINITY;
     for (int q = 0; q < 4; q++)
@@ -165,10 +171,8 @@ static int rank_close(const Products *p, const double *est, int b, const Constan
             double lo = estimate(p + q, &k->full_lo, k->tie);
             low = lo < low ? lo : low;
         }
-    if (has_b && low > E[b] * (1.0 + 1e-9))
+    if (low > E[b] * (1.0 + 1e-9))
         return b;
-    if (!has_b)
-        return 0; /* no candidate within the factor: the best estimate is 0 or infinite */
     for (int q = 0; q < 4; q++)
         if (in[q] && q != b)
             E[q] = estimate(p + q, &k->full, k->tie);
@@ -231,10 +235,7 @@ static void segment(const double *X, Py_ssize_t n, Py_ssize_t i, double rs, cons
     double c, s;
     pure_vector_axis(R, r0 * r1, dp, k, &c, &s);
     double a2d[2][4]; /* a2 e^{i delta0} and its negative (delta0 + pi) */
-    a2d[0][0] = a2[0] * c + a2[1] * (-1.0 * s);
-    a2d[0][1] = a2[1] * c + a2[0] * s;
-    a2d[0][2] = a2[2] * c + a2[3] * s;
-    a2d[0][3] = a2[3] * c + a2[2] * (-1.0 * s);
+    times_e_i(a2, c, s, a2d[0]);
     for (int m = 0; m < 4; m++)
         a2d[1][m] = -a2d[0][m];
     double Q[2][4], cs[2][2];
@@ -246,8 +247,7 @@ static void segment(const double *X, Py_ssize_t n, Py_ssize_t i, double rs, cons
         }
         sqrt_rot(alpha, Q[j]);
         /* <(a0 + A2's root) e^{i phi0}, Q> = x cos + y sin: the maximum at atan2(y, x) */
-        double a0i[4] = {-a0[1], a0[0], a0[3], -a0[2]}, a2i[4] = {-a2d[j][1], a2d[j][0], a2d[j][3], -a2d[j][2]};
-        double x = dot4(a0, Q[j]) + dot4(a2d[j], Q[j]), y = dot4(a0i, Q[j]) + dot4(a2i, Q[j]);
+        double x = dot4(a0, Q[j]) + dot4(a2d[j], Q[j]), y = doti(a0, Q[j]) + doti(a2d[j], Q[j]);
         double ih = 1.0 / sqrt(x * x + y * y);
         int ok = isfinite(ih);
         cs[j][0] = ok ? x * ih : 1.0;
