@@ -161,7 +161,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         job = plan(args.input, settings, read_options=read_options, progress=bars)
     finally:
         bars.close()
-    print(f"planned {args.input}: {job.duration:.2f} s, {len(job.passes)} passes", flush=True)
+    print(f"planned {args.input}: {job.duration:.2f} s, {counted(len(job.passes), 'pass')}", flush=True)
     sim = None
     try:
         if args.sim:

@@ -364,8 +364,8 @@ def export(job, out: Path, parameters: dict, progress=None) -> str:
         raise PlannerError(f"-o {out.name}: unknown output type (use .csv, .json, .script or .job)")
     tr = job.trajectory()
     if job.settings.robot is not None and job.problems:
-        print(f"  warning   {job.settings.robot}: {len(job.problems)} moves with problems; joints without an inverse "
-              "kinematics solution are left empty", flush=True)
+        print(f"  warning   {job.settings.robot}: {counted(len(job.problems), 'move')} with problems; joints without "
+              "an inverse kinematics solution are left empty", flush=True)
     writer = write_json if suffix == ".json" else write_csv
     n = writer(tr, out, parameters=parameters, progress=progress)
     return f"{n} poses" + (", with joints" if job.settings.robot is not None else "")

@@ -418,7 +418,7 @@ class PlannedJob:
             if not self.problems:
                 lines.append(f"  robot     {self.settings.robot}: every move reachable within joint limits")
             else:
-                lines.append(f"  robot     {self.settings.robot}: {len(self.problems)} moves with problems")
+                lines.append(f"  robot     {self.settings.robot}: {counted(len(self.problems), 'move')} with problems")
                 lines += [f"    {p}" for p in self.problems[:max_lines]]
                 if len(self.problems) > max_lines:
                     lines.append(f"    ... {len(self.problems) - max_lines} more")

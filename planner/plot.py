@@ -295,8 +295,9 @@ def plot_job(job, target, *, rate: float | None = None, title: str | None = None
         tool_axes(ax, q, F, scale)
     if run is not None:
         _execution_path(ax, run)
-    label_path_axes(ax, f"paths (part frame, {st.path}): {s['cut_length_mm']:.0f} mm of cut, {s['rapids']} rapids, "
-                        f"{s['reorientations']} turns in place" + (f"; {note}" if note else ""))
+    label_path_axes(ax, f"paths (part frame, {st.path}): {s['cut_length_mm']:.0f} mm of cut, "
+                        f"{counted(s['rapids'], 'rapid')}, {counted(s['reorientations'], 'turn')} in place"
+                        + (f"; {note}" if note else ""))
     if not note:
         _frames_panel(fig.add_subplot(grid[0, 2]), job, s)
 
