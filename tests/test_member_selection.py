@@ -446,6 +446,27 @@ def test_the_compiled_rule_is_built():
     assert ph_quintic._hermite_member is not None, COMPILED_MISSING
 
 
+def test_the_compiled_kernel_refuses_what_it_cannot_read():
+    """The kernel is private (ph_quintic builds its arrays), but a wrong array is an exception naming it, never a
+    read past an array's end: rows and scales of different N, another dtype, a strided array, a short rule."""
+    assert ph_quintic._hermite_member is not None, COMPILED_MISSING
+    kernel = ph_quintic._hermite_member.least_energy_members
+    rules = (ph_quintic._SCREEN_RULE, ph_quintic._SCREEN_BOUND, ph_quintic._FULL_RULE, ph_quintic._FULL_BOUND)
+    consts = (ph_quintic._SCREEN, ph_quintic._TIE, ph_quintic._AXIS_FALLBACK, ph_quintic._AXIS_FADE)
+    X, out = np.ones((16, 2)), np.empty((2, 3, 4))
+    with pytest.raises(ValueError, match=r"X must be \(16, N\) and out \(N, 3, 4\) for N root scales"):
+        kernel(X, np.ones(3), out, *consts, *rules)
+    with pytest.raises(TypeError, match="every array must be float64"):
+        kernel(X.astype(np.float32), np.ones(2), out, *consts, *rules)
+    with pytest.raises(ValueError, match="not C-contiguous"):
+        kernel(np.ones((2, 16)).T, np.ones(2), out, *consts, *rules)
+    w, Ms, Mw = ph_quintic._FULL_BOUND
+    with pytest.raises(ValueError, match=r"full_lo: Ms must be \(K, 6\) and Mw \(K, 3\) for K weights"):
+        kernel(X, np.ones(2), out, *consts, *rules[:3], (w, Ms[:-1], Mw))
+    with pytest.raises(TypeError, match=r"screen must be a tuple \(w, Ms, Mw\)"):
+        kernel(X, np.ones(2), out, *consts, rules[0][:2], *rules[1:])
+
+
 @pytest.mark.parametrize("kind", KINDS + ("spline",))
 def test_compiled_rule_picks_the_numpy_rules_member(kind):
     """The compiled rule (what hermite_rows, the splines and PHQuintic.hermite use where it is built) returns the
