@@ -40,7 +40,7 @@ if sys.argv[1] == "--baseline":
     planner.io.read_toolpath(sys.argv[2])
     code = 0
 else:
-    from planner.cli import main
+    from planner.frontends.cli.main import main
     code = main(sys.argv[1:])
 print("PEAK_KB", resource.getrusage(resource.RUSAGE_SELF).ru_maxrss, file=sys.stderr)
 sys.exit(code)

@@ -1,4 +1,4 @@
-"""Benchmark: the REST service for path jobs (``planner.service``, issue 15) against planning called directly.
+"""Benchmark: the REST service for path jobs (``planner.frontends.service``, issue 15) against planning called directly.
 
 1. 500 jobs of 100 waypoints (smooth random 3-D curves, seeded) submitted as JSON by 20 concurrent clients to a
    real service (uvicorn on 127.0.0.1, ``--workers 2``, SQLite in WAL mode, development mode without keys):
@@ -70,7 +70,7 @@ def _plan_and_save(points: list, folder: str, k: int) -> float:
 
 
 def _nice() -> None:
-    from planner.service.worker_process import WORKER_NICE
+    from planner.frontends.service.worker_process import WORKER_NICE
 
     os.nice(WORKER_NICE)
 
@@ -86,13 +86,14 @@ def direct(jobs: list, workers: int) -> float:
 
 
 class Service:
-    """``python -m planner.service serve`` in development mode on a free loopback port."""
+    """``python -m planner.frontends.service serve`` in development mode on a free loopback port."""
 
     def __init__(self, folder: Path, workers: int):
         env = {**os.environ, "PLANNER_DEV_NO_AUTH": "1", "PLANNER_DB": f"sqlite:///{folder / 'jobs.sqlite'}",
                "PLANNER_MAX_REQUEST_BYTES": str(64 << 20)}
         self.folder = folder
-        self.proc = subprocess.Popen([sys.executable, "-m", "planner.service", "serve", "--port", "0", "--workers",
+        self.proc = subprocess.Popen([sys.executable, "-m", "planner.frontends.service", "serve", "--port", "0",
+                                      "--workers",
                                       str(workers)], cwd=folder, env=env, stdout=subprocess.PIPE)
         assert self.proc.stdout is not None
         line = self.proc.stdout.readline().decode()
@@ -319,8 +320,8 @@ def bench_commits(n: int = 3000) -> None:
     checkpoints inside the commits (its default) against the service's checkpoints in a thread of their own."""
     import uuid
 
-    from planner.service.store import Checkpointer, now, open_store
-    from planner.service.workers import JOBS
+    from planner.frontends.service.store import Checkpointer, now, open_store
+    from planner.frontends.service.workers import JOBS
 
     body = json.dumps({"waypoints": curves(1, 100)[0]})
     rows = []
@@ -357,7 +358,8 @@ def bench_nx(workers: int) -> None:
         print(f"\n{NX_FILE} not found: the whole-NX-job part is skipped")
         return
     tic = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "planner.cli", "plan", str(NX_FILE)], stdout=subprocess.DEVNULL)
+    proc = subprocess.Popen([sys.executable, "-m", "planner.frontends.cli.main", "plan", str(NX_FILE)],
+                            stdout=subprocess.DEVNULL)
     _, status, usage = os.wait4(proc.pid, 0)
     t_cli = time.perf_counter() - tic
     if status != 0:

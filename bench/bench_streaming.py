@@ -53,7 +53,7 @@ LOOKAHEAD, GAIN = 0.1, 300.0
 
 def demo_job():
     from planner import PlanSettings, plan
-    from planner.cli import DEMO_PART_FRAME, EXAMPLE_CLS, example_path
+    from planner.frontends.cli.main import DEMO_PART_FRAME, EXAMPLE_CLS, example_path
 
     part = tuple(float(x) for x in DEMO_PART_FRAME.split(","))
     return plan(example_path(EXAMPLE_CLS), PlanSettings(robot="ur5e", part_frame=part, cut_output=("tool", 0)))

@@ -9,7 +9,8 @@
 - :mod:`drivers.report`: :class:`~drivers.report.ExecutionReport`, computed from what a run recorded
   (:mod:`drivers.recording`: reduced as it goes; :mod:`drivers.plan_window`: the planned path summarized once and
   searched a window at a time; :mod:`drivers.package_log`: every RTDE data package of a program run);
-- :mod:`drivers.cli`: ``planner run``.
+- :mod:`drivers.execute`: running a job on a robot as a library (execute a job, start a simulated controller,
+  the demo run): what ``planner run`` and the service's executions call.
 
 The planning core never imports this package; the drivers read the planner's one trajectory
 (``job.trajectory()``), never a second sampler.

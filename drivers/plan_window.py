@@ -222,7 +222,7 @@ class _Piece:
     __slots__ = ("k0", "t", "poses", "lines", "index", "base")
 
     def __init__(self, k0: int, t, poses, lines, before) -> None:
-        from drivers.report import PolylineIndex
+        from drivers.geometry import PolylineIndex
 
         self.k0, self.t, self.poses, self.lines = k0, t, poses, lines
         xyz = poses[:, :3]

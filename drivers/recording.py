@@ -23,8 +23,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from drivers.geometry import PolylineIndex, joint_limit_margin
 from drivers.plan_window import PlannedPath, PlanWindow
-from drivers.report import PolylineIndex, joint_limit_margin
 
 #: Samples reduced at a time.
 BLOCK = 2500

@@ -71,7 +71,7 @@ def test_budget_settings_are_checked(field):
 
 def test_a_file_feed_is_named_per_minute_in_the_files_units(tmp_path):
     """The refusal quotes the feed as the CAM file wrote it (per minute, in the file's length unit) beside SI."""
-    from planner.cli import main
+    from planner.frontends.cli.main import main
 
     text = (Path(__file__).resolve().parents[1] / "examples" / "nx_first_pass.cls").read_text()
     src = tmp_path / "slow.cls"

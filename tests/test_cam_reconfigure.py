@@ -19,7 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from planner import PlanSettings, plan
 from planner.cam.configure import groups
-from planner.cli import main
+from planner.frontends.cli.main import main
 from planner.kinematics import forward, forward_matrix, get_model
 from tests.cam_excerpts import NX
 from tests.test_export_urscript import parse_program

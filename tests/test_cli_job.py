@@ -9,7 +9,8 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from planner import PlanSettings, plan
-from planner.cli import DEMO_PART_FRAME, EXAMPLE_CLS, build_parser, example_path, main, settings_from_args
+from planner.frontends.cli.main import DEMO_PART_FRAME, EXAMPLE_CLS, build_parser, example_path, main
+from planner.frontends.cli.options import settings_from_args
 from planner.motion import MotionLimits
 
 
@@ -145,7 +146,7 @@ def test_cli_plans_each_shared_cam_file(name, extra, capsys):
 
 
 def test_unplaced_part_gets_a_hint_and_repeated_warnings_are_grouped(capsys, tmp_path):
-    from planner.cli import warning_lines
+    from planner.frontends.cli.main import warning_lines
 
     assert main(["plan", str(example_path(EXAMPLE_CLS)), "--robot", "ur5e"]) == 0
     out = capsys.readouterr().out

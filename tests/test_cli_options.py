@@ -7,8 +7,9 @@ import argparse
 
 import pytest
 
-from planner.cli import Number, _numeric_options, build_parser, main, settings_from_args
 from planner.errors import PlannerError
+from planner.frontends.cli.main import build_parser, main
+from planner.frontends.cli.options import Number, _numeric_options, settings_from_args
 from planner.settings import PlanSettings
 
 OPTIONS = {o.flag: o for o in _numeric_options()}

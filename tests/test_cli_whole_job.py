@@ -12,7 +12,7 @@ import pytest
 from scipy.spatial.transform import Rotation
 
 from planner import PlanSettings, plan
-from planner.cli import DEMO_PART_FRAME, EXAMPLE_CLS, example_path, main
+from planner.frontends.cli.main import DEMO_PART_FRAME, EXAMPLE_CLS, example_path, main
 from planner.kinematics import forward_matrix, get_model
 from planner.motion import poses_at_length, tool_orientation
 from planner.motion.stream import as_transform

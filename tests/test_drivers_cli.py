@@ -1,11 +1,12 @@
-"""`planner run` (drivers.cli) against a simulated controller it starts itself, and run_demo_on_sim."""
+"""`planner run` (planner.frontends.cli.run) against a simulated controller it starts itself, and run_demo_on_sim."""
 
 from __future__ import annotations
 
 import pytest
 
-from drivers.cli import main, run_demo_on_sim
+from drivers.execute import run_demo_on_sim
 from planner import PlanSettings, plan
+from planner.frontends.cli.run import main
 
 DEMO = "examples/nx_first_pass.cls"
 PART = "0.4,0.9965,-0.1,0,0,0"
@@ -47,7 +48,7 @@ def test_planner_run_sim_that_cannot_start_is_one_line(capsys):
     traceback."""
     import socket
 
-    from drivers.cli import free_loopback_host
+    from drivers.execute import free_loopback_host
 
     host = free_loopback_host()
     with socket.socket() as s:

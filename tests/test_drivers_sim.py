@@ -18,7 +18,7 @@ from drivers.report import planned_path
 from drivers.sim import SimDriver
 from drivers.ur import URDriver
 from planner import PlanSettings, plan
-from planner.cli import DEMO_PART_FRAME, EXAMPLE_CLS, example_path
+from planner.frontends.cli.main import DEMO_PART_FRAME, EXAMPLE_CLS, example_path
 from sim import recording
 from sim.motion import DT, servo_following_error
 from tests import sim_fixtures

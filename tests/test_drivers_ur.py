@@ -409,7 +409,7 @@ def test_program_mode_cancel_stops_the_program_and_the_arm(make_sim, demo_job):
 def test_whole_nx_job_excerpt_program_in_fast_forward(make_sim, tmp_path):
     """The first 300 lines of the shared NX job (7 passes, 7 rapids, 470 s) as the job's program at 20x: every
     pass and rapid followed within the program's tolerance, no protective stop, every output switch made."""
-    from planner.cli import DEMO_PART_FRAME
+    from planner.frontends.cli.main import DEMO_PART_FRAME
     from tests.cam_excerpts import NX
 
     f = tmp_path / "ust_a2_head.cls"

@@ -269,8 +269,8 @@ def test_pass_reports_what_the_floor_cannot_fix():
 def test_no_program_for_joints_too_fast_at_the_floor(tmp_path):
     """The controller would stop on it: the .script export refuses, naming the joint; a pose stream is written
     (its joints as planned, the too-fast stretch included)."""
-    from planner.cli import export
     from planner.errors import PlannerError
+    from planner.frontends.cli.main import export
 
     points, axes = near_singular_pass(3e-4)
     job = plan_pass(points, axes, robot="ur5e", feed_floor=0.02)
@@ -313,7 +313,7 @@ def test_cam_job_lowers_the_feed_of_the_pass_locally():
 
 
 def test_cli_plan_names_the_slowed_stretch(tmp_path, capsys):
-    from planner.cli import main
+    from planner.frontends.cli.main import main
 
     points, axes = near_singular_pass(0.02, n=26)
     src = tmp_path / "wrist.csv"

@@ -1,6 +1,6 @@
 """Fuzz suite of issue 17: mutated versions of every input format, and option values, through ``planner plan``.
 
-The contract, for any input file and any options, checked through ``planner.cli.main([...])`` in-process (and a
+The contract, for any input file and any options, checked through ``planner.frontends.cli.main.main([...])`` in-process (and a
 few examples through a subprocess, where stderr is the real one):
 
 - exit 0 with a valid, complete output at ``-o`` (parsed back: every row finite, as many poses as reported,
@@ -41,7 +41,7 @@ import pytest
 from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
-from planner.cli import main
+from planner.frontends.cli.main import main
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).resolve().parent / "data"
@@ -231,7 +231,7 @@ def deadline(seconds: float):
 
 
 def run_in_process(argv: list[str]) -> tuple[int, str, str]:
-    """``planner.cli.main(argv)``: (exit status, stdout, stderr); an escaping exception or a hang fails the test."""
+    """``planner.frontends.cli.main.main(argv)``: (exit status, stdout, stderr); an escaping exception or a hang fails the test."""
     out, err = io.StringIO(), io.StringIO()
     with (contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), warnings.catch_warnings(),
           np.errstate(all="ignore"), deadline(DEADLINE)):
@@ -405,13 +405,13 @@ def test_every_seed_plans_unmutated(fmt):
     ("apt", [("duplicate", 0.4, 3)], (("--feed", "-5"),), ".csv"),
 ])
 def test_through_a_subprocess(fmt, ops, opts, suffix):
-    """A few through ``python -m planner.cli``: stderr is the process's own (warnings, tracebacks, exit status)."""
+    """A few through ``python -m planner.frontends.cli.main``: stderr is the process's own (warnings, tracebacks, exit status)."""
     name, seed, fixed = SEEDS[fmt]
     with tempfile.TemporaryDirectory(prefix="fuzz-") as tmp:
         src = Path(tmp) / name
         src.write_bytes(mutate(seed, ops))
         out = Path(tmp) / f"out{suffix}"
         argv = ["plan", str(src), *fixed, "--max-poses", MAX_POSES, "-o", str(out), *[f"{k}={v}" for k, v in opts]]
-        p = subprocess.run([sys.executable, "-m", "planner.cli", *argv], capture_output=True, text=True,
+        p = subprocess.run([sys.executable, "-m", "planner.frontends.cli.main", *argv], capture_output=True, text=True,
                            timeout=DEADLINE + 30, cwd=tmp, env={**os.environ, "PYTHONWARNINGS": "default"})
         check_contract(src, argv, out, p.returncode, p.stdout, p.stderr)

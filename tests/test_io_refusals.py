@@ -52,13 +52,13 @@ def test_json_duplicate_keys_and_deep_nesting_are_refused(tmp_path):
 
 # ------------------------------------------------------------------ a tool axis component of 1e308 (issue 17)
 def _cli(argv: list[str]) -> tuple[int, str]:
-    """``planner.cli.main(argv)`` in-process: (exit status, stderr); any escaping exception fails the test."""
+    """``planner.frontends.cli.main.main(argv)`` in-process: (exit status, stderr); any escaping exception fails the test."""
     import contextlib
     import io
     import traceback
     import warnings
 
-    from planner.cli import main
+    from planner.frontends.cli.main import main
 
     out, err = io.StringIO(), io.StringIO()
     with contextlib.redirect_stdout(out), contextlib.redirect_stderr(err), warnings.catch_warnings():

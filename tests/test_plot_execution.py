@@ -106,7 +106,7 @@ def test_execution_without_a_trace_is_refused_by_name(run, tmp_path):
 
 
 def test_planner_run_plot_writes_the_run(tmp_path, capsys):
-    from drivers.cli import main
+    from planner.frontends.cli.run import main
 
     out = tmp_path / "run.png"
     rc = main(["run", DEMO, "--robot", "ur5e", "--part-frame", ",".join(map(str, PART)), "--cut-output",

@@ -426,7 +426,7 @@ def test_sigterm_during_a_streamed_execution_stops_the_arm_and_the_restart_shows
 ])
 def test_robot_configuration_refusals_name_the_robot_and_field(text, message):
     from planner.errors import PlannerError
-    from planner.service.config import ServiceConfig
+    from planner.frontends.service.config import ServiceConfig
 
     with pytest.raises(PlannerError) as err:
         ServiceConfig.from_env({"PLANNER_ROBOTS": text})
@@ -434,7 +434,7 @@ def test_robot_configuration_refusals_name_the_robot_and_field(text, message):
 
 
 def test_robots_from_a_file_and_the_default(tmp_path):
-    from planner.service.config import RobotConfig, ServiceConfig
+    from planner.frontends.service.config import RobotConfig, ServiceConfig
 
     assert ServiceConfig.from_env({}).robots == (RobotConfig("sim"),)
     f = tmp_path / "robots.json"
@@ -450,7 +450,7 @@ def test_serve_refuses_a_bad_robots_option_with_its_message(tmp_path):
     import sys
 
     env = {**os.environ, "PLANNER_DB": f"sqlite:///{tmp_path / 'j.sqlite'}"}
-    r = subprocess.run([sys.executable, "-m", "planner.service", "serve", "--port", "0", "--robots",
+    r = subprocess.run([sys.executable, "-m", "planner.frontends.service", "serve", "--port", "0", "--robots",
                         '{"cell": {"host": "cell.local", "model": "ur5e"}}'], env=env, capture_output=True, text=True,
                        timeout=60, cwd=tmp_path)
     assert r.returncode == 2 and "listening" not in r.stdout

@@ -10,8 +10,9 @@ from pathlib import Path
 import numpy as np
 import pytest
 
-from planner.cli import DEMO_PART_FRAME, build_parser, settings_from_args
-from planner.cli import main as cli_main
+from planner.frontends.cli.main import DEMO_PART_FRAME, build_parser
+from planner.frontends.cli.main import main as cli_main
+from planner.frontends.cli.options import settings_from_args
 from tests.test_service_server import ServiceProcess, wait_state, wait_until
 
 ROOT = Path(__file__).resolve().parents[1]

@@ -14,7 +14,7 @@ import pytest
 from sqlalchemy import inspect, select, text
 from sqlalchemy.exc import IntegrityError
 
-from planner.service.store import Execution, Job, migrate, now, open_store
+from planner.frontends.service.store import Execution, Job, migrate, now, open_store
 from tests import pg_server
 from tests.test_service_server import ServiceProcess, wait_state
 
@@ -109,7 +109,7 @@ def test_the_service_on_postgresql(postgres, tmp_path):
                 r = ca.post("/v1/jobs", files={"file": (CLSF.name, f)}, data={"settings": json.dumps(settings)})
             job = wait_state(ca, r.json()["id"])
             assert job["state"] == "done", job["error"]
-            from planner.cli import main as cli_main
+            from planner.frontends.cli.main import main as cli_main
 
             out = tmp_path / "cli.csv"
             assert cli_main(["plan", str(CLSF), "--robot", "ur5e", "--part-frame", ",".join(map(str, PART)),

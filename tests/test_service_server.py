@@ -1,4 +1,4 @@
-"""The service as a process: a real uvicorn on 127.0.0.1 started by ``python -m planner.service serve --port 0``;
+"""The service as a process: a real uvicorn on 127.0.0.1 started by ``python -m planner.frontends.service serve --port 0``;
 its health, metrics, OpenAPI schema, request-size limit and refusals at start-up.
 
 :class:`ServiceProcess` is the helper the other ``test_service_*`` files use.
@@ -42,7 +42,7 @@ class ServiceProcess:
         """Start and wait until healthy; a service that does not come up is killed before the error is raised."""
         out = open(self.log, "ab")  # noqa: SIM115 (kept open for the process)
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "planner.service", "serve", "--host", self.host, "--port", "0", "--workers",
+            [sys.executable, "-m", "planner.frontends.service", "serve", "--host", self.host, "--port", "0", "--workers",
              str(self.workers)], cwd=self.folder, env=self.env, stdout=subprocess.PIPE, stderr=out)
         out.close()
         try:
@@ -123,7 +123,7 @@ class ServiceProcess:
         import contextlib
         import io
 
-        from planner.service.cli import main
+        from planner.frontends.service.cli import main
 
         out = io.StringIO()
         with contextlib.redirect_stdout(out):
@@ -243,7 +243,7 @@ def test_request_larger_than_the_limit_is_413(server):
 
 def test_dev_mode_refuses_a_non_loopback_address(tmp_path):
     env = {**os.environ, "PLANNER_DEV_NO_AUTH": "1", "PLANNER_DB": f"sqlite:///{tmp_path / 'j.sqlite'}"}
-    r = subprocess.run([sys.executable, "-m", "planner.service", "serve", "--host", "0.0.0.0", "--port", "0"],
+    r = subprocess.run([sys.executable, "-m", "planner.frontends.service", "serve", "--host", "0.0.0.0", "--port", "0"],
                        env=env, capture_output=True, text=True, timeout=60, cwd=tmp_path)
     assert r.returncode == 2
     assert "PLANNER_DEV_NO_AUTH=1" in r.stderr and "loopback" in r.stderr and "0.0.0.0" in r.stderr
@@ -268,7 +268,7 @@ def test_a_job_over_the_time_limit_fails_with_the_reason(server):
 
 
 def test_the_rest_settings_mirror_plan_settings_one_to_one():
-    from planner.service.schemas import SettingsModel
+    from planner.frontends.service.schemas import SettingsModel
     from planner.settings import PlanSettings
 
     assert list(SettingsModel.model_fields) == list(PlanSettings().to_dict())

@@ -20,8 +20,8 @@ import pytest
 from drivers.report import distance_to_polyline, planned_path
 from drivers.ur import URDriver
 from planner import PlanSettings, plan
-from planner.cli import DEMO_PART_FRAME
 from planner.export import job_program
+from planner.frontends.cli.main import DEMO_PART_FRAME
 from planner.kinematics import forward
 from sim.core import Core
 from sim.io_state import IOState

@@ -1,12 +1,20 @@
-"""The REST service for path jobs (``planner serve``): FastAPI app, SQLite/SQLAlchemy store, worker processes.
+"""Deprecated (kept for one release): the REST service moved to :mod:`planner.frontends.service`.
 
-A front end like the CLI: every job is planned by :func:`planner.plan` in a worker process, saved with
-:meth:`planner.PlannedJob.save`, and its exports are streamed from the saved job by the same writers the CLI
-uses (byte for byte the files ``planner plan -o`` writes).
-
-Modules: :mod:`~planner.service.config` (settings from the environment), :mod:`~planner.service.store` (tables,
-engine, migrations), :mod:`~planner.service.auth` (API keys and roles), :mod:`~planner.service.schemas` (the
-request and response models; ``SettingsModel`` mirrors :class:`planner.PlanSettings`), :mod:`~planner.service.workers`
-(the pool of planning processes), :mod:`~planner.service.app` (routes), :mod:`~planner.service.cli` (``planner serve``
-and ``planner keys``).
+``python -m planner.service serve|keys ...`` still runs it (``planner serve`` / ``planner keys`` are the commands);
+importing this package warns. Its modules are under ``planner.frontends.service`` (``app``, ``config``, ...).
 """
+
+from __future__ import annotations
+
+import importlib
+import warnings
+
+warnings.warn("planner.service is deprecated and will be removed in the next release: the REST service is "
+              "planner.frontends.service (run it with `planner serve`)", DeprecationWarning, stacklevel=2)
+
+
+def __getattr__(name: str):
+    try:
+        return importlib.import_module(f"planner.frontends.service.{name}")
+    except ModuleNotFoundError:
+        raise AttributeError(f"planner.service (deprecated) has no {name!r}: see planner.frontends.service") from None

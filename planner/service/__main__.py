@@ -1,8 +1,9 @@
-"""``python -m planner.service serve|keys ...``."""
+"""``python -m planner.service serve|keys ...``: deprecated, use ``planner serve`` or
+``python -m planner.frontends.service``.
+"""
 
+import importlib
 import sys
 
-from planner.service.cli import main
-
 if __name__ == "__main__":
-    sys.exit(main())
+    sys.exit(importlib.import_module("planner.frontends.service.cli").main())

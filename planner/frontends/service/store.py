@@ -24,7 +24,7 @@ from sqlalchemy import (
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, sessionmaker
 
-from planner.service.config import ROLES  # noqa: F401  (re-exported: the roles a key row may hold)
+from planner.frontends.service.config import ROLES  # noqa: F401  (re-exported: the roles a key row may hold)
 
 #: Job states.
 STATES = ("queued", "running", "done", "failed", "cancelled")

@@ -1,5 +1,5 @@
-"""Executions in the service process: one process per execution
-(:func:`planner.service.execution_process.execution_main`), a thread relaying its messages into the store, at most
+"""Executions in the service process: one process per execution (:func:`.execution_process.execution_main`),
+a thread relaying its messages into the store, at most
 one active execution per robot (checked here and kept by a partial unique index in the database), stops.
 
 - Stop (``DELETE /v1/executions/{id}``): "stop" goes to the process, whose driver ends the run with a controlled
@@ -25,11 +25,11 @@ from sqlalchemy import func, select, update
 from sqlalchemy.exc import IntegrityError
 from sqlalchemy.orm import sessionmaker
 
-from planner.service.config import RobotConfig, ServiceConfig
-from planner.service.metrics import Metrics
-from planner.service.store import ACTIVE_EXECUTION_STATES, EXECUTION_STATES, Execution, now
+from planner.frontends.service.config import RobotConfig, ServiceConfig
+from planner.frontends.service.metrics import Metrics
+from planner.frontends.service.store import ACTIVE_EXECUTION_STATES, EXECUTION_STATES, Execution, now
 
-log = logging.getLogger("planner.service")
+log = logging.getLogger("planner.frontends.service")
 
 #: Seconds a stopped execution's process has to end before it is killed.
 STOP_GRACE = 3.0
@@ -180,7 +180,7 @@ class Runner(threading.Thread):
             self.owner._done(self.id)
 
     def _run(self) -> None:
-        from planner.service.execution_process import execution_main
+        from planner.frontends.service.execution_process import execution_main
 
         ctx = mp.get_context("spawn")
         control_r, control_w = ctx.Pipe(duplex=False)

@@ -21,7 +21,7 @@ from planner.wording import counted
 def _start(parent_pid: int) -> None:
     """In the drawing process: die with the service, yield to requests, and import matplotlib now (not on the
     first picture)."""
-    from planner.service.worker_process import WORKER_NICE, _die_with_parent, name_process
+    from planner.frontends.service.worker_process import WORKER_NICE, _die_with_parent, name_process
 
     _die_with_parent(parent_pid)
     name_process("planner-plot")

@@ -1,10 +1,10 @@
-"""Alembic environment: runs on the connection :func:`planner.service.store.migrate` passes in, or on the
+"""Alembic environment: runs on the connection :func:`planner.frontends.service.store.migrate` passes in, or on the
 ``sqlalchemy.url`` of an ``alembic.ini`` (for ``alembic revision --autogenerate`` by developers)."""
 
 from alembic import context
 from sqlalchemy import engine_from_config, pool
 
-from planner.service.store import Base
+from planner.frontends.service.store import Base
 
 config = context.config
 target_metadata = Base.metadata

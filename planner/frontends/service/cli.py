@@ -1,5 +1,5 @@
 """``planner serve`` and ``planner keys``: :func:`add_subcommands` adds them to the CLI's parser
-(``python -m planner.service serve|keys ...`` runs them alone).
+(``python -m planner.frontends.service serve|keys ...`` runs them alone).
 
 ``serve`` prints ``planner serve: listening on http://HOST:PORT`` once its socket is bound (``--port 0`` picks a
 free port), then serves until SIGINT/SIGTERM, stopping its worker processes.
@@ -13,7 +13,7 @@ import socket
 import sys
 
 from planner.errors import PlannerError
-from planner.service.config import DEFAULT_DB, ROLES, ServiceConfig, is_loopback, robots_from_env
+from planner.frontends.service.config import DEFAULT_DB, ROLES, ServiceConfig, is_loopback, robots_from_env
 
 
 def add_subcommands(sub) -> None:
@@ -54,7 +54,7 @@ def _config(args: argparse.Namespace) -> ServiceConfig:
 def cmd_serve(args: argparse.Namespace) -> None:
     import uvicorn
 
-    from planner.service.app import create_app
+    from planner.frontends.service.app import create_app
 
     cfg = _config(args)
     if cfg.dev_no_auth and not is_loopback(args.host):
@@ -88,13 +88,13 @@ def _stopped(signum, frame) -> None:
 
 
 def _sessions(args: argparse.Namespace):
-    from planner.service.store import open_store
+    from planner.frontends.service.store import open_store
 
     return open_store(_config(args).db_url)[1]
 
 
 def cmd_keys_create(args: argparse.Namespace) -> None:
-    from planner.service.auth import create_key
+    from planner.frontends.service.auth import create_key
 
     with _sessions(args)() as s:
         row, key = create_key(s, args.name, args.role)
@@ -106,7 +106,7 @@ def cmd_keys_create(args: argparse.Namespace) -> None:
 def cmd_keys_list(args: argparse.Namespace) -> None:
     import time
 
-    from planner.service.auth import list_keys
+    from planner.frontends.service.auth import list_keys
 
     with _sessions(args)() as s:
         rows = list_keys(s)
@@ -118,7 +118,7 @@ def cmd_keys_list(args: argparse.Namespace) -> None:
 
 
 def cmd_keys_revoke(args: argparse.Namespace) -> None:
-    from planner.service.auth import revoke_key
+    from planner.frontends.service.auth import revoke_key
 
     with _sessions(args)() as s:
         row = revoke_key(s, args.key_id)
@@ -126,7 +126,7 @@ def cmd_keys_revoke(args: argparse.Namespace) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m planner.service serve|keys ...`` (the same as ``planner serve|keys``)."""
+    """``python -m planner.frontends.service serve|keys ...`` (the same as ``planner serve|keys``)."""
     ap = argparse.ArgumentParser(prog="planner")
     add_subcommands(ap.add_subparsers(dest="command", required=True))
     args = ap.parse_args(argv)

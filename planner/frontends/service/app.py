@@ -24,7 +24,7 @@ from collections.abc import AsyncIterator, Iterator
 from pathlib import Path
 from typing import Annotated, Any, Literal
 
-from fastapi import Depends, FastAPI, HTTPException, Query, Request
+from fastapi import FastAPI, HTTPException, Query, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse, HTMLResponse, JSONResponse, PlainTextResponse, Response, StreamingResponse
 from pydantic import ValidationError
@@ -32,17 +32,13 @@ from sqlalchemy import select
 from starlette.datastructures import UploadFile
 
 from planner.errors import PlannerError
-from planner.service.auth import DEV_PRINCIPAL, Principal, authenticate
-from planner.service.config import ServiceConfig
-from planner.service.execution_runs import Executions
-from planner.service.metrics import Metrics
-from planner.service.plots import Plotter
-from planner.service.schemas import JobCreated, JobList, JobView, ReadOptions, SettingsModel, WaypointJob
-from planner.service.store import Checkpointer, Job, now, open_store
-from planner.service.workers import Inserter, WorkerPool, job_dir, recover, remove_job_files
-
-API = "/v1"
-_JOB_ID = re.compile(r"^[0-9a-f]{32}$")
+from planner.frontends.service.auth import Principal
+from planner.frontends.service.config import ServiceConfig
+from planner.frontends.service.deps import API, Caller, Service, caller, own_job, principal
+from planner.frontends.service.deps import service as _service
+from planner.frontends.service.schemas import JobCreated, JobList, JobView, ReadOptions, SettingsModel, WaypointJob
+from planner.frontends.service.store import Job, now
+from planner.frontends.service.workers import job_dir, remove_job_files
 
 
 # -- errors ------------------------------------------------------------------------------------------
@@ -104,79 +100,6 @@ class BodyLimit:
 
 class _TooLarge(Exception):
     pass
-
-
-# -- the app -------------------------------------------------------------------------------------------
-class Service:
-    """What the routes share: configuration, store, pool, metrics."""
-
-    def __init__(self, cfg: ServiceConfig):
-        self.cfg = cfg
-        bg = cfg.db_url.startswith("sqlite")  # WAL checkpoints (and their fsync) out of the commits requests wait for
-        self.engine, self.sessions = open_store(cfg.db_url, background_checkpoints=bg)
-        self.checkpointer = Checkpointer(self.engine) if bg else None
-        self.metrics = Metrics()
-        self.pool = WorkerPool(self.sessions, cfg, self.metrics)
-        self.inserter = Inserter(self.pool)
-        self.plotter = Plotter()
-        self.executions = Executions(self.sessions, cfg, self.pool.write_lock, self.metrics)
-
-    def start(self) -> dict:
-        self.cfg.data_dir.mkdir(parents=True, exist_ok=True)
-        (self.cfg.data_dir / "jobs").mkdir(exist_ok=True)
-        recovered = recover(self.sessions, self.cfg)
-        recovered["executions_failed"] = self.executions.recover()
-        self.pool.start()
-        self.plotter.start()
-        if self.checkpointer is not None:
-            self.checkpointer.start()
-        return recovered
-
-    def stop(self) -> None:
-        self.executions.shutdown()
-        self.plotter.stop()
-        self.pool.stop()
-        if self.checkpointer is not None:
-            self.checkpointer.stop()
-        self.engine.dispose()
-
-
-def _service(request: Request) -> Service:
-    return request.app.state.service
-
-
-async def principal(request: Request) -> Principal:
-    """The caller: the key of ``Authorization: Bearer`` / ``X-API-Key``, or the development operator (checked in
-    the event loop: one indexed read, no thread hand-over)."""
-    return caller(_service(request), request.headers.get("x-api-key"), request.headers.get("authorization", ""))
-
-
-def caller(svc: Service, api_key: str | None, authorization: str) -> Principal:
-    """The principal of a request's ``X-API-Key`` / ``Authorization`` header values; 401 if the key is not valid."""
-    if svc.cfg.dev_no_auth:
-        return DEV_PRINCIPAL
-    key = api_key
-    if authorization.lower().startswith("bearer "):
-        key = authorization[7:].strip()
-    with svc.sessions() as s:
-        who = authenticate(s, key)
-    if who is None:
-        raise HTTPException(401, "a valid API key is needed (Authorization: Bearer <key>)",
-                            headers={"WWW-Authenticate": "Bearer"})
-    return who
-
-
-Caller = Annotated[Principal, Depends(principal)]
-
-
-def own_job(svc: Service, who: Principal, job_id: str) -> Job:
-    """The caller's job, or 404 (also for another key's job: its existence is not revealed)."""
-    if _JOB_ID.match(job_id):
-        with svc.sessions() as s:
-            job = s.scalars(select(Job).where(Job.id == job_id, Job.owner == who.key_id)).first()
-        if job is not None:
-            return job
-    raise HTTPException(404, f"no job {job_id}")
 
 
 def job_view(svc: Service, job: Job) -> dict:
@@ -264,7 +187,7 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
 
     @app.get("/", include_in_schema=False)
     def page() -> HTMLResponse:
-        from planner.service.page import PAGE
+        from planner.frontends.service.page import PAGE
 
         return HTMLResponse(PAGE)
 
@@ -391,10 +314,10 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
         return app.openapi_schema
 
     app.openapi = openapi  # type: ignore[method-assign]  # the JSON body is parsed by hand (two content types)
-    from planner.service.docs import add_docs
+    from planner.frontends.service.docs import add_docs
 
     add_docs(app)
-    from planner.service.executions import router as executions_router
+    from planner.frontends.service.executions import router as executions_router
 
     app.include_router(executions_router, prefix=API)
     return app

@@ -1,5 +1,5 @@
 """The process that executes one job on one robot through the driver layer (:mod:`drivers`), started by the
-service for each execution (:mod:`planner.service.execution_runs`).
+service for each execution (:mod:`planner.frontends.service.execution_runs`).
 
 It loads the saved job, starts a simulated controller when the robot is simulated (stopped again at the end; it
 also dies with this process), connects :class:`drivers.ur.URDriver` to the robot's host only, executes the job and
@@ -38,7 +38,7 @@ DASHBOARD_STOP_EVERY = 0.25
 def error_figures(exc) -> dict:
     """A :class:`drivers.base.DriverError` as JSON: kind, reason, job time t (s), planned pose p[x, y, z, rx, ry, rz]
     (m, rad) and source line (each None when not known)."""
-    from planner.service.worker_process import plain
+    from planner.frontends.service.worker_process import plain
 
     return plain({"kind": getattr(exc, "kind", "failure"), "reason": getattr(exc, "reason", str(exc)),
                   "t": getattr(exc, "t", None), "pose": None if getattr(exc, "pose", None) is None else list(exc.pose),
@@ -49,7 +49,7 @@ def report_figures(report) -> dict:
     """The figures of a :class:`drivers.report.ExecutionReport` as JSON (SI units, names with their unit; NaN as
     null), its lines of text (``describe``) and its failure (:func:`error_figures`) or None."""
     from drivers.report import bit_name
-    from planner.service.worker_process import plain
+    from planner.frontends.service.worker_process import plain
 
     events = list(report.io_events)
     made = [e for e in events if e.switched]
@@ -101,7 +101,7 @@ def stop_from_dashboard(host: str) -> None:
 def run_execution(task: dict, send, cancel: threading.Event, phase: Phase | None = None) -> None:
     """Execute ``task`` (job_path, mode, robot: RobotConfig fields) and ``send`` its messages (module doc)."""
     from drivers.base import DriverError
-    from drivers.cli import execute_job, start_sim
+    from drivers.execute import execute_job, start_sim
     from planner.job import load_job
 
     robot = task["robot"]
@@ -156,7 +156,7 @@ def _cancelled():
 
 def execution_main(control, results, parent_pid: int, task: dict) -> None:
     """The process: ``control`` (service -> here: "stop"), ``results`` (here -> service: messages)."""
-    from planner.service.worker_process import _die_with_parent, name_process
+    from planner.frontends.service.worker_process import _die_with_parent, name_process
 
     _die_with_parent(parent_pid)
     name_process("planner-exec")

@@ -1,9 +1,9 @@
 """Robot executions: ``POST /v1/jobs/{id}/executions`` runs a done job on a robot the operator configured
-(:class:`planner.service.config.RobotConfig`, by name: a request never carries a host), one execution per robot at
+(:class:`.config.RobotConfig`, by name: a request never carries a host), one execution per robot at
 a time; ``GET /v1/executions/{id}`` shows its state, progress and the execution report's figures (or the failure's
 reason, job time, pose and source line); ``DELETE /v1/executions/{id}`` stops it (the arm stopped within a
 second); ``GET /v1/robots`` lists the configured robots. Only keys of the ``operator`` role may execute or stop.
-The runs themselves: :mod:`planner.service.execution_runs`.
+The runs themselves: :mod:`planner.frontends.service.execution_runs`.
 """
 
 from __future__ import annotations
@@ -11,26 +11,25 @@ from __future__ import annotations
 import json
 from typing import Annotated
 
-from fastapi import APIRouter, Depends, HTTPException, Query, Request
+from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import JSONResponse
 from sqlalchemy import select
 
-from planner.service.auth import Principal
-from planner.service.execution_runs import STOP_GRACE, RobotBusy
-from planner.service.schemas import ExecutionCreated, ExecutionList, ExecutionRequest, ExecutionView, RobotList
-from planner.service.store import ACTIVE_EXECUTION_STATES, Execution
+from planner.frontends.service.auth import Principal
+from planner.frontends.service.deps import API, JOB_ID, Caller, own_job, service
+from planner.frontends.service.execution_runs import STOP_GRACE, RobotBusy
+from planner.frontends.service.schemas import (
+    ExecutionCreated,
+    ExecutionList,
+    ExecutionRequest,
+    ExecutionView,
+    RobotList,
+)
+from planner.frontends.service.store import ACTIVE_EXECUTION_STATES, Execution
 
 router = APIRouter(tags=["executions"])
-API = "/v1"
 
 
-async def _caller(request: Request) -> Principal:
-    from planner.service.app import principal
-
-    return await principal(request)
-
-
-Caller = Annotated[Principal, Depends(_caller)]
 
 
 def require_operator(who: Principal) -> None:
@@ -57,10 +56,9 @@ def execution_view(row: Execution) -> dict:
 
 def own_execution(request: Request, who: Principal, execution_id: str) -> Execution:
     """The caller's execution, or 404 (also for another key's: its existence is not revealed)."""
-    from planner.service.app import _JOB_ID, _service
 
-    if _JOB_ID.match(execution_id):
-        with _service(request).sessions() as s:
+    if JOB_ID.match(execution_id):
+        with service(request).sessions() as s:
             row = s.scalars(select(Execution).where(Execution.id == execution_id,
                                                     Execution.owner == who.key_id)).first()
         if row is not None:
@@ -74,11 +72,10 @@ def own_execution(request: Request, who: Principal, execution_id: str) -> Execut
                         422: {"description": "unknown robot, or a robot of another model"}})
 def create_execution(request: Request, job_id: str, body: ExecutionRequest, who: Caller) -> JSONResponse:
     """Run a done job on a configured robot (by name), in "stream" (servoJ) or "program" (URScript) mode."""
-    from planner.service.app import _service, own_job
-    from planner.service.workers import job_dir
+    from planner.frontends.service.workers import job_dir
 
     require_operator(who)
-    svc = _service(request)
+    svc = service(request)
     job = own_job(svc, who, job_id)
     robot = svc.cfg.robot(body.robot)
     if robot is None:
@@ -110,12 +107,11 @@ def list_executions(request: Request, who: Caller, limit: Annotated[int, Query(g
                     job_id: Annotated[str | None, Query(max_length=32, description="only this job's")] = None
                     ) -> dict:
     """The caller's executions, newest first."""
-    from planner.service.app import _service
 
     q = select(Execution).where(Execution.owner == who.key_id)
     if job_id is not None:
         q = q.where(Execution.job_id == job_id)
-    with _service(request).sessions() as s:
+    with service(request).sessions() as s:
         rows = list(s.scalars(q.order_by(Execution.seq.desc()).limit(limit)))
     return {"executions": [execution_view(r) for r in rows]}
 
@@ -134,13 +130,12 @@ def get_execution(request: Request, execution_id: str, who: Caller) -> dict:
 def stop_execution(request: Request, execution_id: str, who: Caller) -> dict:
     """Stop an execution: the arm is brought to rest (controlled stop) and the job's outputs switched off; answers
     once the execution has ended (a few seconds at most)."""
-    from planner.service.app import _service
 
     require_operator(who)
     row = own_execution(request, who, execution_id)
     if row.state not in ACTIVE_EXECUTION_STATES:
         raise HTTPException(409, f"execution {execution_id} is {row.state}; only a running one can be stopped")
-    svc = _service(request)
+    svc = service(request)
     if svc.executions.stop(row.id):
         svc.executions.wait(row.id, STOP_GRACE + 5.0)
     return execution_view(own_execution(request, who, execution_id))
@@ -150,8 +145,7 @@ def stop_execution(request: Request, execution_id: str, who: Caller) -> dict:
 def list_robots(request: Request, who: Caller) -> dict:
     """The robots jobs can be executed on: name, model (null: a simulated robot of the job's model), simulated,
     busy."""
-    from planner.service.app import _service
 
-    svc = _service(request)
+    svc = service(request)
     return {"robots": [{"name": r.name, "model": r.model, "simulated": r.simulated, "mode_default": "stream",
                         "busy": svc.executions.busy(r.name)} for r in svc.cfg.robots]}

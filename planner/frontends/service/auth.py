@@ -17,7 +17,7 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from planner.errors import PlannerError
-from planner.service.store import DEV_OWNER, ROLES, ApiKey, now
+from planner.frontends.service.store import DEV_OWNER, ROLES, ApiKey, now
 
 
 @dataclass(frozen=True)

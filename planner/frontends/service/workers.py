@@ -1,7 +1,7 @@
 """The pool of planning worker processes, driven from the service process.
 
 Each :class:`Slot` is a thread of the service owning one worker process (``multiprocessing`` spawn context,
-:func:`planner.service.worker_process.worker_main`): when idle it claims the oldest queued job from the store,
+:func:`planner.frontends.service.worker_process.worker_main`): when idle it claims the oldest queued job from the store,
 sends it to its process and relays progress and the result into the store. CPU-bound planning therefore never
 runs in the event loop (nor in the service process at all).
 
@@ -32,11 +32,11 @@ from sqlalchemy import Table, bindparam, func, select, update
 from sqlalchemy.engine import Engine
 from sqlalchemy.orm import sessionmaker
 
-from planner.service.config import ServiceConfig
-from planner.service.metrics import Metrics
-from planner.service.store import STATES, Job, now
+from planner.frontends.service.config import ServiceConfig
+from planner.frontends.service.metrics import Metrics
+from planner.frontends.service.store import STATES, Job, now
 
-log = logging.getLogger("planner.service")
+log = logging.getLogger("planner.frontends.service")
 #: The jobs table itself (inserts without the ORM's per-row bookkeeping).
 JOBS: Table = Job.__table__  # type: ignore[assignment]
 
@@ -90,7 +90,7 @@ class Slot(threading.Thread):
 
     # -- process ------------------------------------------------------------------------------
     def start_process(self) -> None:
-        from planner.service.worker_process import worker_main
+        from planner.frontends.service.worker_process import worker_main
 
         ctx = mp.get_context("spawn")
         parent, child = ctx.Pipe()

@@ -1,0 +1,96 @@
+"""Running a planned job on a UR robot, as a library: what the command line (``planner run``, ``planner demo``) and
+the REST service's executions both call.
+
+- :func:`execute_job`: connect a :class:`drivers.ur.URDriver` to a controller, execute a job, disconnect.
+- :func:`start_sim`: a simulated controller (:class:`sim.SimController`) on a free loopback address.
+- :func:`run_demo_on_sim`: a job executed on a simulator it starts (the end of ``planner demo``).
+- :func:`plot_run`: the job's picture with the run drawn over it.
+"""
+
+from __future__ import annotations
+
+import random
+import socket
+
+from drivers.base import DriverError
+from planner.wording import counted
+
+#: The controller's ports (RTDE, dashboard, primary, secondary, real-time) a simulated controller serves.
+UR_PORTS = (30004, 29999, 30001, 30002, 30003)
+
+
+def free_loopback_host(rng: random.Random | None = None) -> str:
+    """A loopback address on which nothing serves the UR ports."""
+    rng = rng or random.Random()
+    for _ in range(200):
+        host = f"127.{rng.randint(100, 250)}.{rng.randint(0, 255)}.{rng.randint(2, 254)}"
+        ok = True
+        for port in UR_PORTS:
+            with socket.socket() as s:
+                try:
+                    s.bind((host, port))
+                except OSError:
+                    ok = False
+                    break
+        if ok:
+            return host
+    raise DriverError("no free loopback address for a simulated controller")
+
+
+def _free_port(host: str) -> int:
+    with socket.socket() as s:
+        s.bind((host, 0))
+        return s.getsockname()[1]
+
+
+def start_sim(model: str, *, host: str | None = None, modbus: bool = False, speed: float = 1.0):
+    """A started :class:`sim.SimController` (on ``host`` or a free loopback address; Modbus on a free port).
+    DriverError when it cannot start (no free loopback address, the address taken, the child process failing)."""
+    from sim import SimController, SimError
+
+    host = host or free_loopback_host()
+    try:
+        return SimController(host, model=model, modbus_port=_free_port(host) if modbus else None,
+                             speed=speed).start()
+    except (SimError, OSError) as exc:
+        # the child's reason is the last line of what it printed (SimError carries its whole traceback)
+        lines = [ln.strip() for ln in str(exc).splitlines() if ln.strip()]
+        raise DriverError(f"cannot start a simulated controller on {host}: {lines[-1] if lines else exc}") from exc
+
+
+def execute_job(job, host: str, *, mode: str = "stream", io: str = "rtde", modbus_port: int = 502,
+                progress=None, cancel=None, **driver_options):
+    """Connect a :class:`drivers.ur.URDriver` to ``host``, execute ``job``, disconnect; the ExecutionReport."""
+    from drivers.ur import URDriver
+
+    driver = URDriver(host, job.settings.robot, io=io, modbus_port=modbus_port, **driver_options)
+    driver.connect()
+    try:
+        return driver.execute(job, mode=mode, progress=progress, cancel=cancel)
+    finally:
+        driver.close()
+
+
+def run_demo_on_sim(job, *, mode: str = "program", speed: float = 10.0, progress=None, plot=None):
+    """Execute a planned job on a simulated controller through real ur_rtde (the end of ``planner demo``).
+
+    Program mode runs the job's URScript in fast-forward (``speed`` simulated seconds per second); stream
+    mode streams servoJ in real time (``speed`` is then 1). ``plot``: a picture of the job with the run drawn
+    over it is written there (atomically). Returns the :class:`ExecutionReport`."""
+    sim = start_sim(job.settings.robot, speed=speed if mode == "program" else 1.0)
+    try:
+        report = execute_job(job, sim.host, mode=mode, progress=progress)
+    finally:
+        sim.stop()
+    if plot is not None:
+        plot_run(job, report, plot)
+    return report
+
+
+def plot_run(job, report, target) -> None:
+    """The job's picture with the run drawn over it (:func:`planner.plot.plot_job` with ``execution=``)."""
+    from planner.plot import plot_job
+
+    s = job.summary()
+    plot_job(job, target, execution=report,
+             title=f"{job.source}: {counted(s['passes'], 'pass')}, executed on a {job.settings.robot}")

@@ -1,0 +1,8 @@
+"""The command line ``planner``: :mod:`~planner.frontends.cli.main` (the parser, ``fit``, ``plan``, ``demo``),
+:mod:`~planner.frontends.cli.run` (``run``: plan and execute on a robot), :mod:`~planner.frontends.cli.options` (the
+planning options the commands share); ``serve`` and ``keys`` come from :mod:`planner.frontends.service.cli`.
+"""
+
+from planner.frontends.cli.main import main
+
+__all__ = ["main"]

@@ -1,0 +1,96 @@
+"""What the routes share, as FastAPI dependencies: the :class:`Service` (configuration, store, worker pool, metrics,
+executions), the caller (:func:`principal`, :data:`Caller`) and the caller's own job (:func:`own_job`).
+"""
+
+from __future__ import annotations
+
+import re
+from typing import Annotated
+
+from fastapi import Depends, HTTPException, Request
+from sqlalchemy import select
+
+from planner.frontends.service.auth import DEV_PRINCIPAL, Principal, authenticate
+from planner.frontends.service.config import ServiceConfig
+from planner.frontends.service.execution_runs import Executions
+from planner.frontends.service.metrics import Metrics
+from planner.frontends.service.plots import Plotter
+from planner.frontends.service.store import Checkpointer, Job, open_store
+from planner.frontends.service.workers import Inserter, WorkerPool, recover
+
+#: The prefix of every versioned route.
+API = "/v1"
+#: A job's (and an execution's) id: 32 hex digits.
+JOB_ID = re.compile(r"^[0-9a-f]{32}$")
+
+
+class Service:
+    """What the routes share: configuration, store, pool, metrics."""
+
+    def __init__(self, cfg: ServiceConfig):
+        self.cfg = cfg
+        bg = cfg.db_url.startswith("sqlite")  # WAL checkpoints (and their fsync) out of the commits requests wait for
+        self.engine, self.sessions = open_store(cfg.db_url, background_checkpoints=bg)
+        self.checkpointer = Checkpointer(self.engine) if bg else None
+        self.metrics = Metrics()
+        self.pool = WorkerPool(self.sessions, cfg, self.metrics)
+        self.inserter = Inserter(self.pool)
+        self.plotter = Plotter()
+        self.executions = Executions(self.sessions, cfg, self.pool.write_lock, self.metrics)
+
+    def start(self) -> dict:
+        self.cfg.data_dir.mkdir(parents=True, exist_ok=True)
+        (self.cfg.data_dir / "jobs").mkdir(exist_ok=True)
+        recovered = recover(self.sessions, self.cfg)
+        recovered["executions_failed"] = self.executions.recover()
+        self.pool.start()
+        self.plotter.start()
+        if self.checkpointer is not None:
+            self.checkpointer.start()
+        return recovered
+
+    def stop(self) -> None:
+        self.executions.shutdown()
+        self.plotter.stop()
+        self.pool.stop()
+        if self.checkpointer is not None:
+            self.checkpointer.stop()
+        self.engine.dispose()
+
+
+def service(request: Request) -> Service:
+    return request.app.state.service
+
+
+async def principal(request: Request) -> Principal:
+    """The caller: the key of ``Authorization: Bearer`` / ``X-API-Key``, or the development operator (checked in
+    the event loop: one indexed read, no thread hand-over)."""
+    return caller(service(request), request.headers.get("x-api-key"), request.headers.get("authorization", ""))
+
+
+def caller(svc: Service, api_key: str | None, authorization: str) -> Principal:
+    """The principal of a request's ``X-API-Key`` / ``Authorization`` header values; 401 if the key is not valid."""
+    if svc.cfg.dev_no_auth:
+        return DEV_PRINCIPAL
+    key = api_key
+    if authorization.lower().startswith("bearer "):
+        key = authorization[7:].strip()
+    with svc.sessions() as s:
+        who = authenticate(s, key)
+    if who is None:
+        raise HTTPException(401, "a valid API key is needed (Authorization: Bearer <key>)",
+                            headers={"WWW-Authenticate": "Bearer"})
+    return who
+
+
+Caller = Annotated[Principal, Depends(principal)]
+
+
+def own_job(svc: Service, who: Principal, job_id: str) -> Job:
+    """The caller's job, or 404 (also for another key's job: its existence is not revealed)."""
+    if JOB_ID.match(job_id):
+        with svc.sessions() as s:
+            job = s.scalars(select(Job).where(Job.id == job_id, Job.owner == who.key_id)).first()
+        if job is not None:
+            return job
+    raise HTTPException(404, f"no job {job_id}")

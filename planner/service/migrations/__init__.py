@@ -1,1 +1,0 @@
-"""Alembic migrations of the job store (run by :func:`planner.service.store.migrate` at start-up)."""
