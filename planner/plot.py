@@ -31,12 +31,19 @@ from planner.wording import counted
 PLOT_SUFFIXES = (".png", ".svg", ".pdf")
 
 
-def check_plot_target(target) -> None:
-    """PlannerError unless ``target`` names an image type the plot writes (checked before any work)."""
+def check_plot_target(target, *inputs) -> None:
+    """PlannerError unless ``target`` names an image type the plot writes and a file it may replace (a regular
+    file or a new one, through symbolic links; none of the ``inputs``): checked before any work."""
+    from planner.export.files import check_output
+
     suffix = os.path.splitext(os.fspath(target))[1].lower()
     if suffix not in PLOT_SUFFIXES:
         raise PlannerError(f"--plot {os.fspath(target)}: unknown image type {suffix or '(none)'!r} "
                            f"(use {', '.join(PLOT_SUFFIXES)})")
+    try:
+        check_output(target, *inputs)
+    except PlannerError as exc:
+        raise PlannerError(f"--plot {exc}") from None
 
 
 def new_figure(title: str, size: tuple[float, float] = (13, 9.5)):

@@ -79,8 +79,12 @@ class SimController:
         if self.record is not None:
             if self.record.suffix not in (".npz", ".csv"):
                 raise ValueError(f"record: use a .npz or .csv file name, got {self.record}")
-            if self.record.is_dir():
-                raise ValueError(f"record: {self.record} is a directory; name a .npz or .csv file")
+            from planner.export.files import output_target
+
+            try:  # a regular file or a new one, through symbolic links (written there, the link kept)
+                output_target(self.record)
+            except ValueError as exc:
+                raise ValueError(f"record: {exc}") from None
             folder = self.record.parent
             while not folder.exists() and folder != folder.parent:
                 folder = folder.parent

@@ -415,3 +415,98 @@ def test_through_a_subprocess(fmt, ops, opts, suffix):
         p = subprocess.run([sys.executable, "-m", "planner.frontends.cli.main", *argv], capture_output=True, text=True,
                            timeout=DEADLINE + 30, cwd=tmp, env={**os.environ, "PYTHONWARNINGS": "default"})
         check_contract(src, argv, out, p.returncode, p.stdout, p.stderr)
+
+
+#: Where ``-o`` points (issue 24): links whose end gets the output, and targets refused before anything is read.
+WRITTEN_THROUGH = ["link", "chain", "dangling link", "linked folder"]
+REFUSED = ["dangling into a missing folder", "loop", "fifo", "device", "directory", "socket", "input by a link",
+           "input by a hard link"]
+
+
+def _output_target(folder: Path, kind: str, suffix: str, src: Path) -> tuple[Path, Path | None]:
+    """The ``-o`` name of ``kind`` made in ``folder``, and the file the output must land in (None: refused)."""
+    import socket
+
+    name = folder / f"out{suffix}"
+    store = folder / "store"
+    store.mkdir()
+    real = store / f"real{suffix}"
+    if kind in ("link", "chain", "linked folder"):
+        real.write_bytes(PREVIOUS)
+    if kind == "link":
+        name.symlink_to(f"store/real{suffix}")
+    elif kind == "chain":
+        (folder / f"mid{suffix}").symlink_to(real)
+        name.symlink_to(f"mid{suffix}")
+    elif kind == "dangling link":
+        name.symlink_to(f"store/real{suffix}")
+    elif kind == "linked folder":
+        (folder / "linked").symlink_to("store")
+        name = folder / "linked" / f"real{suffix}"
+    elif kind == "dangling into a missing folder":
+        name.symlink_to(f"missing/real{suffix}")
+    elif kind == "loop":
+        name.symlink_to(f"out{suffix}")
+    elif kind == "fifo":
+        os.mkfifo(name)
+    elif kind == "device":
+        try:
+            os.mknod(name, 0o666 | 0o020000, os.makedev(1, 3))  # a character device: the null device
+        except OSError:
+            name.symlink_to("/dev/null")
+    elif kind == "directory":
+        name.mkdir()
+    elif kind == "socket":
+        with contextlib.closing(socket.socket(socket.AF_UNIX)) as s:
+            s.bind(str(name))
+    elif kind == "input by a link":
+        name.symlink_to(src.name)
+    elif kind == "input by a hard link":
+        os.link(src, name)
+    return name, (real if kind in WRITTEN_THROUGH else None)
+
+
+def _tree(folder: Path) -> dict:
+    return {str(p.relative_to(folder)): (os.lstat(p).st_mode, os.readlink(p) if p.is_symlink() else None)
+            for p in sorted(folder.rglob("*"))}
+
+
+@pytest.mark.parametrize("fmt", ["csv", "apt"])
+@FUZZ_SETTINGS
+@given(ops=st.lists(mutation, max_size=3), kind=st.sampled_from(WRITTEN_THROUGH + REFUSED),
+       suffix=st.sampled_from([".csv", ".json", ".job"]))
+def test_outputs_through_links_and_onto_special_files_keep_the_contract(fmt, ops, kind, suffix):
+    """``-o`` through links (written at their end, the links kept) and onto what is not a regular file (a FIFO, a
+    device, a socket, a directory, a loop, the input itself): refused in one line, exit 2, before reading anything,
+    and left as it was. A mutated input that fails leaves the link's target as it was and no temporary file."""
+    name_in, seed, fixed = SEEDS[fmt]
+    data = mutate(seed, ops)
+    with tempfile.TemporaryDirectory(prefix="fuzz-") as tmp:
+        folder = Path(tmp)
+        src = folder / name_in
+        src.write_bytes(data)
+        out, real = _output_target(folder, kind, suffix, src)
+        before = _tree(folder)
+        existed = real is not None and real.exists()
+        argv = ["plan", str(src), *fixed, "--max-poses", MAX_POSES, "-o", str(out)]
+        rc, stdout, stderr = run_in_process(argv)
+        cmd = f"planner {' '.join(argv)} ({kind})"
+        assert "Traceback" not in stdout + stderr, cmd
+        assert src.read_bytes() == data, f"{cmd}: the input changed"
+        links = {k: v for k, v in before.items() if v[1] is not None}
+        assert {k: v for k, v in _tree(folder).items() if v[1] is not None} == links, f"{cmd}: a link changed"
+        assert not list(folder.rglob(".*.part")), f"{cmd}: a temporary file was left"
+        if real is None:
+            assert rc == 2 and stdout == "", f"{cmd}: exit {rc}\n{stdout}{stderr}"
+            assert stderr.startswith(f"planner: error: -o {out}: ") and stderr.count("\n") == 1, stderr
+            assert _tree(folder) == before, f"{cmd}: the refused target changed"
+            event(f"refused: {kind}")
+        elif rc == 0:
+            assert stderr == "", cmd
+            check_output(out, stdout)  # read through the links: the output is at their end
+            assert not real.is_symlink() and real.read_bytes() != PREVIOUS, cmd
+            event(f"written through: {kind}")
+        else:
+            assert rc in (2, 3) and stderr.count("\n") == 1, f"{cmd}: exit {rc}\n{stderr}"
+            assert (real.read_bytes() == PREVIOUS) if existed else not real.exists(), f"{cmd}: the target changed"
+            event(f"input refused: {kind}")

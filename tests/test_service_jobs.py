@@ -330,3 +330,33 @@ def test_plots_are_drawn_outside_the_service_process(server, client):
     assert len(drawers) == 1 and "matplotlib" in _maps(drawers[0])  # the drawing process
     assert all("matplotlib" not in _maps(p) for p in server.worker_pids())  # planning workers do not plot
     assert client.get(f"/v1/jobs/{job_id}/plot.png").content == answers[0].content  # kept, not drawn again
+
+
+def test_a_picture_target_that_is_not_a_regular_file_is_one_line_and_a_link_is_written_through(server, client):
+    """The service stores its pictures through the one writer: a FIFO where the picture goes (the service's own
+    folder, changed under it) is a 500 whose detail is one line naming it, never a hang or a traceback, and the FIFO
+    stays; a symbolic link there is written through and stays a link."""
+    import os
+    import stat
+
+    r = client.post("/v1/jobs", json={"waypoints": [[0, 0, 0], [0.1, 0.05, 0], [0.2, 0, 0.01]]})
+    view = wait_state(client, r.json()["id"])
+    assert view["state"] == "done", view["error"]
+    folder = server.folder / "jobs.sqlite.data" / "jobs" / view["id"]
+    target = folder / f"plot.{view['attempts']}.png"
+    os.mkfifo(target)
+    r = client.get(f"/v1/jobs/{view['id']}/plot.png")
+    assert r.status_code == 500, r.text
+    detail = r.json()["detail"]
+    assert isinstance(detail, str) and "\n" not in detail and "Traceback" not in r.text
+    assert detail == (f"job {view['id']}: the picture cannot be stored: {target}: is a FIFO (named pipe), not a "
+                      "regular file; refusing to write to it")
+    assert stat.S_ISFIFO(os.lstat(target).st_mode)
+    assert client.get("/healthz").json()["status"] == "ok"
+    target.unlink()
+    (folder / "pictures").mkdir()
+    target.symlink_to("pictures/kept.png")  # dangling until the picture is drawn
+    r = client.get(f"/v1/jobs/{view['id']}/plot.png")
+    assert r.status_code == 200 and r.content[:8] == b"\x89PNG\r\n\x1a\n"
+    assert target.is_symlink() and (folder / "pictures" / "kept.png").read_bytes() == r.content
+    assert sorted(p.name for p in (folder / "pictures").iterdir()) == ["kept.png"]

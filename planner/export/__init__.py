@@ -5,7 +5,14 @@ and their planned movep targets) and never plan. Every export carries the genera
 and figures, and is written atomically.
 """
 
-from planner.export.files import atomic_binary, atomic_text, check_output, write_bytes_atomic
+from planner.export.files import (
+    OutputTarget,
+    atomic_binary,
+    atomic_text,
+    check_output,
+    output_target,
+    write_bytes_atomic,
+)
 from planner.export.header import ExportError, generator, trajectory_parameters
 from planner.export.job_script import ProgramMove, job_program, plan_job_program
 from planner.export.movep import MovePPlan, plan_movep
@@ -16,6 +23,7 @@ __all__ = [
     "JSON_FORMAT",
     "ExportError",
     "MovePPlan",
+    "OutputTarget",
     "ProgramMove",
     "atomic_binary",
     "atomic_text",
@@ -24,6 +32,7 @@ __all__ = [
     "generator",
     "job_program",
     "json_text",
+    "output_target",
     "plan_job_program",
     "plan_movep",
     "trajectory_parameters",

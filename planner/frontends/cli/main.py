@@ -94,7 +94,10 @@ def _check_output(args, path_in: Path) -> Path | None:
         return None
     from planner.export import check_output
 
-    out = check_output(args.output, path_in)
+    try:
+        out = check_output(args.output, path_in)
+    except PlannerError as exc:
+        raise PlannerError(f"-o {exc}") from None
     if out.suffix.lower() not in OUTPUTS:
         raise PlannerError(f"-o {out.name}: unknown output type (use .csv or .json for the trajectory, .script for "
                            "the URScript program, .job for the saved plan)")
@@ -115,7 +118,7 @@ def cmd_plan(args: argparse.Namespace):
     if args.plot:
         from planner.plot import check_plot_target
 
-        check_plot_target(args.plot)
+        check_plot_target(args.plot, path_in)
     options = {k: v for k, v in (("units", args.units), ("machine", args.machine)) if v}
     print(f"{path_in.name}: planning ...", flush=True)
     bar = Progress(args.progress or sys.stderr.isatty())

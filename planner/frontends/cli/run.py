@@ -68,7 +68,7 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.plot:
         from planner.plot import check_plot_target
 
-        check_plot_target(args.plot)  # before planning and moving: a PlannerError (exit 2)
+        check_plot_target(args.plot, args.input)  # before planning and moving: a PlannerError (exit 2)
     settings = settings_from_args(args)
     robot = settings.robot
     if robot is None:  # (--robot none is refused above)

@@ -297,8 +297,11 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
             raise HTTPException(409, f"job {row.id} is {row.state}; exports exist once it is done")
         folder = job_dir(svc.cfg, row.id)
         target = folder / f"plot.{row.attempts}.png"
-        if not target.exists():
-            await asyncio.wrap_future(svc.plotter.draw(str(folder / row.job_file), row.input_name, str(target)))
+        if not target.is_file():  # (through a symbolic link: a regular file; anything else is refused by the draw)
+            try:
+                await asyncio.wrap_future(svc.plotter.draw(str(folder / row.job_file), row.input_name, str(target)))
+            except PlannerError as exc:  # the service's own folder holds something it must not replace
+                raise HTTPException(500, f"job {row.id}: the picture cannot be stored: {exc}") from None
         return FileResponse(target, media_type="image/png")
 
     def openapi() -> dict:
@@ -530,6 +533,7 @@ def _create_file_job(svc: Service, who: Principal, job_id: str, upload: UploadFi
                      options: ReadOptions) -> dict:
     """The upload saved in the job's folder and read as the planner will read it: the job's row (422 naming the field
     or the file's line if it is bad)."""
+    from planner.export.files import atomic_binary
     from planner.io import detect_format, read_toolpath
     from planner.io.options import ReaderArgumentError
 
@@ -537,7 +541,7 @@ def _create_file_job(svc: Service, who: Principal, job_id: str, upload: UploadFi
     folder = job_dir(svc.cfg, job_id) / "input"
     folder.mkdir(parents=True)
     path = folder / name
-    with open(path, "wb") as f:
+    with atomic_binary(path) as f:
         upload.file.seek(0)
         shutil.copyfileobj(upload.file, f, 1 << 20)
         size = f.tell()
