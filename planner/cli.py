@@ -22,3 +22,9 @@ def __getattr__(name: str):
         if hasattr(module, name):
             return getattr(module, name)
     raise AttributeError(f"planner.cli (deprecated) has no {name!r}: see planner.frontends.cli")
+
+
+if __name__ == "__main__":  # python -m planner.cli (deprecated): the planner command
+    import sys
+
+    sys.exit(importlib.import_module("planner.frontends.cli.main").main())

@@ -24,7 +24,6 @@ from pathlib import Path
 import pytest
 
 from planner import PlannerError, PlanSettings, plan
-from planner.cli import main
 from planner.export import (
     check_output,
     job_program,
@@ -34,6 +33,7 @@ from planner.export import (
     write_json,
     write_script,
 )
+from planner.frontends.cli import main
 from planner.io import read_toolpath
 from tests.cam_excerpts import NX_HEAD
 
@@ -371,7 +371,7 @@ def test_planner_plan_plot_refuses_a_fifo_and_writes_through_a_link(tmp_path):
 def test_through_a_subprocess_the_refusal_is_one_line_and_exit_2(kind, tmp_path):
     (tmp_path / "in.csv").write_bytes(EXAMPLE.read_bytes())
     name, words = _refused(tmp_path)[kind]
-    p = subprocess.run([sys.executable, "-m", "planner.cli", "plan", "in.csv", "-o", name.name], cwd=tmp_path,
+    p = subprocess.run([sys.executable, "-m", "planner.frontends.cli", "plan", "in.csv", "-o", name.name], cwd=tmp_path,
                        capture_output=True, text=True, timeout=120)
     assert p.returncode == 2 and p.stdout == "", p.stdout + p.stderr
     assert p.stderr.startswith(f"planner: error: -o {name.name}: ") and p.stderr.count("\n") == 1, p.stderr

@@ -123,7 +123,7 @@ def _numeric_options() -> tuple[NumericOption, ...]:
         NumericOption("--rapid-speed", "rapid_speed", "mm/s", *mm_s, lo_closed=True),
         NumericOption("--rate", "rate", "Hz", 0.0, 10_000.0),
         NumericOption("--max-poses", "max_poses", "", 0.0, 1e12),
-        # planner run's own (drivers.cli): URDriver's servoJ ranges, the simulator's speed, a TCP port
+        # planner run's own (planner.frontends.cli.run): URDriver's servoJ ranges, the simulator's speed, a TCP port
         NumericOption("--lookahead", "lookahead", "s", 0.03, 0.2, lo_closed=True),
         NumericOption("--gain", "gain", "", 100.0, 2000.0, lo_closed=True),
         NumericOption("--sim-speed", "sim_speed", "", 0.0, None),
