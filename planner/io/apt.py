@@ -925,7 +925,7 @@ def read_apt(
     axis_tolerance = opts.axis_tolerance(axis_tolerance)
     reader = _Reader(name, units, frames, axis_tolerance)
     reader.peck_clearance = opts.peck_clearance(peck_clearance)
-    with open_lines(src) as lines:
+    with open_lines(src, name) as lines:
         reader.run(lines)
     if reader.out.count == 0:
         raise InputFileError(name, None, "", "holds no motion (no GOTO or FROM record)")
