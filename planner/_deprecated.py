@@ -164,3 +164,19 @@ REMOVED: dict[str, dict[str, Entry]] = {
 def module_getattr(module: str) -> Callable[[str], Any]:
     """The ``__getattr__`` serving the removed names of ``module`` (a key of :data:`REMOVED`)."""
     return removed_names(module, REMOVED[module])
+
+
+def moved_module(module: str, homes: tuple[str, ...], replacement: str) -> Callable[[str], Any]:
+    """A module that moved whole (the layers of the next release): warn once on import, naming ``replacement``, and
+    serve every name from the first of ``homes`` (modules, by name) that has it, as its ``__getattr__``."""
+    warnings.warn(f"{module} is deprecated and will be removed in the next release: {replacement}", DeprecationWarning,
+                  stacklevel=3)
+
+    def __getattr__(name: str) -> Any:
+        for home in homes:
+            found = importlib.import_module(home)
+            if hasattr(found, name):
+                return getattr(found, name)
+        raise AttributeError(f"{module} (deprecated) has no {name!r}: see {', '.join(homes)}")
+
+    return __getattr__
