@@ -414,7 +414,7 @@ def test_through_a_subprocess(fmt, ops, opts, suffix):
         src.write_bytes(mutate(seed, ops))
         out = Path(tmp) / f"out{suffix}"
         argv = ["plan", str(src), *fixed, "--max-poses", MAX_POSES, "-o", str(out), *[f"{k}={v}" for k, v in opts]]
-        p = subprocess.run([sys.executable, "-m", "planner.frontends.cli.main", *argv], capture_output=True, text=True,
+        p = subprocess.run([sys.executable, "-m", "planner.frontends.cli", *argv], capture_output=True, text=True,
                            timeout=DEADLINE + 30, cwd=tmp, env={**os.environ, "PYTHONWARNINGS": "default"})
         check_contract(src, argv, out, p.returncode, p.stdout, p.stderr)
 
