@@ -143,14 +143,14 @@ def resolve(settings: PlanSettings, fmt: str, has_axes: bool) -> PlanSettings:
         axes = "file" if has_axes else ("path" if path == "interpolate" else "fixed")
     if axes in ("file", "approach") and not has_axes:
         raise PlannerError(f"axes={axes!r}: the input has no tool axes (use axes='fixed' for the CAM default +Z "
-                           "or axes='path' for the tool normal to the path)")
+                           "or axes='path' for the tool normal to the path)", field="axes", value=s.axes)
     if s.frame != "rmf" and axes != "path":
         raise PlannerError(f"frame={s.frame!r} sets the spin about the path tangent and needs the tool normal to the "
                            f"path (axes='path'); with tool axes ({axes}) the spin about them is the exact "
-                           "rotation-minimizing motion: frame='rmf'")
+                           "rotation-minimizing motion: frame='rmf'", field="frame", value=s.frame)
     if s.frame == "juttler" and path != "interpolate":
         raise PlannerError("frame='juttler' needs a G1 PH cubic spline through the points (path='interpolate'); "
-                           "a CAM polyline fit is a PH quintic spline")
+                           "a CAM polyline fit is a PH quintic spline", field="frame", value=s.frame)
     return replace(s, path=path, axes=axes)
 
 

@@ -9,6 +9,7 @@ import pytest
 
 MODULES = [
     "planner.plan",            # plan
+    "planner.settings",        # PlanSettings and its declaration
     "planner.trajectory",      # Trajectory.chunks
     "planner.curves.spline",   # fit_ph_spline
     "planner.frames.path",     # frame_field

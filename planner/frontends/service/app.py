@@ -55,13 +55,6 @@ def _validation_detail(exc: ValidationError, prefix: list) -> list[dict]:
             for e in exc.errors(include_url=False, include_context=False, include_input=False)]
 
 
-def _settings_loc(message: str, prefix: list) -> list:
-    """The first setting a PlanSettings message names (``"tolerance must be ..."``), else the settings object."""
-    known = set(SettingsModel.model_fields)
-    name = next((w for w in re.findall(r"[a-z_]+", message) if w in known), None)
-    return prefix if name is None else prefix + [name]
-
-
 # -- the request body limit (pure ASGI: counts the bytes as they arrive) --------------------------------
 class BodyLimit:
     def __init__(self, app, limit: int):
@@ -449,7 +442,7 @@ def _checked_settings(model: SettingsModel, fmt: str, has_axes: bool, prefix: li
     try:
         return _settings_json(model.model_dump_json(), fmt, has_axes)
     except PlannerError as exc:
-        raise Unprocessable(_settings_loc(str(exc), prefix), str(exc)) from None
+        raise Unprocessable(prefix if exc.field is None else prefix + [exc.field], str(exc)) from None
 
 
 @functools.lru_cache(maxsize=256)
