@@ -23,6 +23,7 @@ given.
 from __future__ import annotations
 
 import gc
+import os
 import socket
 import sys
 import threading
@@ -46,6 +47,7 @@ from drivers.pacing import Schedule
 from drivers.package_log import PackageLog
 from drivers.plan_window import PlannedPath, PlanWindow
 from drivers.report import ExecutionReport, execution_report, new_recording
+from drivers.servo import DEFAULT_GAIN, DEFAULT_LOOKAHEAD, ServoModel, ServoShaper, check_servo
 from drivers.stations import Station, Stations
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -68,8 +70,29 @@ MODES = ("stream", "program")
 _RT_BLOCK, _RT_SPARE = 100, 1.2e-3
 #: Program mode reads the packages recorded so far (and reports progress) this often, s of wall time.
 _READ_EVERY = 0.05
+#: SCHED_FIFO priority of the streaming loop (``realtime``): below a controller simulated on the same machine
+#: (its control loop runs at 10, its RTDE server at 8).
+LOOP_PRIORITY = 5
 #: ur_rtde interfaces whose connection dropped: never disconnected or destroyed (see URDriver.close).
 _ABANDONED: list = []
+
+
+def _realtime_loop() -> tuple | None:
+    """The calling thread SCHED_FIFO at LOOP_PRIORITY if the system allows it; its former (policy, priority), or
+    None when refused."""
+    try:
+        before = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(LOOP_PRIORITY))
+    except (OSError, AttributeError):
+        return None
+    return before
+
+
+def _restore_scheduling(before: tuple) -> None:
+    try:
+        os.sched_setscheduler(0, before[0], os.sched_param(before[1]))
+    except (OSError, AttributeError):
+        pass
 
 
 class ProgramStoppedError(DriverError):
@@ -122,7 +145,17 @@ class URDriver:
     modbus_port : int
         Modbus TCP port of the controller (with ``io="modbus"``).
     lookahead, gain : float
-        servoJ lookahead time (s, 0.03..0.2) and proportional gain (100..2000).
+        servoJ lookahead time (s, 0.03..0.2; default 0.03) and proportional gain (100..2000; default 2000): the
+        shortest time constants UR allows (see :mod:`drivers.servo`).
+    compensate : bool
+        Send servo targets shaped by the assumed servo model so that the arm runs on the planned joints
+        (:class:`drivers.servo.ServoShaper`; default); False: the planned joints as they are (the arm lags them and
+        cuts bends by the servo's filtering).
+    realtime : bool
+        Run the streaming loop's thread SCHED_FIFO (priority :data:`LOOP_PRIORITY`) where the system allows it, as
+        ur_rtde does on a real-time kernel (default): on a loaded machine an ordinary thread misses control periods
+        (each one holds the arm on its last target; on a tight bend a stall of 20 ms or more puts the arm off the
+        path). Its usual scheduling is restored after the run.
     overrun_limit : float
         Two targets this many seconds apart stop the run with PeriodOverrunError, s. The arm holds its last
         (planned, on the path) target meanwhile, so a short stall delays the job without leaving the path: the
@@ -139,17 +172,15 @@ class URDriver:
     """
 
     def __init__(self, host: str, model: str = "ur5e", *, io: str = "rtde", modbus_port: int = 502,
-                 lookahead: float = 0.1, gain: float = 300.0, overrun_limit: float = 0.2, settle: float = 0.3,
+                 lookahead: float = DEFAULT_LOOKAHEAD, gain: float = DEFAULT_GAIN, compensate: bool = True,
+                 realtime: bool = True, overrun_limit: float = 0.2, settle: float = 0.3,
                  deceleration: float = 10.0, frequency: float = 500.0, approach_speed: float = 0.5,
                  approach_acceleration: float = 0.5) -> None:
         if not isinstance(host, str) or not host.strip():
             raise ValueError(f"host must be the controller's address, got {host!r}")
         if io not in ("rtde", "modbus"):
             raise ValueError(f"io must be 'rtde' or 'modbus', got {io!r}")
-        if not 0.03 <= float(lookahead) <= 0.2:
-            raise ValueError(f"lookahead must be within 0.03..0.2 s, got {lookahead!r}")
-        if not 100.0 <= float(gain) <= 2000.0:
-            raise ValueError(f"gain must be within 100..2000, got {gain!r}")
+        lookahead, gain = check_servo(lookahead, gain)
         if not float(overrun_limit) > 0:
             raise ValueError(f"overrun_limit must be > 0 s, got {overrun_limit!r}")
         from planner.kinematics import get_model
@@ -160,6 +191,8 @@ class URDriver:
         self.modbus_port = int(modbus_port)
         self.lookahead = float(lookahead)
         self.gain = float(gain)
+        self.compensate = bool(compensate)
+        self.realtime = bool(realtime)
         self.overrun_limit = float(overrun_limit)
         self.settle = float(settle)
         self.deceleration = float(deceleration)
@@ -450,7 +483,11 @@ class URDriver:
         cancel = cancel if cancel is not None else threading.Event()
         planned = PlannedPath(job)  # read once, kept in summary (bounded memory); the run reads it again in windows
         # stream: the targets are produced ahead by a thread of their own while the arm approaches the start
-        feed = TargetFeed(job.trajectory(job.settings.rate)) if mode == "stream" else None
+        feed = None
+        if mode == "stream":
+            shaper = ServoShaper(ServoModel(self.lookahead, self.gain, 1.0 / float(job.settings.rate)),
+                                 job.start_joints, compensate=self.compensate)
+            feed = TargetFeed(job.trajectory(job.settings.rate), shaper=shaper)
         try:
             self.move_to_start(job, speed=self.approach_speed, acceleration=self.approach_acceleration, cancel=cancel)
             mask = planned.mask
@@ -547,6 +584,7 @@ class URDriver:
         gc_enabled = gc.isenabled()
         gc.disable()
         gc.freeze()
+        policy = _realtime_loop() if self.realtime else None
         try:
             log = PackageLog(self.host, self.frequency)
             last = sched.start()
@@ -611,6 +649,8 @@ class URDriver:
         except RuntimeError as exc:  # ur_rtde: the socket closed
             failure = self._locate(ConnectionLostError(f"the connection to {host} dropped: {exc}"), k, planned, rec)
         finally:
+            if policy is not None:
+                _restore_scheduling(policy)
             sys.setswitchinterval(switch)
             gc.unfreeze()
             if gc_enabled:

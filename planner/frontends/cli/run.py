@@ -17,6 +17,7 @@ import sys
 
 from drivers.base import ConnectionLostError, DriverError
 from drivers.execute import execute_job, plot_run, start_sim
+from drivers.servo import DEFAULT_GAIN, DEFAULT_LOOKAHEAD
 from planner.frontends.cli.options import Progress, add_plan_options, settings_from_args
 from planner.wording import counted
 
@@ -37,8 +38,13 @@ def add_run_subcommand(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--sim", action="store_true", help="start a simulated controller on a free loopback address")
     r.add_argument("--sim-speed", type=float, default=1.0,
                    help="--sim: simulated seconds per second (program mode only; streaming runs in real time)")
-    r.add_argument("--lookahead", type=float, default=0.1, help="servoJ lookahead time, s (default 0.1)")
-    r.add_argument("--gain", type=float, default=300.0, help="servoJ gain (default 300)")
+    r.add_argument("--lookahead", type=float, default=DEFAULT_LOOKAHEAD,
+                   help=f"stream: servoJ lookahead time, s, 0.03..0.2 (default {DEFAULT_LOOKAHEAD:g})")
+    r.add_argument("--gain", type=float, default=DEFAULT_GAIN,
+                   help=f"stream: servoJ gain, 100..2000 (default {DEFAULT_GAIN:g})")
+    r.add_argument("--no-compensation", dest="compensate", action="store_false",
+                   help="stream: send the planned joints as servoJ targets as they are (default: targets shaped by "
+                        "the servo model so that the arm runs on the planned path)")
     r.add_argument("--progress", action="store_true", help="show the progress bar even when not on a terminal")
     r.add_argument("--plot", help="write the picture of the job with the run drawn over it (.png, .svg, .pdf): the "
                                   "actual against the planned TCP path and speed, the I/O stations and the switches")
@@ -98,7 +104,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         bars = Progress(args.progress or sys.stderr.isatty())
         try:
             report = execute_job(job, host, mode=args.mode, io=args.io, modbus_port=modbus_port, progress=bars,
-                                 lookahead=args.lookahead, gain=args.gain)
+                                 lookahead=args.lookahead, gain=args.gain, compensate=args.compensate)
         except DriverError as exc:  # refused before the run (not ready, no connection): the robot's reason
             print(f"planner run: robot error ({exc.kind}): {exc}", file=sys.stderr)
             return 1
