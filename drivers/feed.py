@@ -54,6 +54,7 @@ class TargetFeed:
     def __init__(self, trajectory, *, depth: int = 4, size: int = SLICE, shaper=None) -> None:
         self._chunks = trajectory.chunks()
         self._shaper = shaper
+        self._last: np.ndarray | None = None  # the last planned joints handed over (unshaped feed)
         self._q: queue.Queue = queue.Queue(maxsize=max(1, int(depth)))
         self._size = int(size)
         self._stop = threading.Event()
@@ -93,6 +94,7 @@ class TargetFeed:
                     if not self._put(sl):
                         return
                 k += n
+                self._last = c.joints[-1].copy()
                 tail = pos[-HISTORY:].copy()
             self._put(None)
         except BaseException as exc:  # handed to the consumer, raised there
@@ -106,6 +108,13 @@ class TargetFeed:
             if isinstance(item, BaseException):
                 raise item
             yield item
+
+    def hold(self, n: int) -> list:
+        """After the last slice: ``n`` targets (lists of 6 floats) holding the arm on the job's last planned joints
+        (shaped by the feed's shaper, if any; the last target handed over, otherwise)."""
+        if self._shaper is not None:
+            return self._shaper.hold(n).tolist()
+        return [list(self._last)] * max(int(n), 0) if self._last is not None else []
 
     def close(self) -> None:
         """Stop the producer and drop what it made."""

@@ -122,10 +122,15 @@ class ServoShaper:
     def shape(self, y: np.ndarray) -> np.ndarray:
         """Targets (n, 6) rad for the planned joints ``y`` (n, 6) rad, the next of the job's samples."""
         y = np.asarray(y, dtype=float).reshape(-1, 6)
+        yy = np.vstack((self._past, y))
+        self._past = yy[-2:].copy()
         if not self.compensate or y.shape[0] == 0:
             return y
         af, at = self.model.alphas
-        yy = np.vstack((self._past, y))
-        self._past = yy[-2:].copy()
         f = yy[:-1] + (yy[1:] - yy[:-1]) / at  # f[k+1] for k = -1 .. n-1: puts q[k+1] on y[k]
         return f[:-1] + (f[1:] - f[:-1]) / af
+
+    def hold(self, n: int) -> np.ndarray:
+        """Targets (n, 6) that bring the arm to rest on the last planned joints shaped so far and hold it there (the
+        end of a stream: a job ends at rest, so these settle within a few periods on those joints)."""
+        return self.shape(np.repeat(self._past[-1:], max(int(n), 0), axis=0))

@@ -632,9 +632,10 @@ class URDriver:
                     last = now
             # hold the last target until the arm, lagging its targets, has arrived; then a controlled stop
             n_settle = int(self.settle * rate)
+            hold = feed.hold(n_settle) if q_last is not None else []
             for j in range(n_settle + 10):
-                if j < n_settle and q_last is not None:
-                    c.servoJ(q_last, 0.0, 0.0, dt, la, gain)
+                if j < len(hold):
+                    c.servoJ(hold[j], 0.0, 0.0, dt, la, gain)
                 elif j == n_settle:
                     stations.flush()
                     c.servoStop(self.deceleration)
