@@ -46,7 +46,7 @@ from drivers.jobs import check_job, stop_requested
 from drivers.pacing import Schedule
 from drivers.package_log import PackageLog
 from drivers.plan_window import PlannedPath, PlanWindow
-from drivers.report import ExecutionReport, execution_report, new_recording
+from drivers.report import ExecutionReport, check_tolerance, execution_report, new_recording
 from drivers.servo import DEFAULT_GAIN, DEFAULT_LOOKAHEAD, ServoModel, ServoShaper, check_servo
 from drivers.stations import Station, Stations
 
@@ -73,6 +73,8 @@ _READ_EVERY = 0.05
 #: SCHED_FIFO priority of the streaming loop (``realtime``): below a controller simulated on the same machine
 #: (its control loop runs at 10, its RTDE server at 8).
 LOOP_PRIORITY = 5
+#: Missed-period events of a stream remembered (their job times: the causes of path deviations).
+MAX_STALLS = 10_000
 #: ur_rtde interfaces whose connection dropped: never disconnected or destroyed (see URDriver.close).
 _ABANDONED: list = []
 
@@ -156,6 +158,12 @@ class URDriver:
         ur_rtde does on a real-time kernel (default): on a loaded machine an ordinary thread misses control periods
         (each one holds the arm on its last target; on a tight bend a stall of 20 ms or more puts the arm off the
         path). Its usual scheduling is restored after the run.
+    path_tolerance : float, optional
+        Path tolerance, m: the report lists every stretch where the tracked TCP was further than this from the
+        planned path, with where (job time, source line) and why (servo lag, missed control periods, a stop).
+    fail_on_deviation : bool
+        A run beyond ``path_tolerance`` fails (``report.ok`` False, :class:`drivers.report.PathDeviationError` at
+        its largest deviation); otherwise it is only reported.
     overrun_limit : float
         Two targets this many seconds apart stop the run with PeriodOverrunError, s. The arm holds its last
         (planned, on the path) target meanwhile, so a short stall delays the job without leaving the path: the
@@ -173,7 +181,8 @@ class URDriver:
 
     def __init__(self, host: str, model: str = "ur5e", *, io: str = "rtde", modbus_port: int = 502,
                  lookahead: float = DEFAULT_LOOKAHEAD, gain: float = DEFAULT_GAIN, compensate: bool = True,
-                 realtime: bool = True, overrun_limit: float = 0.2, settle: float = 0.3,
+                 realtime: bool = True, path_tolerance: float | None = None, fail_on_deviation: bool = False,
+                 overrun_limit: float = 0.2, settle: float = 0.3,
                  deceleration: float = 10.0, frequency: float = 500.0, approach_speed: float = 0.5,
                  approach_acceleration: float = 0.5) -> None:
         if not isinstance(host, str) or not host.strip():
@@ -193,6 +202,11 @@ class URDriver:
         self.gain = float(gain)
         self.compensate = bool(compensate)
         self.realtime = bool(realtime)
+        self.path_tolerance = check_tolerance(path_tolerance)
+        if fail_on_deviation and self.path_tolerance is None:
+            raise ValueError("fail_on_deviation needs a path_tolerance")
+        self.fail_on_deviation = bool(fail_on_deviation)
+        self._stalls: list[float] = []  # job times at which the last stream's loop missed periods
         self.overrun_limit = float(overrun_limit)
         self.settle = float(settle)
         self.deceleration = float(deceleration)
@@ -505,8 +519,14 @@ class URDriver:
         finally:
             if feed is not None:
                 feed.close()
+        if mode == "stream":
+            cause = (f"servo lag (servoJ lookahead {self.lookahead:g} s, gain {self.gain:g}, "
+                     + ("targets shaped by the servo model)" if self.compensate else "planned joints unshaped)"))
+        else:
+            cause = "the controller's blending of the program's moves (movep)"
         return execution_report(job, rec, mode=mode, failure=failure, planned=planned, loop=loop,
-                                recording="every data package")
+                                recording="every data package", stalls=self._stalls if mode == "stream" else (),
+                                lag_cause=cause, fail_on_deviation=self.fail_on_deviation)
 
     def _stopped(self, cancel) -> DriverError | None:
         return stop_requested(cancel, self._stop)
@@ -560,7 +580,10 @@ class URDriver:
         # every data package, from the recording connection, reduced as it goes (bounded memory), in periods with time
         # to spare, ~100 packages at a time (~0.5 ms; 2500 at a time took 10-15 ms, several missed periods every 5 s);
         # the plan's pieces it is compared with are made ahead by a thread
-        rec = new_recording(job, planned, prefetch=True)
+        rec = new_recording(job, planned, prefetch=True, tolerance=self.path_tolerance)
+        stalls = self._stalls = []
+        missed_seen = 0
+        t_cmd = 0.0
         log = None
         untaken = 0  # periods since the packages were last taken into the recording
         if isinstance(rec.planned, PlanWindow):
@@ -602,6 +625,7 @@ class URDriver:
                         raise ConnectionLostError(f"the connection to the controller at {host} dropped")
                     if not c.servoJ(q, 0.0, 0.0, dt, la, gain):
                         raise self._fault() or ProgramStoppedError(self._not_running_reason())
+                    t_cmd = times[i]
                     if ios[i] != prev_io and not paused:
                         stations.add(Station.on_path(k, ios[i] ^ prev_io, ios[i], pos, h0 + i, rate=rate))
                         prev_io = ios[i]
@@ -626,6 +650,10 @@ class URDriver:
                         self._take(log, rec, ts0)
                         untaken = 0
                     now = sched.wait()
+                    if sched.missed != missed_seen:
+                        missed_seen = sched.missed
+                        if len(stalls) < MAX_STALLS:
+                            stalls.append(t_cmd)
                     if now - last > overrun:
                         raise PeriodOverrunError(f"the control loop missed its period: {1e3 * (now - last):.1f} ms "
                                                  f"between targets (limit {1e3 * overrun:.0f} ms)")
@@ -732,7 +760,7 @@ class URDriver:
         r, c = self._need(), self._control()
         text = job_program(job)
         c.stopScript()  # hand the arm from ur_rtde's control script to the job's program
-        rec = new_recording(job, planned)
+        rec = new_recording(job, planned, tolerance=self.path_tolerance)
         failure = None
         k = 0
         log = None

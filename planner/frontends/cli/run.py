@@ -45,6 +45,11 @@ def add_run_subcommand(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--no-compensation", dest="compensate", action="store_false",
                    help="stream: send the planned joints as servoJ targets as they are (default: targets shaped by "
                         "the servo model so that the arm runs on the planned path)")
+    r.add_argument("--path-tolerance", type=float, default=None, metavar="MM",
+                   help="path tolerance, mm: the report lists where (time, source line) and why (servo lag, missed "
+                        "control periods, a stop) the tracked TCP left the planned path by more")
+    r.add_argument("--fail-on-deviation", action="store_true",
+                   help="with --path-tolerance: a run beyond it fails (exit status 1)")
     r.add_argument("--progress", action="store_true", help="show the progress bar even when not on a terminal")
     r.add_argument("--plot", help="write the picture of the job with the run drawn over it (.png, .svg, .pdf): the "
                                   "actual against the planned TCP path and speed, the I/O stations and the switches")
@@ -71,6 +76,17 @@ def cmd_run(args: argparse.Namespace) -> int:
         print("planner run: error: --sim-speed works in program mode only (streaming runs in real time)",
               file=sys.stderr)
         return 2
+    if args.fail_on_deviation and args.path_tolerance is None:
+        print("planner run: error: --fail-on-deviation needs --path-tolerance MM", file=sys.stderr)
+        return 2
+    if args.path_tolerance is not None and not (0 < args.path_tolerance <= 1000):
+        print(f"planner run: error: --path-tolerance must be within (0, 1000] mm, got {args.path_tolerance:g}",
+              file=sys.stderr)
+        return 2
+    for name, value, lo, hi in (("--lookahead", args.lookahead, 0.03, 0.2), ("--gain", args.gain, 100, 2000)):
+        if not lo <= value <= hi:
+            print(f"planner run: error: {name} must be within {lo:g}..{hi:g}, got {value:g}", file=sys.stderr)
+            return 2
     if args.plot:
         from planner.plot import check_plot_target
 
@@ -104,7 +120,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         bars = Progress(args.progress or sys.stderr.isatty())
         try:
             report = execute_job(job, host, mode=args.mode, io=args.io, modbus_port=modbus_port, progress=bars,
-                                 lookahead=args.lookahead, gain=args.gain, compensate=args.compensate)
+                                 lookahead=args.lookahead, gain=args.gain, compensate=args.compensate,
+                                 path_tolerance=None if args.path_tolerance is None else args.path_tolerance * 1e-3,
+                                 fail_on_deviation=args.fail_on_deviation)
         except DriverError as exc:  # refused before the run (not ready, no connection): the robot's reason
             print(f"planner run: robot error ({exc.kind}): {exc}", file=sys.stderr)
             return 1
