@@ -3,8 +3,10 @@
 Two modes, one report (:func:`drivers.report.execution_report`):
 
 - "stream": ``servoJ`` with the planner's own joints (the branch the planner chose and tracked, so the
-  controller never picks another) at the job's rate, one target per control period in an
-  ``initPeriod``/``waitPeriod`` loop, after a joint move onto ``job.start_joints`` (the safe approach), and
+  controller never picks another) at the job's rate, shaped by the assumed servo model so that the arm runs on them
+  (:mod:`drivers.servo`; lookahead 0.03 s, gain 2000 by default), one target per control period on an absolute
+  schedule (:class:`drivers.pacing.Schedule`, the loop SCHED_FIFO where the system allows it), after a joint move
+  onto ``job.start_joints`` (the safe approach), and
   ending with ``servoStop`` (a controlled stop). The job's digital outputs switch at the samples where the
   trajectory's I/O bits change (RTDE I/O interface, or Modbus with ``io="modbus"``).
 - "program": the job's URScript program (:func:`planner.export.job_program`) sent to the script port

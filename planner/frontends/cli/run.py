@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import argparse
 import ipaddress
+import math
 import os
 import sys
 
@@ -20,6 +21,17 @@ from drivers.execute import execute_job, plot_run, start_sim
 from drivers.servo import DEFAULT_GAIN, DEFAULT_LOOKAHEAD
 from planner.frontends.cli.options import Progress, add_plan_options, settings_from_args
 from planner.wording import counted
+
+
+def _path_tolerance_mm(text: str) -> float:
+    """``--path-tolerance``'s value, mm: a number > 0 and at most 1000 (argparse names the option on refusal)."""
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a distance in mm, got {text!r}") from None
+    if not (math.isfinite(x) and 0 < x <= 1000.0):
+        raise argparse.ArgumentTypeError(f"must be > 0 mm and at most 1000 mm, got {text!r}")
+    return x
 
 
 def add_run_subcommand(subparsers) -> argparse.ArgumentParser:
@@ -45,7 +57,7 @@ def add_run_subcommand(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--no-compensation", dest="compensate", action="store_false",
                    help="stream: send the planned joints as servoJ targets as they are (default: targets shaped by "
                         "the servo model so that the arm runs on the planned path)")
-    r.add_argument("--path-tolerance", type=float, default=None, metavar="MM",
+    r.add_argument("--path-tolerance", type=_path_tolerance_mm, default=None, metavar="MM",
                    help="path tolerance, mm: the report lists where (time, source line) and why (servo lag, missed "
                         "control periods, a stop) the tracked TCP left the planned path by more")
     r.add_argument("--fail-on-deviation", action="store_true",
@@ -79,14 +91,6 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.fail_on_deviation and args.path_tolerance is None:
         print("planner run: error: --fail-on-deviation needs --path-tolerance MM", file=sys.stderr)
         return 2
-    if args.path_tolerance is not None and not (0 < args.path_tolerance <= 1000):
-        print(f"planner run: error: --path-tolerance must be within (0, 1000] mm, got {args.path_tolerance:g}",
-              file=sys.stderr)
-        return 2
-    for name, value, lo, hi in (("--lookahead", args.lookahead, 0.03, 0.2), ("--gain", args.gain, 100, 2000)):
-        if not lo <= value <= hi:
-            print(f"planner run: error: {name} must be within {lo:g}..{hi:g}, got {value:g}", file=sys.stderr)
-            return 2
     if args.plot:
         from planner.plot import check_plot_target
 
