@@ -95,7 +95,7 @@ def main(argv=None) -> int:
                         late = max((abs(e.actual_t - e.planned_t) * 1e3 for e in ev), default=math.nan)
                         missed = rep.loop.missed if rep.loop is not None else "-"
                         rows.append([f"{r:g}", f"{f:g}", f"{bend_feed(job):.1f}", c,
-                                     "ok" if rep.ok else f"FAILED: {rep.reason[:40]}",
+                                     "ok" if rep.ok else f"FAILED: {rep.reason[:90]}",
                                      f"{rep.max_path_error * 1e3:.3f}", f"{dist:.3f}", f"{late:.1f}", missed])
                         print(" | ".join(str(x) for x in rows[-1]), flush=True)
     finally:

@@ -611,6 +611,15 @@ class URDriver:
         gc.freeze()
         policy = _realtime_loop() if self.realtime else None
         try:
+            # outputs that switch at the job's first sample: switched (and confirmed) before the first target, the
+            # arm at rest on their station (the I/O path's latency, 2-12 ms on a loaded machine, would otherwise
+            # make them late)
+            for b, v, i in planned.switches:
+                if i == 0:
+                    prev_io = (prev_io & ~(1 << b)) | (int(v) << b)
+            if prev_io:
+                self._outputs().set_bits(prev_io, prev_io)
+                self._confirm_outputs(prev_io, prev_io)
             log = PackageLog(self.host, self.frequency)
             last = sched.start()
             for sl in feed:
