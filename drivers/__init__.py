@@ -4,6 +4,8 @@
   :class:`~drivers.base.DriverError` family (the robot's reason with the job's time, pose and source line);
 - :mod:`drivers.ur`: :class:`~drivers.ur.URDriver` on ur_rtde (servoJ streaming of the planner's joints, or the
   job's URScript program through the script port);
+- :mod:`drivers.servo`: the servoJ model the drivers assume and the targets shaped by it (the arm on the planned
+  joints instead of lagging them and cutting bends);
 - :mod:`drivers.modbus_io`: tool I/O through the controller's Modbus server (pymodbus);
 - :mod:`drivers.sim`: :class:`~drivers.sim.SimDriver`, the simulator's motion model in-process (dry runs);
 - :mod:`drivers.report`: :class:`~drivers.report.ExecutionReport`, computed from what a run recorded

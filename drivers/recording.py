@@ -32,6 +32,21 @@ BLOCK = 2500
 MAX_TRACE = 20_000
 #: A step between recorded samples longer than this many times the usual step is a gap (packages missed).
 GAP = 1.5
+#: Excursions beyond the path tolerance kept (the first ones; the rest are counted).
+MAX_EXCURSIONS = 20
+
+
+@dataclass
+class Excursion:
+    """Where the tracked TCP left the planned path by more than the path tolerance: job times ``t_start`` to
+    ``t_end`` s (the first and last recorded sample beyond it), the largest distance ``error`` m there, at job time
+    ``t`` s, nearest the planned sample ``segment`` (its start)."""
+
+    t_start: float
+    t_end: float
+    error: float
+    t: float
+    segment: int
 
 
 class _WholePath:
@@ -79,10 +94,14 @@ class Recording:
         that follows it).
     prefetch : bool
         Make the plan window's next pieces ahead in a thread of their own (a real-time loop's recording).
+    tolerance : float, optional
+        Path tolerance, m: the excursions of the tracked TCP beyond it are kept (:attr:`excursions`, the first
+        MAX_EXCURSIONS of them; :attr:`excursion_count` all).
     """
 
     def __init__(self, planned: PlannedPath | np.ndarray, model: str | None, path_length: float = 0.0, *,
-                 max_trace: int = MAX_TRACE, block: int = BLOCK, prefetch: bool = False) -> None:
+                 max_trace: int = MAX_TRACE, block: int = BLOCK, prefetch: bool = False,
+                 tolerance: float | None = None) -> None:
         if max_trace < 16:
             raise ValueError(f"max_trace must be >= 16 samples, got {max_trace!r}")
         self.planned: PlanWindow | _WholePath = (PlanWindow(planned, prefetch=prefetch)
@@ -105,6 +124,10 @@ class Recording:
         self.gaps = 0
         self.missed = 0
         self.longest_gap = 0.0
+        self.tolerance = None if tolerance is None else float(tolerance)
+        self.excursions: list[Excursion] = []
+        self.excursion_count = 0
+        self._open: Excursion | None = None  # the excursion the last sample reduced is in
         self._t: list = []
         self._x: list = []
         self._q: list = []
@@ -170,6 +193,8 @@ class Recording:
                 if d[w] > self.max_error or math.isnan(self.max_error_t):
                     self.max_error, self.max_error_t = float(d[w]), float(t[w])
             self.last_segment = int(seg[-1])
+            if self.tolerance is not None:
+                self._excursions(d, t, seg)
         m = joint_limit_margin(self.model, q)
         if not math.isnan(m):
             self.margin = min(self.margin, m)
@@ -208,6 +233,30 @@ class Recording:
                       int(ss[-1]))
         while self._rows > self.max_trace:
             self._thin()
+
+    def _excursions(self, d: np.ndarray, t: np.ndarray, seg: np.ndarray) -> None:
+        """Extend the excursions beyond the tolerance by a block's distances ``d`` (n,) at times ``t``."""
+        tol = self.tolerance
+        over = np.nan_to_num(d, nan=0.0) > tol
+        if not over.any():
+            self._open = None
+            return
+        # runs of consecutive samples beyond the tolerance: starts and ends (inclusive)
+        edge = np.diff(np.concatenate(([0], over.astype(np.int8), [0])))
+        starts, ends = np.flatnonzero(edge == 1), np.flatnonzero(edge == -1) - 1
+        for a, b in zip(starts, ends, strict=True):
+            w = a + int(np.nanargmax(d[a:b + 1]))
+            cur = self._open if a == 0 else None
+            if cur is not None:
+                cur.t_end = float(t[b])
+                if d[w] > cur.error:
+                    cur.error, cur.t, cur.segment = float(d[w]), float(t[w]), int(seg[w])
+            else:
+                cur = Excursion(float(t[a]), float(t[b]), float(d[w]), float(t[w]), int(seg[w]))
+                self.excursion_count += 1
+                if len(self.excursions) < MAX_EXCURSIONS:
+                    self.excursions.append(cur)
+            self._open = cur if b == over.size - 1 else None
 
     def _count_gaps(self, dt: np.ndarray) -> None:
         """Steps longer than GAP x the usual step (the largest median of a block of at least 20 steps so far: a

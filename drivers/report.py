@@ -27,8 +27,51 @@ from drivers.plan_window import PlannedPath, bit_switches
 from drivers.recording import BLOCK, ExecutionTrace, Recording
 from planner.wording import counted
 
-__all__ = ["ExecutionReport", "IOSwitch", "PolylineIndex", "bit_name", "distance_to_polyline", "execution_report",
-           "joint_limit_margin", "new_recording", "planned_path"]
+__all__ = ["ExecutionReport", "IOSwitch", "PathDeviation", "PathDeviationError", "PolylineIndex", "bit_name",
+           "distance_to_polyline", "execution_report", "joint_limit_margin", "new_recording", "planned_path"]
+
+
+def check_tolerance(tolerance) -> float | None:
+    """A path tolerance, m: None, or a finite number > 0 (ValueError naming ``path_tolerance`` otherwise)."""
+    if tolerance is None:
+        return None
+    try:
+        tol = float(tolerance)
+    except (TypeError, ValueError):
+        raise ValueError(f"path_tolerance must be a distance in m, got {tolerance!r}") from None
+    if not (math.isfinite(tol) and 0 < tol <= 1.0):
+        raise ValueError(f"path_tolerance must be within (0, 1] m, got {tolerance!r}")
+    return tol
+
+
+class PathDeviationError(DriverError):
+    """The tracked TCP left the planned path by more than the path tolerance (a run made to fail on it)."""
+
+    kind = "path deviation"
+
+
+@dataclass(frozen=True)
+class PathDeviation:
+    """A stretch of the run where the tracked TCP was further than the path tolerance from the planned path.
+
+    t_start, t_end: job times of the first and last recorded sample beyond the tolerance, s; error: the largest
+    distance there, m, at job time ``t`` s, near the planned pose ``pose`` (6,) from source line ``line``;
+    cause: why, as far as the run shows it ("protective stop", "missed control periods", "servo lag ...",
+    "the program's blends ...")."""
+
+    t_start: float
+    t_end: float
+    error: float
+    t: float
+    line: int
+    pose: tuple
+    cause: str
+
+    def describe(self) -> str:
+        span = (f"t = {self.t_start:.3f} s" if self.t_end - self.t_start < 1e-9
+                else f"t = {self.t_start:.3f}..{self.t_end:.3f} s")
+        return (f"{self.error * 1e3:.3f} mm off the path at t = {self.t:.3f} s, source line {self.line} "
+                f"(beyond the tolerance over {span}): {self.cause}")
 
 
 def bit_name(bit: int) -> str:
@@ -117,6 +160,9 @@ class ExecutionReport:
     missed: int = 0
     longest_gap: float = 0.0
     recording: str = ""
+    path_tolerance: float = math.nan
+    deviations: tuple = ()
+    deviation_count: int = 0
 
     @property
     def max_io_distance_mm(self) -> float:
@@ -145,6 +191,16 @@ class ExecutionReport:
             at = "" if math.isnan(self.max_path_error_t) else f" at t = {self.max_path_error_t:.3f} s"
             lines.append("  tracked TCP path: largest distance from the planned path "
                          f"{self.max_path_error * 1e3:.3f} mm{at}")
+            if math.isfinite(self.path_tolerance):
+                if self.deviation_count:
+                    lines.append(f"  PATH TOLERANCE {self.path_tolerance * 1e3:.3f} mm exceeded "
+                                 f"{counted(self.deviation_count, 'time')}:")
+                    for dv in self.deviations[:8]:
+                        lines.append(f"    {dv.describe()}")
+                    if self.deviation_count > 8:
+                        lines.append(f"    ... {self.deviation_count - 8} more")
+                else:
+                    lines.append(f"  within the path tolerance {self.path_tolerance * 1e3:.3f} mm")
             lines.append(f"  joint-limit margin {self.joint_limit_margin:.3f} rad "
                          f"({math.degrees(self.joint_limit_margin):.1f} deg)")
         if self.io_events:
@@ -195,7 +251,8 @@ def planned_path(job, rate: float | None = None):
 
 def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=None, recorded_io=None, *, mode: str,
                      failure: DriverError | None = None, planned=None, loop: LoopStats | None = None,
-                     recording: str = "") -> ExecutionReport:
+                     recording: str = "", stalls=(), lag_cause: str = "",
+                     fail_on_deviation: bool = False) -> ExecutionReport:
     """The report of a run from what was recorded.
 
     Parameters
@@ -212,6 +269,11 @@ def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=Non
         memory, the path searched a window at a time) or the arrays of :func:`planned_path` (searched whole)
     loop : the streaming loop's timing, if any
     recording : how the samples were recorded (said in the report)
+    stalls : job times (s) at which the streaming loop missed control periods (the causes of deviations)
+    lag_cause : what the tracking error of the mode comes from, in words (the cause of a deviation none of the
+        others explains)
+    fail_on_deviation : a run whose tracked path left the path tolerance (the recording's) fails with
+        :class:`PathDeviationError` at its largest deviation (unless it failed otherwise)
     """
     plan = as_planned(job, planned)
     if isinstance(recorded_times, Recording):
@@ -228,13 +290,47 @@ def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=Non
     rec.finish()
     trace = rec.trace()
     events = _io_events(trace, plan)
+    deviations = _deviations(rec, plan, failure, stalls, lag_cause or f"{mode} tracking")
+    if deviations and fail_on_deviation and failure is None and rec.tolerance is not None:
+        worst = max(deviations, key=lambda dv: dv.error)
+        failure = PathDeviationError(f"the tracked TCP left the planned path by {worst.error * 1e3:.3f} mm, beyond "
+                                     f"the path tolerance {rec.tolerance * 1e3:.3f} mm: {worst.cause}",
+                                     t=worst.t, pose=worst.pose, line=worst.line)
     return ExecutionReport(
         mode=mode, ok=failure is None, reason="" if failure is None else failure.reason,
         planned_duration=plan.duration, duration=rec.duration, samples=int(rec.samples),
         max_path_error=rec.max_error if rec.samples else 0.0, max_path_error_t=rec.max_error_t,
         io_events=tuple(events), joint_limit_margin=rec.margin if math.isfinite(rec.margin) else math.nan,
         failure=failure, path_length=plan.length, loop=loop, trace=trace, recorded_every=rec.step, gaps=rec.gaps,
-        missed=rec.missed, longest_gap=rec.longest_gap, recording=recording)
+        missed=rec.missed, longest_gap=rec.longest_gap, recording=recording,
+        path_tolerance=math.nan if rec.tolerance is None else rec.tolerance, deviations=tuple(deviations),
+        deviation_count=rec.excursion_count)
+
+
+#: A deviation within this much job time of a missed control period or of a stop is put down to it, s.
+CAUSE_WINDOW = 0.1
+
+
+def _deviations(rec: Recording, plan: PlannedPath, failure, stalls, lag_cause: str) -> list[PathDeviation]:
+    """The recording's excursions beyond its tolerance as :class:`PathDeviation` (place and cause)."""
+    from drivers.base import EmergencyStopError, ProtectiveStopError
+
+    out = []
+    st = np.asarray(list(stalls), dtype=float)
+    for ex in rec.excursions:
+        _, pose, line = plan.at(ex.segment)
+        a, b = ex.t_start - CAUSE_WINDOW, ex.t_end + CAUSE_WINDOW
+        if (isinstance(failure, (ProtectiveStopError, EmergencyStopError)) and failure.t is not None
+                and a <= failure.t <= b):
+            cause = failure.kind
+        elif st.size and ((st >= a) & (st <= ex.t_end)).any():
+            n = int(((st >= a) & (st <= ex.t_end)).sum())
+            cause = f"missed control periods (the streaming loop was late {counted(n, 'time')} just before)"
+        else:
+            cause = lag_cause
+        out.append(PathDeviation(ex.t_start, ex.t_end, ex.error, ex.t, int(line),
+                                 tuple(float(x) for x in pose), cause))
+    return out
 
 
 def as_planned(job, planned=None) -> PlannedPath:
@@ -247,15 +343,17 @@ def as_planned(job, planned=None) -> PlannedPath:
     return PlannedPath(job, arrays=tuple(planned))
 
 
-def new_recording(job, planned, *, block: int | None = None, prefetch: bool = False):
+def new_recording(job, planned, *, block: int | None = None, prefetch: bool = False,
+                  tolerance: float | None = None):
     """An empty :class:`drivers.recording.Recording` for a run of ``job`` against its planned path (a
     :class:`drivers.plan_window.PlannedPath`, or the arrays of :func:`planned_path`); ``block``: samples reduced
     at a time (default :data:`drivers.recording.BLOCK`; a real-time loop reduces small blocks, a fraction of its
-    period each); ``prefetch``: the plan window's pieces made ahead in a thread (for a real-time loop)."""
+    period each); ``prefetch``: the plan window's pieces made ahead in a thread (for a real-time loop);
+    ``tolerance``: the path tolerance, m, whose excursions the report lists (:class:`PathDeviation`)."""
     plan = as_planned(job, planned)
     src = plan if plan.arrays is None else np.asarray(plan.arrays[1])[:, :3]
     return Recording(src, job.settings.robot, plan.length, block=BLOCK if block is None else block,
-                     prefetch=prefetch)
+                     prefetch=prefetch, tolerance=tolerance)
 
 
 def _io_events(trace, plan: PlannedPath) -> list[IOSwitch]:

@@ -36,7 +36,8 @@ from drivers.base import DriverError, NotReadyError, ProtectiveStopError, RobotS
 from drivers.feed import HISTORY
 from drivers.jobs import check_job, stop_requested
 from drivers.plan_window import PlannedPath
-from drivers.report import ExecutionReport, execution_report, new_recording
+from drivers.report import ExecutionReport, check_tolerance, execution_report, new_recording
+from drivers.servo import DEFAULT_GAIN, DEFAULT_LOOKAHEAD, ServoModel, ServoShaper, check_servo
 from drivers.stations import Station, Stations
 from sim.core import RUNTIME_PAUSED, RUNTIME_PLAYING, RUNTIME_STOPPED, SAFETY_PROTECTIVE_STOP, Core
 from sim.io_state import IOState
@@ -99,6 +100,11 @@ class SimDriver:
         Initial joints, rad (default: the simulated controller's home position).
     lookahead, gain : float
         servoj lookahead time (s, 0.03..0.2) and gain (100..2000), as :class:`drivers.ur.URDriver`'s.
+    compensate : bool
+        Shape the servo targets by the servo model (:class:`drivers.servo.ServoShaper`), as URDriver does.
+    path_tolerance, fail_on_deviation
+        As :class:`drivers.ur.URDriver`'s: the report lists the stretches beyond the path tolerance (m), and with
+        ``fail_on_deviation`` such a run fails.
     settle : float
         Seconds the last target of a stream is held before the controlled stop, s (URDriver's ``settle``).
     deceleration : float
@@ -109,19 +115,21 @@ class SimDriver:
         (:class:`drivers.recording.Recording`).
     """
 
-    def __init__(self, model: str = "ur5e", *, speed: float = math.inf, q0=None, lookahead: float = 0.1,
-                 gain: float = 300.0, settle: float = 0.3, deceleration: float = 10.0, record: bool = False) -> None:
+    def __init__(self, model: str = "ur5e", *, speed: float = math.inf, q0=None,
+                 lookahead: float = DEFAULT_LOOKAHEAD, gain: float = DEFAULT_GAIN, compensate: bool = True,
+                 settle: float = 0.3, deceleration: float = 10.0, record: bool = False,
+                 path_tolerance: float | None = None, fail_on_deviation: bool = False) -> None:
         from planner.kinematics import get_model
 
         self.model = get_model(model).name
         self.speed = _positive(speed, "speed")
         self.q0 = None if q0 is None else np.asarray(q0, dtype=float).reshape(6)
-        if not 0.03 <= float(lookahead) <= 0.2:
-            raise ValueError(f"lookahead must be within 0.03..0.2 s, got {lookahead!r}")
-        if not 100.0 <= float(gain) <= 2000.0:
-            raise ValueError(f"gain must be within 100..2000, got {gain!r}")
-        self.lookahead = float(lookahead)
-        self.gain = float(gain)
+        self.lookahead, self.gain = check_servo(lookahead, gain)
+        self.compensate = bool(compensate)
+        self.path_tolerance = check_tolerance(path_tolerance)
+        if fail_on_deviation and self.path_tolerance is None:
+            raise ValueError("fail_on_deviation needs a path_tolerance")
+        self.fail_on_deviation = bool(fail_on_deviation)
         self.settle = float(settle)
         if not self.settle >= 0:
             raise ValueError(f"settle must be >= 0 s, got {settle!r}")
@@ -287,8 +295,14 @@ class SimDriver:
             t, target, q, x, bits = (np.asarray(a, dtype=float) for a in rec.lists)
             self.recording = {"t": t, "target_q": target.reshape(-1, 6), "actual_q": q.reshape(-1, 6),
                               "tcp": x.reshape(-1, 6), "digital_out": bits.astype(np.int64)}
+        if mode == "stream":
+            cause = (f"servo lag (servoj lookahead {self.lookahead:g} s, gain {self.gain:g}, "
+                     + ("targets shaped by the servo model)" if self.compensate else "planned joints unshaped)"))
+        else:
+            cause = "the controller's blending of the program's moves (movep)"
         return execution_report(job, rec.rec, mode=mode, failure=failure, planned=planned,
-                                recording="every control period")
+                                recording="every control period", lag_cause=cause,
+                                fail_on_deviation=self.fail_on_deviation)
 
     @staticmethod
     def _locate(err: DriverError, k: int, planned: PlannedPath, rec=None) -> DriverError:
@@ -318,7 +332,7 @@ class SimDriver:
         rate = float(job.settings.rate)
         ticks = round(1.0 / (rate * DT))
         dt = 1.0 / rate
-        rec = _Recorder(new_recording(job, planned), self.record)
+        rec = _Recorder(new_recording(job, planned, tolerance=self.path_tolerance), self.record)
         failure = None
         prev_io = 0
         stations = Stations(core.io.set_digital_out)  # switches whose station the actual TCP has not reached yet
@@ -326,10 +340,11 @@ class SimDriver:
         report_every = max(1, int(rate // 10))
         t_last, q_last = 0.0, None
         tail = np.zeros((0, 3))  # the planned positions before the chunk (a station's direction of travel)
+        shaper = ServoShaper(ServoModel(self.lookahead, self.gain, dt), job.start_joints, compensate=self.compensate)
 
         try:
             for chunk in job.trajectory(rate).chunks():
-                qs, ios, times = chunk.joints, chunk.io.tolist(), chunk.times.tolist()
+                qs, ios, times = shaper.shape(chunk.joints), chunk.io.tolist(), chunk.times.tolist()
                 pos = np.vstack((tail, chunk.poses[:, :3]))
                 h0 = tail.shape[0]
                 tail = pos[-HISTORY:]
@@ -361,10 +376,11 @@ class SimDriver:
                             progress("execute", k, total)
             # hold the last target while the arm, lagging its targets, arrives; then the controlled stop
             n_settle = int(self.settle * rate)
+            hold = shaper.hold(n_settle) if q_last is not None else np.zeros((0, 6))
             for j in range(n_settle + 10):
                 with core.lock:
-                    if j < n_settle and q_last is not None:
-                        m.servo(q_last, dt, self.lookahead, self.gain)
+                    if j < len(hold):
+                        m.servo(hold[j], dt, self.lookahead, self.gain)
                     elif j == n_settle:
                         stations.flush()
                         m.plan_stop(self.deceleration, linear=True)
@@ -385,7 +401,7 @@ class SimDriver:
 
         core = self._need()
         text = job_program(job)
-        rec = _Recorder(new_recording(job, planned), self.record)
+        rec = _Recorder(new_recording(job, planned, tolerance=self.path_tolerance), self.record)
         failure = None
         k = 0
         try:

@@ -3,8 +3,10 @@
 Two modes, one report (:func:`drivers.report.execution_report`):
 
 - "stream": ``servoJ`` with the planner's own joints (the branch the planner chose and tracked, so the
-  controller never picks another) at the job's rate, one target per control period in an
-  ``initPeriod``/``waitPeriod`` loop, after a joint move onto ``job.start_joints`` (the safe approach), and
+  controller never picks another) at the job's rate, shaped by the assumed servo model so that the arm runs on them
+  (:mod:`drivers.servo`; lookahead 0.03 s, gain 2000 by default), one target per control period on an absolute
+  schedule (:class:`drivers.pacing.Schedule`, the loop SCHED_FIFO where the system allows it), after a joint move
+  onto ``job.start_joints`` (the safe approach), and
   ending with ``servoStop`` (a controlled stop). The job's digital outputs switch at the samples where the
   trajectory's I/O bits change (RTDE I/O interface, or Modbus with ``io="modbus"``).
 - "program": the job's URScript program (:func:`planner.export.job_program`) sent to the script port
@@ -23,6 +25,7 @@ given.
 from __future__ import annotations
 
 import gc
+import os
 import socket
 import sys
 import threading
@@ -45,7 +48,8 @@ from drivers.jobs import check_job, stop_requested
 from drivers.pacing import Schedule
 from drivers.package_log import PackageLog
 from drivers.plan_window import PlannedPath, PlanWindow
-from drivers.report import ExecutionReport, execution_report, new_recording
+from drivers.report import ExecutionReport, check_tolerance, execution_report, new_recording
+from drivers.servo import DEFAULT_GAIN, DEFAULT_LOOKAHEAD, ServoModel, ServoShaper, check_servo
 from drivers.stations import Station, Stations
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -68,8 +72,31 @@ MODES = ("stream", "program")
 _RT_BLOCK, _RT_SPARE = 100, 1.2e-3
 #: Program mode reads the packages recorded so far (and reports progress) this often, s of wall time.
 _READ_EVERY = 0.05
+#: SCHED_FIFO priority of the streaming loop (``realtime``): below a controller simulated on the same machine
+#: (its control loop runs at 10, its RTDE server at 8).
+LOOP_PRIORITY = 5
+#: Missed-period events of a stream remembered (their job times: the causes of path deviations).
+MAX_STALLS = 10_000
 #: ur_rtde interfaces whose connection dropped: never disconnected or destroyed (see URDriver.close).
 _ABANDONED: list = []
+
+
+def _realtime_loop() -> tuple | None:
+    """The calling thread SCHED_FIFO at LOOP_PRIORITY if the system allows it; its former (policy, priority), or
+    None when refused."""
+    try:
+        before = (os.sched_getscheduler(0), os.sched_getparam(0).sched_priority)
+        os.sched_setscheduler(0, os.SCHED_FIFO, os.sched_param(LOOP_PRIORITY))
+    except (OSError, AttributeError):
+        return None
+    return before
+
+
+def _restore_scheduling(before: tuple) -> None:
+    try:
+        os.sched_setscheduler(0, before[0], os.sched_param(before[1]))
+    except (OSError, AttributeError):
+        pass
 
 
 class ProgramStoppedError(DriverError):
@@ -122,7 +149,23 @@ class URDriver:
     modbus_port : int
         Modbus TCP port of the controller (with ``io="modbus"``).
     lookahead, gain : float
-        servoJ lookahead time (s, 0.03..0.2) and proportional gain (100..2000).
+        servoJ lookahead time (s, 0.03..0.2; default 0.03) and proportional gain (100..2000; default 2000): the
+        shortest time constants UR allows (see :mod:`drivers.servo`).
+    compensate : bool
+        Send servo targets shaped by the assumed servo model so that the arm runs on the planned joints
+        (:class:`drivers.servo.ServoShaper`; default); False: the planned joints as they are (the arm lags them and
+        cuts bends by the servo's filtering).
+    realtime : bool
+        Run the streaming loop's thread SCHED_FIFO (priority :data:`LOOP_PRIORITY`) where the system allows it, as
+        ur_rtde does on a real-time kernel (default): on a loaded machine an ordinary thread misses control periods
+        (each one holds the arm on its last target; on a tight bend a stall of 20 ms or more puts the arm off the
+        path). Its usual scheduling is restored after the run.
+    path_tolerance : float, optional
+        Path tolerance, m: the report lists every stretch where the tracked TCP was further than this from the
+        planned path, with where (job time, source line) and why (servo lag, missed control periods, a stop).
+    fail_on_deviation : bool
+        A run beyond ``path_tolerance`` fails (``report.ok`` False, :class:`drivers.report.PathDeviationError` at
+        its largest deviation); otherwise it is only reported.
     overrun_limit : float
         Two targets this many seconds apart stop the run with PeriodOverrunError, s. The arm holds its last
         (planned, on the path) target meanwhile, so a short stall delays the job without leaving the path: the
@@ -139,17 +182,16 @@ class URDriver:
     """
 
     def __init__(self, host: str, model: str = "ur5e", *, io: str = "rtde", modbus_port: int = 502,
-                 lookahead: float = 0.1, gain: float = 300.0, overrun_limit: float = 0.2, settle: float = 0.3,
+                 lookahead: float = DEFAULT_LOOKAHEAD, gain: float = DEFAULT_GAIN, compensate: bool = True,
+                 realtime: bool = True, path_tolerance: float | None = None, fail_on_deviation: bool = False,
+                 overrun_limit: float = 0.2, settle: float = 0.3,
                  deceleration: float = 10.0, frequency: float = 500.0, approach_speed: float = 0.5,
                  approach_acceleration: float = 0.5) -> None:
         if not isinstance(host, str) or not host.strip():
             raise ValueError(f"host must be the controller's address, got {host!r}")
         if io not in ("rtde", "modbus"):
             raise ValueError(f"io must be 'rtde' or 'modbus', got {io!r}")
-        if not 0.03 <= float(lookahead) <= 0.2:
-            raise ValueError(f"lookahead must be within 0.03..0.2 s, got {lookahead!r}")
-        if not 100.0 <= float(gain) <= 2000.0:
-            raise ValueError(f"gain must be within 100..2000, got {gain!r}")
+        lookahead, gain = check_servo(lookahead, gain)
         if not float(overrun_limit) > 0:
             raise ValueError(f"overrun_limit must be > 0 s, got {overrun_limit!r}")
         from planner.kinematics import get_model
@@ -160,6 +202,13 @@ class URDriver:
         self.modbus_port = int(modbus_port)
         self.lookahead = float(lookahead)
         self.gain = float(gain)
+        self.compensate = bool(compensate)
+        self.realtime = bool(realtime)
+        self.path_tolerance = check_tolerance(path_tolerance)
+        if fail_on_deviation and self.path_tolerance is None:
+            raise ValueError("fail_on_deviation needs a path_tolerance")
+        self.fail_on_deviation = bool(fail_on_deviation)
+        self._stalls: list[float] = []  # job times at which the last stream's loop missed periods
         self.overrun_limit = float(overrun_limit)
         self.settle = float(settle)
         self.deceleration = float(deceleration)
@@ -450,7 +499,11 @@ class URDriver:
         cancel = cancel if cancel is not None else threading.Event()
         planned = PlannedPath(job)  # read once, kept in summary (bounded memory); the run reads it again in windows
         # stream: the targets are produced ahead by a thread of their own while the arm approaches the start
-        feed = TargetFeed(job.trajectory(job.settings.rate)) if mode == "stream" else None
+        feed = None
+        if mode == "stream":
+            shaper = ServoShaper(ServoModel(self.lookahead, self.gain, 1.0 / float(job.settings.rate)),
+                                 job.start_joints, compensate=self.compensate)
+            feed = TargetFeed(job.trajectory(job.settings.rate), shaper=shaper)
         try:
             self.move_to_start(job, speed=self.approach_speed, acceleration=self.approach_acceleration, cancel=cancel)
             mask = planned.mask
@@ -468,8 +521,14 @@ class URDriver:
         finally:
             if feed is not None:
                 feed.close()
+        if mode == "stream":
+            cause = (f"servo lag (servoJ lookahead {self.lookahead:g} s, gain {self.gain:g}, "
+                     + ("targets shaped by the servo model)" if self.compensate else "planned joints unshaped)"))
+        else:
+            cause = "the controller's blending of the program's moves (movep)"
         return execution_report(job, rec, mode=mode, failure=failure, planned=planned, loop=loop,
-                                recording="every data package")
+                                recording="every data package", stalls=self._stalls if mode == "stream" else (),
+                                lag_cause=cause, fail_on_deviation=self.fail_on_deviation)
 
     def _stopped(self, cancel) -> DriverError | None:
         return stop_requested(cancel, self._stop)
@@ -523,7 +582,10 @@ class URDriver:
         # every data package, from the recording connection, reduced as it goes (bounded memory), in periods with time
         # to spare, ~100 packages at a time (~0.5 ms; 2500 at a time took 10-15 ms, several missed periods every 5 s);
         # the plan's pieces it is compared with are made ahead by a thread
-        rec = new_recording(job, planned, prefetch=True)
+        rec = new_recording(job, planned, prefetch=True, tolerance=self.path_tolerance)
+        stalls = self._stalls = []
+        missed_seen = 0
+        t_cmd = 0.0
         log = None
         untaken = 0  # periods since the packages were last taken into the recording
         if isinstance(rec.planned, PlanWindow):
@@ -547,7 +609,17 @@ class URDriver:
         gc_enabled = gc.isenabled()
         gc.disable()
         gc.freeze()
+        policy = _realtime_loop() if self.realtime else None
         try:
+            # outputs that switch at the job's first sample: switched (and confirmed) before the first target, the
+            # arm at rest on their station (the I/O path's latency, 2-12 ms on a loaded machine, would otherwise
+            # make them late)
+            for b, v, i in planned.switches:
+                if i == 0:
+                    prev_io = (prev_io & ~(1 << b)) | (int(v) << b)
+            if prev_io:
+                self._outputs().set_bits(prev_io, prev_io)
+                self._confirm_outputs(prev_io, prev_io)
             log = PackageLog(self.host, self.frequency)
             last = sched.start()
             for sl in feed:
@@ -564,6 +636,7 @@ class URDriver:
                         raise ConnectionLostError(f"the connection to the controller at {host} dropped")
                     if not c.servoJ(q, 0.0, 0.0, dt, la, gain):
                         raise self._fault() or ProgramStoppedError(self._not_running_reason())
+                    t_cmd = times[i]
                     if ios[i] != prev_io and not paused:
                         stations.add(Station.on_path(k, ios[i] ^ prev_io, ios[i], pos, h0 + i, rate=rate))
                         prev_io = ios[i]
@@ -588,15 +661,20 @@ class URDriver:
                         self._take(log, rec, ts0)
                         untaken = 0
                     now = sched.wait()
+                    if sched.missed != missed_seen:
+                        missed_seen = sched.missed
+                        if len(stalls) < MAX_STALLS:
+                            stalls.append(t_cmd)
                     if now - last > overrun:
                         raise PeriodOverrunError(f"the control loop missed its period: {1e3 * (now - last):.1f} ms "
                                                  f"between targets (limit {1e3 * overrun:.0f} ms)")
                     last = now
             # hold the last target until the arm, lagging its targets, has arrived; then a controlled stop
             n_settle = int(self.settle * rate)
+            hold = feed.hold(n_settle) if q_last is not None else []
             for j in range(n_settle + 10):
-                if j < n_settle and q_last is not None:
-                    c.servoJ(q_last, 0.0, 0.0, dt, la, gain)
+                if j < len(hold):
+                    c.servoJ(hold[j], 0.0, 0.0, dt, la, gain)
                 elif j == n_settle:
                     stations.flush()
                     c.servoStop(self.deceleration)
@@ -611,6 +689,8 @@ class URDriver:
         except RuntimeError as exc:  # ur_rtde: the socket closed
             failure = self._locate(ConnectionLostError(f"the connection to {host} dropped: {exc}"), k, planned, rec)
         finally:
+            if policy is not None:
+                _restore_scheduling(policy)
             sys.setswitchinterval(switch)
             gc.unfreeze()
             if gc_enabled:
@@ -691,7 +771,7 @@ class URDriver:
         r, c = self._need(), self._control()
         text = job_program(job)
         c.stopScript()  # hand the arm from ur_rtde's control script to the job's program
-        rec = new_recording(job, planned)
+        rec = new_recording(job, planned, tolerance=self.path_tolerance)
         failure = None
         k = 0
         log = None

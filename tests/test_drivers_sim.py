@@ -15,6 +15,7 @@ import pytest
 
 from drivers.base import CancelledError, DriverError, NotReadyError, ProtectiveStopError, RobotDriver
 from drivers.report import planned_path
+from drivers.servo import ServoModel, ServoShaper
 from drivers.sim import SimDriver
 from drivers.ur import URDriver
 from planner import PlanSettings, plan
@@ -58,8 +59,10 @@ def test_is_a_robot_driver():
 
 
 def test_stream_follows_the_planned_joints(fast_job):
+    """Unshaped targets (the former defaults, lookahead 0.1 s, gain 300): the planner's own joints are commanded as
+    they are and the arm lags them by the servo's following error."""
     Q = planned_joints(fast_job)
-    with SimDriver(record=True) as d:
+    with SimDriver(record=True, lookahead=LOOKAHEAD, gain=GAIN, compensate=False) as d:
         report = d.execute(fast_job, mode="stream")
         rec = d.recording
         state = d.state()
@@ -80,6 +83,24 @@ def test_stream_follows_the_planned_joints(fast_job):
     # leaves them (off after the cut)
     assert np.abs(np.asarray(state.joints) - Q[-1]).max() < 0.01 * bound
     assert state.digital_out == 0 and state.ready and not state.program_running
+
+
+def test_stream_shaped_targets_put_the_arm_on_the_planned_joints(fast_job):
+    """The defaults (lookahead 0.03 s, gain 2000, targets shaped by the servo model): the targets lead the plan and
+    the arm, one control period after each, is on the planned joints to round-off: no lag, no corner cut."""
+    Q = planned_joints(fast_job)
+    with SimDriver(record=True) as d:
+        report = d.execute(fast_job, mode="stream")
+        rec = d.recording
+        state = d.state()
+    assert report.ok, report.describe()
+    n = len(Q)
+    lead = np.abs(rec["target_q"][:n] - Q).max()
+    assert lead > 1e-3  # shaped: the targets are not the planned joints (~v * 20 ms ahead)
+    assert np.abs(rec["actual_q"][:n] - Q).max() < 1e-9
+    assert report.max_path_error < 1e-6  # 0.2 mm with the former defaults (the test above)
+    assert report.max_io_distance_mm < 1e-3
+    assert np.abs(np.asarray(state.joints) - Q[-1]).max() < 1e-9 and state.digital_out == 0
 
 
 def test_demo_job_dry_run_meets_the_streaming_targets():
@@ -184,9 +205,13 @@ def test_joint_limit_is_a_protective_stop_with_time_pose_and_line(fast_job):
     assert isinstance(f, ProtectiveStopError), report.describe()
     assert f"joint {j}" in f.reason and "outside its limits" in f.reason
     assert 0 < f.t < report.planned_duration and len(f.pose) == 6 and f.line > 0
-    # the planned pose named is the one being commanded when the limit was crossed
+    # the planned pose named is the one being commanded when the limit was crossed: the shaped target leads the plan
+    # by the servo's lag (lookahead / 2 + 10 / gain: 20 ms), so the plan crosses it within that lag
     k = int(round(f.t / DT))
-    assert (Q[k, j] > m.upper[j]) if up else (Q[k, j] < m.lower[j])
+    lead = int(np.ceil(ServoModel(0.03, 2000.0).lag / DT)) + 1
+    ahead = Q[k:k + lead, j]
+    assert (ahead.max() > m.upper[j]) if up else (ahead.min() < m.lower[j])
+    assert (Q[k - lead, j] <= m.upper[j]) if up else (Q[k - lead, j] >= m.lower[j])
     assert state.protective_stop and np.abs(qd).max() == 0.0 and state.digital_out == 0
 
 
@@ -229,7 +254,8 @@ def _compare_stream(make_sim, tmp_path, job):
         rec = d.recording
     assert report.ok
     Q = planned_joints(job)
-    index = {q.tobytes(): k for k, q in enumerate(Q)}
+    U = ServoShaper(ServoModel(0.03, 2000.0), job.start_joints).shape(Q)  # the targets both drivers send
+    index = {q.tobytes(): k for k, q in enumerate(U)}
     ks = np.array([index.get(q.tobytes(), -1) for q in ctrl.target_q])
     rows = np.flatnonzero(ks >= 0)
     rows = rows[rows >= np.flatnonzero(ks == 1)[0]]  # from the first target that moves (the stream's start)

@@ -22,6 +22,7 @@ from drivers.base import (
     ProtectiveStopError,
 )
 from drivers.report import planned_path
+from drivers.servo import DEFAULT_GAIN, ServoModel, ServoShaper
 from drivers.ur import ProgramStoppedError, URDriver
 from planner import PlanSettings, plan
 from tests import sim_fixtures
@@ -451,7 +452,9 @@ def test_stream_whole_job_with_a_reconfiguration(make_sim, tmp_path):
     ctrl = recording.load(path)
     # each control period's job time: that of the target it was executing (a late target holds the one before)
     Q = np.concatenate([c.joints for c in job.trajectory().chunks()])
-    index = {q.tobytes(): k for k, q in enumerate(Q)}
+    # the targets the driver sent: the planned joints shaped by the servo model
+    U = ServoShaper(ServoModel(RECONF_LOOKAHEAD, DEFAULT_GAIN), job.start_joints).shape(Q)
+    index = {q.tobytes(): k for k, q in enumerate(U)}
     ks = np.array([index.get(q.tobytes(), -1) for q in ctrl.target_q])
     keep = np.zeros(len(ks), bool)
     keep[int(np.flatnonzero(ks >= 1)[0]):] = True

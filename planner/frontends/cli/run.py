@@ -12,13 +12,26 @@ from __future__ import annotations
 
 import argparse
 import ipaddress
+import math
 import os
 import sys
 
 from drivers.base import ConnectionLostError, DriverError
 from drivers.execute import execute_job, plot_run, start_sim
+from drivers.servo import DEFAULT_GAIN, DEFAULT_LOOKAHEAD
 from planner.frontends.cli.options import Progress, add_plan_options, settings_from_args
 from planner.wording import counted
+
+
+def _path_tolerance_mm(text: str) -> float:
+    """``--path-tolerance``'s value, mm: a number > 0 and at most 1000 (argparse names the option on refusal)."""
+    try:
+        x = float(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a distance in mm, got {text!r}") from None
+    if not (math.isfinite(x) and 0 < x <= 1000.0):
+        raise argparse.ArgumentTypeError(f"must be > 0 mm and at most 1000 mm, got {text!r}")
+    return x
 
 
 def add_run_subcommand(subparsers) -> argparse.ArgumentParser:
@@ -37,8 +50,18 @@ def add_run_subcommand(subparsers) -> argparse.ArgumentParser:
     r.add_argument("--sim", action="store_true", help="start a simulated controller on a free loopback address")
     r.add_argument("--sim-speed", type=float, default=1.0,
                    help="--sim: simulated seconds per second (program mode only; streaming runs in real time)")
-    r.add_argument("--lookahead", type=float, default=0.1, help="servoJ lookahead time, s (default 0.1)")
-    r.add_argument("--gain", type=float, default=300.0, help="servoJ gain (default 300)")
+    r.add_argument("--lookahead", type=float, default=DEFAULT_LOOKAHEAD,
+                   help=f"stream: servoJ lookahead time, s, 0.03..0.2 (default {DEFAULT_LOOKAHEAD:g})")
+    r.add_argument("--gain", type=float, default=DEFAULT_GAIN,
+                   help=f"stream: servoJ gain, 100..2000 (default {DEFAULT_GAIN:g})")
+    r.add_argument("--no-compensation", dest="compensate", action="store_false",
+                   help="stream: send the planned joints as servoJ targets as they are (default: targets shaped by "
+                        "the servo model so that the arm runs on the planned path)")
+    r.add_argument("--path-tolerance", type=_path_tolerance_mm, default=None, metavar="MM",
+                   help="path tolerance, mm: the report lists where (time, source line) and why (servo lag, missed "
+                        "control periods, a stop) the tracked TCP left the planned path by more")
+    r.add_argument("--fail-on-deviation", action="store_true",
+                   help="with --path-tolerance: a run beyond it fails (exit status 1)")
     r.add_argument("--progress", action="store_true", help="show the progress bar even when not on a terminal")
     r.add_argument("--plot", help="write the picture of the job with the run drawn over it (.png, .svg, .pdf): the "
                                   "actual against the planned TCP path and speed, the I/O stations and the switches")
@@ -64,6 +87,9 @@ def cmd_run(args: argparse.Namespace) -> int:
     if args.sim and args.mode == "stream" and args.sim_speed != 1.0:
         print("planner run: error: --sim-speed works in program mode only (streaming runs in real time)",
               file=sys.stderr)
+        return 2
+    if args.fail_on_deviation and args.path_tolerance is None:
+        print("planner run: error: --fail-on-deviation needs --path-tolerance MM", file=sys.stderr)
         return 2
     if args.plot:
         from planner.plot import check_plot_target
@@ -98,7 +124,9 @@ def cmd_run(args: argparse.Namespace) -> int:
         bars = Progress(args.progress or sys.stderr.isatty())
         try:
             report = execute_job(job, host, mode=args.mode, io=args.io, modbus_port=modbus_port, progress=bars,
-                                 lookahead=args.lookahead, gain=args.gain)
+                                 lookahead=args.lookahead, gain=args.gain, compensate=args.compensate,
+                                 path_tolerance=None if args.path_tolerance is None else args.path_tolerance * 1e-3,
+                                 fail_on_deviation=args.fail_on_deviation)
         except DriverError as exc:  # refused before the run (not ready, no connection): the robot's reason
             print(f"planner run: robot error ({exc.kind}): {exc}", file=sys.stderr)
             return 1
