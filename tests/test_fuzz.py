@@ -16,6 +16,10 @@ Inputs: the bundled examples (examples/), the heads of the verbatim excerpts of 
 waypoints built from the example CSV; mutations: truncation, byte flips, NaN/inf/1e308/1e-300/huge fields,
 coordinates scaled by 1e-6..1e6, duplicated, deleted and swapped lines.
 
+Fits and plans (issue 24): waypoints that turn back on themselves (exact and near reversals, cusps, antiparallel
+steps, runs along a line) through ``fit_ph_spline`` C1 and C2 with both member rules, and ``planner fit`` once in a
+subprocess; random waypoints scaled by 1e-9..1e9 (sub-micrometre ones often) through the fits and ``planner.plan``.
+
 Bounded so the default run takes well under a minute. ``HYPOTHESIS_PROFILE=fuzz`` selects the long profile
 (1000 examples per format, fresh random ones each run, a longer deadline per example): ``./run fuzz``;
 ``FUZZ_EXAMPLES=N`` sets the number of examples per format.
@@ -44,6 +48,7 @@ from hypothesis import HealthCheck, event, given, settings
 from hypothesis import strategies as st
 
 from planner.frontends.cli.main import main
+from tests.conftest import waypoint_sets
 
 ROOT = Path(__file__).resolve().parents[1]
 DATA = Path(__file__).resolve().parent / "data"
@@ -630,3 +635,166 @@ def test_one_unknown_cycle_word_is_named_with_the_words_known(kind, pairs, word,
     assert repr(word) in stderr, (record, stderr)
     if "is neither a number nor a CYCLE keyword" in stderr:
         assert "1STPECK, SUBPECK" in stderr and "FEDTO" in stderr
+
+
+# -- fits and plans through waypoints that turn back, and at any scale (issue 24) ---------------------------------
+#
+# Each example is bounded by design: at most 9 (fit) or 8 (plan) waypoints, the G1 PH cubic's halving stops at
+# MAX_OPEN_PIECES pieces per span and level, a plan is capped at MAX_POSES poses (more is a BudgetError).
+
+#: Shapes of waypoints that turn back on themselves.
+TURNS = ("back", "short", "cusp", "line", "near", "aba")
+
+
+@st.composite
+def turning_back(draw):
+    """(waypoints (n, 3) in metres, kind): a random polyline whose turns are made to turn back: exactly to the
+    previous waypoint ("back"), short of it or beyond along the last step ("short": antiparallel steps), a cusp in
+    the middle of a spatial path ("cusp"), every waypoint on one line with reversals ("line"), such a line off by
+    1e-17..1e-9 of its size ("near", within and beyond round-off), or 0 / b / 0 / b ... ("aba"); then rotated,
+    scaled by 1e-9..1e9 and moved by up to 100 times its size."""
+    rng = np.random.default_rng(draw(st.integers(0, 2**32 - 1)))
+    n = draw(st.integers(3, 9))
+    kind = draw(st.sampled_from(TURNS))
+    p = np.cumsum(rng.normal(size=(n, 3)), axis=0)
+    if kind in ("back", "short"):
+        for k in sorted(rng.choice(np.arange(1, n - 1), size=rng.integers(1, n - 1), replace=False)):
+            step = p[k] - p[k - 1]
+            p[k + 1:] += (p[k] - (1.0 if kind == "back" else rng.uniform(0.1, 3.0)) * step) - p[k + 1]
+    elif kind == "cusp":
+        k = int(rng.integers(1, n - 1))
+        p[k + 1:] += p[k] - rng.uniform(0.2, 2.0) * (p[k] - p[k - 1]) - p[k + 1]
+    elif kind in ("line", "near"):
+        x = np.cumsum(rng.choice([-1.0, 1.0], size=n) * np.exp(rng.normal(size=n)))
+        p = x[:, None] * np.array([1.0, 0.0, 0.0])
+        if kind == "near":
+            p += rng.normal(size=(n, 3)) * 10.0 ** rng.uniform(-17, -9) * np.abs(x).max()
+    else:
+        p = np.array([np.zeros(3), rng.normal(size=3)] * n)[:n]
+    q, r = np.linalg.qr(rng.normal(size=(3, 3)))
+    scale = 10.0 ** draw(st.floats(-9.0, 9.0))
+    p = (p @ (q * np.sign(np.diag(r))).T) * scale + rng.normal(size=3) * scale * draw(st.sampled_from([0.0, 1.0, 100.0]))
+    return p, kind
+
+
+@contextlib.contextmanager
+def member_rule(compiled: bool):
+    """The compiled member rule (as built) or the numpy one (an install without a C compiler) for the block."""
+    from planner.curves import ph_quintic
+
+    kept = ph_quintic._hermite_member
+    assert kept is not None, "the compiled member rule is not built"
+    ph_quintic._hermite_member = kept if compiled else None
+    try:
+        yield
+    finally:
+        ph_quintic._hermite_member = kept
+
+
+def _line_distance(points: np.ndarray, p: np.ndarray) -> float:
+    """Largest distance (m) of ``points`` (..., 3) from the line through the first waypoint and the one furthest."""
+    r = p - p[0]
+    e = r[np.argmax(np.einsum("ij,ij->i", r, r))]
+    e = e / np.linalg.norm(e)
+    d = points.reshape(-1, 3) - p[0]
+    return float(np.linalg.norm(d - np.outer(d @ e, e), axis=1).max())
+
+
+@FUZZ_SETTINGS
+@given(case=turning_back(), continuity=st.sampled_from(["C1", "C2"]))
+def test_fits_through_waypoints_that_turn_back(case, continuity):
+    """fit_ph_spline through reversals, cusps and antiparallel steps: a finite path through every waypoint (to
+    round-off of the coordinates), or a PlannerError naming a waypoint; never nan, never a NumericalError. The
+    compiled and the numpy member rules give the same path (but where the data are within a few ulps of a line
+    that turns back: there members tie to round-off). On one line the C1 path is straight."""
+    from planner.curves.spline import fit_ph_spline
+    from planner.errors import PlannerError
+
+    p, kind = case
+    event(kind)
+    size = float(np.abs(p).max())
+    fits = []
+    for compiled in (True, False):
+        with member_rule(compiled), np.errstate(all="ignore"):
+            try:
+                s = fit_ph_spline(p, continuity=continuity)
+            except PlannerError as exc:
+                assert "waypoint" in str(exc), str(exc)
+                event(f"refused: {str(exc)[:40]}")
+                return
+        assert np.isfinite(s.A).all() and math.isfinite(s.length) and s.length > 0.0
+        assert s.interpolation_errors(p).max() <= 1e-12 * size
+        if kind in ("line", "aba") and continuity == "C1":
+            assert _line_distance(s.control_points, p) <= 1e-12 * size
+        fits.append(s.control_points)
+    if kind != "near":
+        assert np.abs(fits[0] - fits[1]).max() <= 1e-9 * size
+
+
+def test_planner_fit_through_a_reversal_in_a_subprocess():
+    """The issue's file through ``python -m planner.frontends.cli fit``: C1 length 2 mm (it printed nan), C2 a finite length
+    (it ended in an internal error), the G1 cubic refused in one line naming waypoint 1; no numpy warning."""
+    with tempfile.TemporaryDirectory(prefix="fuzz-") as tmp:
+        (Path(tmp) / "aba.csv").write_text("x,y,z\n0,0,0\n1,0,0\n0,0,0\n")
+        p = subprocess.run([sys.executable, "-m", "planner.frontends.cli", "fit", "aba.csv"], capture_output=True, text=True,
+                           timeout=DEADLINE + 30, cwd=tmp, env={**os.environ, "PYTHONWARNINGS": "default"})
+    lengths = dict(re.findall(r"(C1|C2) PH quintic spline .* length (\S+) mm", p.stdout))
+    assert float(lengths["C1"]) == 2.0 and 2.0 < float(lengths["C2"]) < 3.0, p.stdout
+    assert "stops and turns back at waypoint 1" in p.stdout and "nan" not in p.stdout, p.stdout
+    assert p.returncode == 2 and p.stderr.count("\n") == 1, p.stderr
+    assert p.stderr.startswith("planner: error: waypoint 1: "), p.stderr
+
+
+#: Scales of waypoints (steps of 0.05..2 before scaling): sub-micrometre ones drawn often, and 1e-9..1e9.
+scales = st.one_of(st.sampled_from([1e-9, 3e-8, 1e-7, 1e-6, 2e-6]), st.floats(-9.0, 9.0).map(lambda e: 10.0**e))
+
+
+@FUZZ_SETTINGS
+@given(p=waypoint_sets(max_size=9), scale=scales, method=st.sampled_from(["C1", "C2", "cubic"]))
+def test_scaled_waypoints_fit(p, scale, method):
+    """Any scale a robot cell (or a float) holds: the fit of the scaled waypoints is the fit scaled, through every
+    waypoint to round-off of the coordinates, with a finite length; the G1 cubic with at most MAX_OPEN_PIECES pieces
+    per span and level (a refusal names the span)."""
+    from planner.curves.ph_cubic_spline import fit_ph_cubic_spline
+    from planner.curves.spline import fit_ph_spline
+    from planner.errors import NoSolutionError
+
+    event(f"scale 1e{math.floor(math.log10(scale)):d}")
+    P = p * scale
+    fit = fit_ph_cubic_spline if method == "cubic" else lambda q: fit_ph_spline(q, continuity=method)
+    try:
+        s, unit = fit(P), fit(p)
+    except NoSolutionError as exc:
+        assert method == "cubic" and re.search(r"between waypoints \d+ and \d+", str(exc)), str(exc)
+        return
+    assert np.isfinite(s.A).all() and math.isfinite(s.length) and s.length > 0.0
+    assert s.interpolation_errors(P).max() <= 1e-12 * np.abs(P).max()
+    if method != "cubic":  # (the shortest of the G1 cubics found may be another at another scale)
+        assert s.length == pytest.approx(unit.length * scale, rel=1e-9)
+
+
+@FUZZ_SETTINGS
+@given(p=waypoint_sets(max_size=8), scale=scales, path=st.sampled_from(["interpolate", "cam"]))
+def test_scaled_waypoints_plan(p, scale, path):
+    """planner.plan of scaled waypoints: a finite duration and finite poses, or a PlannerError (coordinates beyond a
+    robot cell: the budget, before any work; steps below a nanometre merge), never a sample count that explodes
+    (capped: a BudgetError) or a traceback. Between 1e-6 and 100 times (steps of 50 nm to 200 m) it plans."""
+    from planner import plan
+    from planner.errors import PlannerError
+    from planner.settings import PlanSettings
+
+    event(f"scale 1e{math.floor(math.log10(scale)):d}")
+    with np.errstate(all="ignore"), deadline(DEADLINE):
+        try:
+            job = plan(p * scale, PlanSettings(path=path, max_poses=float(MAX_POSES)))
+        except PlannerError as exc:
+            assert not 1e-6 <= scale <= 100.0, f"scale {scale:g}: {exc}"
+            event(f"refused: {str(exc)[:40]}")
+            return
+        except Hang as exc:
+            pytest.fail(f"hang: plan at scale {scale:g}: {exc}")
+        trajectory = job.trajectory()
+        assert math.isfinite(job.duration) and job.duration > 0.0
+        assert 1 < trajectory.n_samples <= float(MAX_POSES) + len(job.moves) + 1
+        for chunk in trajectory.chunks():
+            assert np.isfinite(chunk.poses).all() and np.isfinite(chunk.times).all()

@@ -452,7 +452,7 @@ def test_the_compiled_kernel_refuses_what_it_cannot_read():
     assert ph_quintic._hermite_member is not None, COMPILED_MISSING
     kernel = ph_quintic._hermite_member.least_energy_members
     rules = (ph_quintic._SCREEN_RULE, ph_quintic._SCREEN_BOUND, ph_quintic._FULL_RULE, ph_quintic._FULL_BOUND)
-    consts = (ph_quintic._SCREEN, ph_quintic._TIE, ph_quintic._AXIS_FALLBACK, ph_quintic._AXIS_FADE)
+    consts = (ph_quintic._SCREEN, ph_quintic._TIE, ph_quintic._AXIS_FALLBACK, ph_quintic._AXIS_FADE, ph_quintic._EQUAL)
     X, out = np.ones((16, 2)), np.empty((2, 3, 4))
     with pytest.raises(ValueError, match=r"X must be \(16, N\) and out \(N, 3, 4\) for N root scales"):
         kernel(X, np.ones(3), out, *consts, *rules)

@@ -105,6 +105,49 @@ static void products(const double *A, Products *p)
     p->uk[2] = dotk(A1, A2);
 }
 
+/* ph_quintic._reduced_products for one candidate: its products replaced by those of T A (T 3 x 3, row-major), the
+ * Bernstein coefficients of the reduced curve of a member with a zero end tangent (ph_quintic._REDUCE). */
+static void reduce_products(Products *p, const double *T)
+{
+    static const int gp[6][2] = {{0, 0}, {0, 1}, {0, 2}, {1, 1}, {1, 2}, {2, 2}}, up[3][2] = {{0, 1}, {0, 2}, {1, 2}};
+    double G[3][3], U[2][3][3];
+    for (int q = 0; q < 6; q++)
+        G[gp[q][0]][gp[q][1]] = G[gp[q][1]][gp[q][0]] = p->g[q];
+    for (int v = 0; v < 2; v++) {
+        const double *u = v ? p->uk : p->uj;
+        for (int a = 0; a < 3; a++)
+            U[v][a][a] = 0.0;
+        for (int q = 0; q < 3; q++) {
+            U[v][up[q][0]][up[q][1]] = u[q];
+            U[v][up[q][1]][up[q][0]] = -u[q];
+        }
+    }
+    for (int q = 0; q < 6; q++) { /* (T G T^T)_jk = sum_ab T_ja T_kb G_ab */
+        int j = gp[q][0], k = gp[q][1];
+        double acc = 0.0;
+        for (int a = 0; a < 3; a++)
+            for (int b = 0; b < 3; b++)
+                acc += T[3 * j + a] * T[3 * k + b] * G[a][b];
+        p->g[q] = acc;
+    }
+    for (int v = 0; v < 2; v++) {
+        double *u = v ? p->uk : p->uj;
+        for (int q = 0; q < 3; q++) {
+            int j = up[q][0], k = up[q][1];
+            double acc = 0.0;
+            for (int a = 0; a < 3; a++)
+                for (int b = 0; b < 3; b++)
+                    acc += T[3 * j + a] * T[3 * k + b] * U[v][a][b];
+            u[q] = acc;
+        }
+    }
+}
+
+/* ph_quintic._REDUCE: zero tangent at t = 1, at t = 0, at both */
+static const double REDUCE_END[9] = {1.0, 0.0, 0.0, 0.5, 1.0, 0.0, 0.0, 2.0, 0.0};
+static const double REDUCE_START[9] = {0.0, 2.0, 0.0, 0.0, 1.0, 0.5, 0.0, 0.0, 1.0};
+static const double REDUCE_BOTH[9] = {0.0, 2.0, 0.0, 0.0, 2.0, 0.0, 0.0, 2.0, 0.0};
+
 /* ph_quintic.sqrt_rot for one vector v: Q with Q i Q* = v; returns |v|. */
 static void sqrt_rot(const double *v, double *q)
 {
@@ -121,31 +164,35 @@ static void sqrt_rot(const double *v, double *q)
 }
 
 typedef struct {
-    double screen_factor, tie, axis_fallback, axis_fade;
+    double screen_factor, tie, axis_fallback, axis_fade, equal;
     Rule screen, screen_lo, full, full_lo;
 } Constants;
 
-/* ph_quintic._pure_vector_axis (with _blended_axis) for one segment: (c, s) of delta0. */
-static void pure_vector_axis(const double *R, double lam, const double *dp, const Constants *k, double *c, double *s)
+/* ph_quintic._pure_vector_axis (with _blended_axis) for one segment: (c, s) of delta0; r0, r1 = |a0|^2, |a2|^2. */
+static void pure_vector_axis(const double *R, double r0, double r1, const double *dp, const Constants *k, double *c,
+                             double *s)
 {
     double sc = R[3], ss = R[7];
     double s2 = sc * sc + ss * ss;
-    if (s2 >= k->axis_fade * lam) {
-        double h = 1.0 / sqrt(s2);
+    if (s2 >= k->axis_fade * (r0 * r1) && s2 > 0.0) {
+        double h = 1.0 / hypot(sc, ss);
         h = copysign(h, fabs(ss) >= fabs(sc) ? -ss : sc);
         *c = -ss * h;
         *s = sc * h;
         return;
     }
-    double bc = R[0] * dp[0] + R[1] * dp[1] + R[2] * dp[2];
-    double bs = R[4] * dp[0] + R[5] * dp[1] + R[6] * dp[2];
-    double w = k->axis_fallback * (1.0 - s2 / (k->axis_fade * lam))
-               / (lam * (dp[0] * dp[0] + dp[1] * dp[1] + dp[2] * dp[2]));
-    if (!isfinite(w))
-        w = 0.0;
-    double il = lam > 0.0 ? 1.0 / lam : 0.0;
-    double Dx = (ss * ss - sc * sc) * il + (bc * bc - bs * bs) * w;
-    double Dy = (-2.0 * il) * ss * sc + (2.0 * w) * bc * bs;
+    double nl = sqrt(r0) * sqrt(r1);
+    double il = nl > 0.0 ? 1.0 / nl : 0.0;
+    double L = hypot(hypot(dp[0], dp[1]), dp[2]);
+    double idp = L > 0.0 ? 1.0 / L : 0.0;
+    double u[3] = {dp[0] * idp, dp[1] * idp, dp[2] * idp};
+    sc *= il;
+    ss *= il;
+    double bc = (R[0] * u[0] + R[1] * u[1] + R[2] * u[2]) * il;
+    double bs = (R[4] * u[0] + R[5] * u[1] + R[6] * u[2]) * il;
+    double w = k->axis_fallback * (1.0 - (sc * sc + ss * ss) / k->axis_fade);
+    double Dx = (ss * ss - sc * sc) + (bc * bc - bs * bs) * w;
+    double Dy = -2.0 * ss * sc + (2.0 * w) * bc * bs;
     double r = hypot(Dx, Dy);
     double x = Dx >= 0.0 ? r + Dx : Dy, y = Dx >= 0.0 ? Dy : r - Dx;
     double n = hypot(x, y);
@@ -176,11 +223,14 @@ static int rank_close(const Products *p, const double *est, int b, const Constan
     for (int q = 0; q < 4; q++)
         if (in[q] && q != b)
             E[q] = estimate(p + q, &k->full, k->tie);
-    int best = 0;
+    double least = E[0];
     for (int q = 1; q < 4; q++)
-        if (E[q] < E[best])
-            best = q;
-    return best;
+        least = E[q] < least ? E[q] : least;
+    least *= 1.0 + k->equal; /* the first of the equal least energies (ph_quintic._EQUAL) */
+    for (int q = 0; q < 4; q++)
+        if (E[q] <= least)
+            return q;
+    return 0;
 }
 
 /* ph_quintic._screen for one segment. */
@@ -233,7 +283,7 @@ static void segment(const double *X, Py_ssize_t n, Py_ssize_t i, double rs, cons
         p[0] * q[0] + p[1] * q[1] + p[2] * q[2] + p[3] * q[3],
     };
     double c, s;
-    pure_vector_axis(R, r0 * r1, dp, k, &c, &s);
+    pure_vector_axis(R, r0, r1, dp, k, &c, &s);
     double a2d[2][4]; /* a2 e^{i delta0} and its negative (delta0 + pi) */
     times_e_i(a2, c, s, a2d[0]);
     for (int m = 0; m < 4; m++)
@@ -261,6 +311,11 @@ static void segment(const double *X, Py_ssize_t n, Py_ssize_t i, double rs, cons
         member(a0, a2d[j], Q[j], sign * cs[j][0], sign * cs[j][1], A[q4]);
         products(A[q4], P + q4);
     }
+    if (r0 == 0.0 || r1 == 0.0) { /* a zero end tangent: the reduced curves decide (ph_quintic._reduced_products) */
+        const double *T = r0 != 0.0 ? REDUCE_END : r1 != 0.0 ? REDUCE_START : REDUCE_BOTH;
+        for (int q4 = 0; q4 < 4; q4++)
+            reduce_products(P + q4, T);
+    }
     int b = choose(P, k);
     for (int m = 0; m < 12; m++)
         out[m] = A[b][m] * rs;
@@ -287,8 +342,8 @@ static int rule_from(PyObject *tuple, Rule *r, Py_buffer *views, const char *nam
 }
 
 PyDoc_STRVAR(least_energy_members_doc,
-"least_energy_members(X, root_scale, out, screen_factor, tie, axis_fallback, axis_fade, screen, screen_lo, full,\n"
-"                     full_lo)\n\n"
+"least_energy_members(X, root_scale, out, screen_factor, tie, axis_fallback, axis_fade, equal, screen, screen_lo,\n"
+"                     full, full_lo)\n\n"
 "Writes A (N, 3, 4) of each segment's default member, times root_scale (N,), into out (float64, C order).\n"
 "X (16, N): rows dp = p1 - p0 (3), base = 120 dp - 15 (d0 + d1) (3), a0 (4), a2 (4), |d0|, |d1|; the rules\n"
 "are (w, Ms, Mw) of ph_quintic._energy_matrices (_SCREEN_RULE, _SCREEN_BOUND, _FULL_RULE, _FULL_BOUND).\n"
@@ -298,8 +353,8 @@ static PyObject *least_energy_members(PyObject *self, PyObject *args)
 {
     PyObject *x, *rs, *o, *rules[4];
     Constants k;
-    if (!PyArg_ParseTuple(args, "OOOddddOOOO", &x, &rs, &o, &k.screen_factor, &k.tie, &k.axis_fallback,
-                          &k.axis_fade, rules, rules + 1, rules + 2, rules + 3))
+    if (!PyArg_ParseTuple(args, "OOOdddddOOOO", &x, &rs, &o, &k.screen_factor, &k.tie, &k.axis_fallback,
+                          &k.axis_fade, &k.equal, rules, rules + 1, rules + 2, rules + 3))
         return NULL;
     Py_buffer views[15]; /* X, root_scale, out, then (w, Ms, Mw) of each rule; obj NULL where not acquired */
     memset(views, 0, sizeof(views));

@@ -94,10 +94,15 @@ def batch_g1(dp: np.ndarray, t0: np.ndarray, t1: np.ndarray, dense: bool = False
     (12 starts, enough for the shortest solution) or, with ``dense``, a large one (240 starts, which
     finds every solution in our tests, long loops included).
 
+    Each span is solved for its chord scaled to length 1 and scaled back (the PH cubic of data scaled by c is
+    c times the curve, A times sqrt(c)): the Newton iteration, its clipped steps and its tolerances are the
+    same at every scale. (They were not: the phase step was clipped to sqrt(3 |dp|) rad, 8e-5 rad on chords
+    of 2 nm, where no start converged and every span was halved to the limit.)
+
     Parameters
     ----------
     dp, t0, t1 : (N, 3)
-        Chords p1 - p0 and unit end tangents.
+        Chords p1 - p0 (nonzero) and unit end tangents.
 
     Returns
     -------
@@ -106,6 +111,13 @@ def batch_g1(dp: np.ndarray, t0: np.ndarray, t1: np.ndarray, dense: bool = False
     ok : (N, S) bool
         Which candidates solve the end conditions to round-off. Candidates may repeat.
     """
+    length = np.hypot(np.hypot(dp[:, 0], dp[:, 1]), dp[:, 2])  # (no overflow or underflow of the squares)
+    A, ok = _batch_g1_unit(dp / length[:, None], t0, t1, dense)
+    return A * np.sqrt(length)[:, None, None, None], ok
+
+
+def _batch_g1_unit(dp: np.ndarray, t0: np.ndarray, t1: np.ndarray, dense: bool):
+    """:func:`batch_g1` for chords dp (N, 3) of length 1."""
     n0, n1 = qt.rotate_i_to(t0), qt.rotate_i_to(t1)
     mc = qt.i_product(n0, n1)[:, None]  # m(phi) = cos(phi) mc + sin(phi) ms, phi the phase of A1
     ms = qt.i_product(n0, qt.mul(n1, qt.I))[:, None]

@@ -141,11 +141,11 @@ def _dot(p: np.ndarray, q: np.ndarray) -> np.ndarray:
 _AXIS_FADE = 0.1
 
 
-def _pure_vector_axis(R, lam, dp):
+def _pure_vector_axis(R, r0, r1, dp):
     """(cos, sin) (N,) of the delta = phi2 - phi0 (defined up to pi) at which A0 i A2* is a pure vector.
 
     R (10, N): the vector and scalar parts of a0 i a2* (Sc, sc) and of a0 a2* (Ss, ss), rows 0-7 of
-    _PRODUCTS (8-9 unused here); lam = |a0|^2 |a2|^2,
+    _PRODUCTS (8-9 unused here); r0, r1 = |a0|^2, |a2|^2 (lam = r0 r1),
     dp = p1 - p0 (3, N). The quaternion a0 i (a2 e^{i delta})* = (sc cos + ss sin) + S(delta) has the scalar part
     sigma.z with sigma = (sc, ss), z = (cos delta, sin delta): it vanishes on the axis z = +-sigma_perp. Where the
     end tangents are antiparallel sigma = 0 and every delta qualifies; there the axis maximizing |<S(delta), dp>|
@@ -155,34 +155,41 @@ def _pure_vector_axis(R, lam, dp):
     are carried onto themselves by every isometry of the data (rotations; the reflections that fix planar data or
     map mirror-symmetric data onto their reversal), and so is the weight (|sigma| is invariant), so their blend
     is too. The sign of z is that of the half angle: cos delta >= 0 where |ss| >= |sc|, sin delta > 0 elsewhere.
+    A zero end tangent (r0 or r1 = 0: a2 e^{i delta} or a0 is 0 for every delta) gives delta = 0.
     Call under np.errstate(divide="ignore", invalid="ignore").
     """
     sc, ss = R[3], R[7]
     s2 = sc * sc + ss * ss
-    k = 1.0 / np.sqrt(s2)
+    k = 1.0 / np.hypot(sc, ss)  # (not 1 / sqrt(s2): sigma may be as small as sqrt(r0 r1) ~ 1e-162, s2 would underflow)
     np.copysign(k, np.where(np.abs(ss) >= np.abs(sc), -ss, sc), out=k)  # the sign of the half angle (see above)
     c, s = -ss * k, sc * k
-    near = np.flatnonzero(~(s2 >= _AXIS_FADE * lam))
+    near = np.flatnonzero(~((s2 >= _AXIS_FADE * (r0 * r1)) & (s2 > 0.0)))
     if near.size:
-        c[near], s[near] = _blended_axis(R[:, near], lam[near], dp[:, near], s2[near])
+        c[near], s[near] = _blended_axis(R[:, near], r0[near], r1[near], dp[:, near])
     return c, s
 
 
-def _blended_axis(R, lam, dp, s2):
-    """:func:`_pure_vector_axis` where |sigma|^2 < _AXIS_FADE lam: sigma's axis blended with b's (see there)."""
-    sc, ss = R[3], R[7]
-    bc, bs = _dot(R[:3], dp), _dot(R[4:7], dp)
-    w = _AXIS_FALLBACK * (1.0 - s2 / (_AXIS_FADE * lam)) / (lam * _dot(dp, dp))
-    w = np.where(np.isfinite(w), w, 0.0)
-    il = np.where(lam > 0, 1.0 / lam, 0.0)
-    Dx = (ss * ss - sc * sc) * il + (bc * bc - bs * bs) * w  # doubled angle of sigma_perp = (-ss, sc) ...
-    Dy = (-2.0 * il) * ss * sc + (2.0 * w) * bc * bs  # ... and of b
+def _blended_axis(R, r0, r1, dp):
+    """:func:`_pure_vector_axis` where |sigma|^2 < _AXIS_FADE lam: sigma's axis blended with b's (see there).
+
+    Both are taken relative to their largest values, sigma / sqrt(lam) and b / (sqrt(lam) |dp|) (at most 1), so
+    that no square under- or overflows whatever the tangents' and the chord's sizes (a chord 1e-160 of the
+    tangents, or a tangent 1e-320 of the chord, gave 0 * inf = nan); a zero tangent has neither axis: (1, 0)."""
+    nl = np.sqrt(r0) * np.sqrt(r1)  # sqrt(lam) = |a0| |a2|
+    il = np.where(nl > 0, 1.0 / nl, 0.0)
+    L = np.hypot(np.hypot(dp[0], dp[1]), dp[2])
+    idp = np.where(L > 0, 1.0 / L, 0.0)
+    sc, ss = R[3] * il, R[7] * il
+    bc, bs = _dot(R[:3], dp * idp) * il, _dot(R[4:7], dp * idp) * il
+    w = _AXIS_FALLBACK * (1.0 - (sc * sc + ss * ss) / _AXIS_FADE)
+    Dx = (ss * ss - sc * sc) + (bc * bc - bs * bs) * w  # doubled angle of sigma_perp = (-ss, sc) ...
+    Dy = -2.0 * ss * sc + (2.0 * w) * bc * bs  # ... and of b
     r = np.hypot(Dx, Dy)
     # half angle: (r + Dx, Dy) ~ z for Dx >= 0 and (Dy, r - Dx) ~ z otherwise (no cancellation either way)
     pos = Dx >= 0
     x, y = np.where(pos, r + Dx, Dy), np.where(pos, Dy, r - Dx)
     n = np.hypot(x, y)
-    ok = n > 0  # no axis at all: d1 antiparallel to d0 and p1 - p0 along them (a straight hairpin)
+    ok = n > 0  # no axis at all: d1 antiparallel to d0 and p1 - p0 along them (a straight hairpin), or a zero tangent
     return np.where(ok, x / n, 1.0), np.where(ok, y / n, 0.0)
 
 
@@ -221,6 +228,12 @@ _FULL_RULE = _energy_matrices(_GL_NODES, _GL_PIECES)
 #: rule; a 3-node rule with a factor 3 differed on 1 %).
 _SCREEN_RULE = _energy_matrices(4, 2)
 _SCREEN = 10.0
+#: Full-rule energies within this factor of the least are equal: the first candidate of them is taken. Data with a
+#: symmetry (mirror-symmetric, or carried onto their reversal by a rotation) have candidates related by it, of equal
+#: energy: which one round-off made the least differed between the compiled and the numpy rule, and so did the C2
+#: spline started from them (5.64 against 5.60 on waypoints along a line that turn back). Round-off of the energies
+#: is about 1e-15 of them.
+_EQUAL = 1e-12
 #: Weight of the tie term int dt / sigma (see _energies_at_nodes): above the round-off of a straight member's energy
 #: (W's round-off squared, about 1e-32 of the scale 1 / |p1 - p0|), below any bend's (a bend of 1e-10 of the chord
 #: has an energy of about 1e-20 of it).
@@ -329,7 +342,7 @@ def _least_energy_block(dp, base, a0, a2, r0, r1) -> np.ndarray:
     with np.errstate(divide="ignore", invalid="ignore", over="ignore"):
         # a0 i a2*, a0 a2* (vector, scalar) and the j, k parts of a0* a2
         R = _mm(_PRODUCTS, np.multiply(a0[:, None], a2[None]).reshape(16, n))
-        c, s = _pure_vector_axis(R, r0 * r1, dp)
+        c, s = _pure_vector_axis(R, r0, r1, dp)
         X = np.empty((8, 4, n))  # a0 u and a2d u for u = 1, i, j, k, a2d = a2 e^{i delta0} (delta0 + pi negates it)
         np.multiply(a0[_RPERM], _RSIGN[..., None], out=X[:4])
         a2d = a2 * c
@@ -397,11 +410,62 @@ def _least_energy_block(dp, base, a0, a2, r0, r1) -> np.ndarray:
         np.subtract(b, Z[:, 0], out=w[0, :, :, 1])
         np.subtract(b, Z[:, 1], out=w[2, :, :, 0])
         np.add(b, Z[:, 1], out=w[2, :, :, 1])
+        cusp = np.flatnonzero((r0 == 0.0) | (r1 == 0.0))
+        if cusp.size:  # a zero end tangent: the candidates' reduced curves decide (see _reduced_products)
+            g[..., cusp], w[..., cusp] = _reduced_products(g[..., cusp], w[..., cusp], r0[cusp] == 0.0, r1[cusp] == 0.0)
         best = _screen(g.reshape(6, 4 * n), w.reshape(3, 2, 4 * n), n)
     j, fl = best // 2, best % 2
     sign = 1.0 - 2.0 * fl
     cols = np.arange(n)
     return _member(a0, a2d * (1.0 - 2.0 * j), Q[:, j, cols], sign * c0[j, cols], sign * s0[j, cols])
+
+
+#: The Bernstein coefficients (rows) of the reduced factor B of A (see _reduced_products) in terms of A0, A1, A2:
+#: A2 = 0 (a zero tangent at the end): A = (1 - t) B, B = (1 - t) A0 + 2 t A1; A0 = 0: A = t B, B = 2 (1 - t) A1 + t A2;
+#: both: A = 2 t (1 - t) A1, B = 2 A1 (B linear, written as a quadratic: (B0, (B0 + B1) / 2, B1)).
+_REDUCE = {
+    (False, True): np.array([[1.0, 0.0, 0.0], [0.5, 1.0, 0.0], [0.0, 2.0, 0.0]]),
+    (True, False): np.array([[0.0, 2.0, 0.0], [0.0, 1.0, 0.5], [0.0, 0.0, 1.0]]),
+    (True, True): np.array([[0.0, 2.0, 0.0], [0.0, 2.0, 0.0], [0.0, 2.0, 0.0]]),
+}
+#: Index pairs of the six inner products g (00 01 02 11 12 22) and of the three u (01 02 12).
+_G_PAIRS = ((0, 0), (0, 1), (0, 2), (1, 1), (1, 2), (2, 2))
+_U_PAIRS = ((0, 1), (0, 2), (1, 2))
+
+
+def _reduced_products(g, w, z0, z1):
+    """The candidates' inner products g (6, ..., M) and w (3, 2, ..., M) (as _least_energy_block builds them) of
+    segments with a zero end tangent, replaced by those of their reduced curves; z0, z1 (M,) say which tangents are
+    zero (at t = 0, at t = 1; at least one per segment).
+
+    A zero tangent at t = 1 makes A2 = 0, so A = (1 - t) B with B linear: the curve has a cusp there, every
+    non-straight member an infinite bending energy and every member an infinite int dt / sigma (the tie term), so
+    that a Gauss rule's values are decided by its nodes nearest the cusp and by round-off (a straight member that
+    stops on the way was taken for one that does not, and the compiled and numpy rules differed). The common factor
+    (1 - t)^2 of sigma carries no choice: the candidates are compared by their reduced curves, of hodograph B i B*,
+    whose energies and tie terms are finite (B written as a quadratic with the coefficients _REDUCE). Both are
+    quadratic forms, so the reduced products are T G T^T of those of A0, A1, A2 (G symmetric from g, U antisymmetric
+    from w).
+    """
+    g, w = g.copy(), w.copy()
+    for (e0, e1), T in _REDUCE.items():
+        cols = np.flatnonzero((z0 == e0) & (z1 == e1))
+        if not cols.size:
+            continue
+        G = np.empty((3, 3) + g.shape[1:-1] + (cols.size,))
+        U = np.zeros((3, 3) + w.shape[1:-1] + (cols.size,))
+        for q, (a, b) in enumerate(_G_PAIRS):
+            G[a, b] = G[b, a] = g[q][..., cols]
+        for q, (a, b) in enumerate(_U_PAIRS):
+            U[a, b] = w[q][..., cols]
+            U[b, a] = -U[a, b]
+        G = np.einsum("ja,kb,ab...->jk...", T, T, G)
+        U = np.einsum("ja,kb,ab...->jk...", T, T, U)
+        for q, (a, b) in enumerate(_G_PAIRS):
+            g[q][..., cols] = G[a, b]
+        for q, (a, b) in enumerate(_U_PAIRS):
+            w[q][..., cols] = U[a, b]
+    return g, w
 
 
 def _screen(g, u, n) -> np.ndarray:
@@ -462,7 +526,7 @@ def _rank_close(g, u, est, best, bad, n) -> np.ndarray:
         pick = np.isin(col, redo) & o
         E[k[pick], col[pick]] = _estimates(g, u, kc[pick], _FULL_RULE)
         E[:, redo[~has_b[redo]]] = np.inf
-        b[redo] = np.argmin(E[:, redo], axis=0)
+        b[redo] = np.argmax(E[:, redo] <= E[:, redo].min(axis=0) * (1.0 + _EQUAL), axis=0)
     return b
 
 
@@ -476,8 +540,8 @@ def _least_energy_compiled(dp, base, a0, a2, r0, r1, root_scale=None) -> np.ndar
     scale = np.ones(n) if root_scale is None else np.ascontiguousarray(root_scale, dtype=float)
     out = np.empty((n, 3, 4))
     assert _hermite_member is not None
-    _hermite_member.least_energy_members(X, scale, out, _SCREEN, _TIE, _AXIS_FALLBACK, _AXIS_FADE, _SCREEN_RULE,
-                                         _SCREEN_BOUND, _FULL_RULE, _FULL_BOUND)
+    _hermite_member.least_energy_members(X, scale, out, _SCREEN, _TIE, _AXIS_FALLBACK, _AXIS_FADE, _EQUAL,
+                                         _SCREEN_RULE, _SCREEN_BOUND, _FULL_RULE, _FULL_BOUND)
     return out
 
 
@@ -553,7 +617,11 @@ def batch_hermite(p0, p1, d0, d1, angles=None) -> np.ndarray:
     Degenerate data: where d1 is antiparallel to d0 every delta qualifies and the axis maximizing
     |<A0 i A2*, p1 - p0>| is used (blended continuously, see :func:`_pure_vector_axis`); with p1 - p0 also
     along d0 the data are invariant under rotations about that line, which no curve leaving it can be, and
-    delta = 0 of the internal square roots is returned.
+    delta = 0 of the internal square roots is returned. A zero end tangent (d0 or d1 = 0: the curve stops there, a
+    cusp) leaves two distinct candidates, compared by their curves with the common factor of the cusp divided out
+    (see :func:`_reduced_products`); on collinear data the straight one that does not stop on the way is chosen.
+    The axis is computed from sigma and b relative to their largest values, so that any ratio of the tangents' and
+    the chord's sizes a float holds gives a finite member.
     """
     p0, p1, d0, d1 = (np.asarray(x, dtype=float) for x in (p0, p1, d0, d1))
     n = p0.shape[0]

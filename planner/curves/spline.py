@@ -25,7 +25,7 @@ from planner.curves.ph_core import (
 from planner.curves.ph_cubic import PHCubic
 from planner.curves.ph_quintic import PHQuintic, hermite_rows, sqrt_rot
 from planner.curves.ph_spline_c2 import solve_c2
-from planner.curves.tangents import slopes_rows
+from planner.curves.tangents import across, slopes_rows, straight_slopes
 from planner.errors import PlannerError
 from planner.validation import as_int, check_tangents, check_vector, checked_waypoint_steps, finite_floats
 
@@ -230,7 +230,8 @@ class PHSpline:
 
     # -- quality figures -----------------------------------------------------------------------
     def curvature_jumps(self) -> np.ndarray:
-        """|kappa(u_j+) - kappa(u_j-)| (1/m) at the N - 1 interior knots."""
+        """|kappa(u_j+) - kappa(u_j-)| (1/m) at the N - 1 interior knots; nan at a knot where the path stops
+        (see :meth:`stops`: the curvature is not defined there)."""
         if self.n_segments < 2:
             return np.zeros(0)
         ones = np.ones(self.n_segments - 1)
@@ -241,7 +242,17 @@ class PHSpline:
             d = [self._derivative_t(k, t, o) / h[k, None] ** o for o in (1, 2, 3)]
             return curvature_torsion(*d)[0]
 
-        return np.abs(kappa(k_left + 1, 0 * ones) - kappa(k_left, ones))
+        with np.errstate(divide="ignore", invalid="ignore"):
+            jump = np.abs(kappa(k_left + 1, 0 * ones) - kappa(k_left, ones))
+        jump[self.stops()] = np.nan
+        return jump
+
+    def stops(self) -> np.ndarray:
+        """Mask (N - 1,) of the interior knots where the path stops (zero speed on either side: a cusp, where the
+        C1 spline turns back on waypoints along a line)."""
+        cp = self.control_points
+        still = ~(np.abs(cp[:-1, -1] - cp[:-1, -2]).max(axis=1) > 0.0)
+        return still | ~(np.abs(cp[1:, 1] - cp[1:, 0]).max(axis=1) > 0.0)
 
     def tangent_jumps(self) -> np.ndarray:
         """|dr/du(u_j+) - dr/du(u_j-)| / |dr/du| at the interior knots (0 to round-off for C1)."""
@@ -252,15 +263,23 @@ class PHSpline:
         n = self.degree
         left = n * (cp[:-1, -1] - cp[:-1, -2]) / h[:-1, None]
         right = n * (cp[1:, 1] - cp[1:, 0]) / h[1:, None]
-        return np.linalg.norm(right - left, axis=1) / np.linalg.norm(left, axis=1)
+        size = np.linalg.norm(left, axis=1)
+        size = np.where(size > 0.0, size, np.linalg.norm(right, axis=1))  # (where the path stops: |right|, or 0)
+        jump = np.linalg.norm(right - left, axis=1)
+        return np.divide(jump, size, out=np.zeros_like(jump), where=size > 0.0)
 
     def tangent_angles(self) -> np.ndarray:
-        """Angle (rad) between the unit tangents on either side of each interior knot (0 for G1)."""
+        """Angle (rad) between the unit tangents on either side of each interior knot (0 for G1; pi where the path
+        stops and turns back: the limits of the unit tangent there, along the control polygon's first leg of
+        nonzero length)."""
         if self.n_segments < 2:
             return np.zeros(0)
-        cp = self.control_points
-        left = cp[:-1, -1] - cp[:-1, -2]
-        right = cp[1:, 1] - cp[1:, 0]
+        legs = np.diff(self.control_points, axis=1)  # (N, degree, 3)
+        some = np.abs(legs).max(axis=2) > 0.0
+        n = np.arange(self.n_segments)
+        last = legs.shape[1] - 1 - np.argmax(some[:, ::-1], axis=1)  # (a segment of no nonzero leg is refused)
+        left = legs[n, last][:-1]
+        right = legs[n, np.argmax(some, axis=1)][1:]
         cross = np.linalg.norm(np.cross(left, right), axis=1)
         return np.arctan2(cross, np.einsum("ni,ni->n", left, right))
 
@@ -308,7 +327,8 @@ def fit_ph_spline(
     tangents : array_like (N, 3), optional
         Tangent directions at the waypoints (C1 only; lengths are ignored, the path leaves each
         waypoint with |dr/du| = 1). Default: the tangents of the not-a-knot C2 cubic spline through the
-        waypoints with chord-length knots.
+        waypoints with chord-length knots; for waypoints on one line, 0 where they turn back (or where that
+        spline overshoots), so that the C1 path stays on the line, stopping there.
     continuity : "C1" or "C2"
         "C1": each segment is the PH quintic Hermite interpolant of its end points and tangents (local,
         fast, tangent-continuous). "C2" (default): curvature-continuous; the global Newton solve of
@@ -328,6 +348,16 @@ def fit_ph_spline(
         plane; waypoints in order along a line give the straight path; waypoints symmetric about a plane
         (reflected = reversed) give a path symmetric about it (tests/test_curves_symmetry.py). The C2 solve
         keeps these: its least-norm Newton steps from the C1 spline commute with the isometries.
+
+        Waypoints that turn back on themselves give a finite path through every waypoint. On one line (to
+        round-off) the C1 path is straight and stops where they turn back (a cusp: zero speed, the tangent
+        undefined there). A C2 PH spline cannot turn back on a line (where A is C1 and passes through 0,
+        A i A* keeps its direction), so it leaves the line there in one plane: the C1 start's tangents at those
+        waypoints point across the line along the coordinate axis least along it (:func:`tangents.across`),
+        and the solve keeps that plane (its end tangents are the cubic spline's). That plane is the one choice
+        by coordinates: data on a line are symmetric under rotations about it, which no curve leaving the line
+        can be. Where waypoints on a line turn back, the C1 path's slopes are also at most 3 (so that straight
+        pieces exist, see :data:`tangents.LINE_SLOPE_MAX`).
 
     Raises
     ------
@@ -367,7 +397,13 @@ def fit_ph_spline(
         d = check_tangents(tangents, p.shape[0])
         m = np.ascontiguousarray((d / np.linalg.norm(d, axis=1, keepdims=True)).T)  # unit tangents as rows
     else:
-        m = slopes_rows(u, dp)  # cubic_spline_slopes(u, p) as rows (3, n)
+        cubic = slopes_rows(u, dp)  # cubic_spline_slopes(u, p) as rows (3, n)
+        m, stops, line = straight_slopes(p, dp, cubic)  # waypoints on a line: the path stops where they turn back,
+        if continuity == "C2" and line is not None and stops.any():  # which a C2 PH spline cannot (see above): it
+            turn = stops & (np.arange(stops.size) % (stops.size - 1) > 0)  # turns across the line in one plane
+            turn |= ~(np.abs(cubic).max(axis=0) > 0.0)  # (from a C1 start that does so; the ends keep the cubic
+            m = cubic.copy()  # spline's slopes, unless 0: a zero end slope has no quaternion root to solve for)
+            m[:, turn] = across(line)[:, None]
     if end_tangents is not None:
         if continuity != "C2":
             raise PlannerError("end_tangents is for continuity='C2'; for C1 pass tangents=")

@@ -55,13 +55,15 @@ def _fit_report(points: np.ndarray, method: str) -> dict:
     else:
         spline = fit_ph_spline(points, continuity="C1" if method == "C1" else "C2")
     elapsed = time.perf_counter() - t0
+    jumps = spline.curvature_jumps()
     return {
         "method": {"cubic": "G1 PH cubic spline"}.get(method, f"{method} PH quintic spline"),
         "segments": spline.n_segments,
         "length_mm": spline.length * 1e3,
         "max_waypoint_error_mm": float(spline.interpolation_errors(points).max()) * 1e3,
         "max_tangent_angle_deg": float(np.degrees(spline.tangent_angles().max(initial=0.0))),
-        "max_curvature_jump_per_m": float(spline.curvature_jumps().max(initial=0.0)),
+        "max_curvature_jump_per_m": float(jumps[~np.isnan(jumps)].max(initial=0.0)),  # (not where it stops)
+        "stops": [int(k) + 1 for k in np.flatnonzero(spline.stops())] if spline.n_segments > 1 else [],
         "newton_iterations": spline.iterations,
         "fit_ms": elapsed * 1e3,
     }
@@ -75,7 +77,14 @@ def _print_fit(path: Path, points: np.ndarray, methods: list[str]) -> None:
             f"  {r['method']:<24} {r['segments']:>5} segments  length {r['length_mm']:.6f} mm (exact)  "
             f"waypoint error {r['max_waypoint_error_mm']:.1e} mm  tangent kink {r['max_tangent_angle_deg']:.1e} deg  "
             f"curvature jump {r['max_curvature_jump_per_m']:.2e} 1/m  fit {r['fit_ms']:.1f} ms"
+            + (f"  stops and turns back at {_waypoints(r['stops'])}" if r["stops"] else "")
         )
+
+
+def _waypoints(index: list[int]) -> str:
+    """'waypoint 3' or 'waypoints 1, 4, 7' (the first 8, then how many more)."""
+    shown = ", ".join(str(k) for k in index[:8]) + (f" and {len(index) - 8} more" if len(index) > 8 else "")
+    return f"waypoint {shown}" if len(index) == 1 else f"waypoints {shown}"
 
 
 def cmd_fit(args: argparse.Namespace) -> None:
