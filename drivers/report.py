@@ -25,19 +25,11 @@ from scipy.spatial import cKDTree
 from drivers.base import DriverError
 from drivers.pacing import LoopStats
 from drivers.plan_window import PlannedPath, bit_switches
+from planner.kinematics.ur_outputs import bit_name
 from planner.wording import counted
 
 if TYPE_CHECKING:  # pragma: no cover
     from drivers.recording import ExecutionTrace
-
-
-def bit_name(bit: int) -> str:
-    """Readable name of a digital output bit: standard[3], configurable[1], tool[0]."""
-    if bit < 8:
-        return f"standard[{bit}]"
-    if bit < 16:
-        return f"configurable[{bit - 8}]"
-    return f"tool[{bit - 16}]"
 
 
 @dataclass(frozen=True)

@@ -32,6 +32,7 @@ from dataclasses import dataclass, fields, replace
 import numpy as np
 
 from planner.errors import PlannerError
+from planner.kinematics.ur_outputs import OUTPUT_PINS
 from planner.motion.caps import DEFAULT_FLOOR
 from planner.motion.limits import MotionLimits
 from planner.validation import check_in_range
@@ -42,8 +43,9 @@ FRAME_METHODS = ("rmf", "grm", "juttler", "er", "double-reflection")
 PATH_MODELS = ("auto", "interpolate", "cam")
 #: Sources of the tool axis.
 AXIS_SOURCES = ("auto", "file", "approach", "fixed", "path")
-#: UR digital output kinds that a cut can switch (with pins 0..7, 0..7, 0..1).
-OUTPUT_KINDS = {"standard": 8, "configurable": 8, "tool": 2}
+#: UR digital output kinds that a cut can switch, with their number of pins (the UR output table's
+#: :data:`planner.kinematics.ur_outputs.OUTPUT_PINS`).
+OUTPUT_KINDS = OUTPUT_PINS
 
 #: Default limits of the cutting motion: TCP speed (m/s), acceleration (m/s^2), jerk (m/s^3), angular speed.
 DEFAULT_LIMITS = MotionLimits(speed=0.25, acceleration=0.5, jerk=5.0, angular_speed=1.0)
@@ -243,6 +245,6 @@ def _pose(value, name: str) -> tuple | None:
     """A UR pose (6 floats) from a pose or a 4x4 rigid transform; None stays None."""
     if value is None:
         return None
-    from planner.motion.stream import as_transform, transform_to_pose
+    from planner.kinematics.poses import as_transform, matrix_to_pose
 
-    return tuple(float(x) for x in transform_to_pose(as_transform(value, name)))
+    return tuple(float(x) for x in matrix_to_pose(as_transform(value, name)))
