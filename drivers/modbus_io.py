@@ -16,8 +16,9 @@ register   content
 
 Outputs are switched through the set / clear mask registers only (never a read-modify-write of register 1 or
 31), so a switch never undoes an output that a program or another client changed meanwhile. Words exchanged with
-the caller use the driver layer's 18-bit layout (RTDE's ``actual_digital_output_bits``, :data:`IO_BIT_OFFSET`):
-bits 0-7 standard, 8-15 configurable, 16-17 tool.
+the caller use the driver layer's 18-bit layout (RTDE's ``actual_digital_output_bits``): bits 0-7 standard, 8-15
+configurable, 16-17 tool. Kinds, pins, bits and the outputs' registers are the UR output table's
+(:mod:`planner.kinematics.ur_outputs`).
 
 Errors are :class:`ModbusIOError` (the device answered with a Modbus exception, or no answer came) and
 :class:`ModbusConnectionError` (cannot connect, or the connection dropped; also a
@@ -32,21 +33,43 @@ import math
 import operator
 import socket
 import threading
+import warnings
 
 import numpy as np
 from pymodbus.client import ModbusTcpClient
 from pymodbus.exceptions import ModbusException
 
 from drivers.base import ConnectionLostError, DriverError
+from planner.kinematics.ur_outputs import (
+    DIGITAL_MASK,
+    UR_OUTPUTS,
+    from_ur_bits,
+    output_bit,
+    to_modbus,
+    to_ur_bits,  # noqa: F401  (importable from here, as before)
+)
 
-#: Output kinds: first bit in the 18-bit word, and number of pins.
-OUTPUT_KINDS = {"standard": (0, 8), "configurable": (8, 8), "tool": (16, 2)}
-#: All 18 digital bits of the word (standard 0-7, configurable 8-15, tool 16-17).
-DIGITAL_MASK = 0x3FFFF
+# UR's register addresses: the outputs' from the UR output table, the inputs' beside them
+_STANDARD, _CONFIGURABLE = UR_OUTPUTS["standard"], UR_OUTPUTS["configurable"]
+REG_OUTPUTS, REG_SET_OUTPUTS, REG_CLEAR_OUTPUTS = (
+    _STANDARD.modbus_register, _STANDARD.modbus_set_register, _STANDARD.modbus_clear_register)
+REG_CONF_OUTPUTS, REG_SET_CONF, REG_CLEAR_CONF = (
+    _CONFIGURABLE.modbus_register, _CONFIGURABLE.modbus_set_register, _CONFIGURABLE.modbus_clear_register)
+REG_INPUTS, REG_CONF_INPUTS = REG_OUTPUTS - 1, REG_CONF_OUTPUTS - 1
+#: The groups of outputs switched by one request each: (state register, set-mask register, clear-mask register).
+_GROUPS = tuple(dict.fromkeys((k.modbus_register, k.modbus_set_register, k.modbus_clear_register)
+                              for k in UR_OUTPUTS.values()))
 
-# UR's register addresses
-REG_INPUTS, REG_OUTPUTS, REG_SET_OUTPUTS, REG_CLEAR_OUTPUTS = 0, 1, 2, 3
-REG_CONF_INPUTS, REG_CONF_OUTPUTS, REG_SET_CONF, REG_CLEAR_CONF = 30, 31, 32, 33
+
+
+def __getattr__(name: str):
+    if name == "OUTPUT_KINDS":  # kind -> (first bit, pins): now columns of the UR output table
+        warnings.warn("drivers.modbus_io.OUTPUT_KINDS is deprecated and will be removed in the release after the next "
+                      "one: use planner.kinematics.ur_outputs.UR_OUTPUTS (kind -> bit_offset, pins, ...)",
+                      DeprecationWarning, stacklevel=2)
+        return {k.name: (k.bit_offset, k.pins) for k in UR_OUTPUTS.values()}
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
 
 #: Modbus exception codes and their names (Modbus application protocol v1.1b3, section 7).
 EXCEPTION_NAMES = {
@@ -75,17 +98,6 @@ class ModbusConnectionError(ModbusIOError, ConnectionLostError):
     kind = "tool I/O connection"
 
 
-def to_ur_bits(word: int) -> int:
-    """18-bit word (standard 0-7, configurable 8-15, tool 16-17) -> UR's register-1 layout (standard 0-7,
-    tool 8-9); the configurable bits are dropped (they live in register 31)."""
-    return (word & 0xFF) | ((word >> 8) & 0x300)
-
-
-def from_ur_bits(bits: int, configurable: int = 0) -> int:
-    """UR's register-1 layout (and register 31's configurable bits) -> the 18-bit word."""
-    return (bits & 0xFF) | ((configurable & 0xFF) << 8) | ((bits & 0x300) << 8)
-
-
 def _int(value, name: str) -> int:
     if isinstance(value, bool):
         return int(value)
@@ -101,17 +113,6 @@ def _word(value, name: str) -> int:
         raise ValueError(f"{name} must be within 0..0x{DIGITAL_MASK:X} (18 digital bits: standard 0-7, "
                          f"configurable 8-15, tool 16-17), got {v}")
     return v
-
-
-def output_bit(kind: str, pin: int) -> int:
-    """Bit number (0-17) of output ``pin`` of ``kind`` ("standard" 0-7, "configurable" 0-7, "tool" 0-1)."""
-    if kind not in OUTPUT_KINDS:
-        raise ValueError(f"output kind must be one of {sorted(OUTPUT_KINDS)}, got {kind!r}")
-    base, count = OUTPUT_KINDS[kind]
-    p = _int(pin, f"{kind} output pin")
-    if not 0 <= p < count:
-        raise ValueError(f"{kind} output pin must be within 0..{count - 1}, got {p}")
-    return base + p
 
 
 def _registers(first: int, n: int) -> str:
@@ -266,10 +267,9 @@ class ModbusToolIO:
         m = _word(mask, "output mask")
         v = _word(value, "output value")
         on, off = m & v, m & ~v
-        if to_ur_bits(m):
-            self._write(REG_SET_OUTPUTS, [to_ur_bits(on), to_ur_bits(off)])
-        if m & 0xFF00:
-            self._write(REG_SET_CONF, [(on >> 8) & 0xFF, (off >> 8) & 0xFF])
+        for reg, set_reg, _clear_reg in _GROUPS:  # the clear-mask register follows the set-mask register
+            if to_modbus(m, reg):
+                self._write(set_reg, [to_modbus(on, reg), to_modbus(off, reg)])
 
     def set_output(self, kind: str, pin: int, value: bool) -> None:
         """Switch output ``pin`` of ``kind`` ("standard" 0-7, "configurable" 0-7, "tool" 0-1) on or off."""

@@ -25,6 +25,7 @@ from drivers.geometry import PolylineIndex, distance_to_polyline, joint_limit_ma
 from drivers.pacing import LoopStats
 from drivers.plan_window import PlannedPath, bit_switches
 from drivers.recording import BLOCK, ExecutionTrace, Recording
+from planner.kinematics.ur_outputs import bit_name
 from planner.wording import counted
 
 __all__ = ["ExecutionReport", "IOSwitch", "PathDeviation", "PathDeviationError", "PolylineIndex", "bit_name",
@@ -72,15 +73,6 @@ class PathDeviation:
                 else f"t = {self.t_start:.3f}..{self.t_end:.3f} s")
         return (f"{self.error * 1e3:.3f} mm off the path at t = {self.t:.3f} s, source line {self.line} "
                 f"(beyond the tolerance over {span}): {self.cause}")
-
-
-def bit_name(bit: int) -> str:
-    """Readable name of a digital output bit: standard[3], configurable[1], tool[0]."""
-    if bit < 8:
-        return f"standard[{bit}]"
-    if bit < 16:
-        return f"configurable[{bit - 8}]"
-    return f"tool[{bit - 16}]"
 
 
 @dataclass(frozen=True)

@@ -51,6 +51,7 @@ from drivers.plan_window import PlannedPath, PlanWindow
 from drivers.report import ExecutionReport, check_tolerance, execution_report, new_recording
 from drivers.servo import DEFAULT_GAIN, DEFAULT_LOOKAHEAD, ServoModel, ServoShaper, check_servo
 from drivers.stations import Station, Stations
+from planner.kinematics.ur_outputs import UR_OUTPUTS
 
 if TYPE_CHECKING:  # pragma: no cover
     from drivers.modbus_io import ModbusToolIO
@@ -115,18 +116,14 @@ class RTDEOutputs:
         self.io = rtde_io.RTDEIOInterface(host)
 
     def set_bits(self, mask: int, value: int) -> None:
-        for b in range(18):
-            if not (mask >> b) & 1:
-                continue
-            on = bool((value >> b) & 1)
-            if b < 8:
-                ok = self.io.setStandardDigitalOut(b, on)
-            elif b < 16:
-                ok = self.io.setConfigurableDigitalOut(b - 8, on)
-            else:
-                ok = self.io.setToolDigitalOut(b - 16, on)
-            if ok is False:
-                raise ConnectionLostError(f"the RTDE I/O interface refused to set output bit {b}")
+        for kind in UR_OUTPUTS.values():  # in the order of their bits
+            for pin in range(kind.pins):
+                b = kind.bit(pin)
+                if not (mask >> b) & 1:
+                    continue
+                ok = getattr(self.io, kind.rtde_io_method)(pin, bool((value >> b) & 1))
+                if ok is False:
+                    raise ConnectionLostError(f"the RTDE I/O interface refused to set output bit {b}")
 
     def close(self) -> None:
         try:

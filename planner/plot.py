@@ -346,7 +346,7 @@ def plot_job(job, target, *, rate: float | None = None, title: str | None = None
 
 def _execution_view(job, execution, dg: StreamDigest) -> dict:
     """What the plot draws of a run (see plot_job's ``execution``), in the part frame, mm."""
-    from planner.motion.stream import as_transform
+    from planner.kinematics.poses import as_transform
 
     tr = getattr(execution, "trace", None)
     if tr is None:
@@ -398,8 +398,10 @@ def _execution_path(ax, run: dict) -> None:
 def _execution_io_panel(ax, run: dict) -> None:
     """The outputs the plan switches (step lines from the planned switch times) against the ones the run
     switched (the trace's output bits), one row per output bit."""
+    from planner.kinematics.ur_outputs import DIGITAL_BITS, bit_name
+
     events = run["events"]
-    bits = sorted({int(e.bit) for e in events} | {b for b in range(18) if np.any((run["io"] >> b) & 1)})
+    bits = sorted({int(e.bit) for e in events} | {b for b in range(DIGITAL_BITS) if np.any((run["io"] >> b) & 1)})
     t = run["t"]
     t_end = float(t[-1]) if t.size else 1.0
     for row, b in enumerate(bits):
@@ -415,9 +417,7 @@ def _execution_io_panel(ax, run: dict) -> None:
             if math.isfinite(e.actual_t):
                 ax.annotate(f"{e.distance_mm:.3f} mm", (float(e.actual_t), row + 0.4), fontsize=7,
                             xytext=(3, 0), textcoords="offset points")
-    names = {**{b: f"standard[{b}]" for b in range(8)}, **{b: f"configurable[{b - 8}]" for b in range(8, 16)},
-             16: "tool[0]", 17: "tool[1]"}
-    ax.set_yticks([row + 0.4 for row in range(len(bits))], [names[b] for b in bits])
+    ax.set_yticks([row + 0.4 for row in range(len(bits))], [bit_name(b) for b in bits])
     ax.set_xlabel("time [s]")
     ax.set_title("digital outputs: planned against switched in the run (distance of each switch from its station)")
     if bits:

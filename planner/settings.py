@@ -42,6 +42,7 @@ from typing import Any
 import numpy as np
 
 from planner.errors import PlannerError
+from planner.kinematics.ur_outputs import OUTPUT_PINS
 from planner.motion.caps import DEFAULT_FLOOR
 from planner.motion.limits import MotionLimits
 from planner.validation import check_in_range
@@ -52,8 +53,9 @@ FRAME_METHODS = ("rmf", "grm", "juttler", "er", "double-reflection")
 PATH_MODELS = ("auto", "interpolate", "cam")
 #: Sources of the tool axis.
 AXIS_SOURCES = ("auto", "file", "approach", "fixed", "path")
-#: UR digital output kinds that a cut can switch (with pins 0..7, 0..7, 0..1).
-OUTPUT_KINDS = {"standard": 8, "configurable": 8, "tool": 2}
+#: UR digital output kinds that a cut can switch, with their number of pins (the UR output table's
+#: :data:`planner.kinematics.ur_outputs.OUTPUT_PINS`).
+OUTPUT_KINDS = OUTPUT_PINS
 #: Feeds below this (m/s: one micrometre per second) are refused: a typing or unit mistake.
 MIN_FEED = 1e-6
 #: Feeds above this (m/s) are refused: no tool path is cut at 10 m/s.
@@ -357,9 +359,10 @@ def _check_pose(s: Setting, value) -> tuple | str:
         words = "".join(f", {w!r}" for w in s.choices)
         raise PlannerError(f"{s.name} must be 6 numbers (x, y, z, rx, ry, rz in m, rad), a 4x4 transform{words} "
                            f"or None; got {value!r}")
-    from planner.motion.stream import as_transform, transform_to_pose
+    from planner.kinematics.poses import matrix_to_pose
+    from planner.motion.stream import as_transform
 
-    return tuple(float(x) for x in transform_to_pose(as_transform(value, s.name)))
+    return tuple(float(x) for x in matrix_to_pose(as_transform(value, s.name)))
 
 
 def _check_output(s: Setting, out) -> tuple:

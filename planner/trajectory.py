@@ -25,14 +25,14 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from planner.errors import PlannerError
+from planner.kinematics.poses import as_transform
+from planner.kinematics.ur_outputs import (
+    IO_BIT_OFFSET,  # noqa: F401  (importable from here, as before)
+    output_bit,
+)
 from planner.motion import sample_poses, tool_orientation
 from planner.motion.rotvec import continuous_rotvec
-from planner.motion.stream import as_transform
 from planner.rotations import rotvec_to_quaternion
-
-#: Digital output bit of each output kind in :attr:`Chunk.io` (the layout of RTDE's actual_digital_output_bits:
-#: standard 0-7, configurable 8-15, tool 16-17).
-IO_BIT_OFFSET = {"standard": 0, "configurable": 8, "tool": 16}
 
 
 @dataclass(frozen=True, eq=False)
@@ -58,8 +58,8 @@ class Chunk:
         Joint positions (rad) with a robot (rows of NaN where a pose has no inverse-kinematics solution; the
         job's ``problems`` name them); None without a robot or when not asked for.
     io : ndarray (k,) of int64
-        Digital output bits set at each sample (:data:`IO_BIT_OFFSET`; ``PlanSettings.cut_output`` is on
-        during cuts), 0 when the job switches nothing.
+        Digital output bits set at each sample (the 18-bit word of :mod:`planner.kinematics.ur_outputs`;
+        ``PlanSettings.cut_output`` is on during cuts), 0 when the job switches nothing.
     final : bool
         Whether this is the move's last chunk (a move of more than :data:`CHUNK_SAMPLES` samples comes in
         several).
@@ -216,7 +216,7 @@ def _with_io(job, chunks):
     corner), so the output never blinks off for one sample between them. One chunk is held back to see the
     next one's kind."""
     out = job.settings.cut_output
-    bit = 0 if out is None else 1 << (IO_BIT_OFFSET[out[0]] + out[1])
+    bit = 0 if out is None else 1 << output_bit(*out)
     held = None
     for c in chunks:
         if held is not None:

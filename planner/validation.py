@@ -131,7 +131,11 @@ def as_int(value, name: str, lo: int | None = None, hi: int | None = None) -> in
 
 
 def has_attributes(obj, name: str, what: str, *attributes: str):
-    """``obj`` if it has every attribute named (duck typing), else :class:`ArgumentError`: ``name must be what``."""
+    """Deprecated (no module uses it; goes in the release after the next one): ``obj`` if it has every attribute
+    named (duck typing), else :class:`ArgumentError`: ``name must be what``."""
+    warnings.warn("planner.validation.has_attributes is deprecated and will be removed in the release after the next "
+                  "one: test the attributes where they are used (hasattr) and raise ArgumentError(name, message)",
+                  DeprecationWarning, stacklevel=2)
     missing = [a for a in attributes if not hasattr(obj, a)]
     if missing:
         raise ArgumentError(name, f"must be {what}, got {_described(obj)}")

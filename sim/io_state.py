@@ -4,8 +4,9 @@ One `IOState` per simulated controller, shared by every entry point (RTDE, scrip
 so that what one of them sets the others see. All methods are thread-safe (one internal re-entrant
 lock); reads return immutable values (ints, floats, tuples).
 
-Digital bit layout (the layout of RTDE's ``actual_digital_output_bits`` / ``actual_digital_input_bits``):
-bits 0-7 standard I/O, bits 8-15 configurable I/O, bits 16-17 tool I/O (`DIGITAL_BITS` = 18 bits).
+Digital bit layout (the layout of RTDE's ``actual_digital_output_bits`` / ``actual_digital_input_bits``, the UR
+output table's, :mod:`planner.kinematics.ur_outputs`): bits 0-7 standard I/O, bits 8-15 configurable I/O, bits
+16-17 tool I/O (`DIGITAL_BITS` = 18 bits).
 
 Analog values are in the output's unit, as RTDE's ``standard_analog_output0`` / ``standard_analog_input0``
 report them: volts in the voltage domain (0..10 V), amperes in the current domain (0.004..0.020 A).
@@ -40,14 +41,12 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-#: Number of digital I/O bits (8 standard, 8 configurable, 2 tool).
-DIGITAL_BITS = 18
-#: Mask of all digital bits.
-DIGITAL_MASK = (1 << DIGITAL_BITS) - 1
-#: Bits of the standard, configurable and tool I/O inside the 18-bit word.
-STANDARD_MASK = 0x000FF
-CONFIGURABLE_MASK = 0x0FF00
-TOOL_MASK = 0x30000
+from planner.kinematics.ur_outputs import DIGITAL_BITS, DIGITAL_MASK, UR_OUTPUTS  # noqa: F401  (DIGITAL_BITS: as before)
+
+#: Bits of the standard, configurable and tool I/O inside the 18-bit word (DIGITAL_BITS of them, all: DIGITAL_MASK).
+STANDARD_MASK = UR_OUTPUTS["standard"].mask
+CONFIGURABLE_MASK = UR_OUTPUTS["configurable"].mask
+TOOL_MASK = UR_OUTPUTS["tool"].mask
 #: First and last Modbus general-purpose register address (inclusive).
 REGISTER_FIRST = 128
 REGISTER_LAST = 255

@@ -73,6 +73,8 @@ from pymodbus.pdu.register_message import ReadHoldingRegistersRequest, ReadInput
 from pymodbus.server import ModbusTcpServer
 from pymodbus.simulator import DataType, SimData, SimDevice
 
+from planner.kinematics.ur_outputs import UR_OUTPUTS, from_modbus, from_ur_bits, to_modbus, to_ur_bits
+
 from .io_state import REGISTER_FIRST, REGISTER_LAST, TOOL_VOLTAGES, IOState
 
 log = logging.getLogger(__name__)
@@ -82,10 +84,14 @@ FUNCTION_CODES = (1, 2, 3, 4, 5, 6, 15, 16)
 _COIL_FC = {1, 5, 15}
 _WRITE_FC = {5, 6, 15, 16}
 
-# register addresses
-REG_INPUTS, REG_OUTPUTS, REG_SET_OUTPUTS, REG_CLEAR_OUTPUTS = 0, 1, 2, 3
+# register addresses: the digital outputs' (and their set / clear masks) from the UR output table
+_STANDARD, _CONF, _TOOL_KIND = UR_OUTPUTS["standard"], UR_OUTPUTS["configurable"], UR_OUTPUTS["tool"]
+REG_OUTPUTS, REG_SET_OUTPUTS, REG_CLEAR_OUTPUTS = (
+    _STANDARD.modbus_register, _STANDARD.modbus_set_register, _STANDARD.modbus_clear_register)
+REG_CONF_OUTPUTS, REG_SET_CONF, REG_CLEAR_CONF = (
+    _CONF.modbus_register, _CONF.modbus_set_register, _CONF.modbus_clear_register)
+REG_INPUTS, REG_CONF_INPUTS = REG_OUTPUTS - 1, REG_CONF_OUTPUTS - 1  # the inputs, in the same layouts
 REG_TOOL_VOLTAGE, REG_TOOL_INPUTS, REG_TOOL_OUTPUTS = 20, 21, 22
-REG_CONF_INPUTS, REG_CONF_OUTPUTS, REG_SET_CONF, REG_CLEAR_CONF = 30, 31, 32, 33
 REG_TCP_POSE = 400  # 400..405
 #: First coil address of the outputs (coils 0-15 are the inputs).
 COIL_OUTPUTS = 16
@@ -94,22 +100,13 @@ COIL_COUNT = 32
 _READ_ONLY = (REG_INPUTS, REG_TOOL_INPUTS, REG_CONF_INPUTS)
 _READ_WRITE = (REG_OUTPUTS, REG_SET_OUTPUTS, REG_CLEAR_OUTPUTS, REG_TOOL_VOLTAGE, REG_TOOL_OUTPUTS,
                REG_CONF_OUTPUTS, REG_SET_CONF, REG_CLEAR_CONF)
+_BOX_AND_TOOL = from_modbus(REG_OUTPUTS, 0xFFFF)  # IOState bits of UR's [BBBBBBBBTT] layout (standard and tool)
+_CONFIGURABLE = _CONF.mask
+_TOOL = _TOOL_KIND.mask
 #: Valid bits of each writable bit register (UR's layouts); 10 bits: standard 0-7 and tool 8-9.
-_VALID_BITS = {REG_OUTPUTS: 0x3FF, REG_SET_OUTPUTS: 0x3FF, REG_CLEAR_OUTPUTS: 0x3FF, REG_TOOL_OUTPUTS: 0x3,
-               REG_CONF_OUTPUTS: 0xFF, REG_SET_CONF: 0xFF, REG_CLEAR_CONF: 0xFF}
-_BOX_AND_TOOL = 0x000FF | 0x30000  # IOState bits of UR's [BBBBBBBBTT] layout
-_CONFIGURABLE = 0x0FF00
-_TOOL = 0x30000
-
-
-def _to_ur_bits(word: int) -> int:
-    """IOState's 18-bit word -> UR's register-0/1 layout (standard bits 0-7, tool bits 8-9)."""
-    return (word & 0xFF) | ((word >> 8) & 0x300)
-
-
-def _from_ur_bits(bits: int) -> int:
-    """UR's register-0/1 layout -> IOState's word (standard bits 0-7, tool bits 16-17)."""
-    return (bits & 0xFF) | ((bits & 0x300) << 8)
+_VALID_BITS = {REG_OUTPUTS: to_ur_bits(_BOX_AND_TOOL), REG_SET_OUTPUTS: to_ur_bits(_BOX_AND_TOOL),
+               REG_CLEAR_OUTPUTS: to_ur_bits(_BOX_AND_TOOL), REG_TOOL_OUTPUTS: _TOOL_KIND.pin_mask,
+               REG_CONF_OUTPUTS: _CONF.pin_mask, REG_SET_CONF: _CONF.pin_mask, REG_CLEAR_CONF: _CONF.pin_mask}
 
 
 def _pose_registers(pose: Sequence[float]) -> list[int]:
@@ -196,8 +193,8 @@ class _URMap:
         return None
 
     def _refresh_bits(self, registers: list[int], start: int) -> None:
-        registers[0 - start] = _to_ur_bits(self.io.digital_in)
-        registers[1 - start] = _to_ur_bits(self.io.digital_out)
+        registers[0 - start] = to_ur_bits(self.io.digital_in)
+        registers[1 - start] = to_ur_bits(self.io.digital_out)
 
     def _refresh_registers(self, registers: list[int], start: int, address: int, count: int,
                            pose: list[int] | None) -> None:
@@ -208,13 +205,13 @@ class _URMap:
 
         io = self.io
         simple = {
-            REG_INPUTS: lambda: _to_ur_bits(io.digital_in),
-            REG_OUTPUTS: lambda: _to_ur_bits(io.digital_out),
+            REG_INPUTS: lambda: to_ur_bits(io.digital_in),
+            REG_OUTPUTS: lambda: to_ur_bits(io.digital_out),
             REG_TOOL_VOLTAGE: lambda: io.tool_voltage,
-            REG_TOOL_INPUTS: lambda: (io.digital_in & _TOOL) >> 16,
-            REG_TOOL_OUTPUTS: lambda: (io.digital_out & _TOOL) >> 16,
-            REG_CONF_INPUTS: lambda: (io.digital_in & _CONFIGURABLE) >> 8,
-            REG_CONF_OUTPUTS: lambda: (io.digital_out & _CONFIGURABLE) >> 8,
+            REG_TOOL_INPUTS: lambda: (io.digital_in & _TOOL) >> _TOOL_KIND.bit_offset,
+            REG_TOOL_OUTPUTS: lambda: (io.digital_out & _TOOL) >> _TOOL_KIND.bit_offset,
+            REG_CONF_INPUTS: lambda: to_modbus(io.digital_in, REG_CONF_OUTPUTS),
+            REG_CONF_OUTPUTS: lambda: to_modbus(io.digital_out, REG_CONF_OUTPUTS),
         }
         for reg, get in simple.items():
             if wanted(reg, reg):
@@ -233,13 +230,13 @@ class _URMap:
         mask = value = 0
         for i, bit in enumerate(values):
             ur_bit = address - COIL_OUTPUTS + i
-            if not (0x3FF >> ur_bit) & 1:
+            if not (_VALID_BITS[REG_OUTPUTS] >> ur_bit) & 1:
                 if bit:
                     return ExcCodes.ILLEGAL_VALUE  # an undefined output bit
                 continue
             mask |= 1 << ur_bit
             value |= int(bool(bit)) << ur_bit
-        self.io.set_digital_out(_from_ur_bits(mask), _from_ur_bits(value))
+        self.io.set_digital_out(from_ur_bits(mask), from_ur_bits(value))
         return None
 
     def _write_registers(self, address: int, values: list[int]) -> ExcCodes | None:
@@ -254,21 +251,21 @@ class _URMap:
         for i, v in enumerate(values):
             reg = address + i
             if reg == REG_OUTPUTS:
-                io.set_digital_out(_BOX_AND_TOOL, _from_ur_bits(v))
+                io.set_digital_out(_BOX_AND_TOOL, from_ur_bits(v))
             elif reg == REG_SET_OUTPUTS:
-                io.set_digital_out(_from_ur_bits(v), _from_ur_bits(v))
+                io.set_digital_out(from_ur_bits(v), from_ur_bits(v))
             elif reg == REG_CLEAR_OUTPUTS:
-                io.set_digital_out(_from_ur_bits(v), 0)
+                io.set_digital_out(from_ur_bits(v), 0)
             elif reg == REG_TOOL_VOLTAGE:
                 io.set_tool_voltage(v)
             elif reg == REG_TOOL_OUTPUTS:
-                io.set_digital_out(_TOOL, v << 16)
+                io.set_digital_out(_TOOL, v << _TOOL_KIND.bit_offset)
             elif reg == REG_CONF_OUTPUTS:
-                io.set_digital_out(_CONFIGURABLE, v << 8)
+                io.set_digital_out(_CONFIGURABLE, from_modbus(REG_CONF_OUTPUTS, v))
             elif reg == REG_SET_CONF:
-                io.set_digital_out(v << 8, v << 8)
+                io.set_digital_out(from_modbus(REG_CONF_OUTPUTS, v), from_modbus(REG_CONF_OUTPUTS, v))
             elif reg == REG_CLEAR_CONF:
-                io.set_digital_out(v << 8, 0)
+                io.set_digital_out(from_modbus(REG_CONF_OUTPUTS, v), 0)
             elif REGISTER_FIRST <= reg <= REGISTER_LAST:
                 io.set_register(reg, v)
             if reg in self.masks:

@@ -125,15 +125,12 @@ OUTPUTS: dict[str, tuple[str, Callable]] = {
 
 
 def _input_fields() -> dict[str, str]:
+    from planner.kinematics.ur_outputs import UR_OUTPUTS  # the digital outputs' fields (<field>, <field>_mask)
+
     out = {
         "speed_slider_mask": "UINT32",
         "speed_slider_fraction": "DOUBLE",
-        "standard_digital_output_mask": "UINT8",
-        "standard_digital_output": "UINT8",
-        "configurable_digital_output_mask": "UINT8",
-        "configurable_digital_output": "UINT8",
-        "tool_digital_output_mask": "UINT8",
-        "tool_digital_output": "UINT8",
+        **{name: "UINT8" for k in UR_OUTPUTS.values() for name in (f"{k.rtde_field}_mask", k.rtde_field)},
         "standard_analog_output_mask": "UINT8",
         "standard_analog_output_type": "UINT8",
         "standard_analog_output_0": "DOUBLE",

@@ -19,6 +19,7 @@ import socket
 import struct
 import threading
 
+from planner.kinematics.ur_outputs import UR_OUTPUTS
 from sim import rtde_protocol as rp
 from sim.hosts import set_realtime_priority
 from sim.rtde_fields import INPUTS, OUTPUTS, Snapshot, input_type, output_type
@@ -274,12 +275,10 @@ class RTDEServer:
 
     @staticmethod
     def _apply_io(f: dict, io) -> None:
-        if "standard_digital_output_mask" in f:
-            io.set_digital_out(f["standard_digital_output_mask"], f.get("standard_digital_output", 0))
-        if "configurable_digital_output_mask" in f:
-            io.set_digital_out(f["configurable_digital_output_mask"] << 8, f.get("configurable_digital_output", 0) << 8)
-        if "tool_digital_output_mask" in f:
-            io.set_digital_out((f["tool_digital_output_mask"] & 3) << 16, (f.get("tool_digital_output", 0) & 3) << 16)
+        for kind in UR_OUTPUTS.values():  # <field>_mask selects the outputs <field> sets (the UR output table)
+            if f"{kind.rtde_field}_mask" in f:
+                io.set_digital_out((f[f"{kind.rtde_field}_mask"] & kind.pin_mask) << kind.bit_offset,
+                                   (f.get(kind.rtde_field, 0) & kind.pin_mask) << kind.bit_offset)
         if f.get("speed_slider_mask", 0) & 1:
             io.set_speed_slider(min(max(f.get("speed_slider_fraction", 1.0), 0.0), 1.0))
         mask = f.get("standard_analog_output_mask", 0)

@@ -29,6 +29,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from planner.kinematics import UnreachableError, forward, inverse_nearest
+from planner.kinematics.ur_outputs import UR_OUTPUTS
 from sim.motion import DT, MotionError, Segment
 from sim.programs import ProgramError
 
@@ -45,12 +46,10 @@ _SIGNATURES = {
     "sleep": (("t",), {}),
     "sync": ((), {}),
     "set_tcp": (("pose",), {}),
-    "set_standard_digital_out": (("n", "b"), {}),
-    "set_configurable_digital_out": (("n", "b"), {}),
-    "set_tool_digital_out": (("n", "b"), {}),
+    **{k.script_setter: (("n", "b"), {}) for k in UR_OUTPUTS.values()},
 }
-_OUTPUT_BASE = {"set_standard_digital_out": (0, 8), "set_configurable_digital_out": (8, 8),
-                "set_tool_digital_out": (16, 2)}
+#: The output setters: (first bit in the 18-bit word, pins), from the UR output table.
+_OUTPUT_BASE = {k.script_setter: (k.bit_offset, k.pins) for k in UR_OUTPUTS.values()}
 
 
 class Pose(tuple):

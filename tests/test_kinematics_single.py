@@ -1,5 +1,5 @@
 """The one-pose fast paths of planner.kinematics: inverse, inverse_nearest, forward for one joint vector,
-and the hand-written rotation-vector conversions.
+and the float path of the rotation-vector conversions (planner.rotations' *_1 and *_n).
 
 The one-pose inverse kinematics (``inverse_one``, Python floats) is the documented exception to the
 block solver: these property tests prove that it gives the block solver's branches (all 8, same order,
@@ -34,7 +34,8 @@ from planner.kinematics import (
     pose_to_matrix,
     wrap_angle,
 )
-from planner.kinematics.rotvec import matrix_to_rotvec, matrix_to_rotvec_1, rotvec_to_matrix, rotvec_to_matrix_1
+from planner.kinematics.poses import frame_matrix, pose_frame_1, pose_matrices_n
+from planner.rotations import matrix_to_rotvec_1, matrix_to_rotvec_n, rotvec_to_matrix_1, rotvec_to_matrix_n
 
 inv = importlib.import_module("planner.kinematics.inverse")
 inverse_one = importlib.import_module("planner.kinematics.inverse_one")
@@ -285,8 +286,13 @@ def test_forward_and_conversions_of_one_equal_batch_exactly(name, q, tcp):
     assert np.array_equal(forward(name, tuple(q), tcp=tcp), batch[1])
     assert np.array_equal(forward_matrix(name, q, tcp=tcp), forward_matrix(name, np.array([q]), tcp=tcp)[0])
     T = forward_matrix(name, np.array([q, q]), tcp=tcp)
-    assert np.array_equal(matrix_to_pose(T[0]), matrix_to_pose(T)[0])  # one transform, on floats
+    assert np.array_equal(matrix_to_pose(T[0]), matrix_to_pose(T)[0])
     assert np.array_equal(pose_to_matrix(batch[0]), pose_to_matrix(batch)[0])
+    # the float path of the pose conversion (inverse kinematics) and its numpy twin: identical entries, and
+    # within round-off of the one public conversion
+    one = frame_matrix(*pose_frame_1(batch[0].tolist()))
+    assert np.array_equal(one, pose_matrices_n(batch)[0])
+    assert np.abs(one - pose_to_matrix(batch[0])).max() < 1e-15
 
 
 # --- rotation-vector conversions against scipy -------------------------------------------------------
@@ -316,7 +322,7 @@ def equivalent_rotvec_gap(a: np.ndarray, b: np.ndarray) -> np.ndarray:
 
 def test_rotvec_to_matrix_matches_scipy():
     r = rotvecs(4000, 1)
-    R = rotvec_to_matrix(r)
+    R = rotvec_to_matrix_n(r)
     assert np.abs(R - Rotation.from_rotvec(r).as_matrix()).max() < 1e-12
     assert np.abs(R @ R.transpose(0, 2, 1) - np.eye(3)).max() < 1e-14
     assert all(rotvec_to_matrix_1(*v) == tuple(M.ravel()) for v, M in zip(r.tolist(), R, strict=True))
@@ -325,11 +331,11 @@ def test_rotvec_to_matrix_matches_scipy():
 def test_matrix_to_rotvec_matches_scipy():
     r = rotvecs(4000, 2)
     R = Rotation.from_rotvec(r).as_matrix()
-    ours = matrix_to_rotvec(R)
+    ours = matrix_to_rotvec_n(R)
     assert equivalent_rotvec_gap(ours, Rotation.from_matrix(R).as_rotvec()).max() < 1e-12
     assert equivalent_rotvec_gap(ours, r).max() < 1e-12  # and the rotation vectors we started from
     assert np.linalg.norm(ours, axis=1).max() <= np.pi
     assert all(matrix_to_rotvec_1(*M.ravel()) == tuple(v) for v, M in zip(ours.tolist(), R, strict=True))
     # exact half turns: w = 0, the sign is scipy's (first non-zero component positive)
     for M in (np.diag([1.0, -1.0, -1.0]), np.diag([-1.0, 1.0, -1.0]), np.diag([-1.0, -1.0, 1.0])):
-        np.testing.assert_allclose(matrix_to_rotvec(M[None])[0], Rotation.from_matrix(M).as_rotvec(), atol=1e-15)
+        np.testing.assert_allclose(matrix_to_rotvec_n(M[None])[0], Rotation.from_matrix(M).as_rotvec(), atol=1e-15)

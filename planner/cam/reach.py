@@ -44,12 +44,12 @@ from planner.cam.configure import (
 )
 from planner.cam.moves import Reconfiguration
 from planner.kinematics import check_reachability, inverse_path, speed_ratios
+from planner.kinematics.poses import as_transform
 from planner.kinematics.reachability import JOINT_SPEED_REASONS
 from planner.motion import poses_at_length, tool_orientation
 from planner.motion.evaluator import span_bounds
 from planner.motion.local_feed import Measurement, lower_feed_locally
 from planner.motion.rotvec import continuous_rotvec
-from planner.motion.stream import as_transform
 
 #: Angle step (rad) of the check along a turn in place.
 TURN_STEP = 0.02

@@ -25,6 +25,7 @@ import numpy as np
 from planner import bernstein
 from planner.curves.dp_cubic import DPCubic
 from planner.curves.dp_ph_hermite import HermiteDataError, dp_ph_hermite
+from planner.curves.piecewise_length import PiecewiseLength
 from planner.curves.tangents import chord_knots, cubic_spline_slopes
 from planner.errors import NoSolutionError, PlannerError, WaypointError
 from planner.validation import (
@@ -32,7 +33,6 @@ from planner.validation import (
     as_float,
     as_floats,
     as_int,
-    check_arc_lengths,
     check_tangents,
     check_waypoints,
 )
@@ -45,7 +45,7 @@ _GL_X, _GL_W = 0.5 * (_GL_X + 1.0), 0.5 * _GL_W
 
 
 @dataclass(frozen=True, eq=False)
-class PlanarPHSpline:
+class PlanarPHSpline(PiecewiseLength):
     """A G1 piecewise PH cubic path in the plane z = const, parameter u in [knots[0], knots[-1]].
 
     Attributes
@@ -58,6 +58,9 @@ class PlanarPHSpline:
         Global parameter at each waypoint (cumulative chord length, metres).
     z : float
         Height of the plane of the path (metres).
+
+    Arc length (``segment_lengths``, ``cumulative_lengths``, ``length``, ``arc_length``,
+    ``parameter_at_length``): :class:`~planner.curves.piecewise_length.PiecewiseLength`.
     """
 
     segments: tuple[DPCubic, ...]
@@ -76,20 +79,10 @@ class PlanarPHSpline:
         """Bernstein coefficients (m, 3) of every piece's speed |dP/dt| (a quadratic)."""
         return np.stack([s.sigma() for s in self.segments])
 
-    @cached_property
-    def segment_lengths(self) -> np.ndarray:
-        """Exact arc length of every piece (m,), metres."""
-        return self.sigma_coeffs.sum(axis=1) / 3.0
-
-    @cached_property
-    def cumulative_lengths(self) -> np.ndarray:
-        """Arc length at every break (m + 1,), starting at 0."""
-        return np.concatenate(([0.0], np.cumsum(self.segment_lengths)))
-
     @property
-    def length(self) -> float:
-        """Total arc length (metres), exact."""
-        return float(self.cumulative_lengths[-1])
+    def piece_bounds(self) -> np.ndarray:
+        """Global parameter at the ends of the pieces: the breaks (the arc-length bookkeeping's bounds)."""
+        return self.breaks
 
     @property
     def n_segments(self) -> int:
@@ -147,42 +140,6 @@ class PlanarPHSpline:
         d2 = np.einsum("nk,nkd->nd", bernstein.basis(1, t), 6.0 * np.diff(c, n=2, axis=1))
         cross = d1[:, 0] * d2[:, 1] - d1[:, 1] * d2[:, 0]
         return cross / np.linalg.norm(d1, axis=1) ** 3
-
-    def arc_length(self, u) -> np.ndarray:
-        """Exact arc length from the start to u, shape (n,)."""
-        k, t = self.locate(u)
-        S = bernstein.antiderivative(self.sigma_coeffs.T).T  # (m, 4) cubic Bernstein coefficients
-        return self.cumulative_lengths[k] + np.einsum("nk,nk->n", bernstein.basis(3, t), S[k])
-
-    def parameter_at_length(self, s) -> np.ndarray:
-        """Global parameters u (n,) at arc lengths s (n,) in [0, length]; exact to round-off.
-
-        Safeguarded Newton iteration on each piece's cubic arc-length polynomial (monotone in t).
-        """
-        L = self.length
-        s = check_arc_lengths(s, L)
-        cum = self.cumulative_lengths
-        k = np.clip(np.searchsorted(cum, s, side="right") - 1, 0, self.n_segments - 1)
-        sig = self.sigma_coeffs[k]
-        S = bernstein.antiderivative(self.sigma_coeffs.T).T[k]
-        target = s - cum[k]
-        seg = self.segment_lengths[k]
-        t = np.where(seg > 0, target / np.where(seg > 0, seg, 1.0), 0.0)
-        lo, hi = np.zeros_like(t), np.ones_like(t)
-        for _ in range(60):
-            f = np.einsum("nk,nk->n", bernstein.basis(3, t), S) - target
-            lo = np.where(f <= 0, t, lo)
-            hi = np.where(f > 0, t, hi)
-            df = np.einsum("nk,nk->n", bernstein.basis(2, t), sig)
-            step = np.where(df > 0, f / np.where(df > 0, df, 1.0), np.inf)
-            t_new = t - step
-            out = ~((t_new > lo) & (t_new < hi))
-            t_new = np.where(out, 0.5 * (lo + hi), t_new)
-            done = np.abs(t_new - t) <= 1e-15
-            t = t_new
-            if done.all():
-                break
-        return self.breaks[k] + t * (self.breaks[k + 1] - self.breaks[k])
 
     # -- quality figures ------------------------------------------------------------------------
     @property

@@ -17,7 +17,6 @@ import numpy as np
 from planner import bernstein
 from planner import quaternion as qt
 from planner.curves.ph_core import (
-    arc_length_coeffs,
     batch_control_points,
     batch_sigma,
     curvature_torsion,
@@ -25,13 +24,14 @@ from planner.curves.ph_core import (
 from planner.curves.ph_cubic import PHCubic
 from planner.curves.ph_quintic import PHQuintic, hermite_rows, sqrt_rot
 from planner.curves.ph_spline_c2 import solve_c2
+from planner.curves.piecewise_length import PiecewiseLength
 from planner.curves.tangents import across, slopes_rows, straight_slopes
 from planner.errors import PlannerError
 from planner.validation import as_int, check_tangents, check_vector, checked_waypoint_steps, finite_floats
 
 
 @dataclass(frozen=True, eq=False)
-class PHSpline:
+class PHSpline(PiecewiseLength):
     """A piecewise PH quintic path r(u), u in [knots[0], knots[-1]].
 
     Attributes
@@ -49,6 +49,9 @@ class PHSpline:
     waypoint_index : ndarray (n,) of int, optional
         Indices into ``knots`` of the user's waypoints, where the fit inserted knots; None when every
         knot is a waypoint.
+
+    Arc length (``segment_lengths``, ``cumulative_lengths`` at the knots, ``length``, ``arc_length``):
+    :class:`~planner.curves.piecewise_length.PiecewiseLength`.
     """
 
     A: np.ndarray
@@ -75,20 +78,10 @@ class PHSpline:
         """Bernstein coefficients (N, degree) of every segment's speed |dr/dt|."""
         return batch_sigma(self.A)
 
-    @cached_property
-    def segment_lengths(self) -> np.ndarray:
-        """Exact arc length of every segment (N,), metres."""
-        return self.sigma_coeffs.sum(axis=1) / self.sigma_coeffs.shape[1]
-
-    @cached_property
-    def cumulative_lengths(self) -> np.ndarray:
-        """Arc length at every knot (N + 1,), starting at 0."""
-        return np.concatenate(([0.0], np.cumsum(self.segment_lengths)))
-
     @property
-    def length(self) -> float:
-        """Total arc length (metres), exact."""
-        return float(self.cumulative_lengths[-1])
+    def piece_bounds(self) -> np.ndarray:
+        """Global parameter at the ends of the segments: the knots (the arc-length bookkeeping's bounds)."""
+        return self.knots
 
     @property
     def n_segments(self) -> int:
@@ -208,17 +201,12 @@ class PHSpline:
         """Torsion (1/m), shape (n,)."""
         return curvature_torsion(*(self.derivative(u, o) for o in (1, 2, 3)))[1]
 
-    def arc_length(self, u) -> np.ndarray:
-        """Exact arc length from the start to u, shape (n,)."""
-        k, t = self.locate(u)
-        S = arc_length_coeffs(self.sigma_coeffs[k])
-        return self.cumulative_lengths[k] + np.einsum("nk,nk->n", bernstein.basis(self.degree, t), S)
-
     def parameter_at_length(self, s) -> np.ndarray:
         """Global parameters u (n,) at arc lengths s (n,) from the start, s in [0, length]; exact.
 
         Newton on each segment's arc-length polynomial from a cubic Hermite guess of the inverse
-        (:class:`~planner.curves.arc_evaluator.SplineEvaluator`, built once per spline).
+        (:class:`~planner.curves.arc_evaluator.SplineEvaluator`, built once per spline: for the dense samples of
+        a pose stream, faster than the general inversion of :class:`PiecewiseLength`).
         """
         return self._evaluator(np.atleast_1d(finite_floats(s, "s", ((), (None,)))))
 

@@ -40,14 +40,10 @@ import numpy as np
 from planner.cam.passes import CutPass
 from planner.export.header import ExportError, trajectory_parameters
 from planner.export.movep import MovePPlan, plan_movep
-from planner.export.script_text import check_name, comment, header, num, pose, vec
+from planner.export.script_text import check_name, comment, header, num, output_switch, pose, vec
 from planner.export.urscript import movep_lines
+from planner.kinematics.poses import as_transform, matrix_to_pose
 from planner.motion.limits import positive
-from planner.motion.stream import as_transform, transform_to_pose
-
-#: The URScript call that sets a digital output of each kind.
-_OUTPUT_CALL = {"standard": "set_standard_digital_out", "configurable": "set_configurable_digital_out",
-                "tool": "set_tool_digital_out"}
 
 #: Kinds of CAM records written as comments where they occur.
 NOTED_EVENTS = ("operation", "tool_change", "spindle", "coolant", "insert", "machine")
@@ -103,14 +99,14 @@ def _turn_pose(m, Tb: np.ndarray, angle: float) -> np.ndarray:
     R = Tb[:3, :3] @ m.frames.frames(np.array([angle]))[0]
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = R, Tb[:3, :3] @ m.point + Tb[:3, 3]
-    return transform_to_pose(T)
+    return matrix_to_pose(T)
 
 
 def _hold_pose(m, Tb: np.ndarray) -> np.ndarray:
     """TCP pose (6,) in the base frame of a move in place at its start frame (a dwell)."""
     T = np.eye(4)
     T[:3, :3], T[:3, 3] = Tb[:3, :3] @ m.start_frame, Tb[:3, :3] @ m.point + Tb[:3, 3]
-    return transform_to_pose(T)
+    return matrix_to_pose(T)
 
 
 def plan_job_program(job, *, tolerance: float | None = None, angle_tolerance: float = math.radians(1.0),
@@ -255,7 +251,7 @@ def job_program(
     if parameters is not None and "program" in parameters:
         raise ExportError("parameters: key 'program' is reserved (set by the exporter)")
     params = trajectory_parameters(job.trajectory(), {**dict(parameters or {}), "program": stats})
-    tcp_pose = transform_to_pose(as_transform(s.tcp, "tcp"))
+    tcp_pose = matrix_to_pose(as_transform(s.tcp, "tcp"))
     lines = [f"def {name}():"]
     lines += header("whole-job movep/movel", params, [])
     lines += [
@@ -287,10 +283,10 @@ def job_program(
                 f"{1e3 * m.speed:.3f} mm/s in movep moves: {m.plan.s.size - 1}, planned {m.duration:.3f} s"))
             # two passes joined at a corner keep the output on through it (as the trajectory's io bits do)
             if s.cut_output is not None and not (i > 0 and moves[i - 1].kind == "cut"):
-                lines.append(f"  {_OUTPUT_CALL[s.cut_output[0]]}({s.cut_output[1]}, True)")
+                lines.append(output_switch(s.cut_output[0], s.cut_output[1], True))
             lines += movep_lines(m.plan, a)
             if s.cut_output is not None and not (i + 1 < len(moves) and moves[i + 1].kind == "cut"):
-                lines.append(f"  {_OUTPUT_CALL[s.cut_output[0]]}({s.cut_output[1]}, False)")
+                lines.append(output_switch(s.cut_output[0], s.cut_output[1], False))
         elif m.kind == "reconfiguration":
             r = job.moves[m.move].item
             jl = s.joint_limits

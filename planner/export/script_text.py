@@ -1,18 +1,18 @@
 """URScript text shared by the program writers: numbers, poses, names, header comments, output switches.
 
 Numbers are written in fixed point with 12 decimals (no exponents), far below the robot's resolution.
-Output setters (UR Script Manual, e-Series): ``set_standard_digital_out(n, b)`` n 0..7,
-``set_configurable_digital_out(n, b)`` n 0..7, ``set_tool_digital_out(n, b)`` n 0..1.
+Output switches call the URScript setter of the UR output table (:mod:`planner.kinematics.ur_outputs`):
+``set_standard_digital_out(n, b)`` n 0..7, ``set_configurable_digital_out(n, b)`` n 0..7,
+``set_tool_digital_out(n, b)`` n 0..1.
 """
 
 from __future__ import annotations
 
 import re
+import warnings
 
 from planner.export.header import ExportError, header_lines
-
-SETTERS = {"standard": "set_standard_digital_out", "configurable": "set_configurable_digital_out",
-           "tool": "set_tool_digital_out"}
+from planner.kinematics.ur_outputs import UR_OUTPUTS
 
 
 def num(x: float) -> str:
@@ -52,17 +52,34 @@ def header(kind: str, params: dict, events: list[dict]) -> list[str]:
     return lines
 
 
+def output_switch(kind: str, pin: int, value: bool) -> str:
+    """The body line switching output ``pin`` of ``kind`` to ``value``, e.g. ``set_standard_digital_out(0, True)``."""
+    return f"  {UR_OUTPUTS[kind].script_setter}({pin}, {'True' if value else 'False'})"
+
+
 def io_line(e) -> str:
     """The output switch of a scheduled I/O event."""
     ev = e.event
-    return f"  {SETTERS[ev.output]}({ev.pin}, {'True' if ev.value else 'False'})"
+    return output_switch(ev.output, ev.pin, ev.value)
+
+
+def _deprecated(name: str, replacement: str) -> None:
+    warnings.warn(f"planner.export.script_text.{name} is deprecated and will be removed in the release after the "
+                  f"next one: {replacement}", DeprecationWarning, stacklevel=3)
 
 
 def initial_io(events) -> list[str]:
-    """Lines that switch off every output the events drive (before the motion starts)."""
+    """Deprecated (no program writer uses it since the single-pass pipeline went): lines that switch off every
+    output the events drive, made of :func:`output_switch`."""
+    _deprecated("initial_io", "use output_switch(kind, pin, False) for each output")
     chans = list(dict.fromkeys(e.event.channel for e in events))
     if not chans:
         return []
-    out = ["  # outputs the job drives start off"]
-    out += [f"  {SETTERS[o]}({p}, False)" for o, p in chans]
-    return out
+    return ["  # outputs the job drives start off"] + [output_switch(o, p, False) for o, p in chans]
+
+
+def __getattr__(name: str):
+    if name == "SETTERS":  # kind -> URScript setter, now a column of the UR output table
+        _deprecated("SETTERS", "use planner.kinematics.ur_outputs.UR_OUTPUTS[kind].script_setter")
+        return {k.name: k.script_setter for k in UR_OUTPUTS.values()}
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")

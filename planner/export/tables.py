@@ -20,8 +20,8 @@ JSON layout (one object; the keys come in this order, so a streaming parser meet
      "samples": [[t, x, y, z, rx, ry, rz, kind, move, pass, line(, q0..q5)(, io)], ...]}
 
 Poses are p[x, y, z, rx, ry, rz] of the TCP in the robot base frame (m, rotation vector, continuous over the
-job, so |r| may exceed pi); the joint columns come with a robot; ``io`` (the digital output bits, see
-:data:`planner.trajectory.IO_BIT_OFFSET`) when the job switches an output; ``pass`` is -1 on rapids, turns, dwells
+job, so |r| may exceed pi); the joint columns come with a robot; ``io`` (the digital output bits, the 18-bit word
+of :mod:`planner.kinematics.ur_outputs`) when the job switches an output; ``pass`` is -1 on rapids, turns, dwells
 and changes of the arm configuration; a dwell's rows (kind "dwell" in JSON and in ``moves``) repeat one pose while
 the time advances; ``line`` is the source line of the record the sample carries out (for
 waypoint arrays: the waypoint index).

@@ -12,8 +12,8 @@ Manual (e-Series, as the author knows it), and the program says so in its commen
 - ``movej(q, a, v)`` with a pose target solves the inverse kinematics on the controller.
 - ``movep(pose, a, v, r)``: linear moves at constant tool speed v (m/s), circular blends of radius r;
   statements after a blended move run when the blend starts.
-- ``set_tcp(pose)``; ``set_standard_digital_out(n, b)`` n 0..7, ``set_configurable_digital_out(n, b)``
-  n 0..7, ``set_tool_digital_out(n, b)`` n 0..1; booleans ``True``/``False``; ``#`` comments.
+- ``set_tcp(pose)``; the output setters of the UR output table (:mod:`planner.kinematics.ur_outputs`),
+  ``set_standard_digital_out(n, b)`` and the like; booleans ``True``/``False``; ``#`` comments.
 
 Numbers are written in fixed point with 12 decimals (no exponents), far below the robot's resolution.
 """

@@ -4,8 +4,8 @@ Per PH segment: :func:`er_frames` (Euler-Rodrigues), :func:`rmf_frames` (exact R
 (rational GRM frame, Peng et al. 2023). Jüttler's rational rotation-minimizing motions:
 :func:`rmm_arc`, :func:`ph_cubic_rmm`, :func:`ph_cubic_spline_rmm`, spherical biarcs and the exact
 RMM of a spherical curve. Sampled curves: :func:`double_reflection_frames`. Whole paths:
-:func:`frame_field` / :func:`path_frames` (continuous, closed, prescribed rolls) and
-:func:`tool_frames` (tool axis given by the CAD data).
+:func:`frame_field` / :func:`path_frames` (continuous, closed, prescribed rolls); :func:`tool_frames` (tool axis
+given by the CAD data) is deprecated: :func:`planner.cam.axis_field` replaces it.
 """
 
 from planner.frames.double_reflection import double_reflection_frames

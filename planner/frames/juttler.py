@@ -171,8 +171,62 @@ def spin_for_start(f0: np.ndarray, psi: np.ndarray | float, left: np.ndarray, ri
 # --------------------------------------------------------------------------------------------------
 # Motions
 # --------------------------------------------------------------------------------------------------
+class ArcMotion:
+    """What the exact and the rational RMM of an arc share: the frames, the angular velocity, the axis and the
+    arc angle, all from the kind's evaluation rule ``_eval`` (vectorized over arcs: :class:`PiecewiseArcMotion`
+    uses the same rule) applied to a stack of one arc.
+
+    Subclasses hold ``phi, psi, rho, w0, w1, left, right, axis_column`` and ``uniform`` (the axis turns by
+    t phi, eq. 9, rather than by the angle of R1, eq. 13), and give ``_stack(segments)`` (the arrays of
+    their arcs) and ``_eval(stack, idx, t)`` (quaternions (n, 4) and angular velocities (n, 3) of arcs
+    ``idx`` at t).
+    """
+
+    phi: float
+    psi: float
+    rho: float
+    w0: float
+    w1: float
+    uniform: bool = False
+    axis_column: int
+
+    @staticmethod
+    def _stack(segments) -> dict:
+        raise NotImplementedError
+
+    @staticmethod
+    def _eval(st: dict, idx: np.ndarray, t: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        raise NotImplementedError
+
+    def _at(self, t) -> tuple[np.ndarray, np.ndarray]:
+        """Quaternions (n, 4) and angular velocities (n, 3) at t (n,)."""
+        t = np.atleast_1d(finite_floats(t, "t"))
+        return self._eval(self._stack((self,)), np.zeros(t.shape, int), t)
+
+    def quaternion(self, t) -> np.ndarray:
+        """Quaternions (n, 4) of the frames at t (n,), signs continuous in t."""
+        return self._at(t)[0]
+
+    def frames(self, t) -> np.ndarray:
+        """Frames (n, 3, 3) at t (n,); column ``axis_column`` is the moving axis."""
+        return quaternion_to_matrix(self.quaternion(t))
+
+    def angular_velocity(self, t) -> np.ndarray:
+        """Angular velocity (n, 3) (rad per unit t) at t (n,): c x c' of the axis c (seed eqs. 5, 7, 11)."""
+        return self._at(t)[1]
+
+    def axis(self, t) -> np.ndarray:
+        """The moving axis c(t) (n, 3), a point of the arc."""
+        return self.frames(t)[:, :, self.axis_column]
+
+    def arc_angle(self, t) -> np.ndarray:
+        """Angle alpha(t) (n,) turned along the arc at t (rad): t phi (eq. 9) or the argument of R1 (eq. 13)."""
+        t = np.atleast_1d(finite_floats(t, "t"))
+        return _turned_angle(t, self.phi, self.w0, self.w1, self.uniform)[0]
+
+
 @dataclass(frozen=True, eq=False)
-class ExactArcMotion:
+class ExactArcMotion(ArcMotion):
     """The exact RMM of a circular arc on the unit sphere (seed eqs. 10, 11), in general position.
 
     Attributes
@@ -220,32 +274,9 @@ class ExactArcMotion:
         omega = np.einsum("nij,nj->ni", quaternion_to_matrix(left), w_std)
         return q, omega
 
-    def quaternion(self, t) -> np.ndarray:
-        """Unit quaternions (n, 4) of the frames at t (n,), signs continuous in t."""
-        t = np.atleast_1d(finite_floats(t, "t"))
-        return self._eval(self._stack((self,)), np.zeros(t.shape, int), t)[0]
-
-    def frames(self, t) -> np.ndarray:
-        """Frames (n, 3, 3) at t (n,); column ``axis_column`` is the moving axis."""
-        return quaternion_to_matrix(self.quaternion(t))
-
-    def angular_velocity(self, t) -> np.ndarray:
-        """Angular velocity (n, 3) (rad per unit t) at t (n,), seed eq. (11); equals c x c'."""
-        t = np.atleast_1d(finite_floats(t, "t"))
-        return self._eval(self._stack((self,)), np.zeros(t.shape, int), t)[1]
-
-    def axis(self, t) -> np.ndarray:
-        """The moving axis c(t) (n, 3) (the arc point)."""
-        return self.frames(t)[:, :, self.axis_column]
-
-    def arc_angle(self, t) -> np.ndarray:
-        """Angle alpha(t) (n,) turned along the arc at t (rad)."""
-        t = np.atleast_1d(finite_floats(t, "t"))
-        return _turned_angle(t, self.phi, self.w0, self.w1, self.uniform)[0]
-
 
 @dataclass(frozen=True, eq=False)
-class RationalArcMotion:
+class RationalArcMotion(ArcMotion):
     """Jüttler's rational RMM of a circular arc: R(t) = left * R1(t) * R2(t) * right (eqs. 13-15).
 
     R is a cubic quaternion polynomial (a rational motion of degree 6). Its axis moves exactly on the
@@ -298,24 +329,6 @@ class RationalArcMotion:
     def quaternion(self, t) -> np.ndarray:
         """The polynomial quaternion R(t) (n, 4) (not normalized; |R(0)| = w0^2, |R(1)| = w1^2)."""
         return bernstein.evaluate(self.coeffs, np.atleast_1d(finite_floats(t, "t")))
-
-    def frames(self, t) -> np.ndarray:
-        """Frames (n, 3, 3) at t (n,); column ``axis_column`` is the moving axis (on the arc)."""
-        return quaternion_to_matrix(self.quaternion(t))
-
-    def angular_velocity(self, t) -> np.ndarray:
-        """Angular velocity (n, 3) (rad per unit t): 2 vec(R' R*) / |R|^2 (seed eq. 7)."""
-        t = np.atleast_1d(finite_floats(t, "t"))
-        return self._eval(self._stack((self,)), np.zeros(t.shape, int), t)[1]
-
-    def axis(self, t) -> np.ndarray:
-        """The moving axis (n, 3); it traces the arc with the parameterization of seed eq. (16)."""
-        return self.frames(t)[:, :, self.axis_column]
-
-    def arc_angle(self, t) -> np.ndarray:
-        """Angle alpha(t) (n,) turned along the arc at t (rad), the argument of R1 (eq. 13)."""
-        t = np.atleast_1d(finite_floats(t, "t"))
-        return _turned_angle(t, self.phi, self.w0, self.w1, False)[0]
 
     def exact(self) -> ExactArcMotion:
         """The exact RMM of the same arc, same start frame and same parameterization of the axis."""

@@ -1,4 +1,9 @@
-"""Tool frames when the CAD data prescribes the tool axis (juttler seed, section 7.2).
+"""Deprecated: tool frames about prescribed tool axes by a C2 cubic axis spline (juttler seed, section 7.2).
+
+The pipeline does not use :func:`tool_frames` any more: tool frames about the axes a CAM file gives are
+:func:`planner.cam.axis_field` (monotone PCHIP axes that never overshoot the CAM vectors, exact rotation-minimizing
+spin; what ``planner.plan`` uses). ``tool_frames`` stays for the next release, unchanged, and warns
+(``DeprecationWarning``) naming that replacement on every call; it goes in the release after the next one.
 
 Spraying, gluing and deburring jobs give the tool axis at every waypoint (e.g. minus the surface
 normal), which leaves only the spin about it free. The axis field is interpolated smoothly on the unit
@@ -105,7 +110,7 @@ def _default_start(path, z0: np.ndarray) -> np.ndarray:
 
 
 def tool_frames(path, axes, method: str = "exact", *, start=None, tol: float = 1e-4) -> ToolFrames:
-    """Rotation-minimizing tool frames about a prescribed tool axis.
+    """Deprecated (use :func:`planner.cam.axis_field`): rotation-minimizing tool frames about a prescribed tool axis.
 
     Parameters
     ----------
@@ -130,6 +135,9 @@ def tool_frames(path, axes, method: str = "exact", *, start=None, tol: float = 1
     ToolAxisWarning
         An axis within 5 degrees of the direction of travel (naming the waypoint).
     """
+    warnings.warn("planner.frames.tool_frames is deprecated and will be removed in the release after the next one: "
+                  "use planner.cam.axis_field(path, axes, start) (monotone axes, exact rotation-minimizing spin; "
+                  "what planner.plan uses)", DeprecationWarning, stacklevel=2)
     has_path(path)
     if method not in METHODS:
         raise PlannerError(f"method must be one of {METHODS}, got {method!r}")

@@ -1,12 +1,16 @@
 """UR robot kinematics: models, forward and closed-form inverse kinematics, reachability checks.
 
 Poses are ``p[x, y, z, rx, ry, rz]`` (m, rotation vector) of the tool in the robot base frame;
-joint vectors are ``q[base, shoulder, elbow, wrist 1, wrist 2, wrist 3]`` in rad.
+joint vectors are ``q[base, shoulder, elbow, wrist 1, wrist 2, wrist 3]`` in rad. The package also owns what the
+simulated controller shares with the planner: pose <-> transform conversion (:mod:`planner.kinematics.poses`:
+``pose_to_matrix``, ``matrix_to_pose``, ``as_transform``) and the table of the controller's digital outputs
+(:mod:`planner.kinematics.ur_outputs`).
 """
 
 from planner.kinematics.errors import UnreachableError
-from planner.kinematics.forward import forward, forward_matrix, link_frames, matrix_to_pose, pose_to_matrix
+from planner.kinematics.forward import forward, forward_matrix, link_frames
 from planner.kinematics.inverse import IKSolutions, inverse, inverse_batch, inverse_nearest, inverse_path, wrap_angle
+from planner.kinematics.poses import as_transform, matrix_to_pose, pose_to_matrix
 from planner.kinematics.reachability import (
     ReachabilityReport,
     Violation,
@@ -27,6 +31,7 @@ __all__ = [
     "UnknownModelError",
     "UnreachableError",
     "Violation",
+    "as_transform",
     "check_poses",
     "check_reachability",
     "feed_scale",

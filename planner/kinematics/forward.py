@@ -10,13 +10,12 @@ from math import cos, sin
 
 import numpy as np
 
-from planner.errors import PlannerError
 from planner.kinematics._checks import rows_of_six, six_floats
-from planner.kinematics.rotvec import matrix_to_rotvec, matrix_to_rotvec_1, rotvec_to_matrix, rotvec_to_matrix_1
+from planner.kinematics.poses import frame_matrix, tcp_frame
 from planner.kinematics.ur_models import DH_COS_ALPHA, DH_SIN_ALPHA, URModel, get_model
-from planner.validation import as_floats, finite_floats
+from planner.rotations import matrix_to_rotvec_1, matrix_to_rotvec_n
 
-__all__ = ["forward", "forward_matrix", "link_frames", "pose_to_matrix", "matrix_to_pose"]
+__all__ = ["forward", "forward_matrix", "link_frames"]
 
 
 def dh_link(theta: np.ndarray, d: float, a: float, sin_alpha: float, cos_alpha: float) -> np.ndarray:
@@ -32,47 +31,6 @@ def dh_link(theta: np.ndarray, d: float, a: float, sin_alpha: float, cos_alpha: 
         zero, zero, zero, one,
     )
     return np.stack(rows, axis=-1).reshape(theta.shape + (4, 4))
-
-
-def pose_to_matrix(pose) -> np.ndarray:
-    """Homogeneous transform(s) of UR pose(s).
-
-    Parameters
-    ----------
-    pose : array_like, shape (6,) or (n, 6)
-        ``[x, y, z, rx, ry, rz]`` in m and rad (rotation vector).
-
-    Returns
-    -------
-    ndarray, shape (4, 4) or (n, 4, 4)
-    """
-    one = six_floats(pose, "pose")
-    if one is not None:  # one pose on Python floats: the same operations, identical results
-        return frame_matrix(*pose_frame_1(one))
-    arr, single = rows_of_six(pose, "pose")
-    T = np.zeros((len(arr), 4, 4))
-    T[:, :3, :3] = rotvec_to_matrix(arr[:, 3:])
-    T[:, :3, 3] = arr[:, :3]
-    T[:, 3, 3] = 1.0
-    return T[0] if single else T
-
-
-def matrix_to_pose(T) -> np.ndarray:
-    """UR pose(s) ``[x, y, z, rx, ry, rz]`` of homogeneous transform(s) (4, 4) or (n, 4, 4).
-
-    The rotation vector has angle in [0, pi] (scipy's convention).
-    """
-    T = as_floats(T, "transform")
-    if T.shape[-2:] != (4, 4) or T.ndim not in (2, 3):
-        raise PlannerError(f"transform: expected shape (4, 4) or (n, 4, 4), got {T.shape}")
-    T = finite_floats(T, "transform")
-    if T.ndim == 2:  # one transform on Python floats: the same operations, identical results
-        (r00, r01, r02, x), (r10, r11, r12, y), (r20, r21, r22, z) = T[:3].tolist()
-        return np.array([x, y, z, *matrix_to_rotvec_1(r00, r01, r02, r10, r11, r12, r20, r21, r22)])
-    pose = np.empty((len(T), 6))
-    pose[:, :3] = T[:, :3, 3]
-    pose[:, 3:] = matrix_to_rotvec(np.ascontiguousarray(T[:, :3, :3]))
-    return pose
 
 
 def link_frames(model: str | URModel, q) -> np.ndarray:
@@ -188,26 +146,6 @@ def invert_1(R, p) -> tuple[tuple[float, ...], tuple[float, ...]]:
     return Rt, tuple(-(R[i] * p[0] + R[i + 3] * p[1] + R[i + 6] * p[2]) for i in (0, 1, 2))
 
 
-def pose_frame_1(pose) -> tuple[tuple[float, ...], tuple[float, ...]]:
-    """Rotation (9 entries row by row) and position of one validated pose (6 floats)."""
-    return rotvec_to_matrix_1(pose[3], pose[4], pose[5]), (pose[0], pose[1], pose[2])
-
-
-def tcp_frame(tcp) -> tuple[tuple[float, ...], tuple[float, ...]] | None:
-    """The TCP offset (a pose in the flange frame) as (rotation entries, position), None for no offset."""
-    if tcp is None:
-        return None
-    vals = six_floats(tcp, "tcp")
-    if vals is None:
-        raise PlannerError(f"tcp: expected one pose of shape (6,), got shape {np.shape(tcp)}")
-    return pose_frame_1(vals)
-
-
-def frame_matrix(R, p) -> np.ndarray:
-    """Homogeneous transform (4, 4) of a rotation (9 entries row by row) and an origin (3)."""
-    return np.array([[R[0], R[1], R[2], p[0]], [R[3], R[4], R[5], p[1]], [R[6], R[7], R[8], p[2]], [0, 0, 0, 1.0]])
-
-
 def _tool_frames(m: URModel, q: np.ndarray, tcp) -> tuple[np.ndarray, np.ndarray]:
     R, p = flange_rp(m, q)
     frame = tcp_frame(tcp)
@@ -275,5 +213,5 @@ def forward(model: str | URModel, q, tcp=None) -> np.ndarray:
     R, p = _tool_frames(m, q, tcp)
     pose = np.empty((len(q), 6))
     pose[:, :3] = p
-    pose[:, 3:] = matrix_to_rotvec(R)
+    pose[:, 3:] = matrix_to_rotvec_n(R)
     return pose

@@ -47,17 +47,9 @@ import numpy as np
 from planner.errors import PlannerError
 from planner.kinematics._checks import rows_of_six, six_floats
 from planner.kinematics.errors import UnreachableError
-from planner.kinematics.forward import (
-    compose,
-    compose_1,
-    flange_rp,
-    frame_matrix,
-    invert_1,
-    pose_frame_1,
-    pose_to_matrix,
-    tcp_frame,
-)
+from planner.kinematics.forward import compose, compose_1, flange_rp, invert_1
 from planner.kinematics.inverse_one import solve_one
+from planner.kinematics.poses import frame_matrix, pose_frame_1, pose_matrices_n, tcp_frame
 from planner.kinematics.ur_models import URModel, get_model
 from planner.validation import as_floats
 
@@ -121,7 +113,7 @@ class IKSolutions:
 
 def _flange_targets(m: URModel, poses: np.ndarray, tcp) -> np.ndarray:
     """Flange transforms (n, 4, 4) of validated tool poses (n, 6): T_tool T_tcp^-1."""
-    T = pose_to_matrix(poses)
+    T = pose_matrices_n(poses)
     frame = tcp_frame(tcp)
     if frame is not None:
         T[:, :3, :3], T[:, :3, 3] = compose(T[:, :3, :3], T[:, :3, 3], *invert_1(*frame))

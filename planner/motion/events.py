@@ -14,10 +14,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from planner.kinematics.ur_outputs import OUTPUT_PINS
 from planner.motion.limits import MotionInputError, nonnegative, real
-
-#: Digital outputs per kind on a UR e-Series controller: 8 standard (DO0..7), 8 configurable, 2 tool.
-OUTPUT_PINS = {"standard": 8, "configurable": 8, "tool": 2}
 
 
 class IOEventWarning(UserWarning):

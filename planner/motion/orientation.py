@@ -31,7 +31,7 @@ class FrameOrientation:
     """Tool frames from a frame provider with ``frames(u)`` and ``at_length(s)`` (n, 3, 3).
 
     Works with :func:`planner.frames.path.frame_field` (column 0 the unit tangent) and
-    :func:`planner.frames.tool.tool_frames` (column 2 the tool axis already).
+    :func:`planner.cam.axis_field` (column 2 the tool axis already).
 
     Attributes
     ----------
@@ -110,7 +110,7 @@ class FrameOrientation:
 def tool_orientation(provider, z_column: int = 2, flip: bool = False) -> FrameOrientation:
     """Orientation callable of a frame provider; see :class:`FrameOrientation`.
 
-    For ``tool_frames(path, axes)`` keep the default (column 2 is the tool axis). For a path frame
+    For ``axis_field(path, axes)`` keep the default (column 2 is the tool axis). For a path frame
     field (column 0 the tangent, columns 1 and 2 the rotation-minimizing normals) choose the normal
     the tool points along, e.g. ``tool_orientation(frame_field(path), z_column=2)``.
     """

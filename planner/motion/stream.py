@@ -7,39 +7,32 @@ frame (base transform) -> pose p[x, y, z, rx, ry, rz] with a continuous rotation
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass, field
 from functools import cached_property
 
 import numpy as np
 
 from planner import quaternion as qt
+from planner.kinematics.poses import as_transform, matrix_to_pose
 from planner.motion.evaluator import evaluator_for, span_bounds
 from planner.motion.events import ScheduledEvent, io_states, schedule_events
 from planner.motion.limits import MotionInputError, finite_array, positive
 from planner.motion.profile import FeedProfile
 from planner.motion.rotvec import continuous_rotvec, rotvec_from_quaternions
-from planner.rotations import matrix_to_quaternion, quaternion_to_matrix, rotvec_to_matrix
+from planner.rotations import matrix_to_quaternion, quaternion_to_matrix
+from planner.validation import ArgumentError
 
 #: Controller rates of UR robots: e-Series 500 Hz, CB-Series 125 Hz.
 RATES = (500.0, 125.0)
 
 
-def as_transform(value, name: str) -> np.ndarray:
-    """A rigid transform (4, 4) from a UR pose (6,) [x, y, z, rx, ry, rz] or a matrix (4, 4)."""
-    if value is None:
-        return np.eye(4)
-    a = finite_array(value, name)
-    if a.shape == (6,):
-        T = np.eye(4)
-        T[:3, :3] = rotvec_to_matrix(a[3:])
-        T[:3, 3] = a[:3]
-        return T
-    if a.shape != (4, 4):
-        raise MotionInputError(name, f"must be a pose (6,) [x, y, z, rx, ry, rz] or a matrix (4, 4), got {a.shape}")
-    R = a[:3, :3]
-    if np.abs(R.T @ R - np.eye(3)).max() > 1e-9 or np.linalg.det(R) < 0 or np.any(a[3] != [0, 0, 0, 1]):
-        raise MotionInputError(name, "must be a rigid transform: orthonormal rotation, det +1, last row 0 0 0 1")
-    return a.copy()
+def _transform(value, name: str) -> np.ndarray:
+    """:func:`planner.kinematics.poses.as_transform`, its refusal a MotionInputError naming ``name``."""
+    try:
+        return as_transform(value, name)
+    except ArgumentError as exc:
+        raise MotionInputError(exc.argument, exc.detail) from None
 
 
 #: Highest sampling rate of a pose stream, Hz (controllers run at 125-500 Hz; beyond this it is a mistake).
@@ -53,10 +46,10 @@ def _check_path(path) -> None:
 
 
 def transform_to_pose(T: np.ndarray) -> np.ndarray:
-    """UR pose (6,) of a rigid transform (4, 4), rotation angle in [0, pi]."""
-    T = finite_array(T, "T", (4, 4))
-    r, _ = continuous_rotvec(T[None, :3, :3])
-    return np.concatenate((T[:3, 3], r[0]))
+    """Deprecated: :func:`planner.kinematics.matrix_to_pose` (the same pose, for one transform or n)."""
+    warnings.warn("planner.motion.transform_to_pose is deprecated and will be removed in the release after the next "
+                  "one: use planner.kinematics.matrix_to_pose", DeprecationWarning, stacklevel=2)
+    return matrix_to_pose(T)
 
 
 @dataclass(frozen=True, eq=False)
@@ -113,7 +106,7 @@ class PoseStream:
     @property
     def tcp_pose(self) -> np.ndarray:
         """The TCP offset as a UR pose (6,) in the flange frame."""
-        return transform_to_pose(self.tcp)
+        return matrix_to_pose(self.tcp)
 
     @cached_property
     def flange_poses(self) -> np.ndarray:
@@ -194,7 +187,7 @@ def sample_poses(
         raise MotionInputError("chunk", f"must be an integer >= 16, got {chunk!r}")
     if inversion not in ("fast", "path"):
         raise MotionInputError("inversion", f"must be 'fast' or 'path', got {inversion!r}")
-    Tt, Tb = as_transform(tcp, "tcp"), as_transform(base, "base")
+    Tt, Tb = _transform(tcp, "tcp"), _transform(base, "base")
     Rb, pb = Tb[:3, :3], Tb[:3, 3]
     turn = not np.array_equal(Rb, np.eye(3))
     qb = matrix_to_quaternion(Rb[None])
@@ -266,7 +259,7 @@ def poses_at_length(path, orientation, s, *, base=None) -> tuple[np.ndarray, np.
     if not (callable(orientation) or hasattr(orientation, "at_parameter")):
         raise MotionInputError("orientation",
                                f"must be a callable s -> (n, 3, 3) frames, got {type(orientation).__name__}")
-    Tb = as_transform(base, "base")
+    Tb = _transform(base, "base")
     if hasattr(path, "sigma_coeffs"):
         ev = evaluator_for(path)
         k, t = ev.locate(s)
