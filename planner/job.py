@@ -2,17 +2,14 @@
 
 :func:`planner.plan` returns a :class:`PlannedJob`. Its :meth:`~PlannedJob.trajectory` is the one stream
 that every consumer reads (exports, plot, drivers, simulator, service), produced lazily move by move; a job
-saves to a compact versioned file (:meth:`PlannedJob.save`) and loads back (:func:`load_job`) to the
-identical trajectory, so a service stores plans, not millions of poses.
+saves to a compact versioned file (:meth:`PlannedJob.save`, the layout in :mod:`planner.jobfile`) and loads
+back (:func:`load_job`) to the identical trajectory, so a service stores plans, not millions of poses.
 """
 
 from __future__ import annotations
 
-import gzip
-import io
 import math
 import os
-import pickle
 from dataclasses import dataclass, field
 from pathlib import Path as FilePath
 from typing import TYPE_CHECKING
@@ -24,6 +21,9 @@ from planner.cam.moves import Reconfiguration
 from planner.cam.passes import CutPass, Dwell, RapidMove, Reorientation, Segmentation, Skipped
 from planner.errors import PlannerError
 from planner.io.toolpath import Toolpath
+from planner.jobfile import VERSION, StoredType, dump, load
+from planner.jobfile.codec import Arr, Bool, Int, Json, Map, Opt, Ref, Seq, Str
+from planner.jobfile.types import CORE_TYPES, FRAME, LINE, NAN, VEC3, need
 from planner.motion.profile import FeedProfile
 from planner.protocols import FrameField, Path
 from planner.settings import PlanSettings
@@ -35,9 +35,13 @@ if TYPE_CHECKING:
 
 #: What a move carries out: a record of the file, or a change of the arm configuration the planner adds.
 MoveItem = CutPass | RapidMove | Reorientation | Dwell | Skipped | Reconfiguration
-#: Version of the saved-job format (:meth:`PlannedJob.save`); a file of another version is refused.
-JOB_FILE_VERSION = 1
-_MAGIC = b"planner-job\n"
+#: Version of the saved-job format (:meth:`PlannedJob.save`, :mod:`planner.jobfile`).
+JOB_FILE_VERSION = VERSION
+#: Move kinds and what each carries out.
+MOVE_ITEMS = {"cut": "CutPass", "rapid": "RapidMove", "reorientation": "Reorientation",
+              "reconfiguration": "Reconfiguration", "dwell": "Dwell", "skipped": "Skipped"}
+#: The largest trajectory (poses) a saved job may describe: the largest ``max_poses`` a job is planned with.
+MAX_SAVED_POSES = 1e12
 
 
 @dataclass(frozen=True)
@@ -119,6 +123,23 @@ class PassReport:
     max_twist_deg: float = math.nan
     max_waypoint_error: float = 0.0
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"index": self.index, "operation": self.operation, "first_line": self.first_line,
+                "last_line": self.last_line, "points": self.points, "length": self.length,
+                "max_deviation": self.max_deviation, "max_axis_error_deg": self.max_axis_error_deg,
+                "max_axis_departure_deg": self.max_axis_departure_deg, "knots_added": self.knots_added,
+                "start_reason": self.start_reason, "end_reason": self.end_reason,
+                "start_corner_deg": self.start_corner_deg, "duration": self.duration, "spin_deg": self.spin_deg,
+                "slerp_spin_deg": self.slerp_spin_deg, "planning_time": self.planning_time, "merged": self.merged,
+                "reachable": self.reachable, "reach_message": self.reach_message, "feed_caps": self.feed_caps,
+                "max_twist_deg": self.max_twist_deg, "max_waypoint_error": self.max_waypoint_error}
+
+    @classmethod
+    def from_state(cls, state: dict) -> PassReport:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
 
 @dataclass(frozen=True, eq=False)
 class PlannedMove:
@@ -160,6 +181,17 @@ class PlannedMove:
     point: np.ndarray
     pass_index: int = -1
     fit: PassFit | None = None
+
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"kind": self.kind, "item": self.item, "path": self.path, "frames": self.frames,
+                "profile": self.profile, "start_frame": self.start_frame, "end_frame": self.end_frame,
+                "point": self.point, "pass_index": self.pass_index, "fit": self.fit}
+
+    @classmethod
+    def from_state(cls, state: dict) -> PlannedMove:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
 
     @property
     def duration(self) -> float:
@@ -230,6 +262,20 @@ class PlannedJob:
     start_note: str = ""
     warnings: tuple = ()
     placement: Placement | None = None
+
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`); the settings as their JSON
+        object (:meth:`PlanSettings.to_dict`)."""
+        return {"source": self.source, "settings": self.settings.to_dict(), "toolpath": self.toolpath,
+                "segmentation": self.segmentation, "moves": self.moves, "passes": self.passes,
+                "timings": self.timings, "problems": self.problems, "slowed": self.slowed,
+                "start_joints": self.start_joints, "start_note": self.start_note, "warnings": self.warnings,
+                "placement": self.placement}
+
+    @classmethod
+    def from_state(cls, state: dict) -> PlannedJob:
+        """The job from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**{**state, "settings": PlanSettings.from_dict(state["settings"])})
 
     # -- figures -------------------------------------------------------------------------------
     @property
@@ -437,15 +483,14 @@ class PlannedJob:
     def save(self, target) -> int:
         """Write the planned job to ``target`` (a path; written atomically) and return its size in bytes.
 
-        The file is versioned (:data:`JOB_FILE_VERSION`) and holds the whole plan (paths, frames, time
-        laws, arm configurations), compressed: :func:`load_job` gives back a job whose trajectory and
-        exports are identical, byte for byte, without planning again. It is Python's pickle format: load
-        only files this service wrote (never a file from an untrusted source).
+        The file (:mod:`planner.jobfile`: named arrays and a JSON manifest, format version
+        :data:`JOB_FILE_VERSION`) holds the whole plan (paths, frames, time laws, arm configurations, reports):
+        :func:`load_job` gives back a job whose trajectory and exports are identical, byte for byte, without
+        planning again. It holds data only: reading one from anyone runs no code.
         """
-        data = pickle.dumps(self, protocol=pickle.HIGHEST_PROTOCOL)
-        blob = _MAGIC + JOB_FILE_VERSION.to_bytes(2, "big") + gzip.compress(data, compresslevel=6, mtime=0)
         from planner.export.files import write_bytes_atomic
 
+        blob = dump(self, JOB_TYPES)
         write_bytes_atomic(FilePath(target), blob)
         return len(blob)
 
@@ -453,23 +498,66 @@ class PlannedJob:
 def load_job(source) -> PlannedJob:
     """A job saved by :meth:`PlannedJob.save` (a path, or the file's bytes).
 
-    Raises PlannerError when the file is not a saved job or is of another format version.
+    Raises PlannerError (one line naming the file) when the file is not a saved job, is of the former pickle
+    format (plan the job again), of another format version, or damaged.
     """
     raw = isinstance(source, bytes | bytearray | memoryview)
-    blob = bytes(source) if raw else FilePath(os.fspath(source)).read_bytes()
-    name = "the data" if raw else str(source)
-    if not blob.startswith(_MAGIC) or len(blob) < len(_MAGIC) + 2:
-        raise PlannerError(f"{name}: not a saved planner job")
-    version = int.from_bytes(blob[len(_MAGIC):len(_MAGIC) + 2], "big")
-    if version != JOB_FILE_VERSION:
-        raise PlannerError(f"{name}: saved job format version {version}, this planner reads version {JOB_FILE_VERSION}")
-    try:
-        job = pickle.load(io.BytesIO(gzip.decompress(blob[len(_MAGIC) + 2:])))
-    except Exception as exc:  # a truncated or corrupted file
-        raise PlannerError(f"{name}: the saved job is damaged ({type(exc).__name__})") from None
-    if not isinstance(job, PlannedJob):
-        raise PlannerError(f"{name}: not a saved planner job")
-    return job
+    name = "the data" if raw else str(os.fspath(source)) if isinstance(source, str | os.PathLike) else None
+    if name is None:
+        raise PlannerError(f"load_job takes a path or the file's bytes, got {type(source).__name__}")
+    return load(source, JOB_TYPES, "PlannedJob", name)
+
+
+def _check_move(s: dict) -> None:
+    kind, item = s["kind"], s["item"]
+    need(type(item).__name__ == MOVE_ITEMS[kind], f"a {kind} move carries out a {MOVE_ITEMS[kind]}")
+    moving = kind in ("cut", "rapid")
+    need(not moving or (s["path"] is not None and s["frames"] is not None and s["profile"] is not None),
+         f"a {kind} move needs its path, frames and profile")
+    need(kind != "cut" or type(s["frames"]).__name__ in ("AxisField", "PathToolField"), "a cut's frames are a field")
+    need(kind not in ("rapid", "reorientation") or type(s["frames"]).__name__ == "TurningFrames",
+         f"a {kind}'s frames turn")
+    need(kind != "reconfiguration" or s["profile"] is not None, "a reconfiguration needs its profile")
+    need(kind != "reconfiguration" or s["profile"].length == 1.0, "a reconfiguration's profile runs over [0, 1]")
+    need(not moving or s["frames"].path is s["path"], f"a {kind}'s frames must be on its path")
+
+
+def _check_job(s: dict) -> None:
+    settings = PlanSettings.from_dict(s["settings"])
+    settings.checked()  # names the first bad setting; the job keeps them as saved
+    moves = s["moves"]
+    rate = float(settings.rate)
+    samples = sum(math.ceil(m.duration * rate) for m in moves)
+    need(samples <= MAX_SAVED_POSES, f"the trajectory would be {samples:.3g} poses (at most {MAX_SAVED_POSES:g})")
+    passes = {c.index for c in s["segmentation"].passes}
+    for m in moves:
+        if m.kind == "reconfiguration":
+            need(settings.robot is not None, "a change of arm configuration needs a robot")
+            need(m.item.pass_index in passes and m.item.passes[-1] in passes,
+                 f"a change of arm configuration for pass {m.item.pass_index}, which the job does not have")
+    need(s["start_joints"] is None or settings.robot is not None, "start joints without a robot")
+
+
+#: The stored types of a saved job: the core's (:mod:`planner.jobfile.types`) and the job's own.
+JOB_TYPES = {**{t.name: t for t in (
+    StoredType("PlannedJob", PlannedJob, {
+        "source": Str(), "settings": Json(depth=2), "toolpath": Ref("Toolpath"), "segmentation": Ref("Segmentation"),
+        "moves": Seq(Ref("PlannedMove")), "passes": Seq(Ref("PassReport")), "timings": Map(NAN),
+        "problems": Seq(Str()), "slowed": Seq(Str()), "start_joints": Opt(Arr("f8", (6,))), "start_note": Str(),
+        "warnings": Seq(Str()), "placement": Opt(Ref("Placement"))}, check=_check_job),
+    StoredType("PlannedMove", PlannedMove, {
+        "kind": Str(tuple(MOVE_ITEMS)), "item": Ref(*MOVE_ITEMS.values()), "path": Opt(Ref("PHSpline")),
+        "frames": Opt(Ref("AxisField", "TurningFrames", "PathToolField")), "profile": Opt(Ref("FeedProfile")),
+        "start_frame": FRAME, "end_frame": FRAME, "point": VEC3, "pass_index": Int(-1), "fit": Opt(Ref("PassFit"))},
+        check=_check_move),
+    StoredType("PassReport", PassReport, {
+        "index": Int(0), "operation": Str(), "first_line": LINE, "last_line": LINE, "points": Int(0),
+        "length": NAN, "max_deviation": NAN, "max_axis_error_deg": NAN, "max_axis_departure_deg": NAN,
+        "knots_added": Int(0), "start_reason": Str(), "end_reason": Str(), "start_corner_deg": NAN,
+        "duration": NAN, "spin_deg": NAN, "slerp_spin_deg": NAN, "planning_time": NAN, "merged": Int(0),
+        "reachable": Opt(Bool()), "reach_message": Str(), "feed_caps": Seq(Ref("CapWindow")),
+        "max_twist_deg": NAN, "max_waypoint_error": NAN}),
+)}, **CORE_TYPES}
 
 
 def _seconds(t: float) -> str:

@@ -100,15 +100,16 @@ def test_saved_job_loads_back_to_identical_exports(job, tmp_path):
 
 
 def test_damaged_or_foreign_job_files_are_refused(job, tmp_path):
+    """(The saved-job file's refusals in full: tests/test_jobfile.py.)"""
     f = tmp_path / "head.job"
     job.save(f)
     blob = f.read_bytes()
     (tmp_path / "cut.job").write_bytes(blob[: len(blob) // 2])
     with pytest.raises(PlannerError, match="cut.job: the saved job is damaged"):
         load_job(tmp_path / "cut.job")
-    (tmp_path / "v9.job").write_bytes(blob[:12] + (9).to_bytes(2, "big") + blob[14:])
-    with pytest.raises(PlannerError, match="saved job format version 9, this planner reads version 1"):
-        load_job(tmp_path / "v9.job")
+    (tmp_path / "v1.job").write_bytes(b"planner-job\n" + (1).to_bytes(2, "big") + bytes(20))
+    with pytest.raises(PlannerError, match="v1.job: a saved job in the former pickle format"):
+        load_job(tmp_path / "v1.job")
     (tmp_path / "other.job").write_text("GOTO/1,2,3\n")
     with pytest.raises(PlannerError, match="other.job: not a saved planner job"):
         load_job(tmp_path / "other.job")

@@ -25,6 +25,7 @@ from __future__ import annotations
 
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 
 import numpy as np
 from scipy.interpolate import PchipInterpolator
@@ -106,19 +107,38 @@ class AxisField:
         The pass's path (``waypoint_knots`` are the CAM points).
     axes : ndarray (m, 3)
         Tool approach axis at the CAM points (unit).
-    interpolant : PchipInterpolator or None
-        The unnormalized axis c(u) (None when the axis is constant over the pass).
     motion : SpinTable or None
-        The rotation-minimizing motion of z(u) = c(u) / |c(u)| (None when the axis is constant).
+        The rotation-minimizing motion of z(u) = c(u) / |c(u)|, c the PCHIP of the axes over the CAM points'
+        parameters (:class:`UnitAxis`); None when the axis is constant over the pass.
     start : ndarray (3, 3)
         Frame at the start of the pass.
     """
 
     path: Path
     axes: np.ndarray
-    interpolant: Callable[..., np.ndarray] | None
     motion: SpinTable | None
     start: np.ndarray
+
+    @property
+    def interpolant(self) -> Callable[..., np.ndarray] | None:
+        """The unnormalized axis c(u), a PchipInterpolator (None when the axis is constant over the pass)."""
+        z = None if self.motion is None else self.motion.z
+        return z.c if isinstance(z, UnitAxis) else None
+
+    def to_state(self) -> dict:
+        """The data of the field, for the saved-job file (:mod:`planner.jobfile`): the axis functions are not
+        data, they are built from the path's CAM-point parameters and the axes (:meth:`from_state`)."""
+        return {"path": self.path, "axes": self.axes, "start": self.start,
+                "motion": None if self.motion is None else self.motion.to_state()}
+
+    @classmethod
+    def from_state(cls, state: dict) -> AxisField:
+        """The field from :meth:`to_state` fields read back: the spin table about the axis :func:`axis_field`
+        interpolates (the PCHIP of the axes over ``path.waypoint_knots``, built when first evaluated)."""
+        path, axes, motion = state["path"], state["axes"], state["motion"]
+        if motion is not None:
+            motion = SpinTable.from_state(motion, UnitAxis(path.waypoint_knots, axes))
+        return cls(path, axes, motion, state["start"])
 
     def axis(self, u) -> np.ndarray:
         """Tool axis (n, 3) at path parameters u (n,)."""
@@ -184,6 +204,18 @@ class SpinTable(PieceBasedRMM):
     """
 
     coeffs: np.ndarray
+
+    def to_state(self) -> dict:
+        """The table's arrays, for the saved-job file (:mod:`planner.jobfile`); z and dz are the owner's (not
+        data: :meth:`AxisField.from_state` rebuilds them)."""
+        return {"pieces": self.pieces, "bases": self.bases, "base_quaternions": self.base_quaternions,
+                "panels": self.panels, "panel_piece": self.panel_piece, "spin_start": self.spin_start,
+                "coeffs": self.coeffs}
+
+    @classmethod
+    def from_state(cls, state: dict, z: UnitAxis) -> SpinTable:
+        """The table from :meth:`to_state` fields read back, about the unit axis ``z`` (its ``dz`` the derivative)."""
+        return cls(z, z.dz, **state)
 
     def spin(self, u) -> np.ndarray:
         """theta(u) (n,), radians, relative to the base frame of u's piece."""
@@ -285,21 +317,28 @@ def axis_field(path, axes, start=None) -> AxisField:
     else:
         F0 = transport(np.asarray(start, dtype=float), a[0])
     if np.ptp(a, axis=0).max() == 0.0:
-        return AxisField(path, a, None, None, F0)
-    c = PchipInterpolator(u, a, axis=0)
-    dc = c.derivative()
-
-    z = UnitAxis(c, dc)
-    return AxisField(path, a, c, _rmm(z, z.dz, u, F0), F0)
+        return AxisField(path, a, None, F0)
+    z = UnitAxis(u, a)
+    return AxisField(path, a, _rmm(z, z.dz, u, F0), F0)
 
 
 @dataclass(frozen=True, eq=False)
 class UnitAxis:
-    """The unit tool axis z(u) = c(u) / |c(u)| of an interpolant c and its derivative dz/du (a module-level
-    callable, so that planned jobs pickle)."""
+    """The unit tool axis z(u) = c(u) / |c(u)| and its derivative dz/du, c the PCHIP of unit axes (m, 3) over
+    parameters u (m,) (component by component, see the module docstring; built when first evaluated)."""
 
-    c: Callable[..., np.ndarray]
-    dc: Callable[..., np.ndarray]
+    u: np.ndarray
+    axes: np.ndarray
+
+    @cached_property
+    def c(self) -> PchipInterpolator:
+        """The unnormalized axis c(u)."""
+        return PchipInterpolator(self.u, self.axes, axis=0)
+
+    @cached_property
+    def dc(self) -> PchipInterpolator:
+        """dc/du."""
+        return self.c.derivative()
 
     def __call__(self, x) -> np.ndarray:
         return _unit(self.c(np.asarray(x, dtype=float)))

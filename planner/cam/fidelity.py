@@ -77,6 +77,17 @@ class PassFit:
     straight_chords: int
     rounds: int
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"path": self.path, "points": self.points, "max_deviation": self.max_deviation,
+                "span_deviation": self.span_deviation, "knots_added": self.knots_added,
+                "straight_chords": self.straight_chords, "rounds": self.rounds}
+
+    @classmethod
+    def from_state(cls, state: dict) -> PassFit:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
 
 def _unit(v: np.ndarray) -> np.ndarray:
     n = np.linalg.norm(v, axis=-1, keepdims=True)

@@ -50,6 +50,15 @@ class TurningFrames:
     angle: float
     span: float
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"path": self.path, "start": self.start, "n": self.n, "angle": self.angle, "span": self.span}
+
+    @classmethod
+    def from_state(cls, state: dict) -> TurningFrames:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
     def frames(self, x) -> np.ndarray:
         x = np.atleast_1d(np.asarray(x, dtype=float))
         if self.angle == 0.0:
@@ -133,6 +142,17 @@ class Reconfiguration:
     tcp_excursion: float = 0.0
 
     kind = "reconfiguration"
+
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"q_from": self.q_from, "q_to": self.q_to, "point": self.point, "line": self.line,
+                "pass_index": self.pass_index, "passes": self.passes, "reason": self.reason, "change": self.change,
+                "where": self.where, "tcp_excursion": self.tcp_excursion}
+
+    @classmethod
+    def from_state(cls, state: dict) -> Reconfiguration:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
 
     def joints(self, fraction) -> np.ndarray:
         """Joint positions (n, 6) at fractions (n,) of the move (0: q_from, 1: q_to)."""

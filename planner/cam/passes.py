@@ -100,6 +100,19 @@ class CutPass:
 
     kind = "cut"
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"index": self.index, "points": self.points, "axes": self.axes, "axis_given": self.axis_given,
+                "feeds": self.feeds, "lines": self.lines, "source_index": self.source_index,
+                "operation": self.operation, "tool": self.tool, "start_reason": self.start_reason,
+                "end_reason": self.end_reason, "start_corner_deg": self.start_corner_deg,
+                "end_corner_deg": self.end_corner_deg, "merged": self.merged}
+
+    @classmethod
+    def from_state(cls, state: dict) -> CutPass:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
     def __len__(self) -> int:
         return self.points.shape[0]
 
@@ -153,6 +166,16 @@ class RapidMove:
 
     kind = "rapid"
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"start": self.start, "end": self.end, "start_axis": self.start_axis, "end_axis": self.end_axis,
+                "line": self.line, "source_index": self.source_index, "reason": self.reason}
+
+    @classmethod
+    def from_state(cls, state: dict) -> RapidMove:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
     @property
     def length(self) -> float:
         return float(np.linalg.norm(self.end - self.start))
@@ -183,6 +206,16 @@ class Reorientation:
 
     kind = "reorientation"
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"point": self.point, "axis_from": self.axis_from, "axis_to": self.axis_to, "line": self.line,
+                "reason": self.reason}
+
+    @classmethod
+    def from_state(cls, state: dict) -> Reorientation:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
     @property
     def angle(self) -> float:
         """Angle turned, radians."""
@@ -212,6 +245,15 @@ class Dwell:
 
     kind = "dwell"
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"point": self.point, "seconds": self.seconds, "line": self.line, "name": self.name}
+
+    @classmethod
+    def from_state(cls, state: dict) -> Dwell:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
 
 @dataclass(frozen=True, eq=False)
 class Skipped:
@@ -233,6 +275,15 @@ class Skipped:
     reason: str
 
     kind = "skipped"
+
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"point": self.point, "first_line": self.first_line, "last_line": self.last_line, "reason": self.reason}
+
+    @classmethod
+    def from_state(cls, state: dict) -> Skipped:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
 
 
 @dataclass(frozen=True, eq=False)
@@ -258,6 +309,16 @@ class Segmentation:
     axis_jump_deg: float
     source: str = "<toolpath>"
     counts: dict = field(default_factory=dict)
+
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"moves": self.moves, "corners": self.corners, "corner_deg": self.corner_deg,
+                "axis_jump_deg": self.axis_jump_deg, "source": self.source, "counts": self.counts}
+
+    @classmethod
+    def from_state(cls, state: dict) -> Segmentation:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
 
     @property
     def passes(self) -> tuple[CutPass, ...]:

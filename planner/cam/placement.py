@@ -85,6 +85,17 @@ class Placement:
     ratings: int
     seconds: float
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"part_frame": self.part_frame, "singularity_margin": self.singularity_margin,
+                "joint_margin": self.joint_margin, "factors": self.factors, "branch": self.branch, "poses": self.poses,
+                "ratings": self.ratings, "seconds": self.seconds}
+
+    @classmethod
+    def from_state(cls, state: dict) -> Placement:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
     @property
     def option(self) -> str:
         """The frame as the CLI's ``--part-frame`` value (um and urad resolution)."""
@@ -156,7 +167,7 @@ class _Rater:
         cx, cy, cz = self.centre
         t = (r - (c * cx - s * cy), -(s * cx + c * cy), h - cz)
         th = math.atan2(s, c)
-        return (t[0], t[1], t[2], 0.0, 0.0, th)
+        return tuple(float(v) for v in (t[0], t[1], t[2], 0.0, 0.0, th))  # plain floats (JSON, reprs)
 
     def rate(self, cands, detail: bool = False):
         """Ratings (C,) of candidates (C, 3) = (r, h, theta); with ``detail`` also the best branch (C,), its

@@ -67,6 +67,16 @@ class PHSpline(PiecewiseLength):
         inserted extra knots, as the PH cubic spline does where a span admits no PH cubic)."""
         return self.knots if self.waypoint_index is None else self.knots[self.waypoint_index]
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"A": self.A, "starts": self.starts, "knots": self.knots, "continuity": self.continuity,
+                "iterations": self.iterations, "waypoint_index": self.waypoint_index}
+
+    @classmethod
+    def from_state(cls, state: dict) -> PHSpline:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
     # -- stacked polynomial data --------------------------------------------------------------
     @cached_property
     def control_points(self) -> np.ndarray:

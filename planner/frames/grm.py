@@ -161,6 +161,18 @@ class GRMFrame:
     start_angle: float = 0.0
     seconds: float = 0.0
 
+    def to_state(self) -> dict:
+        """The solution's data, for the saved-job file (:mod:`planner.jobfile`); the curve is its owner's (a
+        segment of a path: :meth:`planner.frames.path.PathFrames.from_state`)."""
+        return {"a": self.a, "b": self.b, "weight": self.weight, "objective": self.objective,
+                "constraint_residual": self.constraint_residual, "max_twist_deg": self.max_twist_deg,
+                "start_angle": self.start_angle, "seconds": self.seconds}
+
+    @classmethod
+    def from_state(cls, state: dict, curve) -> GRMFrame:
+        """The solution from :meth:`to_state` fields read back, on ``curve``."""
+        return cls(curve, **state)
+
     def angle(self, t) -> np.ndarray:
         """psi_R(t) - psi_R(0) + start_angle (rad), modulo 2 pi: the frame's angle against the ER frame."""
         t = np.atleast_1d(finite_floats(t, "t"))

@@ -26,7 +26,7 @@ import numpy as np
 
 from planner.errors import PlannerError
 from planner.frames.double_reflection import double_reflection_frames
-from planner.frames.grm import grm_many
+from planner.frames.grm import GRMFrame, grm_many
 from planner.frames.ph_cubic_rmm import ph_cubic_spline_rmm
 from planner.frames.rmf import check_start_frame
 from planner.frames.rmf_batch import PathRMFAngles
@@ -92,6 +92,24 @@ class PathFrames:
     corrections: np.ndarray
     grm_frames: list | None = None
     panels: PathRMFAngles | None = None
+
+    def to_state(self) -> dict:
+        """The data of the field, for the saved-job file (:mod:`planner.jobfile`): the per-segment angle
+        functions are not data, :meth:`from_state` rebuilds them from the method and the GRM solutions."""
+        grm = None if self.grm_frames is None else [g.to_state() for g in self.grm_frames]
+        return {"path": self.path, "method": self.method, "offsets": self.offsets, "stations": self.stations,
+                "corrections": self.corrections, "grm_frames": grm, "panels": self.panels}
+
+    @classmethod
+    def from_state(cls, state: dict) -> PathFrames:
+        """The field from :meth:`to_state` fields read back: "rmf" evaluates ``panels``, "er" has zero angles,
+        "grm" the angles of its per-segment GRM solutions (their curves the path's segments)."""
+        path, method, grm = state["path"], state["method"], state["grm_frames"]
+        sols = None if grm is None else [GRMFrame.from_state(g, c) for g, c in zip(grm, path.segments, strict=True)]
+        funcs = {"rmf": None, "er": [_Zero()] * path.n_segments,
+                 "grm": None if sols is None else [_GRMAngle(g) for g in sols]}[method]
+        return cls(path, method, funcs, state["offsets"], state["stations"], state["corrections"], sols,
+                   state["panels"])
 
     def base_angle(self, u) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(segment, local t, angle against the ER frame) at global parameters u, before corrections."""
@@ -283,6 +301,15 @@ class MotionFrames:
     method: str
     motion: Any
     start: np.ndarray
+
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"path": self.path, "method": self.method, "motion": self.motion, "start": self.start}
+
+    @classmethod
+    def from_state(cls, state: dict) -> MotionFrames:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
 
     def frames(self, u) -> np.ndarray:
         u = np.atleast_1d(finite_floats(u, "u"))

@@ -73,6 +73,17 @@ class PiecewiseArcMotion:
     rational: bool = True
     r2_weights: str = "paper"
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"knots": self.knots, "phi": self.phi, "psi": self.psi, "rho": self.rho, "w0": self.w0, "w1": self.w1,
+                "left": self.left, "right": self.right, "axis_column": self.axis_column, "rational": self.rational,
+                "r2_weights": self.r2_weights}
+
+    @classmethod
+    def from_state(cls, state: dict) -> PiecewiseArcMotion:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
     def __len__(self) -> int:
         return self.phi.shape[0]
 

@@ -119,6 +119,19 @@ class PathRMFAngles:
         self.q, self.sig = rate_coefficients(A)
         self._qT, self._sT = np.ascontiguousarray(self.q.T), np.ascontiguousarray(self.sig.T)
 
+    def to_state(self) -> dict:
+        """The tables, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"panels": self.panels, "cum": self.cum, "offsets": self.offsets, "q": self.q, "sig": self.sig}
+
+    @classmethod
+    def from_state(cls, state: dict) -> PathRMFAngles:
+        """The tables of :meth:`to_state` read back, without integrating again."""
+        out = cls.__new__(cls)
+        out.panels, out.cum, out.offsets = state["panels"], state["cum"], state["offsets"]
+        out.q, out.sig = state["q"], state["sig"]
+        out._qT, out._sT = np.ascontiguousarray(out.q.T), np.ascontiguousarray(out.sig.T)
+        return out
+
     @property
     def totals(self) -> np.ndarray:
         return self.cum[self.offsets[1:] - 1]

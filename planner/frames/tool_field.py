@@ -11,7 +11,6 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 from functools import cached_property
-from typing import Any
 
 import numpy as np
 
@@ -69,6 +68,15 @@ class PathToolField:
     field: FrameProvider
     reference: FrameProvider
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"path": self.path, "method": self.method, "field": self.field, "reference": self.reference}
+
+    @classmethod
+    def from_state(cls, state: dict) -> PathToolField:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
     def frames(self, u) -> np.ndarray:
         """Tool frames (n, 3, 3) at path parameters u (n,)."""
         return self.field.frames(np.atleast_1d(np.asarray(u, dtype=float)))
@@ -120,12 +128,31 @@ class SampledFrames:
     path : PHSpline
     u : ndarray (m,)
         The grid of path parameters (``per_segment`` samples per PH segment).
-    interpolant : scipy.spatial.transform.Slerp
+    grid_quaternions : ndarray (m, 4)
+        Unit quaternions (x, y, z, w, scipy's order) of the method's frames on the grid, as
+        ``Rotation.from_matrix`` gives them.
     """
 
     path: Path
     u: np.ndarray
-    interpolant: Any
+    grid_quaternions: np.ndarray
+
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"path": self.path, "u": self.u, "grid_quaternions": self.grid_quaternions}
+
+    @classmethod
+    def from_state(cls, state: dict) -> SampledFrames:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
+    @cached_property
+    def interpolant(self):
+        """The slerp (scipy.spatial.transform.Slerp) between the frames on the grid (the quaternions taken as
+        they are, not normalized again)."""
+        from scipy.spatial.transform import Rotation, Slerp
+
+        return Slerp(self.u, Rotation(self.grid_quaternions, normalize=False))
 
     def frames(self, u) -> np.ndarray:
         u = np.clip(np.atleast_1d(np.asarray(u, dtype=float)), self.u[0], self.u[-1])
@@ -137,11 +164,11 @@ class SampledFrames:
 
 def sampled_frames(path, field, per_segment: int = 256) -> SampledFrames:
     """:class:`SampledFrames` of a frame field whose ``frames(u)`` depend on the samples it is given."""
-    from scipy.spatial.transform import Rotation, Slerp
+    from scipy.spatial.transform import Rotation
 
     k = np.asarray(path.knots, dtype=float)
     u = np.append((k[:-1, None] + np.diff(k)[:, None] * np.arange(per_segment) / per_segment).ravel(), k[-1])
-    return SampledFrames(path, u, Slerp(u, Rotation.from_matrix(field.frames(u))))
+    return SampledFrames(path, u, Rotation.from_matrix(field.frames(u)).as_quat(canonical=False))
 
 
 def path_tool_field(path, method: str = "rmf") -> PathToolField:

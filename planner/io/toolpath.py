@@ -69,6 +69,16 @@ class Event:
     value: float = math.nan
     text: str = ""
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"kind": self.kind, "line": self.line, "index": self.index, "name": self.name, "value": self.value,
+                "text": self.text}
+
+    @classmethod
+    def from_state(cls, state: dict) -> Event:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
 
 @dataclass(frozen=True, slots=True)
 class Arc:
@@ -101,6 +111,16 @@ class Arc:
     centre: tuple[float, float, float]
     axis: tuple[float, float, float]
     radius: float = math.nan
+
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"line": self.line, "index": self.index, "start": self.start, "centre": self.centre, "axis": self.axis,
+                "radius": self.radius}
+
+    @classmethod
+    def from_state(cls, state: dict) -> Arc:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
 
     @property
     def kind(self) -> str:
@@ -146,6 +166,16 @@ class Nurbs:
     control: np.ndarray
     weights: np.ndarray
     axes: np.ndarray | None = None
+
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"line": self.line, "index": self.index, "start": self.start, "degree": self.degree,
+                "knots": self.knots, "control": self.control, "weights": self.weights, "axes": self.axes}
+
+    @classmethod
+    def from_state(cls, state: dict) -> Nurbs:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
 
     def __post_init__(self):
         t = np.asarray(self.knots, dtype=float)
@@ -305,6 +335,17 @@ class Toolpath:
     units: str = "mm"
     source: str = "<toolpath>"
     rotary: np.ndarray | None = None
+
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"points": self.points, "axes": self.axes, "axis_given": self.axis_given, "feeds": self.feeds,
+                "rapid": self.rapid, "lines": self.lines, "events": self.events, "units": self.units,
+                "source": self.source, "rotary": self.rotary}
+
+    @classmethod
+    def from_state(cls, state: dict) -> Toolpath:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
 
     def __post_init__(self):
         pts = np.asarray(self.points, dtype=float)

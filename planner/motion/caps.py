@@ -153,6 +153,16 @@ class CapWindow:
     last_span: int | None = None
     floored: bool = False
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"start": self.start, "end": self.end, "factor": self.factor, "speed": self.speed, "tag": self.tag,
+                "first_span": self.first_span, "last_span": self.last_span, "floored": self.floored}
+
+    @classmethod
+    def from_state(cls, state: dict) -> CapWindow:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
     @property
     def length(self) -> float:
         """Length of the stretch, m."""

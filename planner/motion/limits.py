@@ -75,6 +75,16 @@ class MotionLimits:
     jerk: float
     angular_speed: float | None = None
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"speed": self.speed, "acceleration": self.acceleration, "jerk": self.jerk,
+                "angular_speed": self.angular_speed}
+
+    @classmethod
+    def from_state(cls, state: dict) -> MotionLimits:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
     def __post_init__(self):
         object.__setattr__(self, "speed", positive(self.speed, "limits.speed"))
         object.__setattr__(self, "acceleration", positive(self.acceleration, "limits.acceleration"))

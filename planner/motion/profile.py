@@ -48,6 +48,17 @@ class FeedProfile:
     commanded: np.ndarray
     cruise: np.ndarray
 
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job file (:mod:`planner.jobfile`)."""
+        return {"t": self.t, "s0": self.s0, "v0": self.v0, "a0": self.a0, "j": self.j, "length": self.length,
+                "limits": self.limits, "level_bounds": self.level_bounds, "commanded": self.commanded,
+                "cruise": self.cruise}
+
+    @classmethod
+    def from_state(cls, state: dict) -> FeedProfile:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**state)
+
     @property
     def duration(self) -> float:
         """Total time of the motion, s."""
