@@ -30,7 +30,7 @@ import numpy as np
 
 from planner.kinematics import forward, forward_matrix, link_frames
 from sim.control_script import ControlScript
-from sim.motion import DT, MotionError, MotionModel, Segment
+from sim.motion import DT, MotionModel, Segment
 from sim.programs import PathMove, ProgramError, parse_program
 from sim.rtde_fields import Registers
 from sim.urscript import URScriptProgram, compile_program
@@ -306,21 +306,9 @@ class Core:
         return True
 
     def run_path(self, path: list[PathMove]) -> None:
-        """Start an injected path: consecutive moves of one kind are blended into one trajectory."""
-        groups: list[list[PathMove]] = []
-        for mv in path:
-            linear = mv.kind != "movej"
-            if groups and (groups[-1][0].kind != "movej") == linear:
-                groups[-1].append(mv)
-            else:
-                groups.append([mv])
-        if len(groups) > 1:
-            raise MotionError("paths mixing movej with movel/movep are not supported by the simulator")
-        segs = [Segment(np.array(mv.target), mv.v, mv.a, mv.r) for mv in groups[0]]
-        if groups[0][0].kind == "movej":
-            self.motion.plan_joint(segs)
-        else:
-            self.motion.plan_linear(segs)
+        """Start an injected path: consecutive moves of one family are blended into one run (see
+        :meth:`sim.motion.MotionModel.plan_path`)."""
+        self.motion.plan_path([(mv.kind, Segment(np.array(mv.target), mv.v, mv.a, mv.r), mv.pose) for mv in path])
 
     # ---- the control period ------------------------------------------------------------------
     def tick(self) -> None:
