@@ -30,7 +30,7 @@ import numpy as np
 
 from planner.kinematics import forward, forward_matrix, link_frames
 from sim.control_script import ControlScript
-from sim.motion import DT, MotionModel, Segment
+from sim.motion import DT, GRAVITY, MotionModel, Segment
 from sim.programs import PathMove, ProgramError, parse_program
 from sim.rtde_fields import Registers
 from sim.urscript import URScriptProgram, compile_program
@@ -93,6 +93,7 @@ class Core:
         self._history: collections.deque[np.ndarray] = collections.deque(maxlen=1000)
         self._tcp_cache: tuple[int, np.ndarray, np.ndarray] | None = None
         self._speed = np.zeros(6)
+        self._accel = np.zeros(6)
         self._speed_step = -1
         self._program_stop_at: float | None = None
 
@@ -142,22 +143,36 @@ class Core:
         return self._tcp()[2]
 
     def tcp_speed(self) -> np.ndarray:
-        """TCP speed [v, omega] (base frame) over the last period (computed on demand, cached per period)."""
-        if self._speed_step != self.steps:
-            self._speed_step = self.steps
-            if len(self._history) >= 2:
-                T = forward_matrix(self.motion.model, np.vstack([self._history[-2], self._history[-1]]),
-                                   self._tcp_offset())
-                v = (T[1, :3, 3] - T[0, :3, 3]) / DT
-                W = (T[1, :3, :3] - T[0, :3, :3]) @ T[1, :3, :3].T / DT
-                self._speed = np.array([v[0], v[1], v[2], W[2, 1], W[0, 2], W[1, 0]])
-            else:
-                self._speed = np.zeros(6)
+        """TCP speed [v, omega] (base frame, m/s and rad/s) over the last period (computed on demand, cached
+        per period)."""
+        self._tcp_rates()
         return self._speed
+
+    def tcp_acceleration(self) -> np.ndarray:
+        """TCP acceleration [dv/dt, domega/dt] (base frame, m/s^2 and rad/s^2): the change of :meth:`tcp_speed`
+        over the last period."""
+        self._tcp_rates()
+        return self._accel
+
+    def _tcp_rates(self) -> None:
+        if self._speed_step == self.steps:
+            return
+        self._speed_step = self.steps
+        n = min(len(self._history), 3)
+        if n < 2:
+            self._speed, self._accel = np.zeros(6), np.zeros(6)
+            return
+        T = forward_matrix(self.motion.model, np.vstack([self._history[k] for k in range(-n, 0)]),
+                           self._tcp_offset())
+        v = (T[1:, :3, 3] - T[:-1, :3, 3]) / DT
+        W = (T[1:, :3, :3] - T[:-1, :3, :3]) @ T[1:, :3, :3].transpose(0, 2, 1) / DT  # skew(omega) per period
+        speeds = np.column_stack([v, W[:, 2, 1], W[:, 0, 2], W[:, 1, 0]])
+        self._speed = speeds[-1]
+        self._accel = (speeds[-1] - speeds[-2]) / DT if n == 3 else np.zeros(6)
 
     def tool_gravity(self) -> np.ndarray:
         """Gravity (m/s^2) in the tool frame, what a tool accelerometer at rest reads."""
-        return self._tcp_matrix()[:3, :3].T @ np.array([0.0, 0.0, -9.81])
+        return self._tcp_matrix()[:3, :3].T @ GRAVITY
 
     def elbow_position(self) -> np.ndarray:
         return link_frames(self.motion.model, self.motion.q)[3][:3, 3]

@@ -57,6 +57,8 @@ from planner.kinematics import (
 )
 
 DT = 0.002  # control period (s), 500 Hz
+#: Gravity (m/s^2) in the base frame of a floor-mounted arm.
+GRAVITY = np.array([0.0, 0.0, -9.81])
 #: Joint acceleration limit (rad/s^2) of every joint, beyond which the arm stops with a protective stop.
 #: UR publishes no acceleration limits (``planner.kinematics`` models none); this is the bound the controller
 #: accepts in a move command, as ur_rtde 1.6.5 checks it (UR_JOINT_ACCELERATION_MAX, rtde_control_interface.h).
