@@ -169,8 +169,8 @@ NEW_OUTPUTS = ["timestamp", "control_step", "tcp_offset", "actual_configurable_d
 def test_the_outputs_new_to_the_simulator_carry_the_controllers_values(make_sim):
     sim = make_sim()
     tcp = [0.01, -0.02, 0.15, 0.0, 0.0, 0.3]
-    _send_program(sim.host, "def tool():\n  set_tcp(p[%s])\n  set_configurable_digital_out(3, True)\nend\n"
-                  % ", ".join(map(str, tcp)))
+    pose = ", ".join(map(str, tcp))
+    _send_program(sim.host, f"def tool():\n  set_tcp(p[{pose}])\n  set_configurable_digital_out(3, True)\nend\n")
     assert eventually(lambda: sim.state()["digital_out"] == 1 << 11)
     sim.set_digital_in(0xFF00, 0xA500)
     raw = RawRTDE(sim.host)
