@@ -24,6 +24,7 @@ pendant's choice) the script ports refuse programs and the dashboard refuses wha
 from __future__ import annotations
 
 import collections
+import re
 import threading
 
 import numpy as np
@@ -31,9 +32,10 @@ import numpy as np
 from planner.kinematics import forward, forward_matrix, link_frames
 from sim.control_script import ControlScript
 from sim.motion import DT, GRAVITY, MotionModel, Segment
-from sim.programs import PathMove, ProgramError, parse_program
+from sim.primary_packages import READ_ONLY_INTERFACE
+from sim.programs import PathMove, ProgramError, head_of, parse_program
 from sim.rtde_fields import Registers
-from sim.urscript import URScriptProgram, compile_program
+from sim.urscript import URScriptProgram, compile_line, compile_program
 
 ROBOT_POWER_OFF, ROBOT_IDLE, ROBOT_RUNNING = 3, 5, 7
 SAFETY_NORMAL, SAFETY_PROTECTIVE_STOP = 1, 3
@@ -48,6 +50,12 @@ PROGRAM_STOP_DELAY = 0.1
 MODE_NAMES = {3: "POWER_OFF", 5: "IDLE", 7: "RUNNING"}
 SAFETY_NAMES = {1: "NORMAL", 3: "PROTECTIVE_STOP", 6: "SYSTEM_EMERGENCY_STOP", 7: "ROBOT_EMERGENCY_STOP"}
 RUNTIME_NAMES = {1: "STOPPED", 2: "PLAYING", 4: "PAUSED"}
+
+
+def _line_of(text: str) -> int:
+    """The program line a compile or runtime error names ("line N: ..."), 0 when it names none."""
+    m = re.search(r"\bline (\d+)", text)
+    return int(m.group(1)) if m else 0
 
 
 class Core:
@@ -88,6 +96,9 @@ class Core:
         self.max_late_ms = 0.0  # largest wake-up delay of the control loop, ms
         self.log: collections.deque = collections.deque(maxlen=200)
         self.outbox: list[tuple[str, str, int]] = []  # text messages for RTDE clients
+        # robot messages for the primary interface's clients: (sequence number, time, kind, fields), see event()
+        self.events: collections.deque[tuple[int, float, str, dict]] = collections.deque(maxlen=500)
+        self.event_seq = 0
         self.input_time: dict[str, float] = {}
         self.watchdog: tuple[str, float] | None = None
         self._history: collections.deque[np.ndarray] = collections.deque(maxlen=1000)
@@ -188,11 +199,21 @@ class Core:
 
     # ---- messages and events -----------------------------------------------------------------
     def message(self, text: str, source: str = "Controller", level: int = 3) -> None:
-        """A text message: into the log and to every started RTDE client ('M' package)."""
+        """A text message: into the log and to every started RTDE client ('M' package); an information (level 3)
+        is a text message on the primary interface too."""
         self.log.append((self.time, source, text))
         self.outbox.append((text, source, level))
+        if level >= 3:
+            self.event("text", text=text)
         if self.recorder is not None:
             self.recorder.event(self.time, source, text)
+
+    def event(self, kind: str, **fields) -> None:
+        """A robot message for the primary interface's clients (:mod:`sim.primary_server` formats it): ``text``
+        (text), ``key`` (title, text), ``error`` (code, level, text), ``runtime`` (text, line), ``safety``
+        (mode)."""
+        self.event_seq += 1
+        self.events.append((self.event_seq, self.time, kind, fields))
 
     # ---- safety ------------------------------------------------------------------------------
     def protective_stop(self, reason: str) -> None:
@@ -205,6 +226,8 @@ class Core:
             self.safety_mode = SAFETY_PROTECTIVE_STOP
             self.protective_stop_time = self.time
             self.message(f"Protective stop: {reason}", source="Safety", level=0)
+            self.event("safety", mode=SAFETY_PROTECTIVE_STOP)
+            self.event("error", code=0, level=3, text=f"Protective stop: {reason}")
         # the safety system stops the arm at once; the program is stopped a few periods later
         self._program_stop_at = self.time + PROGRAM_STOP_DELAY
 
@@ -217,6 +240,7 @@ class Core:
                     "Always inspect cause of protective stop before unlocking")
         self.safety_mode = SAFETY_NORMAL
         self.message("Protective stop released", source="Safety", level=3)
+        self.event("safety", mode=SAFETY_NORMAL)
         return None
 
     def press_emergency_stop(self, kind: str = "robot") -> None:
@@ -234,6 +258,8 @@ class Core:
         what = "teach pendant emergency stop button" if kind == "robot" else "system emergency stop input"
         self.message(f"Emergency stop: the {what} is pressed; the arm is stopped and powered off",
                      source="Safety", level=0)
+        self.event("safety", mode=mode)
+        self.event("error", code=0, level=3, text=f"Emergency stop: the {what} is pressed")
         self._end_program("program stopped by the emergency stop")
         self.robot_mode = ROBOT_POWER_OFF
 
@@ -245,6 +271,7 @@ class Core:
         self.safety_mode = SAFETY_NORMAL
         self.message("Emergency stop released: power the arm on and release its brakes to continue",
                      source="Safety", level=1)
+        self.event("safety", mode=SAFETY_NORMAL)
         return True
 
     def set_remote_control(self, on: bool) -> None:
@@ -258,6 +285,7 @@ class Core:
         """A program's runtime error: the program halts (the arm stops), with an exception message."""
         self.motion.halt()
         self.message(f"Runtime error: {text}", source="Program", level=0)
+        self.event("runtime", text=text, line=_line_of(text))
         self._end_program("program halted by a runtime error")
 
     def set_watchdog(self, field: str, min_frequency: float) -> None:
@@ -271,6 +299,7 @@ class Core:
             self.program = None
             self.runtime_state = RUNTIME_STOPPED
             self.watchdog = None
+            self.event("key", title="PROGRAM_XXX_STOPPED", text=self.program_name)
             if self.recorder is not None:
                 self.recorder.event(self.time, "Program", why)
 
@@ -290,12 +319,15 @@ class Core:
             where = f" on port {port}" if port is not None else ""
             self.message(f"Script refused{where}: the robot is in local control mode ({head!r})",
                          source="Program", level=1)
+            self.event("error", code=READ_ONLY_INTERFACE, level=3,
+                       text="The primary interface is read-only in local control mode")
             return False
         self.stop_program()
         try:
             prog = parse_program(text)
         except ProgramError as exc:
             self.message(f"Compile error: {exc}", source="Program", level=0)
+            self.event("runtime", text=f"compile error: {exc}", line=_line_of(str(exc)))
             return False
         if self.robot_mode != ROBOT_RUNNING:
             self.message(f"Program {prog.name} not started: robot is {MODE_NAMES.get(self.robot_mode)}",
@@ -309,13 +341,15 @@ class Core:
             self.program = ControlScript(self, prog)
         else:
             try:
-                body = compile_program(text)
+                body = compile_program(text) if head_of(text) else compile_line(text)
             except ProgramError as exc:
                 self.message(f"Compile error in {prog.name}: {exc}", source="Program", level=0)
+                self.event("runtime", text=f"compile error in {prog.name}: {exc}", line=_line_of(str(exc)))
                 return False
             self.program = URScriptProgram(self, prog.name, body)
         self.program_name = prog.name
         self.runtime_state = RUNTIME_PLAYING
+        self.event("key", title="PROGRAM_XXX_STARTED", text=prog.name)
         if self.recorder is not None:
             self.recorder.event(self.time, "Program", f"program {prog.name} started")
         return True
@@ -394,6 +428,7 @@ class Core:
             "program": self.program_name if self.program is not None else None,
             "digital_out": self.io.digital_out,
             "digital_in": self.io.digital_in,
+            "analog_out": list(self.io.analog_out),
             "log": [list(x) for x in list(self.log)[-20:]],
             "out_int": list(self.registers.out_int),
             "out_double": list(self.registers.out_double),
