@@ -2,7 +2,7 @@
 
 One :class:`Core` per simulated controller. Its :meth:`Core.tick` advances simulated time by one
 control period (2 ms): the running program's step, the motion model's integration, the watchdog, the
-recorder. Every server thread (RTDE, dashboard, script ports, Modbus) changes the core only while
+recorder. Every server thread (RTDE, dashboard, primary and script ports, Modbus) changes the core only while
 holding :attr:`Core.lock`; the tick thread holds it for the whole tick, so a program always sees a
 data package's inputs together.
 
