@@ -8,10 +8,16 @@ variables) is polled every 0.1 ms by this process for ``--seconds``. Reported pe
   max; ``|p99 - 2 ms|`` is the jitter figure (target: within 0.5 ms of 2 ms);
 * missed: data packages lost on the way (timestamp steps of more than one 2 ms period, counted in
   periods) as the client saw them, and the periods the simulator's loop itself skipped (late ticks);
-* CPU: each simulator process's CPU time over the run, as a share of one core (mean over simulators);
+* CPU: each simulator process's CPU time over the run, as a share of one core (mean over simulators), with
+  all its interfaces connected;
 * machine stalls: the periods a SCHED_FIFO probe thread in this process, on the same absolute 2 ms
   schedule, woke more than one period late (a shared virtual machine stalls now and then; the
   simulators cannot do better than that).
+
+Every simulator has all its interfaces connected meanwhile: besides the RTDE receiver, one client on the primary
+interface (30001) and one on the secondary (30002), read by one thread of this process. A second table gives the
+period of their 10 Hz robot state packages as those clients see them (p50, p99, max; target 100 ms) and the bytes
+per second each simulator sends them.
 
 The simulator's control loop runs SCHED_FIFO where the system allows it; this process's threads
 (the poller and ur_rtde's receive threads) too, as ur_rtde sets itself on a real-time kernel
@@ -29,13 +35,16 @@ the controller's period bookkeeping; in-process, no sockets), against an idle co
 in the same run. It bounds how fast a program runs in fast-forward: ``2 ms / (us per period)`` times
 real time on one core (tests/test_whole_job_program.py runs an hour of motion at 150x).
 
-Run: python bench/bench_sim.py [--seconds 60] [--program-only]
+Run: python bench/bench_sim.py [--seconds 60] [--program-only] [--no-state-clients]
 """
 
 from __future__ import annotations
 
 import argparse
 import os
+import selectors
+import socket
+import struct
 import sys
 import threading
 import time
@@ -51,6 +60,7 @@ from sim import SimController  # noqa: E402
 
 PERIOD = 0.002
 REALTIME = True
+STATE_CLIENTS = True  # a primary and a secondary interface client per simulator during the RTDE measurement
 
 
 def _free_hosts(n: int) -> list[str]:
@@ -164,6 +174,62 @@ class StallProbe:
         self._thread.join()
 
 
+class StateReader:
+    """Clients of the primary and secondary interfaces of some simulators, read by one thread: the arrival times
+    (perf_counter) of each client's robot state packages, and the bytes received."""
+
+    def __init__(self, hosts: list[str]) -> None:
+        self.ports = [port for _ in hosts for port in (30001, 30002)]
+        self.socks = [socket.create_connection((h, port), timeout=5) for h, port in zip(
+            [h for h in hosts for _ in (0, 1)], self.ports, strict=True)]
+        self.arrivals: list[list[float]] = [[] for _ in self.socks]
+        self.bytes = 0
+        self._stop = threading.Event()
+        self._thread = threading.Thread(target=self._run, daemon=True)
+
+    def _run(self) -> None:
+        sel = selectors.DefaultSelector()
+        bufs = [bytearray() for _ in self.socks]
+        for i, s in enumerate(self.socks):
+            s.setblocking(False)
+            sel.register(s, selectors.EVENT_READ, i)
+        while not self._stop.is_set():
+            for key, _ in sel.select(0.05):
+                i = key.data
+                try:
+                    chunk = self.socks[i].recv(65536)
+                except BlockingIOError:
+                    continue
+                now = time.perf_counter()
+                self.bytes += len(chunk)
+                buf = bufs[i]
+                buf += chunk
+                while len(buf) >= 5 and len(buf) >= struct.unpack_from(">i", buf)[0]:
+                    size, kind = struct.unpack_from(">iB", buf)
+                    if kind == 16:
+                        self.arrivals[i].append(now)
+                    del buf[:size]
+
+    def periods(self, port: int, start: float, end: float) -> np.ndarray:
+        """Periods (ms) between consecutive state packages received within [start, end] by the clients on ``port``."""
+        out = []
+        for p, t in zip(self.ports, self.arrivals, strict=True):
+            if p == port:
+                t = np.array(t)
+                out.append(np.diff(t[(t >= start) & (t <= end)]) * 1e3)
+        return np.concatenate(out) if out else np.array([np.nan])
+
+    def __enter__(self) -> StateReader:
+        self._thread.start()
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self._stop.set()
+        self._thread.join()
+        for s in self.socks:
+            s.close()
+
+
 def run_sims(n: int, seconds: float) -> dict:
     import rtde_receive
 
@@ -173,17 +239,20 @@ def run_sims(n: int, seconds: float) -> dict:
         for s in sims:
             s.start()
         receivers = [rtde_receive.RTDEReceiveInterface(s.host) for s in sims]
-        if REALTIME:
-            _realtime_threads()
-        time.sleep(0.5)
-        late0 = [s.state()["late_ticks"] for s in sims]
-        cpu0 = [_cpu_seconds(s.proc.pid) for s in sims]
-        w0 = time.perf_counter()
-        with StallProbe() as probe:
-            series = _poll([r.getTimestamp for r in receivers], seconds)
-        wall = time.perf_counter() - w0
-        cpu = [(_cpu_seconds(s.proc.pid) - c) / wall for s, c in zip(sims, cpu0, strict=True)]
-        late = sum(s.state()["late_ticks"] - l0 for s, l0 in zip(sims, late0, strict=True))
+        with StateReader([s.host for s in sims] if STATE_CLIENTS else []) as reader:
+            if REALTIME:
+                _realtime_threads()
+            time.sleep(0.5)
+            late0 = [s.state()["late_ticks"] for s in sims]
+            cpu0 = [_cpu_seconds(s.proc.pid) for s in sims]
+            w0 = time.perf_counter()
+            bytes0 = reader.bytes
+            with StallProbe() as probe:
+                series = _poll([r.getTimestamp for r in receivers], seconds)
+            wall = time.perf_counter() - w0
+            sent = (reader.bytes - bytes0) / wall / n
+            cpu = [(_cpu_seconds(s.proc.pid) - c) / wall for s, c in zip(sims, cpu0, strict=True)]
+            late = sum(s.state()["late_ticks"] - l0 for s, l0 in zip(sims, late0, strict=True))
     finally:
         _normal_threads()
         for r in receivers:
@@ -191,7 +260,8 @@ def run_sims(n: int, seconds: float) -> dict:
         for s in sims:
             s.stop()
     out = _stats(series)
-    out.update(late=late, cpu=100.0 * float(np.mean(cpu)), stalls=probe.late)
+    out.update(late=late, cpu=100.0 * float(np.mean(cpu)), stalls=probe.late, state_bytes=sent,
+               primary=reader.periods(30001, w0, w0 + wall), secondary=reader.periods(30002, w0, w0 + wall))
     return out
 
 
@@ -264,29 +334,44 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--no-realtime", action="store_true",
                     help="leave this process's threads (poller, ur_rtde's receive threads) at normal priority")
     ap.add_argument("--program-only", action="store_true", help="only the program table (no RTDE measurement)")
+    ap.add_argument("--no-state-clients", action="store_true",
+                    help="no primary / secondary interface clients during the RTDE measurement (RTDE alone)")
     args = ap.parse_args(argv)
     if args.program_only:
         print("The simulator's core running the planner's whole-job program (in-process)")
         print_table(PROGRAM_HEADERS, run_program())
         return 0
-    global REALTIME
+    global REALTIME, STATE_CLIENTS
     REALTIME = not args.no_realtime
+    STATE_CLIENTS = not args.no_state_clients
     rows = []
     base = run_baseline(min(args.seconds, 10.0))
+    results = []
     for n in (1, 4):
         r = run_sims(n, args.seconds)
+        results.append((n, r))
         jitter = abs(r["p99"] - PERIOD * 1e3)
         rows.append([f"{n} simulator{'s' if n > 1 else ''}", f"{r['p50']:.3f}", f"{r['p99']:.3f}",
                      f"{r['max']:.3f}", f"{jitter:.3f}", "yes" if jitter <= 0.5 else "NO", r["missed"], r["late"],
                      r["stalls"], f"{r['cpu']:.1f}", f"{base['p99'] / r['p99']:.2f}"])
     rows.append(["baseline: sleep(2 ms) loop", f"{base['p50']:.3f}", f"{base['p99']:.3f}", f"{base['max']:.3f}",
                  f"{abs(base['p99'] - 2.0):.3f}", "", base["missed"], "", "", "", "1.00"])
+    state_rows = [[f"{n} simulator{'s' if n > 1 else ''}", name, len(p), f"{np.percentile(p, 50):.1f}",
+                   f"{np.percentile(p, 99):.1f}", f"{p.max():.1f}", f"{r['state_bytes'] / 1e3:.1f}"]
+                  for n, r in results if STATE_CLIENTS
+                  for name, p in (("primary 30001", r["primary"]), ("secondary 30002", r["secondary"]))]
     print(f"RTDE data packages seen by RTDEReceiveInterface, {args.seconds:g} s per configuration, "
           f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}, client threads "
-          f"{'SCHED_FIFO' if REALTIME else 'normal priority'}")
+          f"{'SCHED_FIFO' if REALTIME else 'normal priority'}, "
+          f"{'primary and secondary clients connected' if STATE_CLIENTS else 'RTDE alone'}")
     print_table(["configuration", "period p50 ms", "p99 ms", "max ms", "|p99 - 2| ms", "<= 0.5 ms",
                  "missed (client)", "late ticks (sim)", "machine stalls (periods)", "CPU % per sim",
                  "baseline p99 / p99"], rows)
+    if state_rows:
+        print()
+        print("Robot state packages of the primary and secondary interfaces (10 Hz) seen by their clients, same runs")
+        print_table(["configuration", "interface", "periods", "p50 ms", "p99 ms", "max ms", "kB/s per sim (both)"],
+                    state_rows)
     print()
     print("The simulator's core running the planner's whole-job program (in-process)")
     print_table(PROGRAM_HEADERS, run_program())

@@ -1,8 +1,8 @@
 """Simulated Universal Robots e-Series controller on loopback, for tests and dry runs.
 
 `SimController` starts one in a child process; it serves the controller's real RTDE (30004),
-dashboard (29999), script (30001-30003) and Modbus protocols so the unmodified ur_rtde and pymodbus
-clients drive it. The planning core never imports this package.
+dashboard (29999), primary and secondary interfaces (30001, 30002), script (30003) and Modbus protocols so
+the unmodified ur_rtde, pymodbus and UR's own clients drive it. The planning core never imports this package.
 """
 
 from sim.controller import SimController, SimError

@@ -109,6 +109,14 @@ class ControlScript:
         if not self.keep_running:
             return
         self._threads()
+        if self.rd_i(0) == STOP_SCRIPT and (self.blocked is not None or self.executing):
+            # stopScript while a blocking command runs or before the previous command's NO_CMD: the script on a
+            # controller reads it only once that client clears the register, which a killed client never does
+            # (ur_rtde's next client then waits up to 300 s); here it stops the script at once, and the arm
+            self.blocked = None
+            self.motion.halt()
+            self.keep_running = self.process(STOP_SCRIPT)
+            return
         if self.blocked is not None:
             if self.blocked == "path":
                 self._path_progress()

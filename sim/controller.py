@@ -36,7 +36,8 @@ class SimError(RuntimeError):
 
 
 class SimController:
-    """A simulated UR controller serving RTDE, dashboard, script ports and Modbus on ``host``.
+    """A simulated UR controller serving RTDE, dashboard, the primary and secondary interfaces, the script port and
+    Modbus on ``host``.
 
     Parameters
     ----------

@@ -2,7 +2,7 @@
 
 One :class:`Core` per simulated controller. Its :meth:`Core.tick` advances simulated time by one
 control period (2 ms): the running program's step, the motion model's integration, the watchdog, the
-recorder. Every server thread (RTDE, dashboard, script ports, Modbus) changes the core only while
+recorder. Every server thread (RTDE, dashboard, primary and script ports, Modbus) changes the core only while
 holding :attr:`Core.lock`; the tick thread holds it for the whole tick, so a program always sees a
 data package's inputs together.
 
@@ -24,16 +24,18 @@ pendant's choice) the script ports refuse programs and the dashboard refuses wha
 from __future__ import annotations
 
 import collections
+import re
 import threading
 
 import numpy as np
 
 from planner.kinematics import forward, forward_matrix, link_frames
 from sim.control_script import ControlScript
-from sim.motion import DT, MotionError, MotionModel, Segment
-from sim.programs import PathMove, ProgramError, parse_program
+from sim.motion import DT, GRAVITY, MotionModel, Segment
+from sim.primary_packages import READ_ONLY_INTERFACE
+from sim.programs import PathMove, ProgramError, head_of, parse_program
 from sim.rtde_fields import Registers
-from sim.urscript import URScriptProgram, compile_program
+from sim.urscript import URScriptProgram, compile_line, compile_program
 
 ROBOT_POWER_OFF, ROBOT_IDLE, ROBOT_RUNNING = 3, 5, 7
 SAFETY_NORMAL, SAFETY_PROTECTIVE_STOP = 1, 3
@@ -48,6 +50,12 @@ PROGRAM_STOP_DELAY = 0.1
 MODE_NAMES = {3: "POWER_OFF", 5: "IDLE", 7: "RUNNING"}
 SAFETY_NAMES = {1: "NORMAL", 3: "PROTECTIVE_STOP", 6: "SYSTEM_EMERGENCY_STOP", 7: "ROBOT_EMERGENCY_STOP"}
 RUNTIME_NAMES = {1: "STOPPED", 2: "PLAYING", 4: "PAUSED"}
+
+
+def _line_of(text: str) -> int:
+    """The program line a compile or runtime error names ("line N: ..."), 0 when it names none."""
+    m = re.search(r"\bline (\d+)", text)
+    return int(m.group(1)) if m else 0
 
 
 class Core:
@@ -88,11 +96,15 @@ class Core:
         self.max_late_ms = 0.0  # largest wake-up delay of the control loop, ms
         self.log: collections.deque = collections.deque(maxlen=200)
         self.outbox: list[tuple[str, str, int]] = []  # text messages for RTDE clients
+        # robot messages for the primary interface's clients: (sequence number, time, kind, fields), see event()
+        self.events: collections.deque[tuple[int, float, str, dict]] = collections.deque(maxlen=500)
+        self.event_seq = 0
         self.input_time: dict[str, float] = {}
         self.watchdog: tuple[str, float] | None = None
         self._history: collections.deque[np.ndarray] = collections.deque(maxlen=1000)
         self._tcp_cache: tuple[int, np.ndarray, np.ndarray] | None = None
         self._speed = np.zeros(6)
+        self._accel = np.zeros(6)
         self._speed_step = -1
         self._program_stop_at: float | None = None
 
@@ -142,22 +154,36 @@ class Core:
         return self._tcp()[2]
 
     def tcp_speed(self) -> np.ndarray:
-        """TCP speed [v, omega] (base frame) over the last period (computed on demand, cached per period)."""
-        if self._speed_step != self.steps:
-            self._speed_step = self.steps
-            if len(self._history) >= 2:
-                T = forward_matrix(self.motion.model, np.vstack([self._history[-2], self._history[-1]]),
-                                   self._tcp_offset())
-                v = (T[1, :3, 3] - T[0, :3, 3]) / DT
-                W = (T[1, :3, :3] - T[0, :3, :3]) @ T[1, :3, :3].T / DT
-                self._speed = np.array([v[0], v[1], v[2], W[2, 1], W[0, 2], W[1, 0]])
-            else:
-                self._speed = np.zeros(6)
+        """TCP speed [v, omega] (base frame, m/s and rad/s) over the last period (computed on demand, cached
+        per period)."""
+        self._tcp_rates()
         return self._speed
+
+    def tcp_acceleration(self) -> np.ndarray:
+        """TCP acceleration [dv/dt, domega/dt] (base frame, m/s^2 and rad/s^2): the change of :meth:`tcp_speed`
+        over the last period."""
+        self._tcp_rates()
+        return self._accel
+
+    def _tcp_rates(self) -> None:
+        if self._speed_step == self.steps:
+            return
+        self._speed_step = self.steps
+        n = min(len(self._history), 3)
+        if n < 2:
+            self._speed, self._accel = np.zeros(6), np.zeros(6)
+            return
+        T = forward_matrix(self.motion.model, np.vstack([self._history[k] for k in range(-n, 0)]),
+                           self._tcp_offset())
+        v = (T[1:, :3, 3] - T[:-1, :3, 3]) / DT
+        W = (T[1:, :3, :3] - T[:-1, :3, :3]) @ T[1:, :3, :3].transpose(0, 2, 1) / DT  # skew(omega) per period
+        speeds = np.column_stack([v, W[:, 2, 1], W[:, 0, 2], W[:, 1, 0]])
+        self._speed = speeds[-1]
+        self._accel = (speeds[-1] - speeds[-2]) / DT if n == 3 else np.zeros(6)
 
     def tool_gravity(self) -> np.ndarray:
         """Gravity (m/s^2) in the tool frame, what a tool accelerometer at rest reads."""
-        return self._tcp_matrix()[:3, :3].T @ np.array([0.0, 0.0, -9.81])
+        return self._tcp_matrix()[:3, :3].T @ GRAVITY
 
     def elbow_position(self) -> np.ndarray:
         return link_frames(self.motion.model, self.motion.q)[3][:3, 3]
@@ -173,11 +199,21 @@ class Core:
 
     # ---- messages and events -----------------------------------------------------------------
     def message(self, text: str, source: str = "Controller", level: int = 3) -> None:
-        """A text message: into the log and to every started RTDE client ('M' package)."""
+        """A text message: into the log and to every started RTDE client ('M' package); an information (level 3)
+        is a text message on the primary interface too."""
         self.log.append((self.time, source, text))
         self.outbox.append((text, source, level))
+        if level >= 3:
+            self.event("text", text=text)
         if self.recorder is not None:
             self.recorder.event(self.time, source, text)
+
+    def event(self, kind: str, **fields) -> None:
+        """A robot message for the primary interface's clients (:mod:`sim.primary_server` formats it): ``text``
+        (text), ``key`` (title, text), ``error`` (code, level, text), ``runtime`` (text, line), ``safety``
+        (mode)."""
+        self.event_seq += 1
+        self.events.append((self.event_seq, self.time, kind, fields))
 
     # ---- safety ------------------------------------------------------------------------------
     def protective_stop(self, reason: str) -> None:
@@ -190,6 +226,8 @@ class Core:
             self.safety_mode = SAFETY_PROTECTIVE_STOP
             self.protective_stop_time = self.time
             self.message(f"Protective stop: {reason}", source="Safety", level=0)
+            self.event("safety", mode=SAFETY_PROTECTIVE_STOP)
+            self.event("error", code=0, level=3, text=f"Protective stop: {reason}")
         # the safety system stops the arm at once; the program is stopped a few periods later
         self._program_stop_at = self.time + PROGRAM_STOP_DELAY
 
@@ -202,6 +240,7 @@ class Core:
                     "Always inspect cause of protective stop before unlocking")
         self.safety_mode = SAFETY_NORMAL
         self.message("Protective stop released", source="Safety", level=3)
+        self.event("safety", mode=SAFETY_NORMAL)
         return None
 
     def press_emergency_stop(self, kind: str = "robot") -> None:
@@ -219,6 +258,8 @@ class Core:
         what = "teach pendant emergency stop button" if kind == "robot" else "system emergency stop input"
         self.message(f"Emergency stop: the {what} is pressed; the arm is stopped and powered off",
                      source="Safety", level=0)
+        self.event("safety", mode=mode)
+        self.event("error", code=0, level=3, text=f"Emergency stop: the {what} is pressed")
         self._end_program("program stopped by the emergency stop")
         self.robot_mode = ROBOT_POWER_OFF
 
@@ -230,6 +271,7 @@ class Core:
         self.safety_mode = SAFETY_NORMAL
         self.message("Emergency stop released: power the arm on and release its brakes to continue",
                      source="Safety", level=1)
+        self.event("safety", mode=SAFETY_NORMAL)
         return True
 
     def set_remote_control(self, on: bool) -> None:
@@ -243,6 +285,7 @@ class Core:
         """A program's runtime error: the program halts (the arm stops), with an exception message."""
         self.motion.halt()
         self.message(f"Runtime error: {text}", source="Program", level=0)
+        self.event("runtime", text=text, line=_line_of(text))
         self._end_program("program halted by a runtime error")
 
     def set_watchdog(self, field: str, min_frequency: float) -> None:
@@ -256,6 +299,7 @@ class Core:
             self.program = None
             self.runtime_state = RUNTIME_STOPPED
             self.watchdog = None
+            self.event("key", title="PROGRAM_XXX_STOPPED", text=self.program_name)
             if self.recorder is not None:
                 self.recorder.event(self.time, "Program", why)
 
@@ -275,12 +319,15 @@ class Core:
             where = f" on port {port}" if port is not None else ""
             self.message(f"Script refused{where}: the robot is in local control mode ({head!r})",
                          source="Program", level=1)
+            self.event("error", code=READ_ONLY_INTERFACE, level=3,
+                       text="The primary interface is read-only in local control mode")
             return False
         self.stop_program()
         try:
             prog = parse_program(text)
         except ProgramError as exc:
             self.message(f"Compile error: {exc}", source="Program", level=0)
+            self.event("runtime", text=f"compile error: {exc}", line=_line_of(str(exc)))
             return False
         if self.robot_mode != ROBOT_RUNNING:
             self.message(f"Program {prog.name} not started: robot is {MODE_NAMES.get(self.robot_mode)}",
@@ -294,33 +341,23 @@ class Core:
             self.program = ControlScript(self, prog)
         else:
             try:
-                body = compile_program(text)
+                body = compile_program(text) if head_of(text) else compile_line(text)
             except ProgramError as exc:
                 self.message(f"Compile error in {prog.name}: {exc}", source="Program", level=0)
+                self.event("runtime", text=f"compile error in {prog.name}: {exc}", line=_line_of(str(exc)))
                 return False
             self.program = URScriptProgram(self, prog.name, body)
         self.program_name = prog.name
         self.runtime_state = RUNTIME_PLAYING
+        self.event("key", title="PROGRAM_XXX_STARTED", text=prog.name)
         if self.recorder is not None:
             self.recorder.event(self.time, "Program", f"program {prog.name} started")
         return True
 
     def run_path(self, path: list[PathMove]) -> None:
-        """Start an injected path: consecutive moves of one kind are blended into one trajectory."""
-        groups: list[list[PathMove]] = []
-        for mv in path:
-            linear = mv.kind != "movej"
-            if groups and (groups[-1][0].kind != "movej") == linear:
-                groups[-1].append(mv)
-            else:
-                groups.append([mv])
-        if len(groups) > 1:
-            raise MotionError("paths mixing movej with movel/movep are not supported by the simulator")
-        segs = [Segment(np.array(mv.target), mv.v, mv.a, mv.r) for mv in groups[0]]
-        if groups[0][0].kind == "movej":
-            self.motion.plan_joint(segs)
-        else:
-            self.motion.plan_linear(segs)
+        """Start an injected path: consecutive moves of one family are blended into one run (see
+        :meth:`sim.motion.MotionModel.plan_path`)."""
+        self.motion.plan_path([(mv.kind, Segment(np.array(mv.target), mv.v, mv.a, mv.r), mv.pose) for mv in path])
 
     # ---- the control period ------------------------------------------------------------------
     def tick(self) -> None:
@@ -391,6 +428,7 @@ class Core:
             "program": self.program_name if self.program is not None else None,
             "digital_out": self.io.digital_out,
             "digital_in": self.io.digital_in,
+            "analog_out": list(self.io.analog_out),
             "log": [list(x) for x in list(self.log)[-20:]],
             "out_int": list(self.registers.out_int),
             "out_double": list(self.registers.out_double),

@@ -19,12 +19,12 @@ import socket
 
 from sim import core as c
 from sim.listeners import Listeners
-from sim.rtde_server import CONTROLLER_VERSION
+from sim.rtde_server import CONTROLLER_RELEASE, CONTROLLER_VERSION
 
 GREETING = "Connected: Universal Robots Dashboard Server"
 SERIAL_NUMBER = "20235500001"
 VERSION = ".".join(str(v) for v in CONTROLLER_VERSION)
-POLYSCOPE_VERSION = f"URSoftware {VERSION} (Jul 27 2021)"
+POLYSCOPE_VERSION = f"URSoftware {VERSION} ({CONTROLLER_RELEASE:%b %d %Y})"
 #: The controller's reply to a command it takes only in remote control mode, while in local control mode.
 LOCAL_REFUSAL = ("Command is not allowed due to safety reasons, please switch robot to Remote Control mode "
                  "and reconnect to port 29999")

@@ -1,4 +1,4 @@
-"""TCP listeners that serve each client connection in a thread of its own (the dashboard and script ports).
+"""TCP listeners that serve each client connection in a thread of its own (dashboard, primary, secondary, script).
 
 One listening socket per port on the controller's address; :meth:`Listeners.close` closes the listeners and
 hangs up every client still connected (a client whose connection ends is forgotten at once, so a

@@ -46,9 +46,19 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
-from planner.kinematics import UnreachableError, forward, forward_matrix, get_model, inverse_path, wrap_angle
+from planner.kinematics import (
+    UnreachableError,
+    forward,
+    forward_matrix,
+    get_model,
+    inverse_nearest,
+    inverse_path,
+    wrap_angle,
+)
 
 DT = 0.002  # control period (s), 500 Hz
+#: Gravity (m/s^2) in the base frame of a floor-mounted arm.
+GRAVITY = np.array([0.0, 0.0, -9.81])
 #: Joint acceleration limit (rad/s^2) of every joint, beyond which the arm stops with a protective stop.
 #: UR publishes no acceleration limits (``planner.kinematics`` models none); this is the bound the controller
 #: accepts in a move command, as ur_rtde 1.6.5 checks it (UR_JOINT_ACCELERATION_MAX, rtde_control_interface.h).
@@ -157,14 +167,20 @@ def _blend_points(W: np.ndarray, radii: np.ndarray, lengths: np.ndarray, d: np.n
 
 
 def _path_grid(lengths: np.ndarray, segs: list[Segment]):
-    """Parameter grid over the whole path, with per-sample speed and acceleration limits."""
+    """Parameter grid over the whole path, with per-sample speed and acceleration limits.
+
+    The grid holds every waypoint; the speed limit is 0 at an interior waypoint without a blend (``r`` 0 on
+    the move that ends there): the arm comes to rest there, as the controller stops at an unblended waypoint."""
     total = float(lengths.sum())
     n = int(min(GRID_MAX, max(GRID_MIN, math.ceil(total / GRID_STEP)))) + 1
-    d = np.linspace(0.0, total, n)
     D = np.concatenate([[0.0], np.cumsum(lengths)])
+    d = np.union1d(np.linspace(0.0, total, n), D)
     seg = np.clip(np.searchsorted(D, d, side="right") - 1, 0, len(segs) - 1)
     v = np.array([s.v for s in segs])[seg]
     a = np.array([s.a for s in segs])[seg]
+    stops = [D[i + 1] for i, s in enumerate(segs[:-1]) if s.r <= 0.0]
+    if stops:
+        v[np.searchsorted(d, stops)] = 0.0
     return d, v, a
 
 
@@ -322,24 +338,76 @@ class MotionModel:
 
     def plan_joint(self, segs: list[Segment]) -> Trajectory:
         """Plan and start a (blended) joint-space move through ``segs`` (targets are joints)."""
-        W = np.vstack([self.q] + [np.asarray(s.target, dtype=float) for s in segs])
+        return self._start(self._joint_samples(self.q, segs), "movej")
+
+    def plan_linear(self, segs: list[Segment]) -> Trajectory:
+        """Plan and start a (blended) linear tool move through ``segs`` (targets are TCP poses)."""
+        return self._start(self._linear_samples(self.q, segs), "movel")
+
+    def plan_path(self, moves: list[tuple[str, Segment, bool]]) -> Trajectory:
+        """Plan and start a path of ``(kind, segment, target_is_pose)`` moves, kind ``movej``/``movel``/``movep``.
+
+        Consecutive moves of one family (joint, or linear/process) are blended into one run; where the family
+        changes the arm comes to rest on the waypoint (the controller blends across families; the simulator
+        does not). A ``movej`` to a pose goes to the inverse kinematics solution nearest the joints it starts
+        from, a ``movel`` to joints to their tool pose. ``starts`` counts the path's entries across runs."""
+        runs: list[tuple[bool, list[tuple[Segment, bool]]]] = []
+        for kind, seg, is_pose in moves:
+            linear = kind != "movej"
+            if runs and runs[-1][0] == linear:
+                runs[-1][1].append((seg, is_pose))
+            else:
+                runs.append((linear, [(seg, is_pose)]))
+        q0 = self.q
+        parts: list[np.ndarray] = []
+        starts: list[int] = []
+        fault = None
+        for linear, entries in runs:
+            segs: list[Segment] = []
+            near = q0
+            for seg, is_pose in entries:
+                target = np.asarray(seg.target, dtype=float)
+                if linear and not is_pose:
+                    target = forward(self.model, target, self.tcp)
+                elif not linear and is_pose:
+                    try:
+                        target = inverse_nearest(self.model, target, near, tcp=self.tcp if np.any(self.tcp) else None)
+                    except (UnreachableError, ValueError):
+                        raise MotionError(f"movej target {len(starts) + len(segs)}: pose is not reachable "
+                                          "(no inverse kinematics solution)") from None
+                if not linear:
+                    near = target
+                segs.append(Segment(target, seg.v, seg.a, seg.r))
+            tr = self._linear_samples(q0, segs) if linear else self._joint_samples(q0, segs)
+            offset = sum(len(p) for p in parts)
+            starts += [offset + k for k in tr.starts]
+            parts.append(tr.q)
+            if tr.fault:
+                fault = tr.fault
+                break
+            q0 = tr.q[-1]
+        return self._start(Trajectory(np.vstack(parts), starts, fault), "path")
+
+    def _joint_samples(self, q0: np.ndarray, segs: list[Segment]) -> Trajectory:
+        """The samples of a (blended) joint-space move from ``q0`` through ``segs`` (not started)."""
+        W = np.vstack([q0] + [np.asarray(s.target, dtype=float) for s in segs])
         for i, s in enumerate(segs):
             self._check_q(W[i + 1], f"movej target {i}")
             if not (s.v > 0 and s.a > 0):
                 raise MotionError(f"movej target {i}: speed and acceleration must be > 0")
         lengths = np.abs(np.diff(W, axis=0)).max(axis=1)
         if lengths.sum() <= 0.0:
-            return self._start(Trajectory(self.q[None].copy(), [0] * len(segs)))
+            return Trajectory(np.array(q0, dtype=float)[None].copy(), [0] * len(segs))
         d, v, a = _path_grid(lengths, segs)
         t, vt = _time_law(d, v, a)
         dk = _sample_times(t, d, vt)
         q, _, _ = _blend_points(W, np.array([s.r for s in segs]), lengths, dk)
         q[-1] = W[-1]
-        return self._start(Trajectory(q, _starts(dk, lengths)), "movej")
+        return Trajectory(q, _starts(dk, lengths))
 
-    def plan_linear(self, segs: list[Segment]) -> Trajectory:
-        """Plan and start a (blended) linear tool move through ``segs`` (targets are TCP poses)."""
-        P0 = forward(self.model, self.q, self.tcp)
+    def _linear_samples(self, q0: np.ndarray, segs: list[Segment]) -> Trajectory:
+        """The samples of a (blended) linear tool move from joints ``q0`` through ``segs`` (not started)."""
+        P0 = forward(self.model, q0, self.tcp)
         poses = np.vstack([P0] + [np.asarray(s.target, dtype=float) for s in segs])
         for i, s in enumerate(segs):
             if not np.isfinite(poses[i + 1]).all():
@@ -352,11 +420,11 @@ class MotionModel:
         lengths = np.maximum(dist, angles * ROTATION_RADIUS)
         # the target itself must be reachable before the arm moves
         try:
-            q_end = inverse_path(self.model, poses[-1:], self.q, tcp=self.tcp)[0]
+            q_end = inverse_path(self.model, poses[-1:], q0, tcp=self.tcp)[0]
         except UnreachableError:
             raise MotionError("movel: target pose is not reachable (no inverse kinematics solution)") from None
         if lengths.sum() <= 0.0:
-            return self._start(Trajectory(self.q[None].copy(), [0] * len(segs)))
+            return Trajectory(np.array(q0, dtype=float)[None].copy(), [0] * len(segs))
         d, v, a = _path_grid(lengths, segs)
         t, vt = _time_law(d, v, a)
         dk = _sample_times(t, d, vt)
@@ -368,7 +436,7 @@ class MotionModel:
                 rot[sel] = Slerp([0.0, 1.0], rots[i : i + 2])(frac[sel]).as_rotvec()
         samples = np.hstack([pos, rot])
         samples[-1] = poses[-1]
-        q = inverse_path(self.model, samples, self.q, tcp=self.tcp, allow_unreachable=True)
+        q = inverse_path(self.model, samples, q0, tcp=self.tcp, allow_unreachable=True)
         fault = None
         bad = np.flatnonzero(np.isnan(q).any(axis=1))
         if len(bad):
@@ -383,8 +451,7 @@ class MotionModel:
         if not fault:
             # the last sample is the target: take the branch nearest the tracked path (exact pose)
             q[-1] = q_end + 2 * np.pi * np.round((q[-1] - q_end) / (2 * np.pi))
-        traj = Trajectory(q if len(q) else self.q[None].copy(), _starts(dk, lengths), fault)
-        return self._start(traj, "movel")
+        return Trajectory(q if len(q) else np.array(q0, dtype=float)[None].copy(), _starts(dk, lengths), fault)
 
     def plan_stop(self, decel: float, linear: bool = False) -> Trajectory:
         """Decelerate to rest (stopj / stopl): joint speeds scaled down together at ``decel``.

@@ -109,6 +109,12 @@ def _parse_path(text: str) -> list[PathMove]:
     return moves
 
 
+def head_of(text: str) -> str | None:
+    """The name of a ``def name():`` / ``sec name():`` program, None for a one-line program."""
+    head = _HEAD.match(text.split("\n", 1)[0].rstrip())
+    return head.group(2) if head else None
+
+
 def parse_program(text: str) -> Program:
     """Recognize a framed program; ur_rtde's control script gets its offsets and injected path."""
     first = text.split("\n", 1)[0].rstrip()

@@ -1,9 +1,10 @@
 """RTDE variable names the simulated controller serves: their types and where their values come from.
 
 Names and types follow Universal Robots' RTDE guide (the table in Universal Robots' C++ client library,
-``src/rtde/data_package.cpp``, and ur_rtde 1.6.5's ``src/robot_state.cpp``) for a PolyScope 5.11
-controller. Variables the simulator has no physics for (currents, torques, forces, temperatures) are
-served with constant plausible values, listed in `CONSTANT_OUTPUTS`.
+``src/rtde/data_package.cpp``, and ur_rtde 1.6.5's ``src/robot_state.cpp``): every output and input name
+that table knows is served. Variables the simulator has no physics for (currents, torques, forces, energy,
+encoders, temperatures) are served with constant values, listed in `CONSTANT_OUTPUTS`: zeros for what
+it models nothing of, plausible constants for supply voltages and temperatures.
 
 Outputs read a :class:`Snapshot` of the controller taken once per data package; inputs are applied by
 the RTDE server (``sim.rtde_server``) through the controller's register file and I/O state.
@@ -14,6 +15,8 @@ from __future__ import annotations
 from collections.abc import Callable
 
 import numpy as np
+
+from sim.motion import DT, GRAVITY
 
 N_REGISTERS = 48  # int and double registers 0..47 (24..47 from PolyScope 5.3)
 BIT_REGISTERS = range(64, 128)  # general-purpose bit registers (the guide's X in [64..127])
@@ -54,6 +57,17 @@ CONSTANT_OUTPUTS: dict[str, tuple[str, object]] = {
     "joint_position_deviation_ratio": ("DOUBLE", 0.0),
     "collision_detection_ratio": ("DOUBLE", 0.0),
     "time_scale_source": ("INT32", 0),
+    "actual_current_as_torque": ("VECTOR6D", ZERO6),
+    "wrench_calc_from_currents": ("VECTOR6D", ZERO6),
+    "actual_robot_energy_consumed": ("DOUBLE", 0.0),
+    "actual_robot_braking_energy_dissipated": ("DOUBLE", 0.0),
+    "encoder0_raw": ("INT32", 0),
+    "encoder1_raw": ("INT32", 0),
+    "target_base_acceleration": ("VECTOR6D", ZERO6),
+    "target_base_wrench": ("VECTOR6D", ZERO6),
+    # the controller's budget for one control period, ms (actual_execution_time is what a period took)
+    "target_execution_time": ("DOUBLE", DT * 1e3),
+    "target_gravity": ("VECTOR3D", tuple(GRAVITY.tolist())),
 }
 
 
@@ -73,8 +87,15 @@ STATE_OUTPUTS: dict[str, tuple[str, Callable]] = {
     "actual_TCP_speed": ("VECTOR6D", lambda s: _vec(s.actual_tcp_speed)),
     "target_TCP_pose": ("VECTOR6D", lambda s: _vec(s.target_tcp_pose)),
     "target_TCP_speed": ("VECTOR6D", lambda s: _vec(s.actual_tcp_speed)),
+    "actual_TCP_acceleration": ("VECTOR6D", lambda s: _vec(s.core.tcp_acceleration())),
+    "target_TCP_acceleration": ("VECTOR6D", lambda s: _vec(s.core.tcp_acceleration())),
+    "tcp_offset": ("VECTOR6D", lambda s: _vec(s.motion.tcp)),
+    "control_step": ("UINT64", lambda s: s.core.steps),
     "actual_digital_input_bits": ("UINT64", lambda s: s.io["digital_in"]),
     "actual_digital_output_bits": ("UINT64", lambda s: s.io["digital_out"]),
+    # configurable inputs / outputs 0-7 (bits 8-15 of the digital words)
+    "actual_configurable_digital_input_bits": ("UINT64", lambda s: s.io["digital_in"] >> 8 & 0xFF),
+    "actual_configurable_digital_output_bits": ("UINT64", lambda s: s.io["digital_out"] >> 8 & 0xFF),
     "actual_execution_time": ("DOUBLE", lambda s: s.core.execution_time_ms),
     "robot_mode": ("INT32", lambda s: s.core.robot_mode),
     "joint_mode": ("VECTOR6INT32", lambda s: (s.core.joint_mode,) * 6),

@@ -14,6 +14,7 @@ and is ignored; a data package longer than its recipe is applied (its recipe's f
 
 from __future__ import annotations
 
+import datetime
 import os
 import socket
 import struct
@@ -23,67 +24,26 @@ from planner.kinematics.ur_outputs import UR_OUTPUTS
 from sim import rtde_protocol as rp
 from sim.hosts import set_realtime_priority
 from sim.rtde_fields import INPUTS, OUTPUTS, Snapshot, input_type, output_type
+from sim.streams import OutputStream
 
 CONTROLLER_VERSION = (5, 11, 6, 108949)
+#: Release date of that PolyScope version (the dashboard's and the version message's build date).
+CONTROLLER_RELEASE = datetime.date(2021, 7, 27)
 MAX_FREQUENCY = 500.0
-#: Bytes a client may leave unread before the controller drops it (a vanished client).
-MAX_BACKLOG = 1 << 20
 
 
-class Connection:
+class Connection(OutputStream):
     """One RTDE client connection: its recipes, its started flag, its buffered output."""
 
     def __init__(self, server: RTDEServer, sock: socket.socket, addr) -> None:
+        super().__init__(sock)
         self.server = server
-        self.sock = sock
         self.addr = addr
         self.outputs: list[tuple[rp.Recipe, list, struct.Struct, float]] = []  # recipe, getters, layout, phase
         self.inputs: dict[int, rp.Recipe] = {}
         self.next_output_id = 1
         self.next_input_id = 1
         self.started = False
-        self.closed = False
-        self._out = bytearray()
-        self._lock = threading.Lock()
-
-    # ---- output ------------------------------------------------------------------------------
-    def write(self, data: bytes) -> None:
-        """Queue ``data`` and send as much as the socket takes without blocking."""
-        with self._lock:
-            if self.closed:
-                return
-            self._out += data
-            self._flush_locked()
-
-    def flush(self) -> None:
-        with self._lock:
-            if self._out and not self.closed:
-                self._flush_locked()
-
-    def _flush_locked(self) -> None:
-        try:
-            while self._out:
-                n = self.sock.send(self._out, socket.MSG_DONTWAIT)
-                del self._out[:n]
-        except (BlockingIOError, InterruptedError):
-            if len(self._out) > MAX_BACKLOG:
-                self._close_locked()
-        except OSError:
-            self._close_locked()
-
-    def close(self) -> None:
-        with self._lock:
-            self._close_locked()
-
-    def _close_locked(self) -> None:
-        if self.closed:
-            return
-        self.closed = True
-        try:
-            self.sock.shutdown(socket.SHUT_RDWR)
-        except OSError:
-            pass
-        self.sock.close()
 
     # ---- input -------------------------------------------------------------------------------
     def serve(self) -> None:
@@ -319,4 +279,4 @@ class RTDEServer:
         return sent
 
 
-__all__ = ["RTDEServer", "Connection", "INPUTS", "CONTROLLER_VERSION"]
+__all__ = ["RTDEServer", "Connection", "INPUTS", "CONTROLLER_VERSION", "CONTROLLER_RELEASE"]

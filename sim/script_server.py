@@ -1,10 +1,11 @@
-"""Script ports (TCP 30001, 30002, 30003): URScript programs sent as a byte stream.
+"""Script input of the controller's client ports (TCP 30001, 30002, 30003): URScript programs and primary commands.
 
-Each connection's stream is cut into programs (:class:`sim.programs.ProgramFramer`); every whole
-program replaces the running one (:meth:`sim.core.Core.load_program`), which runs ur_rtde's control
-script and refuses anything it cannot run whole, and every program in local control mode. The state
-streams a real controller also sends on these ports (primary, secondary, real-time packages) are not
-served: ur_rtde never reads them.
+Each connection's byte stream is cut into programs (:class:`sim.programs.ProgramFramer`); every whole program
+replaces the running one (:meth:`sim.core.Core.load_program`), which runs ur_rtde's control script and refuses
+anything it cannot run whole, and every program in local control mode. A one-line program that is one of
+`PRIMARY_COMMANDS` (what UR's C++ client library sends to power the arm on, release its brakes, unlock a protective
+stop or stop the program) is carried out instead, and refused in local control mode. :class:`ScriptServer` serves
+port 30003 (the real-time port, whose state stream is not sent); :mod:`sim.primary_server` serves 30001 and 30002.
 """
 
 from __future__ import annotations
@@ -12,13 +13,56 @@ from __future__ import annotations
 import socket
 
 from sim.listeners import Listeners
+from sim.primary_packages import READ_ONLY_INTERFACE, WARNING
 from sim.programs import ProgramFramer
 
-SCRIPT_PORTS = (30001, 30002, 30003)
+SCRIPT_PORTS = (30003,)
+
+
+def _unlock(core) -> None:
+    refusal = core.unlock_protective_stop()
+    if refusal:
+        core.event("error", code=0, level=WARNING, text=refusal)
+
+
+#: One-line commands of the primary interface (lower case) and the controller's action for each.
+PRIMARY_COMMANDS = {
+    "power on": lambda core: core.power_on(),
+    "power off": lambda core: core.power_off(),
+    "set robotmode run": lambda core: core.brake_release(),
+    "brake release": lambda core: core.brake_release(),
+    "set unlock protective stop": _unlock,
+    "stop program": lambda core: core.stop_program(),
+}
+
+
+def take_script(core, text: str, port: int | None = None) -> None:
+    """One framed program (or command line) from a client port; the caller holds ``core.lock``."""
+    action = PRIMARY_COMMANDS.get(text.strip().lower())
+    if action is None:
+        core.load_program(text, port)
+    elif not core.remote_control:
+        core.event("error", code=READ_ONLY_INTERFACE, level=3,
+                   text=f"{text.strip()!r} refused: the primary interface is read-only in local control mode")
+    else:
+        action(core)
+
+
+def serve_scripts(core, sock: socket.socket) -> None:
+    """Read programs from ``sock`` until the client hangs up (a partial program at hang-up is dropped)."""
+    framer = ProgramFramer()
+    port = sock.getsockname()[1]
+    while True:
+        chunk = sock.recv(65536)
+        if not chunk:
+            return
+        for text in framer.feed(chunk):
+            with core.lock:
+                take_script(core, text, port)
 
 
 class ScriptServer(Listeners):
-    """One listener per script port of one simulated controller."""
+    """The script-only client ports of one simulated controller (30003)."""
 
     name = "script"
 
@@ -27,12 +71,4 @@ class ScriptServer(Listeners):
         self.core = core
 
     def serve(self, sock: socket.socket) -> None:
-        framer = ProgramFramer()
-        port = sock.getsockname()[1]
-        while True:
-            chunk = sock.recv(65536)
-            if not chunk:
-                return
-            for text in framer.feed(chunk):
-                with self.core.lock:
-                    self.core.load_program(text, port)
+        serve_scripts(self.core, sock)

@@ -4,8 +4,9 @@ Run by :class:`sim.SimController` as ``python -m sim.server --host H --model M .
 process of its own (ur_rtde's constructors hold the GIL while they connect, so a server inside the
 client's process would deadlock). The child
 
-* binds RTDE 30004, dashboard 29999, script ports 30001-30003 and (if asked) Modbus on ``host`` only,
-  then prints one line ``READY {json}`` on stdout;
+* binds RTDE 30004, dashboard 29999, the primary and secondary interfaces 30001 and 30002 (their 10 Hz state
+  stream, :mod:`sim.primary_server`), the script port 30003 and (if asked) Modbus on ``host`` only, then prints
+  one line ``READY {json}`` on stdout;
 * runs the control loop on an absolute schedule: tick k is due at ``start + k * 2 ms`` of wall time
   (no drift); each tick advances ``speed`` control periods of simulated time (fractions carried over)
   and sends the data packages due;
@@ -32,6 +33,7 @@ from sim.core import Core
 from sim.dashboard import DashboardServer
 from sim.hosts import check_host, check_speed, set_realtime_priority
 from sim.motion import DT
+from sim.primary_server import PrimaryServer
 from sim.rtde_server import RTDEServer
 from sim.script_server import ScriptServer
 
@@ -191,6 +193,7 @@ def main(argv: list[str] | None = None) -> int:
     core.remote_control = not args.local_control
     rtde = RTDEServer(core, host)
     dash = DashboardServer(core, host)
+    primary = PrimaryServer(core, host)
     script = ScriptServer(core, host)
     modbus = None
     if args.modbus_port is not None:
@@ -211,10 +214,10 @@ def main(argv: list[str] | None = None) -> int:
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     signal.signal(signal.SIGINT, lambda *_: stop.set())
-    for srv in (rtde, dash, script):
+    for srv in (rtde, dash, primary, script):
         srv.start()
     loop.thread.start()
-    ports = {"rtde": 30004, "dashboard": 29999, "script": [30001, 30002, 30003],
+    ports = {"rtde": 30004, "dashboard": 29999, "primary": 30001, "secondary": 30002, "script": [30001, 30002, 30003],
              "modbus": modbus.port if modbus else None}
     print("READY " + json.dumps({"host": host, "pid": os.getpid(), "ports": ports}), flush=True)
     # replies to the parent's commands only after READY (the parent reads READY first)
@@ -224,7 +227,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         loop.stop.set()
         loop.thread.join(2.0)
-        for srv in (rtde, dash, script):
+        for srv in (rtde, dash, primary, script):
             srv.close()
         if modbus is not None:
             modbus.stop()

@@ -198,6 +198,14 @@ def compile_program(text: str) -> list[Statement]:
     return body
 
 
+def compile_line(text: str) -> list[Statement]:
+    """Compile a one-line program (a statement sent alone to a client port, as python-urx sends its commands)."""
+    line = text.strip()
+    if not line.startswith("textmsg"):
+        line = line.split("#", 1)[0].strip()
+    return [_statement(line, 1, set())]
+
+
 class URScriptProgram:
     """A compiled exporter program, stepped by the controller once per control period."""
 
