@@ -20,8 +20,7 @@ import shutil
 import sys
 import time
 import uuid
-from collections.abc import AsyncIterator, Iterator
-from pathlib import Path
+from collections.abc import AsyncIterator
 from typing import Annotated, Any, Literal
 
 from fastapi import FastAPI, HTTPException, Query, Request
@@ -262,28 +261,21 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
     def trajectory(request: Request, job_id: str, who: Caller,
                    format: Literal["csv", "json", "script"] = "csv") -> Response:  # noqa: A002
         """The trajectory (CSV, JSON) or URScript program: the bytes ``planner plan -o`` writes, streamed."""
+        from planner.export import file_name, stream
+        from planner.export.verb import MEDIA_TYPES
+
         svc = _service(request)
         row = own_job(svc, who, job_id)
         job = _load_done(svc, row)
-        params = {"input": row.input_name}
-        stem = Path(row.input_name).stem or "job"
-        if format == "script":
-            from planner.export import job_program
-
-            try:
-                text = job_program(job, parameters=params)
-            except PlannerError as exc:
-                raise Unprocessable(["query", "format"], f"not writing {stem}.script: {exc}") from None
-            return Response(text.encode("utf-8"), media_type="text/plain; charset=utf-8",
-                            headers={"Content-Disposition": f'attachment; filename="{stem}.script"'})
-        from planner.export import csv_text, json_text
-
-        writer = csv_text if format == "csv" else json_text
-        pieces = writer(job.trajectory(), parameters=params)
-        first = next(pieces)  # the header is checked before the response starts
-        media = "text/csv; charset=utf-8" if format == "csv" else "application/json"
-        return StreamingResponse(_encoded(first, pieces), media_type=media,
-                                 headers={"Content-Disposition": f'attachment; filename="{stem}.{format}"'})
+        name = file_name(row.input_name, format)
+        try:  # the header (and the whole program) is made before the response starts
+            pieces = stream(job, format, parameters={"input": row.input_name})
+        except PlannerError as exc:
+            raise Unprocessable(["query", "format"], str(exc)) from None
+        headers = {"Content-Disposition": f'attachment; filename="{name}"'}
+        if format == "script":  # one piece, made already: sent with its length
+            return Response(b"".join(pieces), media_type=MEDIA_TYPES[format], headers=headers)
+        return StreamingResponse(pieces, media_type=MEDIA_TYPES[format], headers=headers)
 
     @app.get(f"{API}/jobs/{{job_id}}/plot.png", tags=["exports"], response_class=FileResponse,
              responses={200: {"content": {"image/png": {}}}, 404: {"description": "no such job of this key"},
@@ -342,12 +334,6 @@ def _warm(svc: Service) -> None:
     req = WaypointJob.model_validate_json(b'{"waypoints": [[0, 0, 0], [1, 0, 0], [1, 1, 0]]}')
     waypoints_toolpath(req.waypoints)
     _checked_settings(req.settings, "waypoints", False, [])
-
-
-def _encoded(first: str, pieces: Iterator[str]) -> Iterator[bytes]:
-    yield first.encode("utf-8")
-    for piece in pieces:
-        yield piece.encode("utf-8")
 
 
 def _load_done(svc: Service, row: Job):
