@@ -1,8 +1,8 @@
-"""The FastAPI application: the routes (one module per resource under :mod:`.routes`), the request body limit and
-the fast submit path, wired by :func:`create_app`.
+"""The FastAPI application: ``create_app(config)`` wires the routes (one module per resource under
+:mod:`.routes`), the dependencies (:mod:`.deps`), the request body limit and the fast submit path, and the lifespan.
 
-``create_app(config)`` builds an app whose lifespan opens (and migrates) the store, re-queues jobs a previous
-run left running, and starts the worker pool; ``planner serve`` runs it under uvicorn.
+The lifespan opens (and migrates) the store, re-queues jobs a previous run left running, and starts the worker pool;
+``planner serve`` runs the app under uvicorn.
 
 Errors: a user's mistake (bad JSON, a bad setting, a file the reader refuses) is 422 with ``detail`` a list of
 ``{"loc": [...], "msg": ...}`` naming the field (and, for a file, the reader's message with its line); a job of
@@ -28,14 +28,21 @@ from planner.frontends.service.body_limit import BodyLimit
 from planner.frontends.service.config import ServiceConfig
 from planner.frontends.service.deps import API, Service
 from planner.frontends.service.fast_submit import FastSubmit
-from planner.frontends.service.routes import executions, exports, jobs
+from planner.frontends.service.routes import api_router
 from planner.frontends.service.routes import service as service_routes
-from planner.frontends.service.schemas import WaypointJob
+from planner.frontends.service.schemas import UNITS, WaypointJob
 from planner.frontends.service.submit import _checked_settings
 
+#: The interpreter's thread switch interval in the service, s (Python's default 5 ms makes a request that needs the
+#: lock held by a busy thread wait for it; the service's threads mostly wait on I/O).
+SWITCH_INTERVAL = 0.001
+#: Threads (and database connections) made ready at start-up.
+WARM_THREADS = 20
 
-def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
-    """The service's ASGI app (``cfg`` default: from the environment)."""
+
+def create_app(cfg: ServiceConfig | None = None, *, fast_submit: bool = True) -> FastAPI:
+    """The service's ASGI app (``cfg`` default: from the environment). ``fast_submit=False`` leaves every submit to
+    the route (the fast path answers the same; a test compares them)."""
     cfg = cfg or ServiceConfig.from_env()
 
     @contextlib.asynccontextmanager
@@ -55,8 +62,10 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
 
     app = FastAPI(title="planner service", version="1", lifespan=lifespan, docs_url=None, redoc_url=None,
                   description="Path jobs for robot tool-orientation planning: submit waypoints or a toolpath file, "
-                              "watch the job, download the trajectory (CSV, JSON), the URScript program and the plot.")
-    app.add_middleware(FastSubmit)
+                              "watch the job, download the trajectory (CSV, JSON), the URScript program and the plot, "
+                              "run it on a robot. " + UNITS)
+    if fast_submit:
+        app.add_middleware(FastSubmit)
     app.add_middleware(BodyLimit, limit=cfg.max_request_bytes)  # (added last: outside FastSubmit)
 
     @app.exception_handler(PlannerError)
@@ -64,8 +73,7 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
         return JSONResponse({"detail": [{"loc": [], "msg": str(exc), "type": "planner_error"}]}, status_code=422)
 
     app.include_router(service_routes.router)
-    app.include_router(jobs.router)
-    app.include_router(exports.router)
+    app.include_router(api_router, prefix=API)
 
     def openapi() -> dict:
         if app.openapi_schema is None:
@@ -83,15 +91,7 @@ def create_app(cfg: ServiceConfig | None = None) -> FastAPI:
     from planner.frontends.service.docs import add_docs
 
     add_docs(app)
-    app.include_router(executions.router, prefix=API)
     return app
-
-
-#: The interpreter's thread switch interval in the service, s (Python's default 5 ms makes a request that needs the
-#: lock held by a busy thread wait for it; the service's threads mostly wait on I/O).
-SWITCH_INTERVAL = 0.001
-#: Threads (and database connections) made ready at start-up.
-WARM_THREADS = 20
 
 
 def _warm(svc: Service) -> None:

@@ -1,5 +1,7 @@
-"""The fast submit path: ``POST /v1/jobs`` with a JSON body answered without the framework's routing (see
-:class:`FastSubmit`); a test keeps its answers equal to the route's."""
+"""The fast submit path: ``POST /v1/jobs`` with a JSON body answered without the framework's routing, request and
+dependency machinery (:class:`FastSubmit`, measured by ``bench/bench_service.py``); the same checks
+(:func:`.submit.accept_json`) and the same answer (:func:`created`) as the route (:func:`.routes.jobs.submit`), and a
+test keeps its answers (status, body, headers) equal to the route's."""
 
 from __future__ import annotations
 
@@ -44,8 +46,8 @@ class FastSubmit:
             job_id = await accept_json(svc, who, body)
         except HTTPException:
             return await self.app(scope, _replay(body, receive), send)
-        location = f"{SUBMIT_PATH}/{job_id}"
-        answer = json.dumps({"id": job_id, "state": "queued", "location": location}, separators=(",", ":")).encode()
+        content, location = created(job_id)
+        answer = json.dumps(content, ensure_ascii=False, allow_nan=False, separators=(",", ":")).encode()
         await send({"type": "http.response.start", "status": 202, "headers": [
             (b"content-length", str(len(answer)).encode()), (b"content-type", b"application/json"),
             (b"location", location.encode())]})
@@ -53,6 +55,13 @@ class FastSubmit:
 
 
 SUBMIT_PATH = f"{API}/jobs"
+
+
+def created(job_id: str) -> tuple[dict, str]:
+    """The answer to an accepted submit, the route's and the fast path's: its JSON (:class:`.schemas.JobCreated`)
+    and the job's location."""
+    location = f"{SUBMIT_PATH}/{job_id}"
+    return {"id": job_id, "state": "queued", "location": location}, location
 
 
 def _replay(body: bytes, receive):

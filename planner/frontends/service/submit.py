@@ -107,7 +107,9 @@ def _waypoint_row(svc: Service, who: Principal, req: WaypointJob, body: bytes) -
                         read_options="{}")
 
 
-async def _submit_file(svc: Service, who: Principal, request: Request) -> str:
+async def accept_file(svc: Service, who: Principal, request: Request) -> str:
+    """A multipart upload of a toolpath file (and its settings and read options) checked and stored: its id.
+    HTTPException 422 naming the field or the file's line, before any row is stored, if it is bad."""
     try:
         form = await request.form(max_files=1, max_fields=10)
     except HTTPException:

@@ -1,35 +1,34 @@
-"""A done job's exports: the trajectory (CSV, JSON) and the URScript program streamed from the saved job by the
-export verb, and the plot (drawn once, in the drawing process)."""
+"""A done job's exports (``/v1/jobs/{id}/...``): the trajectory (CSV, JSON) and the URScript program streamed from
+the saved job by the export verb (:mod:`planner.export.verb`: the bytes ``planner plan -o`` writes), and the plot
+(drawn once by the same verb in the drawing process, then kept beside the saved job)."""
 
 from __future__ import annotations
 
 import asyncio
-from typing import Literal
+from typing import Any, Literal
 
-from fastapi import APIRouter, HTTPException, Request
+from fastapi import APIRouter, HTTPException
 from fastapi.responses import FileResponse, Response, StreamingResponse
 
 from planner.errors import PlannerError
-from planner.frontends.service.deps import API, Caller, Service, own_job
-from planner.frontends.service.deps import service as _service
+from planner.frontends.service.deps import OwnJob, Service, ServiceDep
 from planner.frontends.service.errors import Unprocessable
 from planner.frontends.service.store import Job
 from planner.frontends.service.workers import job_dir
 
-router = APIRouter()
+router = APIRouter(prefix="/jobs", tags=["exports"])
+_NOT_YOURS: dict[int | str, dict[str, Any]] = {404: {"description": "no such job of this key"},
+                                               409: {"description": "job not done"}}
 
 
-@router.get(f"{API}/jobs/{{job_id}}/trajectory", tags=["exports"],
-         responses={200: {"content": {"text/csv": {}, "application/json": {}, "text/plain": {}}},
-                    404: {"description": "no such job of this key"}, 409: {"description": "job not done"}})
-def trajectory(request: Request, job_id: str, who: Caller,
+@router.get("/{job_id}/trajectory",
+            responses={200: {"content": {"text/csv": {}, "application/json": {}, "text/plain": {}}}, **_NOT_YOURS})
+def trajectory(svc: ServiceDep, row: OwnJob,
                format: Literal["csv", "json", "script"] = "csv") -> Response:  # noqa: A002
     """The trajectory (CSV, JSON) or URScript program: the bytes ``planner plan -o`` writes, streamed."""
     from planner.export import file_name, stream
     from planner.export.verb import MEDIA_TYPES
 
-    svc = _service(request)
-    row = own_job(svc, who, job_id)
     job = _load_done(svc, row)
     name = file_name(row.input_name, format)
     try:  # the header (and the whole program) is made before the response starts
@@ -42,14 +41,11 @@ def trajectory(request: Request, job_id: str, who: Caller,
     return StreamingResponse(pieces, media_type=MEDIA_TYPES[format], headers=headers)
 
 
-@router.get(f"{API}/jobs/{{job_id}}/plot.png", tags=["exports"], response_class=FileResponse,
-         responses={200: {"content": {"image/png": {}}}, 404: {"description": "no such job of this key"},
-                    409: {"description": "job not done"}})
-async def plot(request: Request, job_id: str, who: Caller) -> FileResponse:
+@router.get("/{job_id}/plot.png", response_class=FileResponse,
+            responses={200: {"content": {"image/png": {}}}, **_NOT_YOURS})
+async def plot(svc: ServiceDep, row: OwnJob) -> FileResponse:
     """The picture ``planner plan --plot x.png`` draws (drawn once, in the drawing process, then kept beside the
     saved job)."""
-    svc = _service(request)
-    row = own_job(svc, who, job_id)
     if row.state != "done" or not row.job_file:
         raise HTTPException(409, f"job {row.id} is {row.state}; exports exist once it is done")
     folder = job_dir(svc.cfg, row.id)

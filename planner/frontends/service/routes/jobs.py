@@ -1,4 +1,4 @@
-"""Jobs: submit (JSON waypoints or a toolpath file), list, show, cancel."""
+"""Jobs: submit (JSON waypoints or a toolpath file), list, show, cancel (``/v1/jobs``)."""
 
 from __future__ import annotations
 
@@ -9,17 +9,20 @@ from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import JSONResponse
 from sqlalchemy import select
 
-from planner.frontends.service.deps import API, Caller, Service, own_job, principal
+from planner.frontends.service.deps import API, Caller, OwnJob, Service, ServiceDep, own_job, principal
 from planner.frontends.service.deps import service as _service
+from planner.frontends.service.fast_submit import created
 from planner.frontends.service.schemas import JobCreated, JobList, JobView
 from planner.frontends.service.store import Job, now
-from planner.frontends.service.submit import _submit_file, accept_json
+from planner.frontends.service.submit import accept_file, accept_json
 
-router = APIRouter()
+router = APIRouter(prefix="/jobs", tags=["jobs"])
 
 
 def job_view(svc: Service, job: Job) -> dict:
-    """The JSON of ``GET /v1/jobs/{id}``."""
+    """The JSON of ``GET /v1/jobs/{id}`` (:class:`.schemas.JobView`; its routes answer with
+    ``response_model_exclude_unset``: a key left out here, such as a robot's figures of a job planned without one or
+    the link to an export that does not exist yet, stays out of the JSON)."""
     base = f"{API}/jobs/{job.id}"
     t = {"queued_s": ((job.started_at or job.finished_at or now()) - job.created_at),
          "running_s": None if job.started_at is None else (job.finished_at or now()) - job.started_at,
@@ -65,31 +68,30 @@ _JOB_BODY = {
 }
 
 
-@router.post(f"{API}/jobs", status_code=202, response_model=JobCreated, tags=["jobs"], openapi_extra=_JOB_BODY,
-          responses={413: {"description": "request too large"}, 415: {"description": "not JSON or multipart"},
-                     422: {"description": "bad input, naming the field"}})
+@router.post("", status_code=202, response_model=JobCreated, openapi_extra=_JOB_BODY,
+             responses={413: {"description": "request too large"}, 415: {"description": "not JSON or multipart"},
+                        422: {"description": "bad input, naming the field"}})
 async def submit(request: Request) -> JSONResponse:
-    """Submit a job: JSON waypoints (WaypointJob) or a multipart upload of a toolpath file."""
+    """Submit a job: JSON waypoints (WaypointJob) or a multipart upload of a toolpath file. (A JSON job is mostly
+    answered by the fast submit path, :mod:`..fast_submit`, with the same answer.)"""
     svc = _service(request)
     who = await principal(request)  # called directly: FastAPI's dependency solving costs more than the check
     ctype = request.headers.get("content-type", "").lower()
     if ctype.startswith("application/json"):
         job_id = await accept_json(svc, who, await request.body())
     elif ctype.startswith("multipart/form-data"):
-        job_id = await _submit_file(svc, who, request)
+        job_id = await accept_file(svc, who, request)
     else:
         raise HTTPException(415, "send application/json (waypoints) or multipart/form-data (a toolpath file)")
-    location = f"{API}/jobs/{job_id}"
-    return JSONResponse({"id": job_id, "state": "queued", "location": location}, status_code=202,
-                        headers={"Location": location})
+    body, location = created(job_id)
+    return JSONResponse(body, status_code=202, headers={"Location": location})
 
 
-@router.get(f"{API}/jobs", response_model=JobList, tags=["jobs"])
-def list_jobs(request: Request, who: Caller, limit: Annotated[int, Query(ge=1, le=500)] = 50,
+@router.get("", response_model=JobList, response_model_exclude_unset=True)
+def list_jobs(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge=1, le=500)] = 50,
               cursor: Annotated[int | None, Query(ge=0, description="next_cursor of the previous page")] = None
               ) -> dict:
     """The caller's jobs, newest first."""
-    svc = _service(request)
     q = select(Job).where(Job.owner == who.key_id)
     if cursor is not None:
         q = q.where(Job.seq < cursor)
@@ -100,21 +102,18 @@ def list_jobs(request: Request, who: Caller, limit: Annotated[int, Query(ge=1, l
     return {"jobs": [job_view(svc, j) for j in rows], "next_cursor": rows[-1].seq if more else None}
 
 
-@router.get(f"{API}/jobs/{{job_id}}", response_model=JobView, tags=["jobs"],
-         responses={404: {"description": "no such job of this key"}})
-def get_job(request: Request, job_id: str, who: Caller) -> dict:
+@router.get("/{job_id}", response_model=JobView, response_model_exclude_unset=True,
+            responses={404: {"description": "no such job of this key"}})
+def get_job(svc: ServiceDep, job: OwnJob) -> dict:
     """State, progress, timings, the summary the CLI prints, or the planner's error."""
-    svc = _service(request)
-    return job_view(svc, own_job(svc, who, job_id))
+    return job_view(svc, job)
 
 
-@router.delete(f"{API}/jobs/{{job_id}}", response_model=JobView, tags=["jobs"],
-            responses={404: {"description": "no such job of this key"}, 409: {"description": "job has ended"}})
-def cancel_job(request: Request, job_id: str, who: Caller) -> dict:
+@router.delete("/{job_id}", response_model=JobView, response_model_exclude_unset=True,
+               responses={404: {"description": "no such job of this key"}, 409: {"description": "job has ended"}})
+def cancel_job(svc: ServiceDep, who: Caller, job: OwnJob) -> dict:
     """Cancel a queued or running job (a running job's worker is stopped within a second)."""
-    svc = _service(request)
-    job = own_job(svc, who, job_id)
     if svc.pool.cancel(job.id) is None:
-        job = own_job(svc, who, job_id)
-        raise HTTPException(409, f"job {job_id} is {job.state}; only queued or running jobs can be cancelled")
-    return job_view(svc, own_job(svc, who, job_id))
+        job = own_job(svc, who, job.id)
+        raise HTTPException(409, f"job {job.id} is {job.state}; only queued or running jobs can be cancelled")
+    return job_view(svc, own_job(svc, who, job.id))
