@@ -358,7 +358,7 @@ def bench_nx(workers: int) -> None:
         print(f"\n{NX_FILE} not found: the whole-NX-job part is skipped")
         return
     tic = time.perf_counter()
-    proc = subprocess.Popen([sys.executable, "-m", "planner.frontends.cli.main", "plan", str(NX_FILE)],
+    proc = subprocess.Popen([sys.executable, "-m", "planner.frontends.cli", "plan", str(NX_FILE)],
                             stdout=subprocess.DEVNULL)
     _, status, usage = os.wait4(proc.pid, 0)
     t_cli = time.perf_counter() - tic

@@ -20,13 +20,10 @@ from dataclasses import dataclass
 import numpy as np
 
 from planner.errors import PlannerError
+from planner.settings import MAX_FEED, MIN_FEED  # the feed range of the settings, also for the file's feeds
 
 #: Coordinates beyond this distance from the part origin (m) are no robot cell: a unit mistake.
 MAX_COORDINATE = 5_000.0
-#: Feeds below this (m/s: one micrometre per second) are refused: a typing or unit mistake.
-MIN_FEED = 1e-6
-#: Feeds above this (m/s) are refused: no tool path is cut at 10 m/s.
-MAX_FEED = 10.0
 #: Bytes per pose of the CSV trajectory with joints (for the figure shown to the user).
 CSV_BYTES_PER_POSE = 180
 

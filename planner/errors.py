@@ -13,7 +13,25 @@ from __future__ import annotations
 
 
 class PlannerError(ValueError):
-    """Base class of every error the planner raises on bad input."""
+    """Base class of every error the planner raises on bad input.
+
+    Attributes
+    ----------
+    field : str or None
+        The setting (a :class:`planner.PlanSettings` field name) or argument the error is about, when one is to
+        blame: front ends name it (the REST service's 422 ``loc``) from here, never from the message's text.
+    value : object
+        The refused value (None when ``field`` is None or the value was None).
+    """
+
+    field: str | None = None
+    value: object = None
+
+    def __init__(self, *args, field: str | None = None, value: object = None):
+        super().__init__(*args)
+        if field is not None:
+            self.field = field
+            self.value = value
 
 
 class WaypointError(PlannerError):

@@ -140,6 +140,17 @@ class Trajectory:
 
         ``joints``: add the robot's joints (default: when the job has a robot; True without a robot is an
         error). ``progress(stage, done, total)`` is called with the samples produced ("samples").
+
+        Examples
+        --------
+        >>> import numpy as np
+        >>> from planner import PlanSettings, plan
+        >>> t = np.linspace(0.0, 1.0, 9)
+        >>> bead = np.c_[0.2 * t, 0.03 * np.sin(2 * np.pi * t), np.zeros_like(t)]
+        >>> job = plan(bead, PlanSettings(feed=0.02, robot="ur5e", part_frame=(0.4, -0.1, 0.2, 0, 0, 0)))
+        >>> for chunk in job.trajectory().chunks():   # 500 Hz: time (n,) s, poses (n, 6) m and rad, joints (n, 6)
+        ...     print(chunk.kind, chunk.times.shape, chunk.poses.shape, chunk.joints.shape, chunk.io.shape)
+        cut (6036,) (6036, 6) (6036, 6) (6036,)
         """
         want = self.robot is not None if joints is None else bool(joints)
         if want and self.robot is None:

@@ -252,15 +252,17 @@ def check_arc_lengths(s, length: float) -> np.ndarray:
     return np.clip(s, 0.0, length)
 
 
-def check_in_range(value, name: str, lo: float, hi: float, error: type[PlannerError] = PlannerError) -> float:
-    """``value`` as a float in (lo, hi], or ``error`` naming ``name`` (booleans, strings, complex numbers and NaN
-    are refused)."""
+def check_in_range(value, name: str, lo: float, hi: float, error: type[PlannerError] = PlannerError, *,
+                   lo_closed: bool = False) -> float:
+    """``value`` as a float in (lo, hi] (``[lo, hi]`` with ``lo_closed``), or ``error`` naming ``name`` (booleans,
+    strings, complex numbers and NaN are refused). A :class:`PlannerError` itself carries ``field=name``."""
+    extra = {"field": name, "value": value} if error is PlannerError else {}
     if isinstance(value, bool | np.bool_) or not isinstance(value, numbers.Real):
-        raise error(f"{name} must be a number, got {_described(value)}")
+        raise error(f"{name} must be a number, got {_described(value)}", **extra)
     try:
         x = float(value)
     except (TypeError, ValueError, OverflowError):
-        raise error(f"{name} must be a number, got {_described(value)}") from None
-    if not (math.isfinite(x) and lo < x <= hi):
-        raise error(f"{name} must be in ({lo:g}, {hi:g}], got {x!r}")
+        raise error(f"{name} must be a number, got {_described(value)}", **extra) from None
+    if not (math.isfinite(x) and (lo <= x if lo_closed else lo < x) and x <= hi):
+        raise error(f"{name} must be in {'[' if lo_closed else '('}{lo:g}, {hi:g}], got {x!r}", **extra)
     return x

@@ -1,4 +1,6 @@
-"""Fuzz suite of issue 17: mutated versions of every input format, and option values, through ``planner plan``.
+"""Fuzz suite of issue 17: mutated versions of every input format, and option values, through ``planner plan``; of
+issue 24: every format in UTF-16 (either byte-order mark, or none), UTF-32 and UTF-8 with a mark, planning like its
+UTF-8 text, and CYCLE records of random words in a real SOLIDWORKS CAM file.
 
 The contract, for any input file and any options, checked through ``planner.frontends.cli.main.main([...])`` in-process (and a
 few examples through a subprocess, where stderr is the real one):
@@ -412,7 +414,7 @@ def test_through_a_subprocess(fmt, ops, opts, suffix):
         src.write_bytes(mutate(seed, ops))
         out = Path(tmp) / f"out{suffix}"
         argv = ["plan", str(src), *fixed, "--max-poses", MAX_POSES, "-o", str(out), *[f"{k}={v}" for k, v in opts]]
-        p = subprocess.run([sys.executable, "-m", "planner.frontends.cli.main", *argv], capture_output=True, text=True,
+        p = subprocess.run([sys.executable, "-m", "planner.frontends.cli", *argv], capture_output=True, text=True,
                            timeout=DEADLINE + 30, cwd=tmp, env={**os.environ, "PYTHONWARNINGS": "default"})
         check_contract(src, argv, out, p.returncode, p.stdout, p.stderr)
 
@@ -510,3 +512,121 @@ def test_outputs_through_links_and_onto_special_files_keep_the_contract(fmt, ops
             assert rc in (2, 3) and stderr.count("\n") == 1, f"{cmd}: exit {rc}\n{stderr}"
             assert (real.read_bytes() == PREVIOUS) if existed else not real.exists(), f"{cmd}: the target changed"
             event(f"input refused: {kind}")
+
+
+# ---------------------------------------------------------------------------- encodings and cycle words (issue 24)
+#: encoding -> how a text is written in it (as editors and CAM systems on Windows write UTF-16, with or without mark).
+ENCODINGS = {
+    "utf-8-bom": lambda t: "\ufeff".encode() + t.encode(),
+    "utf-16-le-bom": lambda t: t.encode("utf-16"),  # little endian with its mark on this platform's codec
+    "utf-16-be-bom": lambda t: b"\xfe\xff" + t.encode("utf-16-be"),
+    "utf-16-le": lambda t: t.encode("utf-16-le"),
+    "utf-16-be": lambda t: t.encode("utf-16-be"),
+    "utf-32": lambda t: t.encode("utf-32"),
+}
+#: Fewer examples than the mutation fuzz (3 per format by default, 250 in the long profile): each plans twice.
+ENCODED_SETTINGS = settings(max_examples=max(3, EXAMPLES // 4), deadline=None, derandomize=not FUZZ,
+                            suppress_health_check=[HealthCheck.too_slow, HealthCheck.data_too_large])
+
+
+def _plan_file(folder: Path, name: str, data: bytes, fixed: list[str]) -> tuple[int, str, str, Path]:
+    """``planner plan`` of ``data`` saved as ``folder/name`` with a CSV output: (exit, stdout, stderr, input path),
+    the contract checked."""
+    src = folder / name
+    src.write_bytes(data)
+    out = folder / "out.csv"
+    argv = ["plan", str(src), *fixed, "--max-poses", MAX_POSES, "-o", str(out)]
+    rc, stdout, stderr = run_in_process(argv)
+    check_contract(src, argv, out, rc, stdout, stderr)
+    return rc, stdout, stderr, src
+
+
+@pytest.mark.parametrize("fmt", sorted(SEEDS))
+@ENCODED_SETTINGS
+@given(ops=st.lists(mutation, max_size=3), encoding=st.sampled_from(sorted(ENCODINGS)))
+def test_encoded_inputs_plan_like_their_utf8_text(fmt, ops, encoding):
+    """A mutated seed written in UTF-16 (either mark, or none), UTF-32 or UTF-8 with a mark keeps the contract and
+    gives what its text gives in UTF-8: the same exit status, the same one-line error (same line, same field) or the
+    same summary. (Text holding NUL characters only keeps the contract: in UTF-8 it is binary data.)"""
+    name, seed, fixed = SEEDS[fmt]
+    text = mutate(seed, ops).decode("utf-8", errors="replace").lstrip("\ufeff")
+    data = ENCODINGS[encoding](text)
+    with tempfile.TemporaryDirectory(prefix="fuzz-") as a, tempfile.TemporaryDirectory(prefix="fuzz-") as b:
+        try:
+            rc, stdout, stderr, src = _plan_file(Path(a), name, data, fixed)
+            event(f"{encoding}: exit {rc}")
+            if "\x00" in text:
+                return
+            rc8, stdout8, stderr8, src8 = _plan_file(Path(b), name, text.encode(), fixed)
+            assert rc == rc8, (stderr, stderr8)
+            assert stderr.replace(a, "") == stderr8.replace(b, "")
+            summary = [s.replace(a, "") for s in stdout.splitlines() if " -> " in s]
+            assert summary == [s.replace(b, "") for s in stdout8.splitlines() if " -> " in s]
+        except (AssertionError, pytest.fail.Exception) as exc:
+            raise AssertionError(f"{exc}\n{_reproducer(fmt, ops, (('encoding', encoding),), data)}") from None
+
+
+#: A real SOLIDWORKS CAM file whose line 16 is its first cycle record (CYCLE/DEEP2 with 1STPECK and SUBPECK).
+SIDE_DRILL = (DATA / "solidworks_cam_apt_side_drill.apt").read_bytes().decode().splitlines(keepends=True)
+CYCLE_LINE = 16
+#: Every word a CYCLE record may hold, and the values they take.
+CYCLE_KINDS = ["DRILL", "DEEP", "DEEP2", "BRKCHP", "TAP", "BORE", "REAM"]
+CYCLE_WORDS = {"FEDTO": ["5.03163", "-4", "0.5"], "RAPTO": ["3.", "0"], "RTRCTO": ["25.", "AUTO", "63."],
+               "STEP": ["2.", "0.7"], "INCR": ["1."], "1STPECK": ["5.", "1.5"], "SUBPECK": ["2.", "30."],
+               "DWELL": ["0", "1.5", ""], "MMPM": ["382.27", "100"], "IPM": ["10."], "MMPR": ["0.1"],
+               "DEEP": [""], "BRKCHP": [""], "DRAG": [""], "DEEP2": [""]}
+KNOWN_CYCLE = set(CYCLE_KINDS) | set(CYCLE_WORDS) | {"OFF", "ON", "INIT", "CLEAR", "AUTO", "IPS", "MMPS", "IPR",
+                                                     "NODRAG", "BACK", "MANUAL"}
+
+
+def _is_number(word: str) -> bool:
+    try:
+        float(word.replace("D", "E"))
+    except ValueError:
+        return False
+    return True
+
+
+unknown_word = st.from_regex(r"\A[0-9]?[A-Z][A-Z0-9]{0,7}\Z").filter(
+    lambda w: w not in KNOWN_CYCLE and not _is_number(w))
+cycle_pair = st.sampled_from(sorted(CYCLE_WORDS)).flatmap(
+    lambda w: st.tuples(st.just(w), st.sampled_from(CYCLE_WORDS[w])))
+cycle_token = st.one_of(st.sampled_from(sorted(KNOWN_CYCLE)), unknown_word, st.sampled_from(NASTY),
+                        st.floats(allow_nan=True, allow_infinity=True).map(repr))
+
+
+def _cycle_file(record: str) -> bytes:
+    lines = list(SIDE_DRILL)
+    lines[CYCLE_LINE - 1] = record + "\n"
+    return "".join(lines).encode()
+
+
+@ENCODED_SETTINGS
+@given(kind=st.one_of(st.sampled_from(CYCLE_KINDS + ["INIT", "OFF", "ON", "CLEAR"]), unknown_word),
+       tokens=st.lists(cycle_token, max_size=10))
+def test_cycle_records_with_random_words_keep_the_contract(kind, tokens):
+    """CYCLE/<kind>,<random words and values> in a real SOLIDWORKS file: exit 0 with valid output, or one line."""
+    record = "CYCLE/" + ",".join([kind, *tokens])
+    with tempfile.TemporaryDirectory(prefix="fuzz-") as tmp:
+        rc, _, stderr, _ = _plan_file(Path(tmp), "cycle.apt", _cycle_file(record), [])
+        event(f"exit {rc}")
+        if kind not in KNOWN_CYCLE:  # an unknown cycle is refused naming it, whatever follows
+            assert rc == 2 and f"line {CYCLE_LINE}" in stderr and repr(kind) in stderr, (record, stderr)
+
+
+@ENCODED_SETTINGS
+@given(kind=st.sampled_from(CYCLE_KINDS), pairs=st.lists(cycle_pair, max_size=6), word=unknown_word,
+       at=st.floats(0.0, 1.0))
+def test_one_unknown_cycle_word_is_named_with_the_words_known(kind, pairs, word, at):
+    """A readable cycle record (FEDTO first) with one unknown word put anywhere after its type: refused on its line,
+    the message naming the word (and, where it stands as a keyword, the keywords the reader knows)."""
+    fields = [kind, "FEDTO", "5.03163"] + [x for w, v in pairs for x in ((w, v) if v else (w,))]
+    k = 1 + int(at * (len(fields) - 1))
+    fields.insert(k, word)
+    record = "CYCLE/" + ",".join(fields)
+    with tempfile.TemporaryDirectory(prefix="fuzz-") as tmp:
+        rc, _, stderr, _ = _plan_file(Path(tmp), "cycle.apt", _cycle_file(record), [])
+    assert rc == 2 and stderr.startswith(f"planner: error: cycle.apt line {CYCLE_LINE}, field "), (record, stderr)
+    assert repr(word) in stderr, (record, stderr)
+    if "is neither a number nor a CYCLE keyword" in stderr:
+        assert "1STPECK, SUBPECK" in stderr and "FEDTO" in stderr

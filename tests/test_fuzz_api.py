@@ -441,7 +441,7 @@ def test_the_valid_call_works(call_name):
     (None, "got None"),
     (True, "got the boolean True"),
     (10**400, "an integer of 401 digits, beyond the float range"),
-    (math.nan, "be in (0, 10], got nan"),
+    (math.nan, "be in [1e-06, 10], got nan"),  # the feed range of the command line and the budget (1 um/s)
 ])
 def test_a_setting_is_a_real_number(value, message):
     """PlanSettings' numbers (planner.validation.check_in_range): a numeric string is not parsed, a complex

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import io
 import math
 
@@ -10,6 +11,7 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+import planner
 from planner.io import (
     Arc,
     Event,
@@ -48,6 +50,38 @@ def test_toolpath_arrays_are_read_only_and_shapes_checked():
     with pytest.raises(ValueError, match="both be given or both be None"):
         _tp(axes=np.zeros((3, 3)))
     assert "3 points" in repr(tp)
+
+
+@pytest.mark.parametrize(
+    "axis, why",
+    [((0.0, 0.0, 0.0), "is zero"), ((0.0, 1e-13, 0.0), "is zero"), ((0.0, math.nan, 1.0), "is not finite"),
+     ((math.inf, 0.0, 0.0), "is not finite"), ((1e200, 1e200, 0.0), "too long to normalise")],
+)
+def test_a_tool_axis_without_direction_is_refused_naming_the_point_and_line(axis, why):
+    n = 5
+    axes = np.tile([0.0, 0.0, 1.0], (n, 1))
+    axes[2] = axis
+    kw = dict(axes=axes, axis_given=np.ones(n, bool), lines=np.arange(10, 10 + n), source="job.cls")
+    with pytest.raises(InputFileError) as exc:
+        _tp(n, **kw)
+    assert str(exc.value).startswith("job.cls line 12, tool axis of point 2: ") and why in str(exc.value)
+    assert isinstance(exc.value, planner.PlannerError) and exc.value.line == 12
+    # a toolpath changed with dataclasses.replace is checked again; one with good axes plans (any length)
+    good = _tp(n, axes=np.tile([0.0, 0.0, 2.0], (n, 1)), axis_given=np.ones(n, bool), lines=np.arange(n))
+    with pytest.raises(InputFileError, match="tool axis of point 2"):
+        dataclasses.replace(good, axes=axes)
+    assert len(planner.plan(good).moves) >= 1
+
+
+def test_plan_of_a_toolpath_with_a_zero_axis_names_the_point():
+    """The form of issue 24: a Toolpath built by hand with a zero axis, passed to planner.plan."""
+    n = 5
+    pts = np.c_[np.linspace(0.0, 0.1, n), np.zeros(n), np.zeros(n)]
+    axes = np.tile([0.0, 0.0, 1.0], (n, 1))
+    axes[2] = 0.0
+    with pytest.raises(planner.PlannerError, match=r"<toolpath> line 3, tool axis of point 2: \(0.0, 0.0, 0.0\) is zero"):
+        planner.plan(Toolpath(points=pts, axes=axes, axis_given=np.ones(n, bool), feeds=np.full(n, 0.01),
+                              rapid=np.zeros(n, bool), lines=np.arange(1, n + 1)))
 
 
 def test_events_of_and_arcs():

@@ -184,6 +184,18 @@ def frame_field(
         (a frame's column 1, or any vector, projected into the normal plane). Met exactly by the least
         uniform twist between consecutive prescriptions.
     weight : GRM objective (method "grm" only), see :func:`planner.frames.grm.grm`.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from planner.curves import fit_ph_spline
+    >>> from planner.frames import frame_field
+    >>> t = np.linspace(0.0, 1.0, 9)
+    >>> path = fit_ph_spline(np.c_[0.2 * t, 0.03 * np.sin(2 * np.pi * t), 0.01 * t ** 2])
+    >>> field = frame_field(path, "rmf")      # exact rotation-minimizing frames
+    >>> F = field.frames(np.linspace(0.0, path.n_segments, 50))   # (50, 3, 3): tangent, two normal-plane vectors
+    >>> F.shape, bool(np.abs(np.einsum("nij,nik->njk", F, F) - np.eye(3)).max() < 1e-12)
+    ((50, 3, 3), True)
     """
     has_path(path)
     if not isinstance(method, str) or method not in METHODS:

@@ -7,6 +7,7 @@ forward-fills it with numpy, checks the data and returns a :class:`~planner.io.t
 
 from __future__ import annotations
 
+import codecs
 import contextlib
 import io
 import math
@@ -53,17 +54,88 @@ def source_name(src, source: str | None) -> str:
     return os.path.basename(str(name)) if isinstance(name, str) else "<stream>"
 
 
-@contextlib.contextmanager
-def open_lines(src) -> Iterator[Iterator[str]]:
-    """Lines of a path or text stream, streamed; a UTF-8 byte-order mark is dropped.
+#: Byte-order marks, longest first, and the codec that reads the text after them (dropping the mark).
+_BOMS = (
+    (codecs.BOM_UTF32_LE, "utf-32"),
+    (codecs.BOM_UTF32_BE, "utf-32"),
+    (codecs.BOM_UTF8, "utf-8-sig"),
+    (codecs.BOM_UTF16_LE, "utf-16"),
+    (codecs.BOM_UTF16_BE, "utf-16"),
+)
+#: Bytes of a file's start that tell its encoding (and characters of a decoded stream's start checked for a wrong one).
+_SNIFF_BYTES = SNIFF_CHARS = 4096
 
-    Undecodable bytes become U+FFFD (they can only matter inside comments: a number holding one
-    fails to parse with a message naming its line). Anything but a path or a text stream is a
-    :class:`ReaderArgumentTypeError` naming ``src``.
+
+def file_encoding(path, source: str | None = None) -> str:
+    """The codec that reads the toolpath file ``path``, told from its first 4 KiB.
+
+    UTF-8 by default (a byte-order mark dropped); UTF-16 or UTF-32 by their byte-order marks; UTF-16 little or big
+    endian without a mark when at least 90 % of the odd (even) bytes are NUL and none of the even (odd) ones, as
+    ASCII text written as UTF-16 is. NUL bytes at the very end (padding) are no sign of anything.
+
+    Raises
+    ------
+    InputFileError
+        The start holds NUL bytes in no such pattern: binary data, or text in another encoding (the message
+        names the line and the encodings read).
+    """
+    name = source_name(path, source)
+    with open(path, "rb") as fh:
+        head = fh.read(_SNIFF_BYTES)
+    for bom, codec in _BOMS:
+        if head.startswith(bom):
+            return codec
+    if b"\x00" not in head.rstrip(b"\x00"):
+        return "utf-8-sig"
+    n = len(head) // 2 * 2
+    even, odd = head[0:n:2], head[1:n:2]
+    if even and b"\x00" not in even and odd.count(0) >= 0.9 * len(odd):
+        return "utf-16-le"
+    if odd and b"\x00" not in odd and even.count(0) >= 0.9 * len(even):
+        return "utf-16-be"
+    at = head.index(b"\x00")
+    raise InputFileError(name, head.count(b"\n", 0, at) + 1, "", f"holds a NUL byte (byte {at} of the file): it is "
+                         "binary data or text in an encoding other than UTF-8, UTF-16 and UTF-32, not a toolpath file")
+
+
+def check_text_start(text: str, source: str) -> str:
+    """The start of an already decoded text stream without its byte-order mark; :class:`InputFileError` naming the
+    line when it shows UTF-16 or UTF-32 text decoded with another codec (NUL characters, or a UTF-16 mark read as
+    Latin-1)."""
+    if text.startswith("\ufeff"):
+        text = text[1:]
+    elif text.startswith("\u00ef\u00bb\u00bf"):  # a UTF-8 mark decoded as Latin-1 / cp1252: the text after it is fine
+        text = text[3:]
+    nul = text.find("\x00")
+    if nul >= 0 or text.startswith(("\u00ff\u00fe", "\u00fe\u00ff", "\ufffe")):
+        line = text.count("\n", 0, nul) + 1 if nul >= 0 else 1
+        raise InputFileError(source, line, "", "holds NUL characters or a UTF-16 byte-order mark: UTF-16 or UTF-32 "
+                             "text decoded as UTF-8 or Latin-1; open the file with encoding='utf-16' (or pass its "
+                             "path)")
+    return text
+
+
+@contextlib.contextmanager
+def open_text(path, source: str | None = None) -> Iterator[io.TextIOWrapper]:
+    """The toolpath file ``path`` opened for reading text in the encoding :func:`file_encoding` tells (universal
+    newlines; undecodable bytes become U+FFFD)."""
+    with open(path, encoding=file_encoding(path, source), errors="replace", newline=None) as fh:
+        yield fh
+
+
+@contextlib.contextmanager
+def open_lines(src, source: str | None = None) -> Iterator[Iterator[str]]:
+    """Lines of a path or text stream, streamed; a byte-order mark is dropped.
+
+    A file is decoded as UTF-8, UTF-16 or UTF-32 as its start tells (:func:`file_encoding`); undecodable bytes
+    become U+FFFD (they can only matter inside comments: a number holding one fails to parse with a message
+    naming its line). A text stream whose first line shows UTF-16 decoded as something else is refused
+    (:func:`check_text_start`). Anything but a path or a text stream is a :class:`ReaderArgumentTypeError`
+    naming ``src``; ``source`` names the file in messages (default: its base name).
     """
     check_src(src)
     if isinstance(src, str | os.PathLike):
-        with open(src, encoding="utf-8-sig", errors="replace", newline=None) as fh:
+        with open_text(src, source) as fh:
             yield iter(fh)
         return
     if isinstance(src, io.TextIOBase) or hasattr(src, "__iter__"):
@@ -83,8 +155,7 @@ def open_lines(src) -> Iterator[Iterator[str]]:
         raise binary_stream()
     if not isinstance(first, str):
         raise ReaderArgumentTypeError("src", f"src must be a text stream: it yielded {_described(first)}")
-    if first.startswith("\ufeff"):
-        first = first[1:]
+    first = check_text_start(first, source_name(src, source))
 
     def chain():
         yield first

@@ -32,12 +32,16 @@ Records and how they are read
     :func:`planner.io.cycles.hole_moves`. ``RAPTO r`` clearance above the hole point (default 0),
     ``FEDTO d`` depth below it (NX writes it as a negative offset, other systems as a positive depth:
     both mean ``|d|`` into the part), ``RTRCTO h`` retract level (``AUTO``: back to the level the tool
-    came from; default the RAPTO level), ``STEP s`` (or ``INCR``) peck depth, ``DWELL t`` seconds at the
-    bottom (a ``dwell`` event after the bottom point), ``MMPM|IPM|MMPR|IPR|MMPS|IPS f`` the cycle's feed
-    (default the modal FEDRAT, which resumes after CYCLE/OFF). Lengths are in file units. DEEP/DEEP2
-    retract fully between pecks, BRKCHP backs off by ``peck_clearance``; TAP, BORE and REAM feed out,
-    DRILL and BORE,DRAG rapid out. BORE with BACK, MANUAL or NODRAG, an unknown type or keyword, and a
-    cycle without FEDTO are refused naming the line and the cycle. ``CYCLE/ON`` resumes the last cycle.
+    came from; default the RAPTO level), ``STEP s`` (or ``INCR``) peck depth, ``1STPECK s1`` and
+    ``SUBPECK s2`` (SOLIDWORKS CAM) the first peck's depth and that of each later one, ``DWELL t`` seconds
+    at the bottom (a ``dwell`` event after the bottom point), ``MMPM|IPM|MMPR|IPR|MMPS|IPS f`` the cycle's
+    feed (default the modal FEDRAT, which resumes after CYCLE/OFF). Lengths are in file units; pecks are
+    measured from the RAPTO level. DEEP/DEEP2 retract fully between pecks, BRKCHP backs off by
+    ``peck_clearance``; TAP, BORE and REAM feed out, DRILL and BORE,DRAG rapid out. BORE with BACK,
+    MANUAL or NODRAG, an unknown type or keyword, and a cycle without FEDTO are refused naming the line,
+    the word and the words the reader knows. ``CYCLE/ON`` resumes the last cycle. ``CYCLE/INIT`` (and
+    ``CYCLE/CLEAR``), which SOLIDWORKS CAM writes before each cycle, sets up: it ends a cycle in effect
+    and is kept as an event.
 ``NURBS/`` with ``KNOT/k1,...`` and ``CNTRL/x,y,z[,i,j,k][,w]`` records (NX)
     A NURBS move from the current point (its first control point, weight 1) through the CNTRL points
     (optional tool axes and weights); the KNOT values are the interior knots and the end value (the
@@ -110,8 +114,28 @@ _NUMERIC_START = frozenset("0123456789+-.")
 _CYCLE_KINDS = frozenset({"DRILL", "DEEP", "DEEP2", "BRKCHP", "TAP", "BORE", "REAM"})
 #: Words that qualify a CYCLE type (BACK, MANUAL and NODRAG are refused by name).
 _CYCLE_MODIFIERS = frozenset({"DEEP", "DEEP2", "BRKCHP", "DRAG", "NODRAG", "BACK", "MANUAL"})
+#: CYCLE keywords that take values: levels, peck depths (STEP/INCR each peck, SOLIDWORKS CAM's 1STPECK the
+#: first and SUBPECK each later one), DWELL.
+_CYCLE_VALUE_WORDS = ("FEDTO", "RAPTO", "RTRCTO", "STEP", "INCR", "1STPECK", "SUBPECK", "DWELL")
+#: Records of the form CYCLE/word that set no cycle: OFF ends one, ON resumes the last one, INIT (SOLIDWORKS CAM,
+#: before each cycle) and CLEAR set up (a cycle in effect ends).
+_CYCLE_CONTROLS = ("OFF", "ON", "INIT", "CLEAR")
+#: Every word a CYCLE record may hold after its type.
+_CYCLE_WORDS = frozenset(_CYCLE_VALUE_WORDS) | _CYCLE_MODIFIERS | frozenset(_FEED_UNITS) | {"AUTO"}
 #: A pending CIRCLE record: (line, centre, axis, radius), metres, CL frame.
 _Circle = tuple[int, tuple[float, float, float], tuple[float, float, float], float]
+
+
+def _cycle_value(token: str) -> bool:
+    """Whether a CYCLE field is a value (a number, ``6.``, ``-1.5E-3``, ``1.5D+02``), not a word (``1STPECK``)."""
+    t = token.strip()
+    if not t or t[0] not in _NUMERIC_START:
+        return False
+    try:
+        float(t.replace("D", "E").replace("d", "e"))
+    except ValueError:
+        return False
+    return True
 
 
 class _Reader:
@@ -446,12 +470,14 @@ class _Reader:
         parts = [p.strip() for p in body.split(",")]
         word = parts[0].upper() if parts else ""
         self.out.event("cycle", line, word, math.nan, f"CYCLE/{body.strip()}")
-        if word == "OFF":
+        if word == "OFF" or (word in ("INIT", "CLEAR") and len(parts) == 1):
             if self.drill is not None:
                 self.drill = None
                 self.out.set_feed(self.out.count, self.feed)  # the modal FEDRAT resumes
             return
-        if word == "ON" and len(parts) == 1:
+        if word in ("ON", "INIT", "CLEAR") and len(parts) > 1:
+            self.fail(line, "CYCLE record", f"CYCLE/{word} takes no values, got CYCLE/{body.strip()}")
+        if word == "ON":
             if self.last_drill is None:
                 self.fail(line, "CYCLE/ON", "no earlier CYCLE to turn back on")
             self.drill = self.last_drill
@@ -463,24 +489,33 @@ class _Reader:
         kind = parts[0].upper()
         name = "CYCLE/" + ",".join([kind] + [p.upper() for p in parts[1:] if p.upper() in _CYCLE_MODIFIERS])
         if kind not in _CYCLE_KINDS:
-            self.fail(line, "field 1 of CYCLE", f"cycle {kind!r} ({name}) is not read: the readable cycles are "
-                      f"{', '.join(sorted(_CYCLE_KINDS))} (the holes cannot be planned as a path)", 1)  # fmt: skip
+            self.fail(line, "field 1 of CYCLE", f"cycle {kind!r} ({name}) is not one the reader knows: it reads the "
+                      f"cycles {', '.join(sorted(_CYCLE_KINDS))} and CYCLE/{', CYCLE/'.join(_CYCLE_CONTROLS)} (the "
+                      "holes cannot be planned as a path)", 1)  # fmt: skip
         mods: set[str] = {kind}
         values: dict[str, float] = {}
-        steps: list[float] = []
+        pecks: dict[str, float] = {}
         retract_auto = False
         feed_unit = None
+        known = (f"the keywords it knows are {', '.join(_CYCLE_VALUE_WORDS)}, {', '.join(sorted(_CYCLE_MODIFIERS))}, "
+                 f"the feed units {', '.join(_FEED_UNITS)} and RTRCTO,AUTO")
         k = 1
         while k < len(parts):
             word = parts[k].upper()
-            if not word or word[0] in _NUMERIC_START:
+            if not word:
+                self.fail(line, f"field {k + 1} of CYCLE", f"is empty ({name})", k + 1)
+            if _cycle_value(parts[k]):
                 self.fail(line, f"field {k + 1} of CYCLE", f"value {parts[k]!r} follows no keyword ({name}: "
                           "write FEDTO, RAPTO, RTRCTO, STEP, DWELL and the feed unit before their values)", k + 1)
             nums = []
             j = k + 1
-            while j < len(parts) and parts[j] and parts[j][0] in _NUMERIC_START:
+            while j < len(parts) and _cycle_value(parts[j]):
                 nums.append(self.numbers(line, "CYCLE", parts[j], first=j + 1)[0])
                 j += 1
+            if (not nums and j < len(parts) and word in _CYCLE_VALUE_WORDS + tuple(_FEED_UNITS) and word != "DWELL"
+                    and parts[j].upper() not in _CYCLE_WORDS):
+                self.fail(line, f"field {j + 1} of CYCLE", f"{parts[j]!r} is not a number ({word} needs a value; "
+                          f"{name})", j + 1)
             if word in ("FEDTO", "RAPTO", "RTRCTO"):
                 if word == "RTRCTO" and not nums and j < len(parts) and parts[j].upper() == "AUTO":
                     retract_auto = True
@@ -489,10 +524,12 @@ class _Reader:
                     self.fail(line, f"field {k + 1} of CYCLE", f"{word} needs one value ({name})", k + 1)
                 else:
                     values[word] = nums[0] * self.scale
-            elif word in ("STEP", "INCR"):
+            elif word in ("STEP", "INCR", "1STPECK", "SUBPECK"):
+                if len(nums) != 1 and word in ("1STPECK", "SUBPECK"):
+                    self.fail(line, f"field {k + 1} of CYCLE", f"{word} needs one peck depth ({name})", k + 1)
                 if not nums:
                     self.fail(line, f"field {k + 1} of CYCLE", f"{word} needs a peck depth ({name})", k + 1)
-                steps = [v * self.scale for v in nums]
+                pecks["next" if word == "SUBPECK" else "first"] = nums[0] * self.scale
             elif word == "DWELL":
                 if len(nums) > 1:
                     self.fail(line, f"field {k + 1} of CYCLE", f"DWELL takes one value in seconds ({name})", k + 1)
@@ -507,8 +544,8 @@ class _Reader:
                     self.fail(line, f"field {k + 1} of CYCLE", f"{word} takes no value ({name})", k + 1)
                 mods.add(word)
             else:
-                self.fail(line, f"field {k + 1} of CYCLE", f"{word!r} is not a CYCLE keyword the reader knows "
-                          f"({name}); the holes cannot be planned without it", k + 1)  # fmt: skip
+                self.fail(line, f"field {k + 1} of CYCLE", f"{parts[k]!r} is neither a number nor a CYCLE keyword the "
+                          f"reader knows ({name}; {known}): the holes cannot be planned without it", k + 1)  # fmt: skip
             k = j
         refused = mods & {"BACK", "MANUAL", "NODRAG"}
         if refused:
@@ -526,13 +563,14 @@ class _Reader:
                 self.fail(line, "CYCLE record", f"{name}: feed must be positive, got {values['FEED']:g}")
             feed = f / 60.0 if per == "min" else f if per == "s" else f * self.spindle_rps
         peck_mode = "full" if mods & {"DEEP", "DEEP2"} else "chip" if "BRKCHP" in mods else ""
-        if peck_mode and not steps:
+        if peck_mode and not pecks:
             self.warn.warn("CYCLE without STEP", line, f"{name} gives no STEP: each hole is drilled in one feed")
+        first = pecks.get("first", pecks.get("next", 0.0))
         clearance = values.get("RAPTO", 0.0)
         retract = None if retract_auto else values.get("RTRCTO", clearance)
         cyc = DrillCycle(
             name=name, line=line, clearance=clearance, bottom=-abs(values["FEDTO"]), retract=retract, feed=feed,
-            peck=steps[0] if steps else 0.0, peck_mode=peck_mode, peck_clearance=self.peck_clearance,
+            peck=first, peck_next=pecks.get("next", 0.0), peck_mode=peck_mode, peck_clearance=self.peck_clearance,
             dwell=values.get("DWELL", 0.0), feed_out=kind in ("TAP", "BORE", "REAM") and "DRAG" not in mods,
         )  # fmt: skip
         problem = cyc.problem()
@@ -887,7 +925,7 @@ def read_apt(
     axis_tolerance = opts.axis_tolerance(axis_tolerance)
     reader = _Reader(name, units, frames, axis_tolerance)
     reader.peck_clearance = opts.peck_clearance(peck_clearance)
-    with open_lines(src) as lines:
+    with open_lines(src, name) as lines:
         reader.run(lines)
     if reader.out.count == 0:
         raise InputFileError(name, None, "", "holds no motion (no GOTO or FROM record)")

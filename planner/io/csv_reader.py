@@ -166,7 +166,7 @@ def read_csv(
     warn = WarningLimiter(name)
     table: _Table | None = None
     split = None
-    with open_lines(src) as lines:
+    with open_lines(src, name) as lines:
         for lineno, raw in enumerate(lines, 1):
             text = raw.strip()
             if not text or text.startswith("#"):

@@ -8,8 +8,9 @@ For each hole, :func:`hole_moves` returns the tool-tip points, in order:
 1. a rapid traverse to the hole axis at the tool's current level (omitted when the tool is already on
    it or its position is unknown);
 2. a rapid along the axis to the clearance level (``R``, APT ``RAPTO``);
-3. feed moves down to the bottom (``Z``, ``FEDTO``); a peck cycle feeds ``peck`` at a time from the
-   clearance level, and between pecks either rapids out to the clearance level and back down to
+3. feed moves down to the bottom (``Z``, ``FEDTO``); a peck cycle feeds ``peck`` deep first, from the
+   clearance level, then ``peck_next`` at a time (SOLIDWORKS CAM's ``1STPECK`` and ``SUBPECK``; the same
+   depth by default), and between pecks either rapids out to the clearance level and back down to
    ``peck_clearance`` above the last depth (``"full"``: G83, APT ``DEEP``) or backs off by
    ``peck_clearance`` (``"chip"``: G73, APT ``BRKCHP``);
 4. the dwell at the bottom (the caller records a ``dwell`` event after the bottom point);
@@ -50,7 +51,9 @@ class DrillCycle:
     feed : float
         Feed of the plunge (and of a fed retract), m/s; NaN: the reader's modal feed.
     peck : float
-        Depth of each peck, metres (0: one feed to the bottom).
+        Depth of the first peck (of each peck unless ``peck_next`` is given), metres (0: one feed to the bottom).
+    peck_next : float
+        Depth of each peck after the first, metres (0: ``peck``).
     peck_mode : {"", "full", "chip"}
         Between pecks: rapid out to the clearance level and back ("full") or back off ("chip").
     peck_clearance : float
@@ -68,6 +71,7 @@ class DrillCycle:
     retract: float | None = None
     feed: float = math.nan
     peck: float = 0.0
+    peck_next: float = 0.0
     peck_mode: str = ""
     peck_clearance: float = DEFAULT_PECK_CLEARANCE
     dwell: float = 0.0
@@ -80,13 +84,30 @@ class DrillCycle:
         if self.bottom >= self.clearance:
             return (f"the hole bottom ({self.bottom * 1e3:.6g} mm along the tool axis) is not below the clearance "
                     f"level ({self.clearance * 1e3:.6g} mm)")
-        if self.peck < 0.0 or not math.isfinite(self.peck):
-            return f"the peck depth must be positive, got {self.peck * 1e3:g} mm"
-        if self.peck_mode and self.peck > 0.0 and (self.clearance - self.bottom) / self.peck > 100_000:
+        for what, depth in (("peck depth", self.peck), ("depth of the later pecks", self.peck_next)):
+            if depth < 0.0 or not math.isfinite(depth):
+                return f"the {what} must be positive, got {depth * 1e3:g} mm"
+        if self.peck_mode and self.peck > 0.0 and self.pecks() > 100_000:
             return "more than 100000 pecks: the peck depth is too small for the hole"
         if self.dwell < 0.0:
             return f"the dwell must not be negative, got {self.dwell:g} s"
         return ""
+
+    def pecks(self) -> int:
+        """Number of feeds to the bottom: 1, or the pecks of a peck cycle (``peck`` then ``peck_next`` each)."""
+        if not (self.peck_mode and self.peck > 0.0):
+            return 1
+        rest = self.clearance - self.bottom - self.peck
+        step = self.peck_next or self.peck
+        return 1 + max(0, math.ceil(rest / step - 1e-9))
+
+    def peck_levels(self) -> list[float]:
+        """Levels along the tool axis, metres, the tool feeds to in turn: the pecks, the last at the bottom."""
+        n = self.pecks()
+        if n == 1:
+            return [self.bottom]
+        r, step = self.clearance, self.peck_next or self.peck
+        return [max(r - self.peck - k * step, self.bottom) for k in range(n)]
 
 
 def hole_moves(current, hole, axis, cycle: DrillCycle) -> tuple[list[tuple[tuple[float, float, float], bool]], int]:
@@ -133,12 +154,8 @@ def hole_moves(current, hole, axis, cycle: DrillCycle) -> tuple[list[tuple[tuple
         go(came_from, True)  # traverse at the current level
     r = cycle.clearance
     go(r, True)
-    levels = [cycle.bottom]
-    if cycle.peck_mode and cycle.peck > 0.0:
-        n = max(1, math.ceil((r - cycle.bottom) / cycle.peck - 1e-9))
-        levels = [max(r - k * cycle.peck, cycle.bottom) for k in range(1, n + 1)]
     prev = r
-    for k, level in enumerate(levels):
+    for k, level in enumerate(cycle.peck_levels()):
         if k > 0:
             back = min(prev + cycle.peck_clearance, r)
             if cycle.peck_mode == "full":

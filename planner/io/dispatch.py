@@ -82,7 +82,8 @@ def read_toolpath(path, *, format: str | None = None, **options) -> Toolpath:
     format : {"apt", "gcode", "csv", "json"}, optional
         Skip detection. By default the suffix decides (``.apt .cls .cl .ncl`` APT; ``.nc .ngc .tap
         .gcode .mpf .spf`` G-code, the last two in the Sinumerik dialect; ``.csv .tsv .xyz`` CSV;
-        ``.json``), else the first lines of the file.
+        ``.json``), else the first lines of the file. Any format may be written in UTF-8, UTF-16 or UTF-32
+        (with or without a byte-order mark; :func:`planner.io._collect.file_encoding`).
     **options
         Passed to the reader: :func:`~planner.io.apt.read_apt`, :func:`~planner.io.gcode.read_gcode`
         (e.g. ``machine="haas-umc-750"``), :func:`~planner.io.csv_reader.read_csv` or

@@ -757,7 +757,7 @@ def read_gcode(
     arc_tolerance = opts.arc_tolerance(arc_tolerance)
     peck = opts.peck_clearance(peck_clearance)
     opts.choice(dialect, "dialect", ("auto", "iso", "sinumerik"))
-    with open_lines(src) as lines:
+    with open_lines(src, name) as lines:
         if dialect == "auto":
             if name.lower().endswith((".mpf", ".spf")):
                 dialect = "sinumerik"

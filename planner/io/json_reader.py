@@ -37,7 +37,15 @@ import re
 from json.scanner import make_scanner
 
 from planner.io import options as opts
-from planner.io._collect import AXIS_TOLERANCE, PathCollector, source_name, unit_scale
+from planner.io._collect import (
+    AXIS_TOLERANCE,
+    SNIFF_CHARS,
+    PathCollector,
+    check_text_start,
+    open_text,
+    source_name,
+    unit_scale,
+)
 from planner.io.csv_reader import feed_scale
 from planner.io.errors import InputFileError, WarningLimiter
 from planner.io.toolpath import Toolpath
@@ -186,7 +194,7 @@ def read_json(
     normalize_axes = opts.flag(normalize_axes, "normalize_axes")
     name = source_name(src, opts.source_label(source))
     if isinstance(src, str | os.PathLike):
-        with open(src, encoding="utf-8-sig", errors="replace") as fh:
+        with open_text(src, name) as fh:
             text = fh.read()
     else:
         text = src.read() if hasattr(src, "read") else "".join(src)
@@ -194,8 +202,7 @@ def read_json(
             raise opts.binary_stream()
         if not isinstance(text, str):
             raise opts.ReaderArgumentTypeError("src", f"src must be a text stream: it gave a {type(text).__name__}")
-        if text.startswith("\ufeff"):
-            text = text[1:]
+        text = check_text_start(text[:SNIFF_CHARS], name) + text[SNIFF_CHARS:]
     try:
         doc = json.loads(text, object_pairs_hook=_unique_keys)
     except json.JSONDecodeError as exc:

@@ -13,6 +13,7 @@ from dataclasses import dataclass, field, replace
 import numpy as np
 from scipy.interpolate import BSpline
 
+from planner.io.errors import InputFileError
 from planner.io.options import ARC_TOLERANCE_RANGE, ReaderArgumentTypeError, chord_tolerance, number_in
 from planner.validation import _described
 
@@ -237,6 +238,23 @@ def vec3(v) -> tuple[float, float, float]:
     return (float(v[0]), float(v[1]), float(v[2]))
 
 
+def _check_axes(axes: np.ndarray, lines: np.ndarray, source: str) -> None:
+    """InputFileError naming the first point (index and source line) whose tool axis (row of ``axes``, shape (n, 3))
+    has no direction: a NaN or infinite component, a length below 1e-12 or beyond the float range."""
+    with np.errstate(over="ignore", invalid="ignore"):
+        norm = np.sqrt(np.einsum("ij,ij->i", axes, axes))
+    bad = np.flatnonzero(~(np.isfinite(norm) & (norm >= 1e-12)))
+    if bad.size == 0:
+        return
+    i = int(bad[0])
+    a = tuple(float(v) for v in axes[i])
+    why = ("is not finite" if not np.isfinite(axes[i]).all() else "is zero" if norm[i] < 1e-12
+           else "is too long to normalise")
+    more = f" ({bad.size} points in all)" if bad.size > 1 else ""
+    raise InputFileError(source, int(lines[i]), f"tool axis of point {i}", f"{a} {why}{more}: a tool axis is a "
+                         "nonzero direction from the tool tip towards the spindle")
+
+
 def _readonly(a: np.ndarray) -> np.ndarray:
     a = np.ascontiguousarray(a)
     a.setflags(write=False)
@@ -305,12 +323,13 @@ class Toolpath:
         object.__setattr__(self, "points", _readonly(pts))
         if (self.axes is None) != (self.axis_given is None):
             raise ValueError("Toolpath.axes and Toolpath.axis_given must both be given or both be None")
+        object.__setattr__(self, "lines", vec("lines", np.int64, (n,)))
         if self.axes is not None:
             object.__setattr__(self, "axes", vec("axes", float, (n, 3)))
             object.__setattr__(self, "axis_given", vec("axis_given", bool, (n,)))
+            _check_axes(self.axes, self.lines, str(self.source))
         object.__setattr__(self, "feeds", vec("feeds", float, (n,)))
         object.__setattr__(self, "rapid", vec("rapid", bool, (n,)))
-        object.__setattr__(self, "lines", vec("lines", np.int64, (n,)))
         if self.rotary is not None:
             object.__setattr__(self, "rotary", vec("rotary", float, (n, 2)))
         object.__setattr__(self, "events", tuple(self.events))

@@ -67,3 +67,9 @@ __all__ = [
     "tool_orientation",
     "transform_to_pose",
 ]
+
+# Names of version 0.1.0 removed since, importable for the next release with a DeprecationWarning naming the
+# replacement (planner._deprecated).
+from planner._deprecated import module_getattr as _module_getattr  # noqa: E402
+
+__getattr__ = _module_getattr(__name__)

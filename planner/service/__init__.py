@@ -4,17 +4,15 @@
 importing this package warns. Its modules are under ``planner.frontends.service`` (``app``, ``config``, ...).
 """
 
-from __future__ import annotations
-
 import importlib
-import warnings
 
-warnings.warn("planner.service is deprecated and will be removed in the next release: the REST service is "
-              "planner.frontends.service (run it with `planner serve`)", DeprecationWarning, stacklevel=2)
+from planner._deprecated import moved_module
+
+_served = moved_module(__name__, (), "the REST service is planner.frontends.service (run it with `planner serve`)")
 
 
 def __getattr__(name: str):
     try:
         return importlib.import_module(f"planner.frontends.service.{name}")
     except ModuleNotFoundError:
-        raise AttributeError(f"planner.service (deprecated) has no {name!r}: see planner.frontends.service") from None
+        return _served(name)  # AttributeError naming the new home

@@ -1,6 +1,10 @@
 """What the command line shares between its commands: the planning options of ``planner plan`` and ``planner run``
 (the :class:`planner.PlanSettings` fields in the units people type), their checks, the one-line usage errors and the
 progress bars.
+
+The planning options are derived from the settings' declaration (:data:`planner.settings.SETTINGS`): each field with
+a ``flag`` is an option of that name, typed in its ``typed`` unit, with its help, default and range converted;
+a new setting with a flag is on the command line with nothing written here.
 """
 
 from __future__ import annotations
@@ -9,23 +13,24 @@ import argparse
 import math
 import sys
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from planner.errors import PlannerError
-from planner.settings import AXIS_SOURCES, FRAME_METHODS, PATH_MODELS, PlanSettings
+from planner.settings import OUTPUT_KINDS, SETTING, SETTINGS, PlanSettings, Setting, blame
 
 #: Largest rotation vector of --part-frame / --tcp, rad (any angle is reachable below 2 pi; beyond this it is a
 #: typing mistake, and beyond ~1e16 rad no angle is left in the float at all).
 MAX_ROTVEC = 100.0
 
 
-def _pose(text: str | None, name: str):
-    """``--part-frame`` / ``--tcp`` text -> 6 floats (m, rad), or PlannerError naming the option."""
-    if text is None:
-        return None
-    if name == "--part-frame" and text.strip().lower() == "auto":
-        return "auto"  # placed for the robot by the planner (PlanSettings.part_frame = "auto")
+def _pose(s: Setting, text: str):
+    """``--part-frame`` / ``--tcp`` text -> 6 floats (m, rad) or one of the setting's words ("auto": placed for
+    the robot by the planner), or PlannerError naming the option."""
+    name = s.flag
+    if text.strip().lower() in s.choices:
+        return text.strip().lower()
     try:
         v = [float(x) for x in text.split(",")]
     except ValueError:
@@ -46,22 +51,18 @@ def _pose(text: str | None, name: str):
     return tuple(v)
 
 
-def _output(text: str | None):
+def _output(s: Setting, text: str):
     """``--cut-output KIND:PIN`` -> (kind, pin), or PlannerError naming the option."""
-    if text is None:
-        return None
-    from planner.settings import OUTPUT_KINDS
-
     kind, _, pin = text.partition(":")
     usage = "KIND:PIN with standard:0..7, configurable:0..7 or tool:0..1"
     try:
         k = int(pin)
     except ValueError:
-        raise PlannerError(f"--cut-output {text}: must be {usage}") from None
+        raise PlannerError(f"{s.flag} {text}: must be {usage}") from None
     if kind not in OUTPUT_KINDS:
-        raise PlannerError(f"--cut-output {text}: unknown output kind {kind!r} (must be {usage})")
+        raise PlannerError(f"{s.flag} {text}: unknown output kind {kind!r} (must be {usage})")
     if not 0 <= k < OUTPUT_KINDS[kind]:
-        raise PlannerError(f"--cut-output {text}: {kind} outputs have pins 0..{OUTPUT_KINDS[kind] - 1}")
+        raise PlannerError(f"{s.flag} {text}: {kind} outputs have pins 0..{OUTPUT_KINDS[kind] - 1}")
     return (kind, k)
 
 
@@ -107,22 +108,22 @@ class NumericOption:
         rule = f"{'at least' if self.lo_closed else '>'} {self.lo:g}{unit}"
         rule += f" and at most {self.hi:g}{unit}" if self.hi is not None else " and finite"
         text = getattr(value, "text", None) or f"{x:g}"
-        raise PlannerError(f"{self.flag} {text}: must be {rule}")
+        raise PlannerError(f"{self.flag} {text}: must be {rule}", field=self.dest, value=value)
+
+    @classmethod
+    def of(cls, s: Setting) -> NumericOption:
+        """The option of a "number" setting with a flag: its range in the typed unit."""
+        assert s.flag is not None and s.lo is not None and s.hi is not None
+        return cls(s.flag, s.name, s.typed_unit, s.lo * s.per_si, s.hi * s.per_si, s.lo_closed)
+
+
+#: The settings that are options of ``planner plan`` and ``planner run``, in declaration order.
+PLAN_SETTINGS = tuple(s for s in SETTINGS if s.flag is not None)
 
 
 def _numeric_options() -> tuple[NumericOption, ...]:
-    from planner.budget import MAX_FEED, MIN_FEED
-
-    mm_s = (MIN_FEED * 1e3, MAX_FEED * 1e3)  # the budget's plausible feeds (settings: (0, 10] m/s)
     return (
-        NumericOption("--tolerance", "tolerance", "mm", 0.0, 1000.0),
-        NumericOption("--corner", "corner", "deg", 0.0, 180.0),
-        NumericOption("--axis-jump", "axis_jump", "deg", 0.0, 90.0),
-        NumericOption("--feed", "feed", "mm/s", *mm_s, lo_closed=True),
-        NumericOption("--feed-override", "feed_override", "", 0.0, 10.0),
-        NumericOption("--rapid-speed", "rapid_speed", "mm/s", *mm_s, lo_closed=True),
-        NumericOption("--rate", "rate", "Hz", 0.0, 10_000.0),
-        NumericOption("--max-poses", "max_poses", "", 0.0, 1e12),
+        *(NumericOption.of(s) for s in PLAN_SETTINGS if s.kind == "number"),
         # planner run's own (planner.frontends.cli.run): URDriver's servoJ ranges, the simulator's speed, a TCP port
         NumericOption("--lookahead", "lookahead", "s", 0.03, 0.2, lo_closed=True),
         NumericOption("--gain", "gain", "", 100.0, 2000.0, lo_closed=True),
@@ -142,19 +143,34 @@ def check_numeric_options(args: argparse.Namespace) -> None:
 def settings_from_args(args: argparse.Namespace) -> PlanSettings:
     """The PlanSettings of ``planner plan``'s options (mm and mm/s on the command line, SI in the settings).
 
-    Every option is checked first in the user's units and named as typed (:func:`check_numeric_options`)."""
+    Every option is checked first in the user's units and named as typed (:func:`check_numeric_options`); a refusal
+    is a PlannerError whose ``field`` is the setting's name."""
     check_numeric_options(args)
     _check_machine(getattr(args, "machine", None))
-    d = PlanSettings()
-    return PlanSettings(
-        path=args.path, tolerance=args.tolerance / 1e3, corner_deg=float(args.corner),
-        axis_jump_deg=float(args.axis_jump), axes=args.axes, frame=args.frame, feed=args.feed / 1e3,
-        feed_override=float(args.feed_override), rapid_speed=args.rapid_speed / 1e3, rate=float(args.rate),
-        robot=None if args.robot in (None, "none") else args.robot,
-        part_frame=_pose(args.part_frame, "--part-frame"), tcp=_pose(args.tcp, "--tcp"),
-        feed_floor=d.feed_floor, cut_output=_output(args.cut_output), passes=_passes(args.pass_index),
-        max_poses=float(args.max_poses),
-    ).checked()
+    values: dict[str, Any] = {}
+    for s in PLAN_SETTINGS:
+        text = getattr(args, s.name)
+        with blame(s.name, text):
+            values[s.name] = _PARSERS[s.kind](s, text) if text is not None else None
+    try:
+        return PlanSettings(**values).checked()
+    except PlannerError as exc:  # a value the option's parser let through: named by its option, as typed
+        failed = SETTING.get(exc.field or "")
+        if failed is None or failed.flag is None or str(exc).startswith(failed.flag):
+            raise
+        text = getattr(args, failed.name)
+        typed = getattr(text, "text", text)
+        raise PlannerError(f"{failed.flag} {typed}: {exc}", field=failed.name, value=text) from None
+
+
+_PARSERS = {
+    "number": lambda s, x: float(x) / s.per_si,  # typed -> SI (a plain float, not the Number)
+    "choice": lambda s, x: x,
+    "robot": lambda s, x: None if x == "none" else x,
+    "pose": _pose,
+    "output": _output,
+    "passes": lambda s, x: _passes(s, x),
+}
 
 
 def _check_machine(name: str | None) -> None:
@@ -169,17 +185,17 @@ def _check_machine(name: str | None) -> None:
         raise PlannerError(f"--machine {name}: unknown machine (known: haas-umc-750)") from None
 
 
-def _passes(text: str | None):
-    if text is None or text == "all":
+def _passes(s: Setting, text: str):
+    if text == "all":
         return None
     if text == "longest":
         return "longest"
     try:
         passes = tuple(int(x) for x in text.split(","))
     except ValueError:
-        raise PlannerError(f"--pass {text}: must be pass numbers K[,K...], 'longest' or 'all'") from None
+        raise PlannerError(f"{s.flag} {text}: must be pass numbers K[,K...], 'longest' or 'all'") from None
     if any(k < 0 for k in passes):
-        raise PlannerError(f"--pass {text}: pass numbers start at 0")
+        raise PlannerError(f"{s.flag} {text}: pass numbers start at 0")
     return passes
 
 
@@ -210,39 +226,34 @@ class Progress:
 
 
 def add_plan_options(p: argparse.ArgumentParser, *, outputs: bool = True) -> None:
-    """The options of ``planner plan`` (the PlanSettings fields in mm and mm/s, reader options, and with
-    ``outputs`` -o/--plot/--progress) on a parser: ``planner run`` takes the same ones."""
-    D = PlanSettings()
+    """The options of ``planner plan`` (the PlanSettings fields with a flag, in the units people type; reader
+    options; with ``outputs`` -o/--plot/--progress) on a parser: ``planner run`` takes the same ones."""
     p.add_argument("input", help="toolpath: APT/CL data, CSV, JSON or 5-axis G-code")
-    p.add_argument("--path", choices=list(PATH_MODELS), default=D.path,
-                   help="path model: interpolate (C2 PH spline through the points), cam (within --tolerance of the "
-                        "polyline), auto (default: interpolate CSV/JSON, cam for APT/CLSF/G-code)")
-    p.add_argument("--axes", choices=list(AXIS_SOURCES), default=D.axes,
-                   help="tool axis: file (the file's CAM axes, tip to spindle), approach (the file's vectors are the "
-                        "approach axis), fixed (CAM default +Z), path (tool normal to the path, spin by --frame), "
-                        "auto (default: file if it has axes, else path for interpolate and fixed for cam)")
-    p.add_argument("--frame", choices=list(FRAME_METHODS), default=D.frame,
-                   help="spin method about the tool axis (methods other than rmf need --axes path)")
-    p.add_argument("--tolerance", type=Number, default=D.tolerance * 1e3,
-                   help=f"cam model: largest distance from the polyline, mm (default {D.tolerance * 1e3:g})")
-    p.add_argument("--corner", type=Number, default=D.corner_deg,
-                   help=f"corners sharper than this (deg) split passes (default {D.corner_deg:g})")
-    p.add_argument("--axis-jump", type=Number, default=D.axis_jump_deg,
-                   help=f"tool-axis jumps larger than this (deg) turn in place (default {D.axis_jump_deg:g})")
-    p.add_argument("--feed", type=Number, default=D.feed * 1e3,
-                   help=f"feed where the file gives none, mm/s (default {D.feed * 1e3:g})")
-    p.add_argument("--feed-override", type=Number, default=D.feed_override, help="factor on every cutting feed")
-    p.add_argument("--rapid-speed", type=Number, default=D.rapid_speed * 1e3,
-                   help=f"speed of rapid moves, mm/s (default {D.rapid_speed * 1e3:g})")
-    p.add_argument("--rate", type=Number, default=D.rate, help="controller rate in Hz (500 e-Series, 125 CB)")
-    p.add_argument("--robot", default="none", help="ur3e, ur5e, ur10e, ur16e, ur20, or none (default)")
-    p.add_argument("--part-frame", help="part frame in the robot base: x,y,z,rx,ry,rz (m, rad), or auto (the part "
-                                        "placed for the robot with the largest joint-limit and singularity margins)")
-    p.add_argument("--tcp", help="tool centre point in the flange frame: x,y,z,rx,ry,rz (m, rad)")
-    p.add_argument("--cut-output", help="digital output on during every cut, KIND:PIN (standard:0, tool:1, ...)")
-    p.add_argument("--pass", dest="pass_index", help="plan only passes K[,K...] or 'longest' (default: all)")
-    p.add_argument("--max-poses", type=Number, default=D.max_poses,
-                   help=f"refuse jobs whose trajectory would exceed this many poses (default {D.max_poses:g})")
+    for s in PLAN_SETTINGS:
+        assert s.flag is not None
+        metavar = None if s.kind == "choice" else s.flag[2:].upper().replace("-", "_")
+        p.add_argument(s.flag, dest=s.name, metavar=metavar, **_ARGUMENT[s.kind](s))
+    _reader_and_output_options(p, outputs)
+
+
+def _number_argument(s: Setting) -> dict:
+    unit = f" {s.typed_unit}" if s.typed_unit else ""
+    default = s.default * s.per_si
+    return {"type": Number, "default": default,
+            "help": f"{s.doc},{unit} in {s.range_text(s.per_si)} (default {default:g})"}
+
+
+_ARGUMENT = {
+    "number": _number_argument,
+    "choice": lambda s: {"choices": list(s.choices), "default": s.default, "help": f"{s.doc} (default {s.default})"},
+    "robot": lambda s: {"default": "none", "help": f"{s.doc} (default none)"},
+    "pose": lambda s: {"help": f"{s.doc} ({s.unit})"},
+    "output": lambda s: {"help": s.doc},
+    "passes": lambda s: {"help": f"{s.doc}: K[,K...], longest or all (default all)"},
+}
+
+
+def _reader_and_output_options(p: argparse.ArgumentParser, outputs: bool) -> None:
     p.add_argument("--units", choices=["mm", "m", "inch"], help="units of a CSV/JSON file (default mm)")
     p.add_argument("--machine", help="machine kinematics for 5-axis G-code (e.g. haas-umc-750)")
     if outputs:

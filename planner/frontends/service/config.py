@@ -1,4 +1,9 @@
-"""The service's configuration: from ``planner serve`` options and the environment (``PLANNER_*``)."""
+"""The service's configuration: from ``planner serve`` options and the environment (``PLANNER_*``).
+
+Both are pydantic models: :class:`RobotSpec` is one robot of ``PLANNER_ROBOTS`` as the operator writes it,
+:class:`ServiceConfig` the whole configuration, each field with its environment variable; a refused value is one
+:class:`~planner.errors.PlannerError` line naming the variable (and the robot) and the field (:func:`one_line`).
+"""
 
 from __future__ import annotations
 
@@ -6,8 +11,12 @@ import ipaddress
 import json
 import os
 import re
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Annotated, Any, Literal
+
+from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
+from pydantic_core import PydanticCustomError
 
 from planner.errors import PlannerError
 
@@ -57,21 +66,95 @@ class RobotConfig:
 #: The default robots: one simulated controller, "sim", of the job's model.
 DEFAULT_ROBOTS = (RobotConfig("sim"),)
 _ROBOT_NAME = re.compile(r"^[A-Za-z0-9_-]{1,32}$")
-_ROBOT_KEYS = {"host", "sim", "model", "io", "modbus_port", "sim_speed", "approach_speed", "approach_acceleration"}
+
+
+def _refused(text: str) -> PydanticCustomError:
+    """A validator's refusal whose message is ``text`` as it is (:func:`one_line` prints it so)."""
+    return PydanticCustomError("planner", "{text}", {"text": text})
+
+
+def one_line(exc: ValidationError, names: dict[str, str] | None = None) -> str:
+    """The first error of ``exc`` as one line naming the field (``names`` maps a field to the name the user knows,
+    e.g. its environment variable): ``modbus_port must be at most 65535, got 70000``."""
+    e = exc.errors(include_url=False)[0]
+    field = ".".join(str(x) for x in e["loc"])
+    field = (names or {}).get(field, field)
+    kind, ctx, got = e["type"], e.get("ctx", {}), e.get("input")
+    if kind == "planner":
+        return str(ctx["text"])
+    if kind == "extra_forbidden":
+        return f"unknown field {field!r}"
+    rules = {"literal_error": lambda: f"must be {ctx['expected']}", "greater_than": lambda: f"must be > {ctx['gt']}",
+             "greater_than_equal": lambda: f"must be at least {ctx['ge']}",
+             "less_than": lambda: f"must be < {ctx['lt']}", "less_than_equal": lambda: f"must be at most {ctx['le']}"}
+    rule = rules[kind]() if kind in rules else e["msg"][:1].lower() + e["msg"][1:]
+    return f"{field} {rule}, got {got!r}" if kind in rules else f"{field}: {rule}, got {got!r}"
+
+
+class RobotSpec(BaseModel):
+    """One robot of ``PLANNER_ROBOTS`` (``planner serve --robots``): either a ``host`` (the controller's IP address,
+    with its ``model``) or ``"sim": true``."""
+
+    model_config = ConfigDict(extra="forbid", strict=True, frozen=True)
+
+    host: str | None = Field(None, description="the controller's IP address")
+    sim: bool = Field(False, description="a simulated controller, started for each execution")
+    model: str | None = Field(None, description="UR model (ur3e, ur5e, ...); needed with a host")
+    io: Literal["rtde", "modbus"] = Field("rtde", description="how the job's outputs are switched")
+    modbus_port: int = Field(502, ge=1, le=65535, description="the controller's Modbus TCP port")
+    sim_speed: float | None = Field(None, gt=0, le=100, description="simulated seconds per second (default 1)")
+    approach_speed: float = Field(0.5, gt=0, le=3.14, description="joint move onto the start, rad/s")
+    approach_acceleration: float = Field(0.5, gt=0, le=40.0, description="joint move onto the start, rad/s^2")
+
+    @field_validator("host")
+    @classmethod
+    def _ip(cls, host: str | None) -> str | None:
+        if host is None:
+            return None
+        try:
+            return str(ipaddress.ip_address(host))
+        except ValueError:
+            raise _refused(f"host must be an IP address, got {host!r}") from None
+
+    @field_validator("model")
+    @classmethod
+    def _model(cls, model: str | None) -> str | None:
+        if model is None:
+            return None
+        from planner.kinematics import get_model
+
+        try:
+            return get_model(model).name
+        except (ValueError, KeyError, TypeError) as exc:
+            raise _refused(f"model: {exc}") from None
+
+    @model_validator(mode="after")
+    def _kind(self) -> RobotSpec:
+        if (self.host is None) == (not self.sim):
+            raise _refused("give either host (the controller's IP address) or \"sim\": true")
+        if self.host is not None and self.model is None:
+            raise _refused("model is needed for a real controller (ur3e, ur5e, ...)")
+        if self.host is not None and self.sim_speed is not None:
+            raise _refused("sim_speed applies to simulated robots only")
+        return self
+
+    def robot(self, name: str) -> RobotConfig:
+        """The :class:`RobotConfig` of this robot under ``name``."""
+        return RobotConfig(name, self.host, self.model, self.io, self.modbus_port,
+                           1.0 if self.sim_speed is None else float(self.sim_speed), float(self.approach_speed),
+                           float(self.approach_acceleration))
 
 
 def robots_from_json(text: str, where: str = "PLANNER_ROBOTS") -> tuple[RobotConfig, ...]:
     """Robots from ``{"NAME": {"host": "192.168.0.10", "model": "ur10e", "io": "modbus", "modbus_port": 502},
-    "NAME2": {"sim": true, "model": "ur5e", "sim_speed": 5}}``: each either a ``host`` (an IP address) or
-    ``"sim": true``. Errors name the robot and the field."""
+    "NAME2": {"sim": true, "model": "ur5e", "sim_speed": 5}}`` (each a :class:`RobotSpec`). Errors name the robot
+    and the field."""
     try:
         data = json.loads(text)
     except json.JSONDecodeError as exc:
         raise PlannerError(f"{where}: not JSON ({exc})") from None
     if not isinstance(data, dict) or not data:
         raise PlannerError(f"{where}: must be a JSON object of robot name -> settings, with at least one robot")
-    from planner.kinematics import get_model
-
     out: list[RobotConfig] = []
     for name, spec in data.items():
         at = f"{where}: robot {name!r}"
@@ -79,46 +162,16 @@ def robots_from_json(text: str, where: str = "PLANNER_ROBOTS") -> tuple[RobotCon
             raise PlannerError(f"{at}: a name is 1..32 of A-Z a-z 0-9 _ -")
         if not isinstance(spec, dict):
             raise PlannerError(f"{at}: must be an object")
-        unknown = sorted(set(spec) - _ROBOT_KEYS)
-        if unknown:
-            raise PlannerError(f"{at}: unknown field {unknown[0]!r} (known: {', '.join(sorted(_ROBOT_KEYS))})")
-        host, sim = spec.get("host"), spec.get("sim", False)
-        if not isinstance(sim, bool) or (host is None) == (not sim):
-            raise PlannerError(f"{at}: give either host (the controller's IP address) or \"sim\": true")
-        if host is not None:
-            try:
-                host = str(ipaddress.ip_address(host))
-            except ValueError:
-                raise PlannerError(f"{at}: host must be an IP address, got {host!r}") from None
-        model = spec.get("model")
-        if model is None and host is not None:
-            raise PlannerError(f"{at}: model is needed for a real controller (ur3e, ur5e, ...)")
-        if model is not None:
-            try:
-                model = get_model(model).name
-            except (ValueError, KeyError, TypeError) as exc:
-                raise PlannerError(f"{at}: model: {exc}") from None
-        io = spec.get("io", "rtde")
-        if io not in ("rtde", "modbus"):
-            raise PlannerError(f"{at}: io must be 'rtde' or 'modbus', got {io!r}")
-        port = spec.get("modbus_port", 502)
-        if isinstance(port, bool) or not isinstance(port, int) or not 1 <= port <= 65535:
-            raise PlannerError(f"{at}: modbus_port must be an integer within 1..65535, got {port!r}")
-        speed = spec.get("sim_speed", 1.0)
-        if isinstance(speed, bool) or not isinstance(speed, int | float) or not 0 < speed <= 100:
-            raise PlannerError(f"{at}: sim_speed must be a number within (0, 100], got {speed!r}")
-        if host is not None and "sim_speed" in spec:
-            raise PlannerError(f"{at}: sim_speed applies to simulated robots only")
-        approach = []
-        for key, top in (("approach_speed", 3.14), ("approach_acceleration", 40.0)):
-            v = spec.get(key, 0.5)
-            if isinstance(v, bool) or not isinstance(v, int | float) or not 0 < v <= top:
-                raise PlannerError(f"{at}: {key} must be a number within (0, {top:g}], got {v!r}")
-            approach.append(float(v))
-        same = next((r for r in out if host is not None and r.host == host), None)
+        try:
+            robot = RobotSpec.model_validate(spec).robot(name)
+        except ValidationError as exc:
+            known = "" if exc.errors()[0]["type"] != "extra_forbidden" else \
+                f" (known: {', '.join(sorted(RobotSpec.model_fields))})"
+            raise PlannerError(f"{at}: {one_line(exc)}{known}", field=name, value=spec) from None
+        same = next((r for r in out if robot.host is not None and r.host == robot.host), None)
         if same is not None:  # two names for one controller would let two executions drive one arm
-            raise PlannerError(f"{at}: host {host} is robot {same.name!r}'s already (one name per controller)")
-        out.append(RobotConfig(name, host, model, io, port, float(speed), *approach))
+            raise PlannerError(f"{at}: host {robot.host} is robot {same.name!r}'s already (one name per controller)")
+        out.append(robot)
     return tuple(out)
 
 
@@ -136,9 +189,13 @@ def robots_from_env(value: str | None, where: str = "PLANNER_ROBOTS") -> tuple[R
     return robots_from_json(text, f"{where} file {value}")
 
 
-@dataclass(frozen=True)
-class ServiceConfig:
-    """What one running service uses.
+def _env(name: str) -> Any:
+    """The environment variable a ServiceConfig field is read from (in its schema, ``env``)."""
+    return {"env": name}
+
+
+class ServiceConfig(BaseModel):
+    """What one running service uses (each field read from its environment variable by :meth:`from_env`).
 
     Attributes
     ----------
@@ -148,63 +205,65 @@ class ServiceConfig:
         Folder the service owns for uploaded inputs and saved jobs (``PLANNER_DATA``; default: beside a
         SQLite file, ``<db>.data``). No path from a request is ever used as a file name.
     workers : int
-        Planning worker processes.
+        Planning worker processes (``PLANNER_WORKERS``).
     dev_no_auth : bool
         ``PLANNER_DEV_NO_AUTH=1``: no API keys, every request is a development operator; loopback only.
     max_request_bytes : int
-        Largest request body (413 above).
+        Largest request body (413 above; ``PLANNER_MAX_REQUEST_BYTES``).
     max_waypoints : int
-        Largest number of waypoints of a JSON job (422 above).
+        Largest number of waypoints of a JSON job (422 above; ``PLANNER_MAX_WAYPOINTS``).
     job_timeout_s : float
-        Wall time a planning job may take before its worker is stopped and the job failed.
+        Wall time a planning job may take before its worker is stopped and the job failed (``PLANNER_JOB_TIMEOUT``).
     max_attempts : int
-        Starts of a job (a restart of the service while it runs re-queues it until this many).
+        Starts of a job (a restart of the service while it runs re-queues it until this many;
+        ``PLANNER_MAX_ATTEMPTS``).
     robots : tuple of RobotConfig
         The robots jobs may be executed on (``PLANNER_ROBOTS``; default: one simulated robot named "sim").
     """
 
-    db_url: str = DEFAULT_DB
-    data_dir: Path = field(default_factory=lambda: Path("jobs.sqlite.data"))
-    workers: int = 2
-    dev_no_auth: bool = False
-    max_request_bytes: int = 64 * 2**20
-    max_waypoints: int = 100_000
-    job_timeout_s: float = 3600.0
-    max_attempts: int = 2
-    robots: tuple[RobotConfig, ...] = DEFAULT_ROBOTS
+    model_config = ConfigDict(extra="forbid", frozen=True)
+
+    db_url: str = Field(DEFAULT_DB, min_length=1, json_schema_extra=_env("PLANNER_DB"))
+    data_dir: Path = Field(Path("jobs.sqlite.data"), json_schema_extra=_env("PLANNER_DATA"))
+    workers: int = Field(2, ge=1, le=256, json_schema_extra=_env("PLANNER_WORKERS"))
+    dev_no_auth: bool = Field(False, json_schema_extra=_env("PLANNER_DEV_NO_AUTH"))
+    max_request_bytes: int = Field(64 * 2**20, ge=1, json_schema_extra=_env("PLANNER_MAX_REQUEST_BYTES"))
+    max_waypoints: int = Field(100_000, ge=2, json_schema_extra=_env("PLANNER_MAX_WAYPOINTS"))
+    job_timeout_s: Annotated[float, Field(gt=0, allow_inf_nan=False)] = Field(
+        3600.0, json_schema_extra=_env("PLANNER_JOB_TIMEOUT"))
+    max_attempts: int = Field(2, ge=1, json_schema_extra=_env("PLANNER_MAX_ATTEMPTS"))
+    robots: tuple[RobotConfig, ...] = Field(DEFAULT_ROBOTS, json_schema_extra=_env("PLANNER_ROBOTS"))
 
     def robot(self, name: str) -> RobotConfig | None:
         """The configured robot of that name, or None."""
         return next((r for r in self.robots if r.name == name), None)
 
     @classmethod
+    def env_names(cls) -> dict[str, str]:
+        """Field -> environment variable."""
+        return {name: str(f.json_schema_extra["env"]) for name, f in cls.model_fields.items()
+                if isinstance(f.json_schema_extra, dict)}
+
+    @classmethod
     def from_env(cls, env: dict | None = None, **overrides) -> ServiceConfig:
         """The configuration from ``PLANNER_DB``, ``PLANNER_DATA``, ``PLANNER_WORKERS``, ``PLANNER_DEV_NO_AUTH``,
         ``PLANNER_MAX_REQUEST_BYTES``, ``PLANNER_MAX_WAYPOINTS``, ``PLANNER_JOB_TIMEOUT``, ``PLANNER_MAX_ATTEMPTS``,
-        ``PLANNER_ROBOTS``; ``overrides`` win."""
+        ``PLANNER_ROBOTS`` (unset or empty: the default); ``overrides`` (by field name, None: not given) win.
+        PlannerError naming the variable (or the field of an override) for a refused value."""
         env = dict(os.environ if env is None else env)
-        db = env.get("PLANNER_DB") or DEFAULT_DB
-        kw: dict = {"db_url": db, "dev_no_auth": env.get("PLANNER_DEV_NO_AUTH", "") == "1",
-                    "robots": robots_from_env(env.get("PLANNER_ROBOTS"))}
-        for key, name, conv in (("PLANNER_WORKERS", "workers", int),
-                                ("PLANNER_MAX_REQUEST_BYTES", "max_request_bytes", int),
-                                ("PLANNER_MAX_WAYPOINTS", "max_waypoints", int),
-                                ("PLANNER_JOB_TIMEOUT", "job_timeout_s", float),
-                                ("PLANNER_MAX_ATTEMPTS", "max_attempts", int)):
-            if env.get(key):
-                try:
-                    kw[name] = conv(env[key])
-                except ValueError:
-                    raise PlannerError(f"{key} must be a number, got {env[key]!r}") from None
-        kw.update({k: v for k, v in overrides.items() if v is not None})
-        data = env.get("PLANNER_DATA")
-        kw["data_dir"] = Path(data) if data else default_data_dir(kw["db_url"])
-        if "data_dir" in overrides and overrides["data_dir"] is not None:
-            kw["data_dir"] = Path(overrides["data_dir"])
-        cfg = cls(**kw)
-        if cfg.workers < 1:
-            raise PlannerError(f"workers must be at least 1, got {cfg.workers}")
-        return replace(cfg, data_dir=cfg.data_dir.resolve())
+        names = cls.env_names()
+        raw: dict[str, Any] = {name: env[var] for name, var in names.items() if env.get(var)}
+        raw["dev_no_auth"] = env.get(names["dev_no_auth"], "") == "1"
+        raw["robots"] = robots_from_env(env.get(names["robots"]))
+        given = {k: v for k, v in overrides.items() if v is not None}
+        raw.update(given)
+        raw.setdefault("db_url", DEFAULT_DB)
+        raw["data_dir"] = Path(raw["data_dir"]) if raw.get("data_dir") else default_data_dir(raw["db_url"])
+        try:
+            cfg = cls.model_validate(raw)
+        except ValidationError as exc:
+            raise PlannerError(one_line(exc, {k: v for k, v in names.items() if k not in given})) from None
+        return cfg.model_copy(update={"data_dir": cfg.data_dir.resolve()})
 
 
 def default_data_dir(db_url: str) -> Path:

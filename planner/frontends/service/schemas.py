@@ -1,18 +1,20 @@
 """Request and response models of the REST API (pydantic v2; requests strict: unknown fields, NaN and inf are
 refused). Every response is typed (no free-form objects); units as :data:`UNITS` says.
 
-:class:`SettingsModel` mirrors :class:`planner.PlanSettings` one to one: the same field names, SI units and
-defaults (``PlanSettings().to_dict()``); it checks types and shapes, and :meth:`PlanSettings.checked` then checks
-ranges and combinations with the planner's own messages. A test keeps the two in step.
+:class:`SettingsModel` is generated from the settings' declaration (:data:`planner.settings.SETTINGS`): one field
+per :class:`planner.PlanSettings` field, of the same name, SI unit and default, typed by its kind, its unit and range
+in the field's description (and ``x-unit``, ``minimum``/``exclusiveMinimum``/``maximum`` in the schema). It checks
+types and shapes; :meth:`PlanSettings.checked` then checks ranges and combinations with the planner's own messages,
+whose ``field`` is the 422's ``loc``.
 """
 
 from __future__ import annotations
 
-from typing import Annotated, Literal
+from typing import Annotated, Any, Literal
 
-from pydantic import BaseModel, ConfigDict, Field
+from pydantic import BaseModel, ConfigDict, Field, create_model
 
-from planner.settings import AXIS_SOURCES, FRAME_METHODS, PATH_MODELS, PlanSettings
+from planner.settings import OUTPUT_KINDS, SETTINGS, PlanSettings, Setting
 
 #: A finite number (NaN and +-inf refused, naming the field).
 Finite = Annotated[float, Field(allow_inf_nan=False)]
@@ -35,44 +37,68 @@ class LimitsModel(Strict):
     angular_speed: Finite | None = None
 
 
-def _limits(name: str):
+def _limits(name: str) -> Any:
     """A limits field whose default is built per request (a shared model default would be deep-copied for every
     request, the largest cost of parsing a small job), shown in the schema as PlanSettings' default."""
-    return Field(default_factory=lambda: LimitsModel(**_D[name]), json_schema_extra={"default": _D[name]})
+    return lambda: LimitsModel(**_D[name])
 
 
-PathModel = Literal[PATH_MODELS]  # type: ignore[valid-type]
-AxisSource = Literal[AXIS_SOURCES]  # type: ignore[valid-type]
-FrameMethod = Literal[FRAME_METHODS]  # type: ignore[valid-type]
+def _type(s: Setting) -> Any:
+    """The JSON type of a setting, by its kind."""
+    kind = s.kind
+    if kind == "number":
+        return Finite | None if s.optional else Finite
+    if kind == "choice":
+        return Literal[s.choices]
+    if kind == "limits":
+        return LimitsModel
+    if kind == "robot":
+        return Annotated[str, Field(max_length=32)] | None
+    if kind == "pose":
+        return Pose6 | Literal[s.choices] | None if s.choices else Pose6 | None
+    if kind == "output":
+        return tuple[Literal[tuple(OUTPUT_KINDS)], int] | None  # type: ignore[misc]
+    if kind == "passes":
+        return Annotated[list[Annotated[int, Field(ge=0)]], Field(min_length=1, max_length=100_000)] | Literal[
+            "longest"] | None
+    raise AssertionError(f"setting {s.name}: no JSON type for kind {kind!r}")
 
 
-class SettingsModel(Strict):
-    """:class:`planner.PlanSettings` as JSON (SI units: m, s, rad; ``*_deg`` in degrees). See its docstring."""
+def _schema(s: Setting) -> dict:
+    """What the OpenAPI schema says of a setting beside its type: its SI unit, its range (documented; checked by
+    PlanSettings.checked with the planner's message) and its command-line option."""
+    extra: dict[str, Any] = {"default": _D[s.name]}
+    if s.unit:
+        extra["x-unit"] = s.unit
+    if s.kind == "number":
+        extra["exclusiveMinimum" if not s.lo_closed else "minimum"] = s.lo
+        extra["maximum"] = s.hi
+    if s.flag:
+        extra["x-cli"] = f"{s.flag} ({s.typed_unit})" if s.typed_unit else s.flag
+    return extra
 
-    path: PathModel = _D["path"]
-    tolerance: Finite = _D["tolerance"]
-    corner_deg: Finite = _D["corner_deg"]
-    axis_jump_deg: Finite = _D["axis_jump_deg"]
-    arc_tolerance: Finite | None = _D["arc_tolerance"]
-    axes: AxisSource = _D["axes"]
-    frame: FrameMethod = _D["frame"]
-    feed: Finite = _D["feed"]
-    feed_override: Finite = _D["feed_override"]
-    rapid_speed: Finite = _D["rapid_speed"]
-    limits: LimitsModel = _limits("limits")
-    turn_limits: LimitsModel = _limits("turn_limits")
-    joint_limits: LimitsModel = _limits("joint_limits")
-    rate: Finite = _D["rate"]
-    robot: str | None = Field(default=_D["robot"], max_length=32)
-    part_frame: Pose6 | Literal["auto"] | None = _D["part_frame"]
-    tcp: Pose6 | None = _D["tcp"]
-    feed_floor: Finite = _D["feed_floor"]
-    reach_step: Finite = _D["reach_step"]
-    cut_output: tuple[Literal["standard", "configurable", "tool"], int] | None = _D["cut_output"]
-    passes: Annotated[list[Annotated[int, Field(ge=0)]], Field(min_length=1, max_length=100_000)] | Literal[
-        "longest"] | None = _D["passes"]
-    max_poses: Finite = _D["max_poses"]
-    max_points: Finite = _D["max_points"]
+
+def _description(s: Setting) -> str:
+    unit = f"; unit: {s.unit}" if s.unit else ""
+    span = f"; range {s.range_text()}" if s.kind == "number" else ""
+    return f"{s.doc}{unit}{span}"
+
+
+def _field(s: Setting) -> tuple[Any, Any]:
+    if s.kind == "limits":
+        return (_type(s), Field(default_factory=_limits(s.name), description=_description(s),
+                                json_schema_extra=_schema(s)))
+    return (_type(s), Field(default=_D[s.name], description=_description(s), json_schema_extra=_schema(s)))
+
+
+#: The settings' fields, generated from the declaration (the base of :class:`SettingsModel`).
+_FIELDS: dict[str, Any] = {s.name: _field(s) for s in SETTINGS}
+_SettingsFields: Any = create_model("_SettingsFields", __base__=Strict, **_FIELDS)
+
+
+class SettingsModel(_SettingsFields):
+    """:class:`planner.PlanSettings` as JSON (SI units: m, s, rad; ``*_deg`` in degrees; each field's unit in its
+    description). See its docstring."""
 
     def to_settings(self) -> PlanSettings:
         """The PlanSettings (not yet checked)."""

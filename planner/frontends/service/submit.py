@@ -26,13 +26,6 @@ from planner.frontends.service.store import now
 from planner.frontends.service.workers import job_dir, remove_job_files
 
 
-def _settings_loc(message: str, prefix: list) -> list:
-    """The first setting a PlanSettings message names (``"tolerance must be ..."``), else the settings object."""
-    known = set(SettingsModel.model_fields)
-    name = next((w for w in re.findall(r"[a-z_]+", message) if w in known), None)
-    return prefix if name is None else prefix + [name]
-
-
 def _safe_name(filename: str | None) -> str:
     """A file name of our own making from an upload's name: its base name, [A-Za-z0-9._-] only, no leading dot."""
     base = re.split(r"[\\/]", filename or "")[-1]
@@ -72,7 +65,7 @@ def _checked_settings(model: SettingsModel, fmt: str, has_axes: bool, prefix: li
     try:
         return _settings_json(model.model_dump_json(), fmt, has_axes)
     except PlannerError as exc:
-        raise Unprocessable(_settings_loc(str(exc), prefix), str(exc)) from None
+        raise Unprocessable(prefix if exc.field is None else prefix + [exc.field], str(exc)) from None
 
 
 @functools.lru_cache(maxsize=256)
