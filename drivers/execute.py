@@ -32,7 +32,6 @@ import random
 import socket
 
 from drivers.base import DriverError
-from planner.wording import counted
 
 #: The controller's ports (RTDE, dashboard, primary, secondary, real-time) a simulated controller serves.
 UR_PORTS = (30004, 29999, 30001, 30002, 30003)
@@ -107,9 +106,8 @@ def run_demo_on_sim(job, *, mode: str = "program", speed: float = 10.0, progress
 
 
 def plot_run(job, report, target) -> None:
-    """The job's picture with the run drawn over it (:func:`planner.plot.plot_job` with ``execution=``)."""
-    from planner.plot import plot_job
+    """The job's picture with the run drawn over it: the export verb's plot (:func:`planner.export.write`) with
+    ``execution=``."""
+    from planner.export import write
 
-    s = job.summary()
-    plot_job(job, target, execution=report,
-             title=f"{job.source}: {counted(s['passes'], 'pass')}, executed on a {job.settings.robot}")
+    write(job, target, execution=report)

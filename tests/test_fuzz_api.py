@@ -258,6 +258,12 @@ def _calls() -> list[Call]:
              str_ok=("arg0",)),
         Call("write_json", lambda target: ex.write_json(trajectory(), target), (lambda: _scratch() / "t.json",),
              str_ok=("arg0",)),
+        Call("export", lambda fmt, parameters=None: ex.export(trajectory().job, fmt, parameters=parameters), ("csv",),
+             {"parameters": {"a": 1}}, optional=("parameters",)),
+        Call("export job", lambda job: ex.export(job, "json"), (lambda: trajectory().job,)),
+        Call("write", lambda target: ex.write(trajectory().job, target), (lambda: _scratch() / "w.csv",),
+             str_ok=("arg0",)),
+        Call("format_of", ex.format_of, ("out.script",), str_ok=("arg0",)),
         # budget
         Call("check_budget", budget.check_budget, (toolpath, settings)),
         Call("estimate", budget.estimate, (toolpath, settings)),

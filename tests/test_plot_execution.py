@@ -9,7 +9,7 @@ import pytest
 from drivers.sim import SimDriver
 from planner import PlanSettings, plan
 from planner.errors import PlannerError
-from planner.plot import _execution_view, _path_lines, digest, plot_job
+from planner.export.plot import _execution_view, _path_lines, digest, plot_job
 
 DEMO = "examples/nx_first_pass.cls"
 PART = (0.4, 0.9965, -0.1, 0.0, 0.0, 0.0)
@@ -123,7 +123,7 @@ def test_a_job_with_nothing_to_show_of_its_frames_gets_a_wide_path_panel(tmp_pat
     the row and says why; a job whose axes turn keeps the frames' figure."""
     import matplotlib.figure
 
-    from planner import plot as plot_module
+    from planner.export import plot as plot_module
 
     made = []
     real = plot_module.new_figure

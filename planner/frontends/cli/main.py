@@ -125,7 +125,7 @@ def cmd_plan(args: argparse.Namespace):
     settings = settings_from_args(args)
     out = _check_output(args, path_in)
     if args.plot:
-        from planner.plot import check_plot_target
+        from planner.export.plot import check_plot_target
 
         check_plot_target(args.plot, path_in)
     options = {k: v for k, v in (("units", args.units), ("machine", args.machine)) if v}
@@ -140,12 +140,9 @@ def cmd_plan(args: argparse.Namespace):
     for line in warning_lines(job.warnings):
         print(line)
     if args.plot:  # first: it shows where the robot has problems when the program is refused
-        from planner.plot import plot_job
+        from planner.export import write
 
-        s = job.summary()
-        dg = plot_job(job, args.plot, title=(f"{path_in.name}: {counted(s['passes'], 'pass')}, "
-                                             f"{s['cut_length_mm']:.0f} mm of cut, {s['duration_s']:.1f} s"))
-        print(f"  wrote     {args.plot} (speeds from all {dg.samples} poses, joints from 1 in {dg.step})")
+        print(f"  wrote     {args.plot} ({write(job, args.plot, parameters={'input': path_in.name})})")
     if out is not None:
         try:
             print(f"  wrote     {out} ({export(job, out, {'input': path_in.name}, bar)})")
@@ -166,30 +163,17 @@ def warning_lines(warnings: tuple, limit: int = 10) -> list[str]:
 
 
 def export(job, out: Path, parameters: dict, progress=None) -> str:
-    """Write a job to ``out`` by its suffix (.csv / .json trajectory, .script program, .job saved plan); what
-    was written, for a person."""
-    from planner.export import job_program, write_csv, write_json, write_script
+    """Write a job to ``out`` by its suffix (.csv / .json trajectory, .script program, .job saved plan) with the
+    export verb (:func:`planner.export.write`); what was written, for a person."""
+    from planner.export import write
 
     suffix = out.suffix.lower()
-    if suffix == ".job":
-        return f"{job.save(out)} bytes"
-    if suffix in (".script", ".urscript"):
-        try:
-            text = job_program(job, parameters=parameters, progress=progress)
-        except PlannerError as exc:
-            raise PlannerError(f"not writing {out.name}: {exc}") from None
-        write_script(text, out)
-        counts = {cmd: text.count(f"\n  {cmd}(") for cmd in ("movep", "movel", "movej")}
-        return ", ".join(f"{n} {cmd}" for cmd, n in counts.items() if n)
-    if suffix not in (".csv", ".json"):
+    if suffix not in OUTPUTS:
         raise PlannerError(f"-o {out.name}: unknown output type (use .csv, .json, .script or .job)")
-    tr = job.trajectory()
-    if job.settings.robot is not None and job.problems:
+    if suffix in (".csv", ".json") and job.settings.robot is not None and job.problems:
         print(f"  warning   {job.settings.robot}: {counted(len(job.problems), 'move')} with problems; joints without "
               "an inverse kinematics solution are left empty", flush=True)
-    writer = write_json if suffix == ".json" else write_csv
-    n = writer(tr, out, parameters=parameters, progress=progress)
-    return f"{n} poses" + (", with joints" if job.settings.robot is not None else "")
+    return write(job, out, parameters=parameters, progress=progress)
 
 
 def cmd_demo(args: argparse.Namespace) -> None:

@@ -92,7 +92,7 @@ def cmd_run(args: argparse.Namespace) -> int:
         print("planner run: error: --fail-on-deviation needs --path-tolerance MM", file=sys.stderr)
         return 2
     if args.plot:
-        from planner.plot import check_plot_target
+        from planner.export.plot import check_plot_target
 
         check_plot_target(args.plot, args.input)  # before planning and moving: a PlannerError (exit 2)
     settings = settings_from_args(args)

@@ -1,11 +1,16 @@
 """The REST service for path jobs (``planner serve``): FastAPI app, SQLite/SQLAlchemy store, worker processes.
 
 A front end like the CLI: every job is planned by :func:`planner.plan` in a worker process, saved with
-:meth:`planner.PlannedJob.save`, and its exports are streamed from the saved job by the same writers the CLI
-uses (byte for byte the files ``planner plan -o`` writes).
+:meth:`planner.PlannedJob.save`, and its exports are streamed from the saved job by the export verb the CLI
+uses (:mod:`planner.export.verb`: byte for byte the files ``planner plan -o`` writes).
 
-Modules: :mod:`.config` (settings from the environment), :mod:`.store` (tables, engine, migrations), :mod:`.auth`
-(API keys and roles), :mod:`.schemas` (the request and response models), :mod:`.deps` (what the routes share: the
-service, the caller, the caller's job), :mod:`.workers` (the pool of planning processes), :mod:`.app` (the job
-routes), :mod:`.executions` (the execution routes), :mod:`.cli` (``planner serve`` and ``planner keys``).
+Laid out as FastAPI's full-stack template: :mod:`.app` (``create_app``: the lifespan and the wiring),
+:mod:`.routes` (one module per resource: ``jobs``, ``exports``, ``executions``, ``service``), :mod:`.deps` (what
+the routes share, as ``Annotated`` dependencies: the service, the caller, the caller's own job), :mod:`.schemas`
+(the request and the typed response models, with their unit convention). Beside them: :mod:`.submit` (a job's
+input checked and stored), :mod:`.fast_submit` (the measured fast path of a JSON submit), :mod:`.body_limit`,
+:mod:`.errors` (422 naming the field), :mod:`.config` (settings from the environment), :mod:`.store` (tables,
+engine, migrations), :mod:`.auth` (API keys and roles), :mod:`.workers` (the pool of planning processes),
+:mod:`.execution_runs` (runs on robots), :mod:`.plots` (the drawing process), :mod:`.cli` (``planner serve`` and
+``planner keys``).
 """

@@ -1,5 +1,6 @@
-"""What the routes share, as FastAPI dependencies: the :class:`Service` (configuration, store, worker pool, metrics,
-executions), the caller (:func:`principal`, :data:`Caller`) and the caller's own job (:func:`own_job`).
+"""What the routes share, as FastAPI dependencies (``Annotated`` types a route takes as parameters): the service
+(:data:`ServiceDep`: configuration, store, worker pool, metrics, executions), the caller (:data:`Caller`) and the
+caller's own job of the path (:data:`OwnJob`, 404 for another key's).
 """
 
 from __future__ import annotations
@@ -94,3 +95,15 @@ def own_job(svc: Service, who: Principal, job_id: str) -> Job:
         if job is not None:
             return job
     raise HTTPException(404, f"no job {job_id}")
+
+
+ServiceDep = Annotated[Service, Depends(service)]
+
+
+def caller_job(job_id: str, svc: ServiceDep, who: Caller) -> Job:
+    """The caller's job named by the path's ``job_id``, or 404 (:func:`own_job`)."""
+    return own_job(svc, who, job_id)
+
+
+#: The caller's own job of the path (``/jobs/{job_id}...``), or 404.
+OwnJob = Annotated[Job, Depends(caller_job)]

@@ -15,8 +15,6 @@ import threading
 from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
-from planner.wording import counted
-
 
 def _start(parent_pid: int) -> None:
     """In the drawing process: die with the service, yield to requests, and import matplotlib now (not on the
@@ -34,24 +32,18 @@ def _start(parent_pid: int) -> None:
     matplotlib.use("Agg")
     import matplotlib.pyplot  # noqa: F401
 
-    import planner.plot  # noqa: F401
+    import planner.export.plot  # noqa: F401
 
 
 def draw(job_path: str, input_name: str, target: str) -> int:
-    """The CLI's plot of the saved job at ``job_path`` (same title) written atomically to ``target``; its bytes."""
-    import io
-
-    from planner.export import write_bytes_atomic
+    """The CLI's plot of the saved job at ``job_path`` (the export verb's, same title) written atomically to
+    ``target``; its bytes."""
+    from planner.export import write
     from planner.job import load_job
-    from planner.plot import plot_job
 
     job = load_job(job_path)
-    s = job.summary()
-    buf = io.BytesIO()
-    plot_job(job, buf, title=(f"{input_name}: {counted(s['passes'], 'pass')}, "
-                              f"{s['cut_length_mm']:.0f} mm of cut, {s['duration_s']:.1f} s"))
-    write_bytes_atomic(target, buf.getvalue())
-    return len(buf.getvalue())
+    write(job, target, parameters={"input": input_name})
+    return os.stat(target).st_size
 
 
 class Plotter:

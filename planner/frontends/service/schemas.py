@@ -1,4 +1,5 @@
-"""Request and response models of the REST API (pydantic v2, strict: unknown fields, NaN and inf are refused).
+"""Request and response models of the REST API (pydantic v2; requests strict: unknown fields, NaN and inf are
+refused). Every response is typed (no free-form objects); units as :data:`UNITS` says.
 
 :class:`SettingsModel` is generated from the settings' declaration (:data:`planner.settings.SETTINGS`): one field
 per :class:`planner.PlanSettings` field, of the same name, SI unit and default, typed by its kind, its unit and range
@@ -124,7 +125,26 @@ class WaypointJob(Strict):
     settings: SettingsModel = Field(default_factory=SettingsModel, json_schema_extra={"default": {}})
 
 
+# -- responses ---------------------------------------------------------------------------------------------------
+# Units in every response: a quantity's name ends with its unit (_s, _m, _mm, _deg, _rad, _hz, _bytes); a name
+# without a unit suffix is SI (m, s, rad), as in the settings (:class:`SettingsModel`, PlanSettings' units);
+# instants (``created_at``, ...) are Unix time in seconds. Where a person reads small lengths and angles (the job's
+# summary, the I/O switch distances) the names say mm and deg.
+UNITS = ("Units: a quantity's name ends with its unit (_s, _m, _mm, _deg, _rad, _hz, _bytes); a name without a unit "
+         "suffix is SI (m, s, rad) as in the settings; instants (created_at, started_at, finished_at) are Unix time, "
+         "s.")
+
+
+class Closed(BaseModel):
+    """A response object whose keys are all declared: a key the service would add without declaring it fails the
+    response (and the tests) instead of vanishing from the JSON."""
+
+    model_config = ConfigDict(extra="forbid")
+
+
 class Progress(BaseModel):
+    """Where a job (or an execution) is: its stage and the items done of the stage's total."""
+
     stage: str
     done: int
     total: int
@@ -136,14 +156,84 @@ class ErrorView(BaseModel):
 
 
 class InputView(BaseModel):
-    kind: str
+    kind: str = Field(description="waypoints or file")
     name: str
     format: str
-    bytes: int
+    bytes: int = Field(description="size of the input, bytes")
+
+
+class Timings(BaseModel):
+    """How long the job waited and ran, s."""
+
+    queued_s: float
+    running_s: float | None
+    planning_s: float | None
+
+
+class JobLinks(BaseModel):
+    """Where the job and (once done) its exports are; ``script`` for a job planned for a robot."""
+
+    model_config = ConfigDict(populate_by_name=True)
+
+    self_: str = Field(alias="self", description="this job")
+    csv: str | None = Field(default=None, description="the trajectory as CSV")
+    json_: str | None = Field(default=None, alias="json", description="the trajectory as JSON")
+    plot: str | None = Field(default=None, description="the picture of the job (PNG)")
+    script: str | None = Field(default=None, description="the URScript program")
+
+
+class PartFrameAuto(Closed):
+    """The placement found for ``part_frame: "auto"``: the part frame (m, rad) to reuse, and its margins."""
+
+    part_frame: list[float | None]
+    option: str
+    singularity_margin: float | None
+    joint_margin_deg: float | None
+
+
+class JobSummary(Closed):
+    """The figures ``planner plan`` prints (lengths in mm, angles in deg, times in s, as the names say; a figure
+    that does not apply is null). The keys after ``warnings`` come with a robot only."""
+
+    source: str
+    path_model: str
+    axes: str
+    frame: str
+    points: int
+    passes: int
+    rapids: int
+    reorientations: int
+    skipped: int
+    dwells: int
+    dwell_s: float | None
+    corners: int
+    cut_length_mm: float | None
+    duration_s: float | None
+    tolerance_mm: float | None
+    max_deviation_mm: float | None
+    max_waypoint_error_mm: float | None
+    max_twist_vs_exact_rmf_deg: float | None
+    max_axis_error_deg: float | None
+    max_axis_departure_deg: float | None
+    spin_deg: float | None
+    slerp_spin_deg: float | None
+    knots_added: int
+    planning_s: float | None
+    warnings: list[str]
+    robot: str | None = None
+    part_frame_auto: PartFrameAuto | None = None
+    reachable: bool | None = None
+    unreachable_passes: list[int] | None = None
+    slowed_passes: list[int] | None = None
+    slowed: list[str] | None = None
+    reconfigurations: list[str] | None = None
+    reconfigured_passes: list[int] | None = None
+    start: str | None = None
 
 
 class JobView(BaseModel):
-    """A job as ``GET /v1/jobs/{id}`` shows it."""
+    """A job as ``GET /v1/jobs/{id}`` shows it. Units: a quantity's name ends with its unit (_s, _m, _mm, _deg,
+    _rad, _hz, _bytes); a name without one is SI (m, s, rad), as in the settings; instants are Unix time, s."""
 
     id: str
     state: str
@@ -153,15 +243,15 @@ class JobView(BaseModel):
     progress: Progress
     attempts: int
     input: InputView
-    settings: dict
-    read_options: dict
-    timings: dict
-    summary: dict | None
+    settings: SettingsModel = Field(description="the settings as the planner took them (SI: m, s, rad; *_deg)")
+    read_options: ReadOptions
+    timings: Timings
+    summary: JobSummary | None
     describe: list[str] | None
     error: ErrorView | None
     note: str | None
     storage_bytes: int
-    links: dict
+    links: JobLinks
 
 
 class JobCreated(BaseModel):
@@ -194,12 +284,61 @@ class ExecutionError(BaseModel):
     kind: str
     reason: str
     t: float | None = Field(description="job time of the failure, s")
-    pose: list[float] | None = Field(description="planned TCP pose there, p[x, y, z, rx, ry, rz] (m, rad)")
+    pose: list[float | None] | None = Field(description="planned TCP pose there, p[x, y, z, rx, ry, rz] (m, rad)")
     line: int | None = Field(description="source line of the toolpath being carried out")
 
 
+class IoEventView(Closed):
+    """One switch of a digital output: where (arc length along the job, m) and when (job time, s) it was planned
+    and made, and the distance between them (mm)."""
+
+    bit: int
+    output: str
+    value: bool
+    planned_s_m: float | None
+    actual_s_m: float | None
+    distance_mm: float | None
+    planned_t_s: float | None
+    actual_t_s: float | None
+    resolution_mm: float | None
+
+
+class ExecutionReport(Closed):
+    """The figures of a run (SI units with the unit in each name, distances of the I/O switches in mm; a figure not
+    measured is null); ``io_events`` lists the first switches (all are counted)."""
+
+    mode: str
+    ok: bool
+    reason: str | None
+    planned_duration_s: float | None
+    duration_s: float | None
+    samples: int
+    path_length_m: float | None
+    max_path_error_m: float | None
+    max_path_error_t_s: float | None
+    joint_limit_margin_rad: float | None
+    recorded_every_s: float | None
+    recording_gaps: int
+    recording_samples_missed: int
+    recording_longest_gap_s: float | None
+    io_switches_planned: int
+    io_switches_made: int
+    max_io_distance_mm: float | None
+    io_events: list[IoEventView]
+    describe: list[str]
+    failure: ExecutionError | None
+
+
+class ExecutionLinks(BaseModel):
+    model_config = ConfigDict(populate_by_name=True)
+
+    self_: str = Field(alias="self", description="this execution")
+    job: str = Field(description="the job executed")
+
+
 class ExecutionView(BaseModel):
-    """An execution as ``GET /v1/executions/{id}`` shows it."""
+    """An execution as ``GET /v1/executions/{id}`` shows it. Units: a quantity's name ends with its unit (_s, _m,
+    _mm, _rad); a name without one is SI (m, s, rad); instants are Unix time, s."""
 
     id: str
     job_id: str
@@ -210,10 +349,10 @@ class ExecutionView(BaseModel):
     started_at: float | None
     finished_at: float | None
     progress: Progress
-    report: dict | None
+    report: ExecutionReport | None
     error: ExecutionError | None
     note: str | None
-    links: dict
+    links: ExecutionLinks
 
 
 class ExecutionList(BaseModel):
@@ -230,3 +369,12 @@ class RobotView(BaseModel):
 
 class RobotList(BaseModel):
     robots: list[RobotView]
+
+
+class Health(BaseModel):
+    """``GET /healthz``: the database answers; planning workers alive and busy; development mode (no keys)."""
+
+    status: Literal["ok"]
+    workers: int
+    busy: int
+    dev_no_auth: bool

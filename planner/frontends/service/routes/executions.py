@@ -11,12 +11,13 @@ from __future__ import annotations
 import json
 from typing import Annotated
 
-from fastapi import APIRouter, HTTPException, Query, Request
+from fastapi import APIRouter, HTTPException, Query
 from fastapi.responses import JSONResponse
 from sqlalchemy import select
 
 from planner.frontends.service.auth import Principal
-from planner.frontends.service.deps import API, JOB_ID, Caller, own_job, service
+from planner.frontends.service.deps import API, JOB_ID, Caller, Service, ServiceDep, own_job
+from planner.frontends.service.errors import Unprocessable
 from planner.frontends.service.execution_runs import STOP_GRACE, RobotBusy
 from planner.frontends.service.schemas import (
     ExecutionCreated,
@@ -30,15 +31,9 @@ from planner.frontends.service.store import ACTIVE_EXECUTION_STATES, Execution
 router = APIRouter(tags=["executions"])
 
 
-
-
 def require_operator(who: Principal) -> None:
     if who.role != "operator":
         raise HTTPException(403, "running a job on a robot needs a key of the operator role")
-
-
-def _unprocessable(loc: list, msg: str) -> HTTPException:
-    return HTTPException(422, [{"loc": loc, "msg": msg, "type": "value_error"}])
 
 
 def execution_view(row: Execution) -> dict:
@@ -54,11 +49,11 @@ def execution_view(row: Execution) -> dict:
             "links": {"self": f"{API}/executions/{row.id}", "job": f"{API}/jobs/{row.job_id}"}}
 
 
-def own_execution(request: Request, who: Principal, execution_id: str) -> Execution:
+def own_execution(svc: Service, who: Principal, execution_id: str) -> Execution:
     """The caller's execution, or 404 (also for another key's: its existence is not revealed)."""
 
     if JOB_ID.match(execution_id):
-        with service(request).sessions() as s:
+        with svc.sessions() as s:
             row = s.scalars(select(Execution).where(Execution.id == execution_id,
                                                     Execution.owner == who.key_id)).first()
         if row is not None:
@@ -70,18 +65,17 @@ def own_execution(request: Request, who: Principal, execution_id: str) -> Execut
              responses={403: {"description": "not an operator key"}, 404: {"description": "no such job of this key"},
                         409: {"description": "job not done, planned without a robot, or the robot is busy"},
                         422: {"description": "unknown robot, or a robot of another model"}})
-def create_execution(request: Request, job_id: str, body: ExecutionRequest, who: Caller) -> JSONResponse:
+def create_execution(svc: ServiceDep, job_id: str, body: ExecutionRequest, who: Caller) -> JSONResponse:
     """Run a done job on a configured robot (by name), in "stream" (servoJ) or "program" (URScript) mode."""
     from planner.frontends.service.workers import job_dir
 
     require_operator(who)
-    svc = service(request)
     job = own_job(svc, who, job_id)
     robot = svc.cfg.robot(body.robot)
     if robot is None:
         names = ", ".join(r.name for r in svc.cfg.robots)
-        raise _unprocessable(["body", "robot"], f"no robot named {body.robot!r} in this service's configuration "
-                                                f"(configured: {names})")
+        raise Unprocessable(["body", "robot"], f"no robot named {body.robot!r} in this service's configuration "
+                                               f"(configured: {names})")
     if job.state != "done" or not job.job_file:
         raise HTTPException(409, f"job {job_id} is {job.state}; only a done job can be executed")
     model = json.loads(job.settings).get("robot")
@@ -89,8 +83,8 @@ def create_execution(request: Request, job_id: str, body: ExecutionRequest, who:
         raise HTTPException(409, f"job {job_id} was planned without a robot model (settings.robot); plan it for "
                                  "the robot to execute it")
     if robot.model is not None and robot.model != model:
-        raise _unprocessable(["body", "robot"], f"robot {robot.name!r} is a {robot.model}; job {job_id} is planned "
-                                                f"for a {model}")
+        raise Unprocessable(["body", "robot"], f"robot {robot.name!r} is a {robot.model}; job {job_id} is planned "
+                                               f"for a {model}")
     try:
         execution_id = svc.executions.create(who.key_id, job.id, str(job_dir(svc.cfg, job.id) / job.job_file), robot,
                                              body.mode)
@@ -103,7 +97,7 @@ def create_execution(request: Request, job_id: str, body: ExecutionRequest, who:
 
 
 @router.get("/executions", response_model=ExecutionList)
-def list_executions(request: Request, who: Caller, limit: Annotated[int, Query(ge=1, le=500)] = 50,
+def list_executions(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge=1, le=500)] = 50,
                     job_id: Annotated[str | None, Query(max_length=32, description="only this job's")] = None
                     ) -> dict:
     """The caller's executions, newest first."""
@@ -111,41 +105,38 @@ def list_executions(request: Request, who: Caller, limit: Annotated[int, Query(g
     q = select(Execution).where(Execution.owner == who.key_id)
     if job_id is not None:
         q = q.where(Execution.job_id == job_id)
-    with service(request).sessions() as s:
+    with svc.sessions() as s:
         rows = list(s.scalars(q.order_by(Execution.seq.desc()).limit(limit)))
     return {"executions": [execution_view(r) for r in rows]}
 
 
 @router.get("/executions/{execution_id}", response_model=ExecutionView,
             responses={404: {"description": "no such execution of this key"}})
-def get_execution(request: Request, execution_id: str, who: Caller) -> dict:
+def get_execution(svc: ServiceDep, execution_id: str, who: Caller) -> dict:
     """An execution's state, progress, report figures and failure (reason, job time, pose, source line)."""
-    return execution_view(own_execution(request, who, execution_id))
+    return execution_view(own_execution(svc, who, execution_id))
 
 
 @router.delete("/executions/{execution_id}", response_model=ExecutionView,
                responses={403: {"description": "not an operator key"},
                           404: {"description": "no such execution of this key"},
                           409: {"description": "the execution has ended"}})
-def stop_execution(request: Request, execution_id: str, who: Caller) -> dict:
+def stop_execution(svc: ServiceDep, execution_id: str, who: Caller) -> dict:
     """Stop an execution: the arm is brought to rest (controlled stop) and the job's outputs switched off; answers
     once the execution has ended (a few seconds at most)."""
 
     require_operator(who)
-    row = own_execution(request, who, execution_id)
+    row = own_execution(svc, who, execution_id)
     if row.state not in ACTIVE_EXECUTION_STATES:
         raise HTTPException(409, f"execution {execution_id} is {row.state}; only a running one can be stopped")
-    svc = service(request)
     if svc.executions.stop(row.id):
         svc.executions.wait(row.id, STOP_GRACE + 5.0)
-    return execution_view(own_execution(request, who, execution_id))
+    return execution_view(own_execution(svc, who, execution_id))
 
 
 @router.get("/robots", response_model=RobotList)
-def list_robots(request: Request, who: Caller) -> dict:
+def list_robots(svc: ServiceDep, who: Caller) -> dict:
     """The robots jobs can be executed on: name, model (null: a simulated robot of the job's model), simulated,
     busy."""
-
-    svc = service(request)
     return {"robots": [{"name": r.name, "model": r.model, "simulated": r.simulated, "mode_default": "stream",
                         "busy": svc.executions.busy(r.name)} for r in svc.cfg.robots]}

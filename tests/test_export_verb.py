@@ -1,0 +1,132 @@
+"""The export verb (planner.export.verb): the one source of a job's exports. The CLI's files, the service's
+downloads and the verb's bytes are the same bytes for the demo job; every format is written atomically by its
+suffix; refusals are one line naming the file; the trajectory is streamed (the first piece is the header only)."""
+
+from __future__ import annotations
+
+import os
+from pathlib import Path
+
+import pytest
+
+from planner import PlannerError, PlanSettings, load_job, plan
+from planner.export import FORMATS, export, file_name, format_of, plot_title, stream, write
+from planner.frontends.cli.main import DEMO_PART_FRAME, EXAMPLE_CLS, example_path
+from planner.frontends.cli.main import main as cli_main
+
+DEMO = example_path(EXAMPLE_CLS)
+DEMO_OPTIONS = ["--robot", "ur5e", "--cut-output", "standard:0", "--part-frame", DEMO_PART_FRAME]
+
+
+@pytest.fixture(scope="module")
+def demo_job():
+    """The demo's job, planned as ``planner plan nx_first_pass.cls DEMO_OPTIONS`` plans it."""
+    from planner.frontends.cli.main import build_parser
+    from planner.frontends.cli.options import settings_from_args
+
+    settings = settings_from_args(build_parser().parse_args(["plan", str(DEMO), *DEMO_OPTIONS]))
+    return plan(DEMO, settings)
+
+
+@pytest.fixture(scope="module")
+def bare_job():
+    """The demo pass planned without a robot (no program can be made of it)."""
+    return plan(DEMO, PlanSettings())
+
+
+def test_cli_files_service_downloads_and_the_verb_are_the_same_bytes(demo_job, tmp_path):
+    """csv, json and script of the demo job: ``planner plan -o`` == ``GET .../trajectory?format=`` == export()."""
+    from tests.test_service_jobs import cli_settings, submit_file
+    from tests.test_service_server import ServiceProcess, wait_state
+
+    params = {"input": DEMO.name}
+    verb = {fmt: export(demo_job, fmt, parameters=params) for fmt in ("csv", "json", "script")}
+    cli = {}
+    for fmt in verb:
+        target = tmp_path / f"cli.{fmt}"
+        assert cli_main(["plan", str(DEMO), *DEMO_OPTIONS, "-o", str(target)]) == 0
+        cli[fmt] = target.read_bytes()
+    server = ServiceProcess(tmp_path / "service", workers=1).start()
+    try:
+        with server.client() as client:
+            r = submit_file(client, DEMO, cli_settings(*DEMO_OPTIONS))
+            assert r.status_code == 202, r.text
+            view = wait_state(client, r.json()["id"])
+            assert view["state"] == "done", view["error"]
+            for fmt in verb:
+                got = client.get(f"/v1/jobs/{view['id']}/trajectory", params={"format": fmt})
+                assert got.status_code == 200, got.text
+                assert got.headers["content-disposition"] == f'attachment; filename="{file_name(DEMO.name, fmt)}"'
+                assert got.content == verb[fmt] == cli[fmt], (
+                    f"{fmt}: service {len(got.content)}, verb {len(verb[fmt])}, CLI {len(cli[fmt])} bytes")
+    finally:
+        assert server.stop() == 0, server.log.read_text()
+    assert verb["csv"].startswith(b"# generator: ") and b'# input: "nx_first_pass.cls"' in verb["csv"]
+    assert verb["script"].startswith(b"def ") and b"movep(" in verb["script"]
+
+
+def test_the_plot_is_the_clis_picture(demo_job, tmp_path):
+    """``planner plan --plot x.png`` and export(job, "png") with the same input name: the same picture."""
+    target = tmp_path / "cli.png"
+    assert cli_main(["plan", str(DEMO), *DEMO_OPTIONS, "--plot", str(target)]) == 0
+    assert export(demo_job, "png", parameters={"input": DEMO.name}) == target.read_bytes()
+    title = plot_title(demo_job, DEMO.name)
+    s = demo_job.summary()
+    assert title.startswith("nx_first_pass.cls: 1 pass, ") and f"{s['duration_s']:.1f} s" in title
+
+
+def test_write_picks_the_format_by_suffix(demo_job, tmp_path):
+    """Every format written by its suffix holds export()'s bytes (a saved plan: one that loads to the same
+    exports); pictures of each type carry their magic number."""
+    params = {"input": DEMO.name}
+    for name, detail in (("t.csv", "poses, with joints"), ("t.JSON", "poses, with joints"), ("t.urscript", "movep")):
+        assert detail in write(demo_job, tmp_path / name, parameters=params)
+        assert (tmp_path / name).read_bytes() == export(demo_job, format_of(name), parameters=params)
+    assert write(demo_job, tmp_path / "t.job") == f"{(tmp_path / 't.job').stat().st_size} bytes"
+    again = load_job(tmp_path / "t.job")
+    assert export(again, "csv", parameters=params) == export(demo_job, "csv", parameters=params)
+    assert load_job(export(demo_job, "job")).summary() == demo_job.summary()
+    magic = {"png": b"\x89PNG\r\n", "svg": b"<?xml", "pdf": b"%PDF-"}
+    for fmt, head in magic.items():
+        assert export(demo_job, fmt).startswith(head)
+        detail = write(demo_job, tmp_path / f"p.{fmt}")
+        assert (tmp_path / f"p.{fmt}").read_bytes().startswith(head) and detail.startswith("speeds from all ")
+    assert sorted(p.name for p in tmp_path.iterdir() if p.name.startswith(".")) == []  # no temporary file left
+    assert set(FORMATS) == {format_of(f"x.{fmt}") for fmt in FORMATS}
+
+
+def test_refusals_are_one_line_naming_the_file(bare_job, tmp_path):
+    with pytest.raises(PlannerError, match=r"^notes\.txt: unknown output type '\.txt' \(use \.csv, "):
+        format_of(tmp_path / "notes.txt")
+    with pytest.raises(PlannerError, match=r"^format must be one of csv, json, script, png, svg, pdf, job, got 'xml'"):
+        export(bare_job, "xml")
+    with pytest.raises(PlannerError, match=r"^job must be a PlannedJob"):
+        export(bare_job.trajectory(), "csv")
+    with pytest.raises(PlannerError, match=r"^not writing nx_first_pass\.script: .*robot") as caught:
+        stream(bare_job, "script")  # refused before a first byte is given
+    assert "\n" not in str(caught.value)
+    with pytest.raises(PlannerError, match=r"^not writing prog\.script: .*robot"):
+        write(bare_job, tmp_path / "prog.script")
+    assert not (tmp_path / "prog.script").exists() and os.listdir(tmp_path) == []
+    with pytest.raises(PlannerError, match=r"^parameters: key 'samples' is reserved"):
+        stream(bare_job, "csv", parameters={"samples": 1})
+
+
+def test_the_trajectory_is_streamed_one_move_at_a_time(demo_job):
+    """stream() gives the header first, before any chunk is read; then one piece per move; memory bounded by one
+    move's samples (the service sends a whole NX job of 12.9 million poses this way)."""
+    seen = []
+    pieces = stream(demo_job, "csv", progress=lambda stage, done, total: seen.append(done))
+    first = next(pieces)
+    assert first.startswith(b"# generator: ") and first.endswith(b"\n")
+    assert first.count(b"\n") == first.count(b"# ") + 1 and not seen  # header and column line only, nothing read
+    rest = list(pieces)
+    assert len(rest) == len(demo_job.trajectory().moves())
+    assert sum(piece.count(b"\n") for piece in rest) == demo_job.trajectory().n_samples
+
+
+def test_file_name_of_a_download():
+    assert file_name("part.cls", "csv") == "part.csv"
+    assert file_name("<waypoints>", "json") == "<waypoints>.json"
+    assert file_name("", "json") == "job.json"
+    assert Path(file_name("a.b.nc", "script")).suffix == ".script"
