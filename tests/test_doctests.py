@@ -13,6 +13,7 @@ MODULES = [
     "planner.trajectory",      # Trajectory.chunks
     "planner.curves.spline",   # fit_ph_spline
     "planner.frames.path",     # frame_field
+    "planner.export.verb",     # export
     "drivers.execute",         # execute_job on a simulated controller
 ]
 

@@ -119,7 +119,22 @@ def stream(job, fmt: str, *, parameters: Mapping | None = None, progress=None, e
 
 def export(job, fmt: str, *, parameters: Mapping | None = None, progress=None, execution=None) -> bytes:
     """The bytes of ``job`` in format ``fmt`` (one of :data:`FORMATS`) at once: what :func:`write` writes to a file
-    of that type, and the service sends. See :func:`stream` for a large trajectory."""
+    of that type, and the service sends. See :func:`stream` for a large trajectory.
+
+    Examples
+    --------
+    >>> import numpy as np
+    >>> from planner import PlanSettings, plan
+    >>> from planner.export import export
+    >>> t = np.linspace(0.0, 1.0, 9)
+    >>> bead = np.c_[0.2 * t, 0.03 * np.sin(2 * np.pi * t), np.zeros_like(t)]
+    >>> job = plan(bead, PlanSettings(feed=0.02, robot="ur5e", part_frame=(0.4, -0.1, 0.2, 0, 0, 0)))
+    >>> rows = [r for r in export(job, "csv").decode().splitlines() if not r.startswith("#")]
+    >>> rows[0], len(rows) - 1          # the columns, then one row per 500 Hz sample (m, rad)
+    ('t,x,y,z,rx,ry,rz,move,pass,line,q0,q1,q2,q3,q4,q5', 6036)
+    >>> export(job, "script").decode().count("movep(")   # the URScript program: movep along the pass
+    176
+    """
     return b"".join(stream(job, fmt, parameters=parameters, progress=progress, execution=execution))
 
 
