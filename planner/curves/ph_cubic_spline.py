@@ -50,9 +50,11 @@ def fit_ph_cubic_spline(waypoints, tangents=None, *, max_splits: int = MAX_SPLIT
     Raises
     ------
     WaypointError
-        Bad waypoints or tangents (the message names the index).
+        Bad waypoints or tangents (the message names the index); with the default tangents, waypoints that turn
+        back where no G1 PH cubic spline passes: a zero estimated tangent, or a reversal on a line (names it).
     NoSolutionError
-        A span still admits no PH cubic after ``max_splits`` halvings (names the span).
+        A span still admits no PH cubic after ``max_splits`` halvings, or more than MAX_OPEN_PIECES of its
+        pieces have none after a halving, or the cubic spline stops inside it (names the span).
     """
     p = check_waypoints(waypoints)
     u = chord_knots(p)
