@@ -1,12 +1,14 @@
 """The primary (TCP 30001) and secondary (30002) client interfaces of one simulated controller.
 
-On connection a client gets the version message, then a robot state package (:func:`sim.primary_packages.robot_state`)
-every 100 ms of wall time (10 Hz on an absolute schedule, as the controller sends them, whatever the simulator's
-fast-forward factor); primary clients also get the controller's robot messages as they happen (program started and
-stopped key messages, text messages, runtime and compile errors, protective and emergency stops as safety mode and
-error code messages: :meth:`sim.core.Core.event`), sent with the next state package. What a client sends is URScript
-or a primary command (:func:`sim.script_server.take_script`). A client that stops reading is dropped once 1 MiB is
-left unsent (:class:`sim.streams.OutputStream`); one that hangs up is forgotten at once.
+On connection a client gets the version message (once it has sent nothing for 50 ms: a client that connects only to
+send a program gets nothing before it has sent it), then a robot state package
+(:func:`sim.primary_packages.robot_state`) every 100 ms of wall time (10 Hz on an absolute schedule, as the
+controller sends them, whatever the simulator's fast-forward factor); primary clients also get the controller's
+robot messages as they happen (program started and stopped key messages, text messages, runtime and compile errors,
+protective and emergency stops as safety mode and error code messages: :meth:`sim.core.Core.event`), sent with the
+next state package. What a client sends is URScript or a primary command (:func:`sim.script_server.take_script`). A
+client that stops reading is dropped once 1 MiB is left unsent (:class:`sim.streams.OutputStream`); one that hangs up
+is forgotten at once.
 """
 
 from __future__ import annotations
@@ -27,6 +29,8 @@ from sim.streams import OutputStream
 PRIMARY_PORT, SECONDARY_PORT = 30001, 30002
 #: Seconds between robot state packages (10 Hz).
 STATE_PERIOD = 0.1
+#: Seconds a client may send without a pause before the version message and state packages reach it (see serve).
+QUIET = 0.05
 BUILD_DATE = f"{CONTROLLER_RELEASE:%d-%m-%Y}, 12:00:00"
 
 
@@ -86,13 +90,16 @@ class PrimaryServer(Listeners):
 
     def serve(self, sock: socket.socket) -> None:
         port = sock.getsockname()[1]
-        out = OutputStream(sock)
+        # the output is held back while a client that connects to send programs is sending: one that sends a
+        # program and hangs up without reading would otherwise close with unread data, which resets the connection
+        # (RST) and can discard the end of its program before it is read
+        out = OutputStream(sock, held=True)
         with self.core.lock:
             out.write(pp.version_message(self.core.time, CONTROLLER_VERSION, BUILD_DATE))
         with self._lock:
             self.streams[out] = port
         try:
-            serve_scripts(self.core, sock)
+            serve_scripts(self.core, sock, on_quiet=out.release, quiet=QUIET)
         finally:
             with self._lock:
                 self.streams.pop(out, None)

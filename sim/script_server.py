@@ -48,12 +48,22 @@ def take_script(core, text: str, port: int | None = None) -> None:
         action(core)
 
 
-def serve_scripts(core, sock: socket.socket) -> None:
-    """Read programs from ``sock`` until the client hangs up (a partial program at hang-up is dropped)."""
+def serve_scripts(core, sock: socket.socket, on_quiet=None, quiet: float = 0.05) -> None:
+    """Read programs from ``sock`` until the client hangs up (a partial program at hang-up is dropped).
+
+    ``on_quiet()``, if given, is called once the client has sent nothing for ``quiet`` s (right after connecting,
+    or after a first burst of programs)."""
     framer = ProgramFramer()
     port = sock.getsockname()[1]
+    if on_quiet is not None:
+        sock.settimeout(quiet)
     while True:
-        chunk = sock.recv(65536)
+        try:
+            chunk = sock.recv(65536)
+        except TimeoutError:
+            sock.settimeout(None)
+            on_quiet()
+            continue
         if not chunk:
             return
         for text in framer.feed(chunk):

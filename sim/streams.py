@@ -2,7 +2,8 @@
 
 A controller never waits for a client: what the socket does not take at once is kept and sent with the next write
 or :meth:`OutputStream.flush`; a client that leaves more than `MAX_BACKLOG` bytes unread is dropped (a vanished
-client), and so is one whose socket fails.
+client), and so is one whose socket fails. A stream can start held (:meth:`OutputStream.release` sends what was
+written meanwhile).
 """
 
 from __future__ import annotations
@@ -18,9 +19,10 @@ MAX_BACKLOG = 1 << 20
 class OutputStream:
     """The sending side of one client connection on ``sock``."""
 
-    def __init__(self, sock: socket.socket) -> None:
+    def __init__(self, sock: socket.socket, held: bool = False) -> None:
         self.sock = sock
         self.closed = False
+        self.held = held
         self._out = bytearray()
         self._lock = threading.Lock()
 
@@ -30,11 +32,19 @@ class OutputStream:
             if self.closed:
                 return
             self._out += data
-            self._flush_locked()
+            if not self.held:
+                self._flush_locked()
 
     def flush(self) -> None:
         """Send what is queued, as far as the socket takes it without blocking."""
         with self._lock:
+            if self._out and not self.closed and not self.held:
+                self._flush_locked()
+
+    def release(self) -> None:
+        """Stop holding the output back: send what was written meanwhile."""
+        with self._lock:
+            self.held = False
             if self._out and not self.closed:
                 self._flush_locked()
 

@@ -271,6 +271,7 @@ def test_clients_that_vanish_leave_the_stream_to_the_others(make_sim):
                 c.recv(7)
             c.setsockopt(socket.SOL_SOCKET, socket.SO_LINGER, struct.pack("ii", 1, 0))  # reset, not FIN
             c.close()
+        _packages(stay, 0.3)  # what queued up meanwhile
         got = _packages(stay, 1.05)
     assert 9 <= sum(1 for _, k, _ in got if k == 16) <= 11
     assert sim.state()["program"] is None
@@ -290,3 +291,14 @@ def test_one_line_programs_as_python_urx_sends_them(make_sim):
         got = _packages(p, 0.4)
     (exc,) = _messages(got, 10)
     assert struct.unpack_from(">II", exc) == (1, 0) and b"no_such_function" in exc[8:]
+
+
+def test_a_program_sent_by_a_client_that_hangs_up_at_once_runs(make_sim):
+    """A client that connects, sends a long program and closes without reading (this project's UR driver does) must
+    not lose the program's end: closing with the version message unread would reset the connection."""
+    sim = make_sim()
+    body = "".join(f"  x{k} = {k}\n" for k in range(30000))  # about 480 kB
+    for i in range(3):
+        with _connect(sim.host, 30002) as s:
+            s.sendall(f'def long_{i}():\n{body}  textmsg("done {i}")\nend\n'.encode())
+        assert eventually(lambda i=i: any(m[2] == f"done {i}" for m in sim.state()["log"]), timeout=5.0)
