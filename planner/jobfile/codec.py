@@ -23,6 +23,9 @@ from planner.errors import PlannerError
 DTYPES = {"f8": np.dtype("<f8"), "i8": np.dtype("<i8"), "b1": np.dtype("|b1")}
 #: Largest integer a field holds (int64 range with margin).
 INT_LIMIT = 2**62
+#: Largest magnitude of a (finite) element of a float array: far beyond any figure of a robot cell (the budget keeps
+#: coordinates within 5 km and a trajectory within 1e12 poses), small enough that no evaluation overflows.
+MAX_MAGNITUDE = 1e15
 #: Non-finite floats are written as these strings (JSON has no NaN or infinity).
 NONFINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
 
@@ -210,8 +213,8 @@ class Json(Kind):
 @dataclass(frozen=True)
 class Arr(Kind):
     """An ndarray of ``dtype`` ("f8", "i8", "b1") whose shape matches ``shape``: per dimension an int (that
-    size), None (any size) or a tuple of the sizes allowed. Written as ``[offset, *shape]`` into the pool of
-    the field; ``finite``: floats must be finite."""
+    size), None (any size) or a tuple of the sizes allowed. Written as ``[offset, *shape]`` into the pool of its
+    dtype; ``finite``: floats must be finite."""
 
     dtype: str
     shape: tuple
@@ -227,6 +230,8 @@ class Arr(Kind):
     def decode(self, raw, dec, pool, where):
         if type(raw) is list and len(raw) == 1 + len(self.shape):
             shape = tuple(raw[1:])
+            if shape == self.shape and type(raw[0]) is int and raw[0] >= 0:  # a fixed shape: (3,), (3, 3), (6,)
+                return dec.array(pool, self.dtype, raw[0], shape, self.finite and self.dtype == "f8", where)
             for n, want in zip(shape, self.shape, strict=True):
                 if type(n) is not int or n < 0 or (want is not None and n != want and not (
                         type(want) is tuple and n in want)):
@@ -307,7 +312,7 @@ class StoredType:
 
     @cached_property
     def pools(self) -> dict[str, str]:
-        """The pool of each field's arrays: "<name>.<field>"."""
+        """Each field's group of arrays in the pools (its arrays lie side by side): "<name>.<field>"."""
         return {name: f"{self.name}.{name}" for name in self.fields}
 
     def rebuild(self, state: dict):
@@ -321,7 +326,8 @@ class Encoder:
 
     types: Mapping[str, StoredType]
     objects: list = field(default_factory=list)
-    pools: dict = field(default_factory=dict)  # pool -> (dtype, list of arrays, size)
+    #: dtype -> field ("<type>.<field>") -> [(array, its reference, whose offset is set by :meth:`pool_arrays`)]
+    pending: dict = field(default_factory=dict)
     _by_class: dict = field(default_factory=dict)
     _memo: dict = field(default_factory=dict)
     _arrays: dict = field(default_factory=dict)
@@ -351,22 +357,31 @@ class Encoder:
         return {name: kind.encode(state[name], self, f"{t.name}.{name}") for name, kind in t.fields.items()}
 
     def array(self, pool: str, dtype: str, value) -> list:
-        key = (pool, id(value))
+        """The reference ``[offset, *shape]`` of an array of field ``pool`` (an array held by several fields is
+        stored once); the offset is set when the pools are laid out (:meth:`pool_arrays`)."""
+        key = (dtype, id(value))
         if key in self._arrays:
             return self._arrays[key]
         a = np.ascontiguousarray(value, dtype=DTYPES[dtype])
-        _, parts, size = self.pools.setdefault(pool, (dtype, [], 0))
-        parts.append(a.ravel())
-        self.pools[pool] = (dtype, parts, size + a.size)
-        ref = [size, *a.shape]
+        ref = [0, *a.shape]
+        self.pending.setdefault(dtype, {}).setdefault(pool, []).append((a.ravel(), ref))
         self._arrays[key] = ref
         self._keep.append(value)
         return ref
 
     def pool_arrays(self) -> dict[str, np.ndarray]:
-        """Every pool as one 1-D array."""
-        return {name: (np.concatenate(parts) if parts else np.zeros(0, DTYPES[dtype]))
-                for name, (dtype, parts, _) in self.pools.items()}
+        """One 1-D array per dtype: the arrays of each field together (they compress better side by side), the
+        fields in name order, and the references' offsets set."""
+        out = {}
+        for dtype, fields in sorted(self.pending.items()):
+            parts, offset = [], 0
+            for name in sorted(fields):
+                for a, ref in fields[name]:
+                    ref[0] = offset
+                    offset += a.size
+                    parts.append(a)
+            out[dtype] = np.concatenate(parts) if parts else np.zeros(0, DTYPES[dtype])
+        return out
 
 
 @dataclass
@@ -377,10 +392,19 @@ class Decoder:
     pools: Mapping[str, np.ndarray]
     objects: list = field(default_factory=list)
     names: list = field(default_factory=list)
-    _finite: set = field(default_factory=set)
+    _bad_before: dict = field(default_factory=dict)
 
     def __post_init__(self):  # the pools in native byte order (a no-op on little-endian machines)
         self.pools = {k: v.astype(v.dtype.newbyteorder("="), copy=False) for k, v in self.pools.items()}
+        self._bad_before = {}  # pool -> number of non-finite elements before each position (n + 1,)
+        for name, data in self.pools.items():
+            if data.dtype.kind == "f" and data.size:
+                finite = np.isfinite(data)
+                big = np.abs(data, where=finite, out=np.zeros_like(data)).max()
+                if big > MAX_MAGNITUDE:
+                    raise Damaged(f"the {name} pool holds {big:.3g}, beyond the format's {MAX_MAGNITUDE:g}")
+                if not finite.all():
+                    self._bad_before[name] = np.concatenate(([0], np.cumsum(~finite)))
 
     def entry(self, index: int, raw) -> None:
         """Check and build entry ``index`` of the manifest's objects."""
@@ -424,17 +448,16 @@ class Decoder:
     def array(self, pool: str, dtype: str, offset: int, shape: tuple, finite: bool, where: tuple) -> np.ndarray:
         """A copy of the elements ``offset ..`` of ``pool`` in ``shape`` (the pool's floats all finite if
         ``finite``)."""
-        data = self.pools.get(pool)
+        data = self.pools.get(dtype)
         if data is None or data.dtype != DTYPES[dtype]:
-            raise Damaged(f"{_place(where)}: no {dtype} array pool {pool!r}")
+            raise Damaged(f"{_place(where)}: no {dtype} array pool")
         count = math.prod(shape)
         if not 0 <= offset <= data.size - count or count == 0 and max(shape, default=0) > 2**40:
-            raise Damaged(f"{_place(where)}: elements {offset}..{offset + count} lie beyond the {data.size} of pool "
-                          f"{pool!r}")
-        if finite and pool not in self._finite:
-            if not np.isfinite(data).all():
-                raise Damaged(f"{_place(where)}: pool {pool!r} holds a value that is not finite")
-            self._finite.add(pool)
+            raise Damaged(f"{_place(where)}: elements {offset}..{offset + count} lie beyond the {data.size} of the "
+                          f"{dtype} pool")
+        bad = self._bad_before.get(dtype) if finite else None
+        if bad is not None and bad[offset + count] != bad[offset]:
+            raise Damaged(f"{_place(where)}: holds a value that is not finite")
         return data[offset:offset + count].reshape(shape).copy()
 
 
