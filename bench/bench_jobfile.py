@@ -72,7 +72,7 @@ def rows_for(name: str, job, folder: Path) -> list[list[object]]:
         t_save, size = best(lambda s=save, p=path: s(job, p))
         t_load, _ = best(lambda ld=load, p=path: ld(p))
         t_use, _ = best(lambda ld=load, p=path: every_move(ld(p)))
-        rows.append([name, fmt, f"{size / 1e6:.2f} MB", f"{t_save:.2f}", f"{t_load:.2f}", f"{t_use:.2f}"])
+        rows.append([name, fmt, f"{size:,}", f"{t_save:.3f}", f"{t_load:.3f}", f"{t_use:.3f}"])
     return rows
 
 
@@ -92,7 +92,7 @@ def main() -> None:
             print(f"planned {name}: {len(job.moves)} moves, {job.n_samples():,} poses at 500 Hz, "
                   f"in {time.perf_counter() - t0:.1f} s", flush=True)
             rows += rows_for(name, job, Path(tmp))
-    print_table(["job", "file", "size", "save s", "load s", "load + every move at 1 Hz s"], rows)
+    print_table(["job", "file", "bytes", "save s", "load s", "load + every move at 1 Hz s"], rows)
 
 
 if __name__ == "__main__":

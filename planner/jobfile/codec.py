@@ -39,13 +39,14 @@ class Foreign(Damaged):
 
 
 class Kind:
-    """How one field is written and read. ``where`` names the field for messages: (object label, field name,
-    list indices...), formatted by :func:`_place` only when a message is made."""
+    """How one field is written and read. ``group`` is the field's name, "<type>.<field>" (its arrays lie side by
+    side in the pools); ``where`` names the place for messages: (object label, field name, list indices...),
+    formatted by :func:`_place` only when a message is made."""
 
-    def encode(self, value, enc: Encoder, pool: str):
+    def encode(self, value, enc: Encoder, group: str):
         raise NotImplementedError
 
-    def decode(self, raw, dec: Decoder, pool: str, where: tuple):
+    def decode(self, raw, dec: Decoder, group: str, where: tuple):
         raise NotImplementedError
 
     def text(self) -> str:
@@ -59,15 +60,15 @@ class Float(Kind):
 
     finite: bool = True
 
-    def encode(self, value, enc, pool):
+    def encode(self, value, enc, group):
         x = float(value)
         if math.isfinite(x):
             return x
         if self.finite:
-            raise PlannerError(f"cannot save the job: {pool} is {x}, which the format keeps finite")
+            raise PlannerError(f"cannot save the job: {group} is {x}, which the format keeps finite")
         return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if isinstance(raw, float | int) and not isinstance(raw, bool):
             x = float(raw) if abs(raw) <= 1e308 or isinstance(raw, float) else math.inf
             if math.isfinite(x):
@@ -85,10 +86,10 @@ class Int(Kind):
     lo: int = -INT_LIMIT
     hi: int = INT_LIMIT
 
-    def encode(self, value, enc, pool):
+    def encode(self, value, enc, group):
         return int(value)
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if isinstance(raw, int) and not isinstance(raw, bool) and self.lo <= raw <= self.hi:
             return raw
         raise Damaged(f"{_place(where)}: expected an integer in [{self.lo}, {self.hi}], got {_shown(raw)}")
@@ -101,10 +102,10 @@ class Int(Kind):
 
 @dataclass(frozen=True)
 class Bool(Kind):
-    def encode(self, value, enc, pool):
+    def encode(self, value, enc, group):
         return bool(value)
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if isinstance(raw, bool):
             return raw
         raise Damaged(f"{_place(where)}: expected true or false, got {_shown(raw)}")
@@ -120,12 +121,12 @@ class Str(Kind):
     choices: tuple = ()
     label: str = ""
 
-    def encode(self, value, enc, pool):
+    def encode(self, value, enc, group):
         if not isinstance(value, str):
-            raise PlannerError(f"cannot save the job: {pool} is a {type(value).__name__}, not a string")
+            raise PlannerError(f"cannot save the job: {group} is a {type(value).__name__}, not a string")
         return value
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if isinstance(raw, str) and (not self.choices or raw in self.choices):
             return raw
         want = f"one of {', '.join(self.choices)}" if self.choices else "a string"
@@ -143,11 +144,11 @@ class Opt(Kind):
 
     inner: Kind
 
-    def encode(self, value, enc, pool):
-        return None if value is None else self.inner.encode(value, enc, pool)
+    def encode(self, value, enc, group):
+        return None if value is None else self.inner.encode(value, enc, group)
 
-    def decode(self, raw, dec, pool, where):
-        return None if raw is None else self.inner.decode(raw, dec, pool, where)
+    def decode(self, raw, dec, group, where):
+        return None if raw is None else self.inner.decode(raw, dec, group, where)
 
     def text(self):
         return f"{self.inner.text()}?"
@@ -160,14 +161,14 @@ class Seq(Kind):
     inner: Kind
     length: int | None = None
 
-    def encode(self, value, enc, pool):
-        return [self.inner.encode(v, enc, pool) for v in value]
+    def encode(self, value, enc, group):
+        return [self.inner.encode(v, enc, group) for v in value]
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if not isinstance(raw, list) or (self.length is not None and len(raw) != self.length):
             size = "a list" if self.length is None else f"a list of {self.length}"
             raise Damaged(f"{_place(where)}: expected {size}, got {_shown(raw)}")
-        return tuple(self.inner.decode(v, dec, pool, where + (k,)) for k, v in enumerate(raw))
+        return tuple(self.inner.decode(v, dec, group, where + (k,)) for k, v in enumerate(raw))
 
     def text(self):
         return f"[{self.inner.text()}]" + ("" if self.length is None else f"*{self.length}")
@@ -179,13 +180,13 @@ class Map(Kind):
 
     inner: Kind
 
-    def encode(self, value, enc, pool):
-        return {str(k): self.inner.encode(v, enc, pool) for k, v in value.items()}
+    def encode(self, value, enc, group):
+        return {str(k): self.inner.encode(v, enc, group) for k, v in value.items()}
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if not isinstance(raw, dict):
             raise Damaged(f"{_place(where)}: expected an object, got {_shown(raw)}")
-        return {k: self.inner.decode(v, dec, pool, where + (k,)) for k, v in raw.items()}
+        return {k: self.inner.decode(v, dec, group, where + (k,)) for k, v in raw.items()}
 
     def text(self):
         return f"{{str: {self.inner.text()}}}"
@@ -198,10 +199,10 @@ class Json(Kind):
 
     depth: int = 3
 
-    def encode(self, value, enc, pool):
+    def encode(self, value, enc, group):
         return value
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if not isinstance(raw, dict) or not _plain(raw, self.depth):
             raise Damaged(f"{_place(where)}: expected an object of plain values, got {_shown(raw)}")
         return raw
@@ -220,25 +221,25 @@ class Arr(Kind):
     shape: tuple
     finite: bool = True
 
-    def encode(self, value, enc, pool):
+    def encode(self, value, enc, group):
         a = np.asarray(value)
         if a.dtype != DTYPES[self.dtype].newbyteorder("=") or not _shape_ok(a.shape, self.shape):
-            raise PlannerError(f"cannot save the job: {pool} is an array of {a.dtype} {a.shape}, the format "
+            raise PlannerError(f"cannot save the job: {group} is an array of {a.dtype} {a.shape}, the format "
                                f"has {self.dtype} {self.text_shape()}")
-        return enc.array(pool, self.dtype, value)
+        return enc.array(group, self.dtype, value)
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if type(raw) is list and len(raw) == 1 + len(self.shape):
             shape = tuple(raw[1:])
             if shape == self.shape and type(raw[0]) is int and raw[0] >= 0:  # a fixed shape: (3,), (3, 3), (6,)
-                return dec.array(pool, self.dtype, raw[0], shape, self.finite and self.dtype == "f8", where)
+                return dec.array(self.dtype, raw[0], shape, self.finite and self.dtype == "f8", where)
             for n, want in zip(shape, self.shape, strict=True):
                 if type(n) is not int or n < 0 or (want is not None and n != want and not (
                         type(want) is tuple and n in want)):
                     break
             else:
                 if type(raw[0]) is int and raw[0] >= 0:
-                    return dec.array(pool, self.dtype, raw[0], shape, self.finite and self.dtype == "f8", where)
+                    return dec.array(self.dtype, raw[0], shape, self.finite and self.dtype == "f8", where)
         raise Damaged(f"{_place(where)}: expected an array reference [offset, {', '.join('n' * len(self.shape))}] "
                       f"of non-negative integers with shape {self.text_shape()}, got {_shown(raw)}")
 
@@ -259,10 +260,10 @@ class Ref(Kind):
     def __init__(self, *types: str):
         object.__setattr__(self, "types", types)
 
-    def encode(self, value, enc, pool):
-        return enc.ref(value, self.types, pool)
+    def encode(self, value, enc, group):
+        return enc.ref(value, self.types, group)
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         return dec.ref(raw, self.types, where)
 
     def text(self):
@@ -276,10 +277,10 @@ class Inline(Kind):
 
     type: str
 
-    def encode(self, value, enc, pool):
+    def encode(self, value, enc, group):
         return enc.fields(enc.types[self.type], value)
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         return dec.fields(dec.types[self.type], raw, where)
 
     def text(self):
@@ -311,8 +312,8 @@ class StoredType:
     check: Callable | None = None
 
     @cached_property
-    def pools(self) -> dict[str, str]:
-        """Each field's group of arrays in the pools (its arrays lie side by side): "<name>.<field>"."""
+    def groups(self) -> dict[str, str]:
+        """Each field's group name, "<name>.<field>" (its arrays lie side by side in the pools)."""
         return {name: f"{self.name}.{name}" for name in self.fields}
 
     def rebuild(self, state: dict):
@@ -336,14 +337,14 @@ class Encoder:
     def __post_init__(self):
         self._by_class = {t.cls: t for t in self.types.values() if t.cls is not None}
 
-    def ref(self, obj, allowed: tuple, pool: str) -> int:
+    def ref(self, obj, allowed: tuple, group: str) -> int:
+        t = self._by_class.get(type(obj))
+        if t is None or t.name not in allowed:
+            raise PlannerError(f"cannot save the job: {group} is a {type(obj).__qualname__}, which the job file "
+                               f"format does not hold there (it holds {', '.join(allowed)})")
         key = id(obj)
         if key in self._memo:
             return self._memo[key]
-        t = self._by_class.get(type(obj))
-        if t is None or t.name not in allowed:
-            raise PlannerError(f"cannot save the job: {pool} is a {type(obj).__qualname__}, which the job file "
-                               f"format does not hold there (it holds {', '.join(allowed)})")
         body = self.fields(t, obj.to_state())
         self.objects.append([t.name, body])
         self._memo[key] = len(self.objects) - 1
@@ -354,17 +355,18 @@ class Encoder:
         if set(state) != set(t.fields):
             raise PlannerError(f"cannot save the job: the state of {t.name} has fields {sorted(state)}, the format "
                                f"{sorted(t.fields)}")
-        return {name: kind.encode(state[name], self, f"{t.name}.{name}") for name, kind in t.fields.items()}
+        groups = t.groups
+        return {name: kind.encode(state[name], self, groups[name]) for name, kind in t.fields.items()}
 
-    def array(self, pool: str, dtype: str, value) -> list:
-        """The reference ``[offset, *shape]`` of an array of field ``pool`` (an array held by several fields is
-        stored once); the offset is set when the pools are laid out (:meth:`pool_arrays`)."""
+    def array(self, group: str, dtype: str, value) -> list:
+        """The reference ``[offset, *shape]`` of an array of the field ``group`` (an array held by several fields
+        is stored once); the offset is set when the pools are laid out (:meth:`pool_arrays`)."""
         key = (dtype, id(value))
         if key in self._arrays:
             return self._arrays[key]
         a = np.ascontiguousarray(value, dtype=DTYPES[dtype])
         ref = [0, *a.shape]
-        self.pending.setdefault(dtype, {}).setdefault(pool, []).append((a.ravel(), ref))
+        self.pending.setdefault(dtype, {}).setdefault(group, []).append((a.ravel(), ref))
         self._arrays[key] = ref
         self._keep.append(value)
         return ref
@@ -434,8 +436,8 @@ class Decoder:
             what = "; ".join(x for x in (f"missing {', '.join(missing)}" * bool(missing),
                                          f"unknown {', '.join(map(_shown, extra))}" * bool(extra)) if x)
             raise Damaged(f"{_place(where)}: fields do not match the format ({what})")
-        pools = t.pools
-        return {name: kind.decode(body[name], self, pools[name], where + (name,)) for name, kind in t.fields.items()}
+        groups = t.groups
+        return {name: kind.decode(body[name], self, groups[name], where + (name,)) for name, kind in t.fields.items()}
 
     def ref(self, raw, allowed: tuple, where: tuple):
         if type(raw) is not int or not 0 <= raw < len(self.objects):
@@ -445,9 +447,8 @@ class Decoder:
             raise Damaged(f"{_place(where)}: object {raw} is a {self.names[raw]}, expected {' or '.join(allowed)}")
         return self.objects[raw]
 
-    def array(self, pool: str, dtype: str, offset: int, shape: tuple, finite: bool, where: tuple) -> np.ndarray:
-        """A copy of the elements ``offset ..`` of ``pool`` in ``shape`` (the pool's floats all finite if
-        ``finite``)."""
+    def array(self, dtype: str, offset: int, shape: tuple, finite: bool, where: tuple) -> np.ndarray:
+        """A copy of the elements ``offset ..`` of the ``dtype`` pool in ``shape`` (all finite if ``finite``)."""
         data = self.pools.get(dtype)
         if data is None or data.dtype != DTYPES[dtype]:
             raise Damaged(f"{_place(where)}: no {dtype} array pool")
