@@ -6,10 +6,11 @@ For the demo job (examples/nx_first_pass.cls on a UR5e) and the whole shared NX 
 - baseline, in the same run: the former file, format version 1 (pickle of the job, gzip level 6, magic and
   version in front), written and read the way ``PlannedJob.save`` / ``load_job`` did before;
 - the saved-job file of this version (format 2: a ZIP archive of the JSON manifest and the array pools).
-Columns: file size; save (serialize, compress, write); load (read, check, rebuild the job); and load plus a pass
-over every move (the trajectory at 1 Hz with the robot's joints, CSV text): what a consumer pays before its first
-export, since a loaded job builds its evaluation caches (PCHIP interpolants, arc-length tables) when first used,
-where the pickle restored those it held. Times are the best of 3.
+Columns: file size; save (serialize, compress, write); load (read, check, rebuild the job); the memory the loaded
+job holds and the peak while loading (tracemalloc, MB); and load plus a pass over every move (the trajectory at
+1 Hz with the robot's joints, CSV text): what a consumer pays before its first export, since a loaded job builds
+its evaluation caches (PCHIP interpolants, arc-length tables) when first used, where the pickle restored those it
+held (and held their memory). Times are the best of 3.
 
 Run: ``python bench/bench_jobfile.py [--quick]`` (--quick: the demo job only).
 """
@@ -21,6 +22,7 @@ import pickle
 import sys
 import tempfile
 import time
+import tracemalloc
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parent))
@@ -72,7 +74,13 @@ def rows_for(name: str, job, folder: Path) -> list[list[object]]:
         t_save, size = best(lambda s=save, p=path: s(job, p))
         t_load, _ = best(lambda ld=load, p=path: ld(p))
         t_use, _ = best(lambda ld=load, p=path: every_move(ld(p)))
-        rows.append([name, fmt, f"{size:,}", f"{t_save:.3f}", f"{t_load:.3f}", f"{t_use:.3f}"])
+        tracemalloc.start()
+        kept = load(path)
+        held, peak = tracemalloc.get_traced_memory()
+        tracemalloc.stop()
+        del kept
+        memory = f"{held / 2**20:.0f} / {peak / 2**20:.0f}"
+        rows.append([name, fmt, f"{size:,}", f"{t_save:.3f}", f"{t_load:.3f}", memory, f"{t_use:.3f}"])
     return rows
 
 
@@ -92,7 +100,7 @@ def main() -> None:
             print(f"planned {name}: {len(job.moves)} moves, {job.n_samples():,} poses at 500 Hz, "
                   f"in {time.perf_counter() - t0:.1f} s", flush=True)
             rows += rows_for(name, job, Path(tmp))
-    print_table(["job", "file", "bytes", "save s", "load s", "load + every move at 1 Hz s"], rows)
+    print_table(["job", "file", "bytes", "save s", "load s", "held / peak MB", "load + every move at 1 Hz s"], rows)
 
 
 if __name__ == "__main__":
