@@ -16,10 +16,12 @@ from typing import TYPE_CHECKING
 
 import numpy as np
 
+from planner.cam.axes import AxisField
 from planner.cam.fidelity import PassFit
-from planner.cam.moves import Reconfiguration
+from planner.cam.moves import Reconfiguration, TurningFrames
 from planner.cam.passes import CutPass, Dwell, RapidMove, Reorientation, Segmentation, Skipped
 from planner.errors import PlannerError
+from planner.frames.tool_field import PathToolField
 from planner.io.toolpath import Toolpath
 from planner.jobfile import VERSION, StoredType, dump, load
 from planner.jobfile.codec import Arr, Bool, Int, Json, Map, Opt, Ref, Seq, Str
@@ -38,8 +40,8 @@ MoveItem = CutPass | RapidMove | Reorientation | Dwell | Skipped | Reconfigurati
 #: Version of the saved-job format (:meth:`PlannedJob.save`, :mod:`planner.jobfile`).
 JOB_FILE_VERSION = VERSION
 #: Move kinds and what each carries out.
-MOVE_ITEMS = {"cut": "CutPass", "rapid": "RapidMove", "reorientation": "Reorientation",
-              "reconfiguration": "Reconfiguration", "dwell": "Dwell", "skipped": "Skipped"}
+MOVE_ITEMS = {"cut": CutPass, "rapid": RapidMove, "reorientation": Reorientation, "reconfiguration": Reconfiguration,
+              "dwell": Dwell, "skipped": Skipped}
 #: The largest trajectory (poses) a saved job may describe: the largest ``max_poses`` a job is planned with.
 MAX_SAVED_POSES = 1e12
 
@@ -509,14 +511,14 @@ def load_job(source) -> PlannedJob:
 
 
 def _check_move(s: dict) -> None:
-    kind, item = s["kind"], s["item"]
-    need(type(item).__name__ == MOVE_ITEMS[kind], f"a {kind} move carries out a {MOVE_ITEMS[kind]}")
+    """What the trajectory relies on: the item of the move's kind, and for moves that move, their parts."""
+    kind, item, frames = s["kind"], s["item"], s["frames"]
+    need(isinstance(item, MOVE_ITEMS[kind]), f"a {kind} move carries out a {MOVE_ITEMS[kind].__name__}")
     moving = kind in ("cut", "rapid")
-    need(not moving or (s["path"] is not None and s["frames"] is not None and s["profile"] is not None),
+    need(not moving or (s["path"] is not None and frames is not None and s["profile"] is not None),
          f"a {kind} move needs its path, frames and profile")
-    need(kind != "cut" or type(s["frames"]).__name__ in ("AxisField", "PathToolField"), "a cut's frames are a field")
-    need(kind not in ("rapid", "reorientation") or type(s["frames"]).__name__ == "TurningFrames",
-         f"a {kind}'s frames turn")
+    need(kind != "cut" or isinstance(frames, AxisField | PathToolField), "a cut's frames are a field along it")
+    need(kind not in ("rapid", "reorientation") or isinstance(frames, TurningFrames), f"a {kind}'s frames turn")
     need(kind != "reconfiguration" or s["profile"] is not None, "a reconfiguration needs its profile")
     need(kind != "reconfiguration" or s["profile"].length == 1.0, "a reconfiguration's profile runs over [0, 1]")
     need(not moving or s["frames"].path is s["path"], f"a {kind}'s frames must be on its path")
@@ -546,7 +548,9 @@ JOB_TYPES = {**{t.name: t for t in (
         "problems": Seq(Str()), "slowed": Seq(Str()), "start_joints": Opt(Arr("f8", (6,))), "start_note": Str(),
         "warnings": Seq(Str()), "placement": Opt(Ref("Placement"))}, check=_check_job),
     StoredType("PlannedMove", PlannedMove, {
-        "kind": Str(tuple(MOVE_ITEMS)), "item": Ref(*MOVE_ITEMS.values()), "path": Opt(Ref("PHSpline")),
+        "kind": Str(tuple(MOVE_ITEMS)),
+        "item": Ref("CutPass", "RapidMove", "Reorientation", "Reconfiguration", "Dwell", "Skipped"),
+        "path": Opt(Ref("PHSpline")),
         "frames": Opt(Ref("AxisField", "TurningFrames", "PathToolField")), "profile": Opt(Ref("FeedProfile")),
         "start_frame": FRAME, "end_frame": FRAME, "point": VEC3, "pass_index": Int(-1), "fit": Opt(Ref("PassFit"))},
         check=_check_move),

@@ -144,7 +144,8 @@ def _mutate_contents(files: dict[str, bytes], op) -> dict[str, bytes]:
             return files
         if kind == "element":
             k = min(int(op[2] * a.size), a.size - 1)
-            a[k] = op[3] if a.dtype.kind == "f" else (int(op[3]) if math.isfinite(op[3]) else -1)
+            a[k] = op[3] if a.dtype.kind == "f" else int(max(-(2.0**62), min(2.0**62, op[3]))) if math.isfinite(
+                op[3]) else -1
         else:
             a = a[:int(op[2] * a.size)]
             if op[3]:  # keep the manifest's size in step: the damage lies behind it

@@ -373,7 +373,7 @@ def _root(m):
 
 
 def _pool_size(m):
-    m["arrays"]["PHSpline.A"]["size"] += 1
+    m["arrays"]["f8"]["size"] += 1
 
 
 @pytest.mark.parametrize("change, pattern", [
@@ -386,7 +386,7 @@ def _pool_size(m):
     (_set("PlannedMove", "kind", "teleport"), "kind: expected one of cut, rapid"),
     (_set("PlannedMove", "start_frame", [0, 3]), r"start_frame: expected an array reference \[offset, n, n\]"),
     (_set("PlannedMove", "start_frame", [0, 4, 4]), r"start_frame: expected an array reference .* shape \(3,3\)"),
-    (_set("PHSpline", "A", [0, 10**12, 3, 4]), r"\(PHSpline\) A\b.*lie beyond the \d+ of pool 'PHSpline.A'"),
+    (_set("PHSpline", "A", [0, 10**12, 3, 4]), r"\(PHSpline\) A: elements 0..12000000000000 lie beyond the \d+ of the f8 pool"),
     (_set("PHSpline", "A", [0, 0, 3, 2**61]), r"A: expected an array reference"),
     (_set("PHSpline", "knots", [-1, 3]), r"knots: expected an array reference"),
     (_set("PHSpline", "knots", [2**62, 3]), r"knots: elements"),
@@ -399,7 +399,7 @@ def _pool_size(m):
     (_extra_field, r"\(PHSpline\): fields do not match the format \(unknown '__class__'\)"),
     (_missing_field, r"\(PHSpline\): fields do not match the format \(missing knots\)"),
     (_root, "the root is not the last object"),
-    (_pool_size, "array pool 'PHSpline.A': the manifest and the entry disagree"),
+    (_pool_size, "array pool 'f8': the manifest and the entry disagree"),
     (_set("PlannedJob", "settings", {"rate": -5}), r"\(PlannedJob\): rate must be"),
     (_set("PlannedJob", "settings", {"robot": "ur99"}), r"\(PlannedJob\): .*ur99"),
     (_set("PlannedJob", "settings", {"bogus": 1}), r"\(PlannedJob\): unknown setting bogus"),
@@ -425,16 +425,20 @@ def test_crafted_json_is_refused(blob, tmp_path, text, pattern):
 
 def test_values_the_kinds_allow_but_the_types_do_not_are_refused(blob, tmp_path):
     files = entries(blob)
-    knots = pool(files, "PHSpline.knots")
-    for value, pattern in ((np.nan, "pool 'PHSpline.knots' holds a value that is not finite"),
-                           (-1.0, r"\(PHSpline\): knots must strictly increase")):
-        bad = knots.copy()
-        bad[3] = value
-        refused(repack({**files, "arrays/PHSpline.knots.npy": npy(bad)}), tmp_path, pattern)
-    t = pool(files, "FeedProfile.t")
-    t[-1] = 1e300  # the last profile takes 1e300 s: a trajectory no job may have
-    refused(repack({**files, "arrays/FeedProfile.t.npy": npy(t)}), tmp_path,
-            r"\(PlannedJob\): the trajectory would be 5e\+302 poses \(at most 1e\+12\)")
+    m = json.loads(files["manifest.json"])
+    f8 = pool(files, "f8")
+    knots = state(m, "PHSpline", 1)["knots"][0]  # the cut's spline
+    for value, pattern in ((np.nan, r"\(PHSpline\) knots: holds a value that is not finite"),
+                           (-1.0, r"\(PHSpline\): knots must strictly increase"),
+                           (1e200, r"the f8 pool holds 1e\+200, beyond the format's 1e\+15")):
+        bad = f8.copy()
+        bad[knots + 3] = value
+        refused(repack({**files, "arrays/f8.npy": npy(bad)}), tmp_path, pattern)
+    offset, n = state(m, "FeedProfile", 1)["t"]
+    bad = f8.copy()
+    bad[offset + n - 1] = 1e14  # the cut takes 3 million years: a trajectory no job may have
+    refused(repack({**files, "arrays/f8.npy": npy(bad)}), tmp_path,
+            r"\(PlannedJob\): the trajectory would be 5e\+16 poses \(at most 1e\+12\)")
 
 
 def test_arrays_that_are_not_plain_numbers_are_refused_and_never_unpickled(blob, tmp_path):
@@ -442,12 +446,14 @@ def test_arrays_that_are_not_plain_numbers_are_refused_and_never_unpickled(blob,
     files = entries(blob)
     trap = np.empty(3, dtype=object)
     trap[:] = [Trap(marker)] * 3
-    refused(repack({**files, "arrays/PHSpline.A.npy": npy(trap)}), tmp_path, r"'arrays/PHSpline.A.npy': dtype \|O")
+    refused(repack({**files, "arrays/f8.npy": npy(trap)}), tmp_path, r"'arrays/f8.npy': dtype \|O")
     assert not marker.exists()
     for a, pattern in ((np.zeros(5, "<f4"), "dtype <f4"), (np.zeros(5, ">f8"), "dtype >f8"),
                        (np.zeros((2, 2)), r"shape \(2, 2\)"), (np.zeros(4, "<c16"), "dtype <c16")):
-        refused(repack({**files, "arrays/PHSpline.A.npy": npy(a)}), tmp_path, pattern)
-    refused(repack({**files, "arrays/PHSpline.A.npy": b"\x93NUMPY\x01\x00garbage"}), tmp_path, "not a NumPy array")
+        refused(repack({**files, "arrays/f8.npy": npy(a)}), tmp_path, pattern)
+    refused(repack({**files, "arrays/f8.npy": b"\x93NUMPY\x01\x00garbage"}), tmp_path, "not a NumPy array")
+    refused(repack({**files, "arrays/PHSpline.A.npy": files["arrays/f8.npy"]}), tmp_path,
+            "the manifest's arrays and the archive's array entries differ")
     refused(repack({**files, "arrays/evil.py": b"import os"}), tmp_path, "unexpected entry 'arrays/evil.py'")
 
 
@@ -459,8 +465,8 @@ def _header_only(shape) -> bytes:
 
 def test_absurd_sizes_are_refused_before_anything_is_allocated(blob, tmp_path):
     files = entries(blob)
-    huge = repack({**files, "arrays/PHSpline.A.npy": _header_only((10**12,)) + bytes(16)})  # 10^12 floats declared
-    bomb = repack({**files, "arrays/PHSpline.A.npy": _header_only((8 * 2**20,)) + bytes(64 * 2**20)})  # 64 MB zeros
+    huge = repack({**files, "arrays/f8.npy": _header_only((10**12,)) + bytes(16)})  # 10^12 floats declared
+    bomb = repack({**files, "arrays/f8.npy": _header_only((8 * 2**20,)) + bytes(64 * 2**20)})  # 64 MB of zeros
     assert len(bomb) < 150_000
     patched = _patch_sizes(blob, "manifest.json", 2**40)  # 1 TB declared for the manifest
     tracemalloc.start()

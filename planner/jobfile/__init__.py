@@ -13,13 +13,13 @@ A ZIP archive (entries stored or deflated) of:
     A UTF-8 JSON object::
 
         {"format": "planner-job", "version": 2, "writer": "ph-toolpath-planner 0.1.0",
-         "arrays": {"PHSpline.A": {"dtype": "f8", "size": 12345}, ...},
+         "arrays": {"f8": {"dtype": "f8", "size": 1337415}, "i8": {...}, "b1": {...}},
          "objects": [["MotionLimits", {"speed": 0.25, ...}], ..., ["PlannedJob", {...}]],
-         "root": 1234}
+         "root": 8838}
 
-``arrays/<pool>.npy``
-    One one-dimensional array per pool (NumPy's ``.npy`` format, little endian, dtype ``f8``, ``i8`` or
-    ``b1``), named ``<type>.<field>``: every array that field holds, concatenated in the order of the objects.
+``arrays/f8.npy``, ``arrays/i8.npy``, ``arrays/b1.npy``
+    The array pools: one one-dimensional array per element type (NumPy's ``.npy`` format 1.0, little endian:
+    float64, int64, bool) holding every array of the job of that type, those of each field side by side.
 
 Each entry of ``objects`` is ``[type, state]``: a type name of the table below (never a Python path: classes
 are chosen from the fixed table by this name, and renaming or moving a class changes no file) and an object
@@ -30,8 +30,8 @@ places (the path of a cut, of its fit and of its frames) is stored once. ``root`
 
 - float: a JSON number; where the kind allows it, ``"nan"``, ``"inf"`` or ``"-inf"``;
 - int, bool, str: as JSON; an optional field may be ``null``;
-- array: ``[offset, n0, n1, ...]``, the elements ``offset`` to ``offset + n0 * n1 * ...`` of the field's pool,
-  in C order, with that shape;
+- array: ``[offset, n0, n1, ...]``, the elements ``offset`` to ``offset + n0 * n1 * ...`` of the pool of the
+  field's element type, in C order, with that shape (an array held by several fields is stored once);
 - ref: the index of an earlier object of one of the types named;
 - inline: the state of a part its owner builds (it cannot be built alone), as a nested object;
 - list, object: JSON lists and objects of the above.
@@ -112,7 +112,7 @@ computed again as the planner computes them.
 
 Reading a file sent by anyone is safe: nothing in it is executed (no pickle, no class paths, no object
 arrays), and nothing is allocated before its size is checked: the entries' declared sizes against the file's
-size and a limit (:mod:`planner.jobfile.container`), each array pool's header against its entry, each array
+size and a limit (:mod:`planner.jobfile.container`), each pool's header against its entry, each array
 reference against its pool, each field against its kind, each object against its type's checks (sizes that
 agree, parameters that increase, indices in range), references only to earlier objects of the types allowed,
 and the job against the largest trajectory a job may have. A damaged or hostile file is refused with one line
@@ -149,7 +149,7 @@ def dump(root, types: Mapping[str, StoredType]) -> bytes:
         "format": FORMAT,
         "version": VERSION,
         "writer": _writer(),
-        "arrays": {name: {"dtype": enc.pools[name][0], "size": int(a.size)} for name, a in sorted(pools.items())},
+        "arrays": {name: {"dtype": name, "size": int(a.size)} for name, a in pools.items()},
         "objects": enc.objects,
         "root": len(enc.objects) - 1,
     }
@@ -211,7 +211,7 @@ def _checked_manifest(manifest, pools: dict, name: str) -> list:
         raise Damaged("the manifest's arrays and the archive's array entries differ")
     for pool, desc in arrays.items():
         data = pools[pool]
-        if (not isinstance(desc, dict) or set(desc) != {"dtype", "size"} or desc["dtype"] not in DTYPES
+        if (not isinstance(desc, dict) or set(desc) != {"dtype", "size"} or desc["dtype"] != pool or pool not in DTYPES
                 or DTYPES[desc["dtype"]] != data.dtype or desc["size"] != data.size):
             raise Damaged(f"array pool {pool[:60]!r}: the manifest and the entry disagree")
     if not isinstance(objects, list) or manifest["root"] != len(objects) - 1:

@@ -23,6 +23,9 @@ from planner.errors import PlannerError
 DTYPES = {"f8": np.dtype("<f8"), "i8": np.dtype("<i8"), "b1": np.dtype("|b1")}
 #: Largest integer a field holds (int64 range with margin).
 INT_LIMIT = 2**62
+#: Largest magnitude of a (finite) element of a float array: far beyond any figure of a robot cell (the budget keeps
+#: coordinates within 5 km and a trajectory within 1e12 poses), small enough that no evaluation overflows.
+MAX_MAGNITUDE = 1e15
 #: Non-finite floats are written as these strings (JSON has no NaN or infinity).
 NONFINITE = {"nan": math.nan, "inf": math.inf, "-inf": -math.inf}
 
@@ -36,13 +39,14 @@ class Foreign(Damaged):
 
 
 class Kind:
-    """How one field is written and read. ``where`` names the field for messages: (object label, field name,
-    list indices...), formatted by :func:`_place` only when a message is made."""
+    """How one field is written and read. ``group`` is the field's name, "<type>.<field>" (its arrays lie side by
+    side in the pools); ``where`` names the place for messages: (object label, field name, list indices...),
+    formatted by :func:`_place` only when a message is made."""
 
-    def encode(self, value, enc: Encoder, pool: str):
+    def encode(self, value, enc: Encoder, group: str):
         raise NotImplementedError
 
-    def decode(self, raw, dec: Decoder, pool: str, where: tuple):
+    def decode(self, raw, dec: Decoder, group: str, where: tuple):
         raise NotImplementedError
 
     def text(self) -> str:
@@ -56,15 +60,15 @@ class Float(Kind):
 
     finite: bool = True
 
-    def encode(self, value, enc, pool):
+    def encode(self, value, enc, group):
         x = float(value)
         if math.isfinite(x):
             return x
         if self.finite:
-            raise PlannerError(f"cannot save the job: {pool} is {x}, which the format keeps finite")
+            raise PlannerError(f"cannot save the job: {group} is {x}, which the format keeps finite")
         return "nan" if math.isnan(x) else ("inf" if x > 0 else "-inf")
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if isinstance(raw, float | int) and not isinstance(raw, bool):
             x = float(raw) if abs(raw) <= 1e308 or isinstance(raw, float) else math.inf
             if math.isfinite(x):
@@ -82,10 +86,10 @@ class Int(Kind):
     lo: int = -INT_LIMIT
     hi: int = INT_LIMIT
 
-    def encode(self, value, enc, pool):
+    def encode(self, value, enc, group):
         return int(value)
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if isinstance(raw, int) and not isinstance(raw, bool) and self.lo <= raw <= self.hi:
             return raw
         raise Damaged(f"{_place(where)}: expected an integer in [{self.lo}, {self.hi}], got {_shown(raw)}")
@@ -98,10 +102,10 @@ class Int(Kind):
 
 @dataclass(frozen=True)
 class Bool(Kind):
-    def encode(self, value, enc, pool):
+    def encode(self, value, enc, group):
         return bool(value)
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if isinstance(raw, bool):
             return raw
         raise Damaged(f"{_place(where)}: expected true or false, got {_shown(raw)}")
@@ -117,12 +121,12 @@ class Str(Kind):
     choices: tuple = ()
     label: str = ""
 
-    def encode(self, value, enc, pool):
+    def encode(self, value, enc, group):
         if not isinstance(value, str):
-            raise PlannerError(f"cannot save the job: {pool} is a {type(value).__name__}, not a string")
+            raise PlannerError(f"cannot save the job: {group} is a {type(value).__name__}, not a string")
         return value
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if isinstance(raw, str) and (not self.choices or raw in self.choices):
             return raw
         want = f"one of {', '.join(self.choices)}" if self.choices else "a string"
@@ -140,11 +144,11 @@ class Opt(Kind):
 
     inner: Kind
 
-    def encode(self, value, enc, pool):
-        return None if value is None else self.inner.encode(value, enc, pool)
+    def encode(self, value, enc, group):
+        return None if value is None else self.inner.encode(value, enc, group)
 
-    def decode(self, raw, dec, pool, where):
-        return None if raw is None else self.inner.decode(raw, dec, pool, where)
+    def decode(self, raw, dec, group, where):
+        return None if raw is None else self.inner.decode(raw, dec, group, where)
 
     def text(self):
         return f"{self.inner.text()}?"
@@ -157,14 +161,14 @@ class Seq(Kind):
     inner: Kind
     length: int | None = None
 
-    def encode(self, value, enc, pool):
-        return [self.inner.encode(v, enc, pool) for v in value]
+    def encode(self, value, enc, group):
+        return [self.inner.encode(v, enc, group) for v in value]
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if not isinstance(raw, list) or (self.length is not None and len(raw) != self.length):
             size = "a list" if self.length is None else f"a list of {self.length}"
             raise Damaged(f"{_place(where)}: expected {size}, got {_shown(raw)}")
-        return tuple(self.inner.decode(v, dec, pool, where + (k,)) for k, v in enumerate(raw))
+        return tuple(self.inner.decode(v, dec, group, where + (k,)) for k, v in enumerate(raw))
 
     def text(self):
         return f"[{self.inner.text()}]" + ("" if self.length is None else f"*{self.length}")
@@ -176,13 +180,13 @@ class Map(Kind):
 
     inner: Kind
 
-    def encode(self, value, enc, pool):
-        return {str(k): self.inner.encode(v, enc, pool) for k, v in value.items()}
+    def encode(self, value, enc, group):
+        return {str(k): self.inner.encode(v, enc, group) for k, v in value.items()}
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if not isinstance(raw, dict):
             raise Damaged(f"{_place(where)}: expected an object, got {_shown(raw)}")
-        return {k: self.inner.decode(v, dec, pool, where + (k,)) for k, v in raw.items()}
+        return {k: self.inner.decode(v, dec, group, where + (k,)) for k, v in raw.items()}
 
     def text(self):
         return f"{{str: {self.inner.text()}}}"
@@ -195,10 +199,10 @@ class Json(Kind):
 
     depth: int = 3
 
-    def encode(self, value, enc, pool):
+    def encode(self, value, enc, group):
         return value
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if not isinstance(raw, dict) or not _plain(raw, self.depth):
             raise Damaged(f"{_place(where)}: expected an object of plain values, got {_shown(raw)}")
         return raw
@@ -210,30 +214,32 @@ class Json(Kind):
 @dataclass(frozen=True)
 class Arr(Kind):
     """An ndarray of ``dtype`` ("f8", "i8", "b1") whose shape matches ``shape``: per dimension an int (that
-    size), None (any size) or a tuple of the sizes allowed. Written as ``[offset, *shape]`` into the pool of
-    the field; ``finite``: floats must be finite."""
+    size), None (any size) or a tuple of the sizes allowed. Written as ``[offset, *shape]`` into the pool of its
+    dtype; ``finite``: floats must be finite."""
 
     dtype: str
     shape: tuple
     finite: bool = True
 
-    def encode(self, value, enc, pool):
+    def encode(self, value, enc, group):
         a = np.asarray(value)
         if a.dtype != DTYPES[self.dtype].newbyteorder("=") or not _shape_ok(a.shape, self.shape):
-            raise PlannerError(f"cannot save the job: {pool} is an array of {a.dtype} {a.shape}, the format "
+            raise PlannerError(f"cannot save the job: {group} is an array of {a.dtype} {a.shape}, the format "
                                f"has {self.dtype} {self.text_shape()}")
-        return enc.array(pool, self.dtype, value)
+        return enc.array(group, self.dtype, value)
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         if type(raw) is list and len(raw) == 1 + len(self.shape):
             shape = tuple(raw[1:])
+            if shape == self.shape and type(raw[0]) is int and raw[0] >= 0:  # a fixed shape: (3,), (3, 3), (6,)
+                return dec.array(self.dtype, raw[0], shape, self.finite and self.dtype == "f8", where)
             for n, want in zip(shape, self.shape, strict=True):
                 if type(n) is not int or n < 0 or (want is not None and n != want and not (
                         type(want) is tuple and n in want)):
                     break
             else:
                 if type(raw[0]) is int and raw[0] >= 0:
-                    return dec.array(pool, self.dtype, raw[0], shape, self.finite and self.dtype == "f8", where)
+                    return dec.array(self.dtype, raw[0], shape, self.finite and self.dtype == "f8", where)
         raise Damaged(f"{_place(where)}: expected an array reference [offset, {', '.join('n' * len(self.shape))}] "
                       f"of non-negative integers with shape {self.text_shape()}, got {_shown(raw)}")
 
@@ -254,10 +260,10 @@ class Ref(Kind):
     def __init__(self, *types: str):
         object.__setattr__(self, "types", types)
 
-    def encode(self, value, enc, pool):
-        return enc.ref(value, self.types, pool)
+    def encode(self, value, enc, group):
+        return enc.ref(value, self.types, group)
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         return dec.ref(raw, self.types, where)
 
     def text(self):
@@ -271,10 +277,10 @@ class Inline(Kind):
 
     type: str
 
-    def encode(self, value, enc, pool):
+    def encode(self, value, enc, group):
         return enc.fields(enc.types[self.type], value)
 
-    def decode(self, raw, dec, pool, where):
+    def decode(self, raw, dec, group, where):
         return dec.fields(dec.types[self.type], raw, where)
 
     def text(self):
@@ -306,8 +312,8 @@ class StoredType:
     check: Callable | None = None
 
     @cached_property
-    def pools(self) -> dict[str, str]:
-        """The pool of each field's arrays: "<name>.<field>"."""
+    def groups(self) -> dict[str, str]:
+        """Each field's group name, "<name>.<field>" (its arrays lie side by side in the pools)."""
         return {name: f"{self.name}.{name}" for name in self.fields}
 
     def rebuild(self, state: dict):
@@ -321,7 +327,8 @@ class Encoder:
 
     types: Mapping[str, StoredType]
     objects: list = field(default_factory=list)
-    pools: dict = field(default_factory=dict)  # pool -> (dtype, list of arrays, size)
+    #: dtype -> field ("<type>.<field>") -> [(array, its reference, whose offset is set by :meth:`pool_arrays`)]
+    pending: dict = field(default_factory=dict)
     _by_class: dict = field(default_factory=dict)
     _memo: dict = field(default_factory=dict)
     _arrays: dict = field(default_factory=dict)
@@ -330,14 +337,14 @@ class Encoder:
     def __post_init__(self):
         self._by_class = {t.cls: t for t in self.types.values() if t.cls is not None}
 
-    def ref(self, obj, allowed: tuple, pool: str) -> int:
+    def ref(self, obj, allowed: tuple, group: str) -> int:
+        t = self._by_class.get(type(obj))
+        if t is None or t.name not in allowed:
+            raise PlannerError(f"cannot save the job: {group} is a {type(obj).__qualname__}, which the job file "
+                               f"format does not hold there (it holds {', '.join(allowed)})")
         key = id(obj)
         if key in self._memo:
             return self._memo[key]
-        t = self._by_class.get(type(obj))
-        if t is None or t.name not in allowed:
-            raise PlannerError(f"cannot save the job: {pool} is a {type(obj).__qualname__}, which the job file "
-                               f"format does not hold there (it holds {', '.join(allowed)})")
         body = self.fields(t, obj.to_state())
         self.objects.append([t.name, body])
         self._memo[key] = len(self.objects) - 1
@@ -348,25 +355,35 @@ class Encoder:
         if set(state) != set(t.fields):
             raise PlannerError(f"cannot save the job: the state of {t.name} has fields {sorted(state)}, the format "
                                f"{sorted(t.fields)}")
-        return {name: kind.encode(state[name], self, f"{t.name}.{name}") for name, kind in t.fields.items()}
+        groups = t.groups
+        return {name: kind.encode(state[name], self, groups[name]) for name, kind in t.fields.items()}
 
-    def array(self, pool: str, dtype: str, value) -> list:
-        key = (pool, id(value))
+    def array(self, group: str, dtype: str, value) -> list:
+        """The reference ``[offset, *shape]`` of an array of the field ``group`` (an array held by several fields
+        is stored once); the offset is set when the pools are laid out (:meth:`pool_arrays`)."""
+        key = (dtype, id(value))
         if key in self._arrays:
             return self._arrays[key]
         a = np.ascontiguousarray(value, dtype=DTYPES[dtype])
-        _, parts, size = self.pools.setdefault(pool, (dtype, [], 0))
-        parts.append(a.ravel())
-        self.pools[pool] = (dtype, parts, size + a.size)
-        ref = [size, *a.shape]
+        ref = [0, *a.shape]
+        self.pending.setdefault(dtype, {}).setdefault(group, []).append((a.ravel(), ref))
         self._arrays[key] = ref
         self._keep.append(value)
         return ref
 
     def pool_arrays(self) -> dict[str, np.ndarray]:
-        """Every pool as one 1-D array."""
-        return {name: (np.concatenate(parts) if parts else np.zeros(0, DTYPES[dtype]))
-                for name, (dtype, parts, _) in self.pools.items()}
+        """One 1-D array per dtype: the arrays of each field together (they compress better side by side), the
+        fields in name order, and the references' offsets set."""
+        out = {}
+        for dtype, fields in sorted(self.pending.items()):
+            parts, offset = [], 0
+            for name in sorted(fields):
+                for a, ref in fields[name]:
+                    ref[0] = offset
+                    offset += a.size
+                    parts.append(a)
+            out[dtype] = np.concatenate(parts) if parts else np.zeros(0, DTYPES[dtype])
+        return out
 
 
 @dataclass
@@ -377,10 +394,19 @@ class Decoder:
     pools: Mapping[str, np.ndarray]
     objects: list = field(default_factory=list)
     names: list = field(default_factory=list)
-    _finite: set = field(default_factory=set)
+    _bad_before: dict = field(default_factory=dict)
 
     def __post_init__(self):  # the pools in native byte order (a no-op on little-endian machines)
         self.pools = {k: v.astype(v.dtype.newbyteorder("="), copy=False) for k, v in self.pools.items()}
+        self._bad_before = {}  # pool -> number of non-finite elements before each position (n + 1,)
+        for name, data in self.pools.items():
+            if data.dtype.kind == "f" and data.size:
+                finite = np.isfinite(data)
+                big = np.abs(data, where=finite, out=np.zeros_like(data)).max()
+                if big > MAX_MAGNITUDE:
+                    raise Damaged(f"the {name} pool holds {big:.3g}, beyond the format's {MAX_MAGNITUDE:g}")
+                if not finite.all():
+                    self._bad_before[name] = np.concatenate(([0], np.cumsum(~finite)))
 
     def entry(self, index: int, raw) -> None:
         """Check and build entry ``index`` of the manifest's objects."""
@@ -410,8 +436,8 @@ class Decoder:
             what = "; ".join(x for x in (f"missing {', '.join(missing)}" * bool(missing),
                                          f"unknown {', '.join(map(_shown, extra))}" * bool(extra)) if x)
             raise Damaged(f"{_place(where)}: fields do not match the format ({what})")
-        pools = t.pools
-        return {name: kind.decode(body[name], self, pools[name], where + (name,)) for name, kind in t.fields.items()}
+        groups = t.groups
+        return {name: kind.decode(body[name], self, groups[name], where + (name,)) for name, kind in t.fields.items()}
 
     def ref(self, raw, allowed: tuple, where: tuple):
         if type(raw) is not int or not 0 <= raw < len(self.objects):
@@ -421,20 +447,18 @@ class Decoder:
             raise Damaged(f"{_place(where)}: object {raw} is a {self.names[raw]}, expected {' or '.join(allowed)}")
         return self.objects[raw]
 
-    def array(self, pool: str, dtype: str, offset: int, shape: tuple, finite: bool, where: tuple) -> np.ndarray:
-        """A copy of the elements ``offset ..`` of ``pool`` in ``shape`` (the pool's floats all finite if
-        ``finite``)."""
-        data = self.pools.get(pool)
+    def array(self, dtype: str, offset: int, shape: tuple, finite: bool, where: tuple) -> np.ndarray:
+        """A copy of the elements ``offset ..`` of the ``dtype`` pool in ``shape`` (all finite if ``finite``)."""
+        data = self.pools.get(dtype)
         if data is None or data.dtype != DTYPES[dtype]:
-            raise Damaged(f"{_place(where)}: no {dtype} array pool {pool!r}")
+            raise Damaged(f"{_place(where)}: no {dtype} array pool")
         count = math.prod(shape)
         if not 0 <= offset <= data.size - count or count == 0 and max(shape, default=0) > 2**40:
-            raise Damaged(f"{_place(where)}: elements {offset}..{offset + count} lie beyond the {data.size} of pool "
-                          f"{pool!r}")
-        if finite and pool not in self._finite:
-            if not np.isfinite(data).all():
-                raise Damaged(f"{_place(where)}: pool {pool!r} holds a value that is not finite")
-            self._finite.add(pool)
+            raise Damaged(f"{_place(where)}: elements {offset}..{offset + count} lie beyond the {data.size} of the "
+                          f"{dtype} pool")
+        bad = self._bad_before.get(dtype) if finite else None
+        if bad is not None and bad[offset + count] != bad[offset]:
+            raise Damaged(f"{_place(where)}: holds a value that is not finite")
         return data[offset:offset + count].reshape(shape).copy()
 
 

@@ -14,6 +14,7 @@ import json
 import os
 import struct
 import zipfile
+import zlib
 from pathlib import Path
 
 import numpy as np
@@ -74,7 +75,7 @@ def unpack(source, name: str) -> tuple[object, dict[str, np.ndarray]]:
                     pools[key[len(ARRAYS):-4]] = _array(z, info)
                 elif key != MANIFEST:
                     raise Damaged(f"unexpected entry {key[:60]!r}")
-    except (zipfile.BadZipFile, zipfile.LargeZipFile, EOFError, struct.error, NotImplementedError,
+    except (zipfile.BadZipFile, zipfile.LargeZipFile, zlib.error, EOFError, struct.error, NotImplementedError,
             RuntimeError, ValueError, OSError) as exc:
         if isinstance(exc, Damaged):
             raise
