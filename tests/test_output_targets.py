@@ -33,7 +33,7 @@ from planner.export import (
     write_json,
     write_script,
 )
-from planner.frontends.cli import main
+from planner.frontends.cli.main import main
 from planner.io import read_toolpath
 from tests.cam_excerpts import NX_HEAD
 
