@@ -208,8 +208,8 @@ class _URMap:
             REG_INPUTS: lambda: to_ur_bits(io.digital_in),
             REG_OUTPUTS: lambda: to_ur_bits(io.digital_out),
             REG_TOOL_VOLTAGE: lambda: io.tool_voltage,
-            REG_TOOL_INPUTS: lambda: (io.digital_in & _TOOL) >> _TOOL_KIND.bit_offset,
-            REG_TOOL_OUTPUTS: lambda: (io.digital_out & _TOOL) >> _TOOL_KIND.bit_offset,
+            REG_TOOL_INPUTS: lambda: _TOOL_KIND.pins_of(io.digital_in),
+            REG_TOOL_OUTPUTS: lambda: _TOOL_KIND.pins_of(io.digital_out),
             REG_CONF_INPUTS: lambda: to_modbus(io.digital_in, REG_CONF_OUTPUTS),
             REG_CONF_OUTPUTS: lambda: to_modbus(io.digital_out, REG_CONF_OUTPUTS),
         }

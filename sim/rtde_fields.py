@@ -16,10 +16,12 @@ from collections.abc import Callable
 
 import numpy as np
 
+from planner.kinematics.ur_outputs import UR_OUTPUTS
 from sim.motion import DT, GRAVITY
 
 N_REGISTERS = 48  # int and double registers 0..47 (24..47 from PolyScope 5.3)
 BIT_REGISTERS = range(64, 128)  # general-purpose bit registers (the guide's X in [64..127])
+_CONFIGURABLE = UR_OUTPUTS["configurable"]
 
 ZERO6 = (0.0,) * 6
 
@@ -93,9 +95,9 @@ STATE_OUTPUTS: dict[str, tuple[str, Callable]] = {
     "control_step": ("UINT64", lambda s: s.core.steps),
     "actual_digital_input_bits": ("UINT64", lambda s: s.io["digital_in"]),
     "actual_digital_output_bits": ("UINT64", lambda s: s.io["digital_out"]),
-    # configurable inputs / outputs 0-7 (bits 8-15 of the digital words)
-    "actual_configurable_digital_input_bits": ("UINT64", lambda s: s.io["digital_in"] >> 8 & 0xFF),
-    "actual_configurable_digital_output_bits": ("UINT64", lambda s: s.io["digital_out"] >> 8 & 0xFF),
+    # configurable inputs / outputs 0-7 (bits 8-15 of the digital words: the UR output table's)
+    "actual_configurable_digital_input_bits": ("UINT64", lambda s: _CONFIGURABLE.pins_of(s.io["digital_in"])),
+    "actual_configurable_digital_output_bits": ("UINT64", lambda s: _CONFIGURABLE.pins_of(s.io["digital_out"])),
     "actual_execution_time": ("DOUBLE", lambda s: s.core.execution_time_ms),
     "robot_mode": ("INT32", lambda s: s.core.robot_mode),
     "joint_mode": ("VECTOR6INT32", lambda s: (s.core.joint_mode,) * 6),
@@ -146,8 +148,6 @@ OUTPUTS: dict[str, tuple[str, Callable]] = {
 
 
 def _input_fields() -> dict[str, str]:
-    from planner.kinematics.ur_outputs import UR_OUTPUTS  # the digital outputs' fields (<field>, <field>_mask)
-
     out = {
         "speed_slider_mask": "UINT32",
         "speed_slider_fraction": "DOUBLE",

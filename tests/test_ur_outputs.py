@@ -73,6 +73,7 @@ def test_modbus_registers_hold_the_word(w):
     assert from_ur_bits(to_ur_bits(w), to_modbus(w, 31)) == w
     assert from_modbus(1, to_ur_bits(w)) | from_modbus(31, configurable) == w
     assert from_modbus(1, 0xFC00) == 0  # the undefined bits of register 1 are dropped
+    assert [UR_OUTPUTS[k].pins_of(w) for k in ("standard", "configurable", "tool")] == [standard, configurable, tool]
 
 
 @pytest.mark.parametrize("kind", list(UR_OUTPUTS))

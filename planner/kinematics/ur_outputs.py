@@ -98,6 +98,11 @@ class OutputKind:
         """Bit number (0-17) of output ``pin`` in the 18-bit word (pin checked by :func:`output_bit`)."""
         return self.bit_offset + pin
 
+    def pins_of(self, word: int) -> int:
+        """The kind's states in the 18-bit ``word``, pin p as bit p (RTDE's ``actual_configurable_digital_output_bits``
+        is ``UR_OUTPUTS["configurable"].pins_of(actual_digital_output_bits)``)."""
+        return (word >> self.bit_offset) & self.pin_mask
+
 
 #: The output kinds, in the order of their bits.
 UR_OUTPUTS: Mapping[str, OutputKind] = MappingProxyType({
