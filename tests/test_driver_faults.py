@@ -89,7 +89,9 @@ def _wait_job_program(sim, then: float, timeout: float = 30.0) -> None:
 
 def test_servo_target_that_jumps_is_a_protective_stop_with_time_pose_and_line(make_sim, fast_job):
     sim = make_sim()
-    with URDriver(sim.host, "ur5e", **FAST) as d:
+    # the former servo settings, targets sent unshaped: the controller's answer to a target that jumps, not the servo
+    # model's inverse (which would amplify the jump into a target beyond the joint's limits)
+    with URDriver(sim.host, "ur5e", compensate=False, lookahead=0.1, gain=300.0, **FAST) as d:
         rep = d.execute(JumpingJob(fast_job, joint=2, jump=JUMP, after_s=JUMP_AT), mode="stream")
         assert d.state().protective_stop
         # the controller ends the program a few periods after the protective stop
