@@ -259,8 +259,11 @@ def _compare_stream(make_sim, tmp_path, job):
     index = {q.tobytes(): k for k, q in enumerate(U)}
     ks = np.array([index.get(q.tobytes(), -1) for q in ctrl.target_q])
     rows = np.flatnonzero(ks >= 0)
-    rows = rows[rows >= np.flatnonzero(ks == 1)[0]]  # from the first target that moves (the stream's start)
-    rows = rows[: np.flatnonzero(ks[rows] == len(Q) - 1)[0] + 1]  # to the last target (then the hold)
+    # from the first target that moves (the stream's start) to the last one (then the hold); the controller reads
+    # the latest target each period, so under load two targets arriving within one of its periods show as one:
+    # neither target 1 nor the last need be in its recording
+    rows = rows[rows >= rows[np.flatnonzero(ks[rows] >= 1)[0]]]
+    rows = rows[: np.flatnonzero(ks[rows] == ks[rows].max())[0] + 1]
     assert len(np.unique(ks[rows])) > 0.95 * len(Q)  # (nearly) every target reached the controller
     diff = np.abs(ctrl.actual_q[rows] - rec["actual_q"][ks[rows]]).max()
     bound = following_bound(Q)
