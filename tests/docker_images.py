@@ -14,8 +14,8 @@ stand-ins from Debian's packages and the tests pass them in (the Dockerfile's ``
 ``planner-test-nginx:1.22``       + nginx (docker/local/nginx.Dockerfile)
 ==============================  ===================================================================================
 
-Each is built only when its tag is absent, so one machine builds them once (``--rebuild`` to start over); a file
-lock keeps two test sessions from building at once. Nothing here skips: without an engine, debootstrap or root the
+Each is built only when its tag is absent and a test asks for it, so one machine builds them once (``--rebuild`` to
+start over); a file lock keeps two test sessions from building at once. Nothing here skips: without an engine, debootstrap or root the
 helpers raise AssertionError naming what to install or start (``./run test`` installs docker.io, debootstrap and
 docker-compose and starts dockerd when none answers).
 
@@ -169,13 +169,13 @@ def build_derived(tag: str) -> None:
            timeout=1800, what=f"the build of {tag}")
 
 
-def ensure_test_images(rebuild: bool = False) -> dict[str, float]:
-    """The stand-in images, each built when its tag is absent (all of them with ``rebuild``): {tag: seconds spent
-    building it in this call (0.0 when it was there)}."""
+def ensure_test_images(tags: tuple[str, ...] = tuple(DERIVED), rebuild: bool = False) -> dict[str, float]:
+    """The Debian base and the stand-ins ``tags`` (all by default), each built when its tag is absent (every one of
+    them with ``rebuild``): {tag: seconds spent building it in this call (0.0 when it was there)}."""
     require_engine()
     spent: dict[str, float] = {}
     with _lock():
-        for tag in (DEBIAN, *DERIVED):
+        for tag in (DEBIAN, *tags):
             t0 = time.monotonic()
             if rebuild or not image_exists(tag):
                 build_debian(tag) if tag == DEBIAN else build_derived(tag)
@@ -187,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(description="Build the tests' stand-in images from Debian's packages.")
     parser.add_argument("--rebuild", action="store_true", help="build every image again, even when its tag exists")
     args = parser.parse_args(argv)
-    spent = ensure_test_images(args.rebuild)
+    spent = ensure_test_images(rebuild=args.rebuild)
     print(f"{'image':32} {'seconds':>8}")
     for tag, seconds in spent.items():
         print(f"{tag:32} {seconds:8.1f}")

@@ -46,7 +46,7 @@ def report_times():
 @pytest.fixture(scope="module")
 def image() -> str:
     """The planner's image built by Compose from docker/compose.yaml's build section, FROM the local stand-in."""
-    for tag, seconds in ensure_test_images().items():
+    for tag, seconds in ensure_test_images((PYTHON,)).items():
         TIMES[f"stand-in {tag}"] = seconds
     t0 = time.monotonic()
     ComposeStack(DOCKER / "compose.yaml", {"PLANNER_IMAGE": IMAGE, "PLANNER_BASE_IMAGE": PYTHON}).compose(
