@@ -4,7 +4,7 @@
 stand-ins from Debian's packages and the tests pass them in (the Dockerfile's ``BASE`` argument, the compose files'
 ``PLANNER_*_IMAGE`` variables; the defaults stay the official images for users):
 
-==============================  ===================================================================================
+================================  =================================================================================
 ``planner-test-debian:bookworm``  ``debootstrap --variant=minbase bookworm``, ``docker import``-ed, with the host's
                                   CA bundle (the builds reach Debian's mirrors and PyPI through the host's own trust
                                   store; this test base is the only image that gets it, docker/Dockerfile never)
@@ -12,12 +12,12 @@ stand-ins from Debian's packages and the tests pass them in (the Dockerfile's ``
 ``planner-test-redis:7``          + redis-server 7.0 (docker/local/redis.Dockerfile)
 ``planner-test-postgres:15``      + postgresql-15 and an entrypoint with the official image's variables
 ``planner-test-nginx:1.22``       + nginx (docker/local/nginx.Dockerfile)
-==============================  ===================================================================================
+================================  =================================================================================
 
 Each is built only when its tag is absent and a test asks for it, so one machine builds them once (``--rebuild`` to
-start over); a file lock keeps two test sessions from building at once. Nothing here skips: without an engine, debootstrap or root the
-helpers raise AssertionError naming what to install or start (``./run test`` installs docker.io, debootstrap and
-docker-compose and starts dockerd when none answers).
+start over); a file lock keeps two test sessions from building at once. Nothing here skips: without an engine,
+debootstrap or root the helpers raise AssertionError naming what to install or start (``./run test`` installs
+docker.io, debootstrap and docker-compose and starts dockerd when none answers).
 
 ``python tests/docker_images.py [--rebuild]`` builds what is missing and prints the time each step took.
 """
@@ -86,7 +86,8 @@ def require_engine() -> None:
 
 
 def image_exists(tag: str) -> bool:
-    return run(["docker", "image", "inspect", tag], timeout=60, what="docker image inspect", check=False).returncode == 0
+    r = run(["docker", "image", "inspect", tag], timeout=60, what="docker image inspect", check=False)
+    return r.returncode == 0
 
 
 def host_ca_bundle() -> Path:
