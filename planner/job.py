@@ -472,7 +472,8 @@ class PlannedJob:
                     lines.append(f"    ... {len(self.problems) - max_lines} more")
                 if self.settings.part_frame is None:
                     lines.append("  hint      no part frame given: the part's origin is the robot's base; place "
-                                 "the part with part_frame (--part-frame x,y,z,rx,ry,rz in m, rad)")
+                                 "the part with part_frame (m, rad; on the command line in mm and deg, e.g. "
+                                 "--part-frame 400mm,0,200mm,180deg,0,0, or --part-frame auto)")
         return lines
 
     # -- trajectory, save and load ----------------------------------------------------------------

@@ -9,7 +9,7 @@ from planner import PlanSettings, plan
 from planner.frontends.cli.run import main
 
 DEMO = "examples/nx_first_pass.cls"
-PART = "0.4,0.9965,-0.1,0,0,0"
+PART = "400mm,996.5mm,-100mm,0,0,0"
 
 
 def test_planner_run_sim_program_mode_prints_the_report(capsys):

@@ -19,7 +19,7 @@ from drivers.servo import ServoModel, ServoShaper
 from drivers.sim import SimDriver
 from drivers.ur import URDriver
 from planner import PlanSettings, plan
-from planner.frontends.cli.main import DEMO_PART_FRAME, EXAMPLE_CLS, example_path
+from planner.frontends.cli.main import DEMO_PART, EXAMPLE_CLS, example_path
 from sim import recording
 from sim.motion import DT, servo_following_error
 from tests import sim_fixtures
@@ -30,7 +30,7 @@ LOOKAHEAD, GAIN = 0.1, 300.0
 
 
 def demo_job(feed_override: float = 1.0, **kwargs):
-    part = tuple(float(x) for x in DEMO_PART_FRAME.split(","))
+    part = DEMO_PART
     settings = PlanSettings(robot="ur5e", part_frame=part, cut_output=("tool", 0), feed_override=feed_override,
                             **kwargs)
     return plan(example_path(EXAMPLE_CLS), settings)

@@ -349,7 +349,7 @@ def _fuzz_one(fmt: str, ops, opts, suffix: str, existing: bool = False) -> tuple
                 continue
             argv += [f"{flag}={value}"]
         if suffix == ".script":
-            argv += ["--robot", "ur5e", "--part-frame", "0.4,0.9965,-0.1,0,0,0"]
+            argv += ["--robot", "ur5e", "--part-frame", "400mm,996.5mm,-100mm,0,0,0"]
         try:
             rc, stdout, stderr = run_in_process(argv)
             check_contract(src, argv, out, rc, stdout, stderr, existing)

@@ -12,7 +12,7 @@ import pytest
 
 from planner.frontends.cli.main import DEMO_PART_FRAME, build_parser
 from planner.frontends.cli.main import main as cli_main
-from planner.frontends.cli.options import settings_from_args
+from planner.frontends.cli.options import parse_pose, settings_from_args
 from tests.test_service_server import ServiceProcess, wait_state, wait_until
 
 ROOT = Path(__file__).resolve().parents[1]
@@ -149,7 +149,7 @@ def test_part_frame_auto_is_placed_and_returned_for_reuse(client):
     auto = view["summary"]["part_frame_auto"]
     frame = auto["part_frame"]
     assert len(frame) == 6 and frame[3] == 0 and frame[4] == 0  # a turn about the base z only
-    assert np.allclose([float(v) for v in auto["option"].split(",")], frame, atol=1e-6)
+    assert np.allclose(parse_pose(auto["option"]), frame, atol=1e-6)
     assert auto["singularity_margin"] > 0 and auto["joint_margin_deg"] > 0
     bad = client.post("/v1/jobs", json={"waypoints": [[0, 0, 0], [0.1, 0, 0]], "settings": {"part_frame": "autox"}})
     assert bad.status_code == 422 and "part_frame" in bad.text

@@ -15,6 +15,7 @@ from sqlalchemy import inspect, select, text
 from sqlalchemy.exc import IntegrityError
 
 from planner.frontends.service.store import Execution, Job, migrate, now, open_store
+from planner.wording import pose_option
 from tests import pg_server
 from tests.test_service_server import ServiceProcess, wait_state
 
@@ -112,7 +113,7 @@ def test_the_service_on_postgresql(postgres, tmp_path):
             from planner.frontends.cli.main import main as cli_main
 
             out = tmp_path / "cli.csv"
-            assert cli_main(["plan", str(CLSF), "--robot", "ur5e", "--part-frame", ",".join(map(str, PART)),
+            assert cli_main(["plan", str(CLSF), "--robot", "ur5e", "--part-frame", pose_option(PART),
                              "--cut-output", "standard:0", "--feed-override", "4", "-o", str(out)]) == 0
             assert ca.get(f"/v1/jobs/{job['id']}/trajectory?format=csv").content == out.read_bytes()
             # an execution stored in PostgreSQL, one per robot

@@ -45,7 +45,7 @@ def _run(sim, text: str, timeout: float = 60.0) -> None:
 def exported(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("export") / "one.script"
     subprocess.run([sys.executable, "-m", "planner.frontends.cli", "plan", "examples/nx_first_pass.cls", "--pass", "longest",
-                    "--robot", "ur5e", "--part-frame", "0.4,0.9965,-0.1,0,0,0", "-o", str(out)],
+                    "--robot", "ur5e", "--part-frame", "400mm,996.5mm,-100mm,0,0,0", "-o", str(out)],
                    cwd=REPO, check=True, capture_output=True, timeout=600)
     return out
 

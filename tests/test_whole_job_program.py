@@ -21,7 +21,7 @@ from drivers.report import distance_to_polyline, planned_path
 from drivers.ur import URDriver
 from planner import PlanSettings, plan
 from planner.export import job_program
-from planner.frontends.cli.main import DEMO_PART_FRAME
+from planner.frontends.cli.main import DEMO_PART
 from planner.kinematics import forward
 from sim.core import Core
 from sim.io_state import IOState
@@ -64,7 +64,7 @@ def job(tmp_path_factory):
         pytest.skip(f"the whole NX job is not beside the repository ({NX_JOB})")
     f = tmp_path_factory.mktemp("nx") / "ust_a2_first_2000_gotos.cls"
     f.write_text(first_gotos(NX_JOB.read_text(), GOTOS))
-    part = tuple(float(x) for x in DEMO_PART_FRAME.split(","))
+    part = DEMO_PART
     return plan(f, PlanSettings(path="cam", tolerance=1e-5, part_frame=part, robot="ur5e", feed=0.05,
                                 cut_output=("standard", 0)))
 

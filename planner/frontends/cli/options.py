@@ -11,44 +11,79 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
 from planner.errors import PlannerError
 from planner.settings import OUTPUT_KINDS, SETTING, SETTINGS, PlanSettings, Setting, blame
+from planner.wording import quantity
 
 #: Largest rotation vector of --part-frame / --tcp, rad (any angle is reachable below 2 pi; beyond this it is a
 #: typing mistake, and beyond ~1e16 rad no angle is left in the float at all).
 MAX_ROTVEC = 100.0
 
 
+#: Units a --part-frame / --tcp value may carry: per SI unit (m, rad). The command line types poses in mm and deg.
+LENGTH_UNITS = {"mm": 1e3, "cm": 1e2, "m": 1.0, "in": 1.0 / 0.0254}
+ANGLE_UNITS = {"deg": 180.0 / math.pi, "rad": 1.0}
+POSE_USAGE = "six values x,y,z,rx,ry,rz, each with its unit (400mm or 0.4m, 90deg or 1.5708rad; 0 needs none)"
+_QUANTITY = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?(?:inf|nan))\s*([a-zA-Z]*)\s*\Z",
+                       re.IGNORECASE)
+
+
 def _pose(s: Setting, text: str):
     """``--part-frame`` / ``--tcp`` text -> 6 floats (m, rad) or one of the setting's words ("auto": placed for
-    the robot by the planner), or PlannerError naming the option."""
+    the robot by the planner), or PlannerError naming the option.
+
+    Each value carries its unit (``400mm``, ``0.4m``, ``90deg``, ``1.5708rad``); a bare 0 is 0 in any unit. A bare
+    number otherwise is refused: these options took metres and radians before 0.2 (they are typed in mm and deg
+    now, like every other length and angle of the command line), so an old command line must not change meaning.
+    """
     name = s.flag
     if text.strip().lower() in s.choices:
         return text.strip().lower()
-    try:
-        v = [float(x) for x in text.split(",")]
-    except ValueError:
-        raise PlannerError(f"{name} {text}: must be six numbers x,y,z,rx,ry,rz (m, rad)") from None
-    if len(v) != 6:
-        raise PlannerError(f"{name} {text}: must be six numbers x,y,z,rx,ry,rz (m, rad), got {len(v)}")
+    parts = text.split(",")
+    if len(parts) != 6:
+        raise PlannerError(f"{name} {text}: must be {POSE_USAGE}, got {len(parts)} values", field=s.name, value=text)
     from planner.budget import MAX_COORDINATE
 
-    for i, (x, what) in enumerate(zip(v, ("x", "y", "z", "rx", "ry", "rz"), strict=True)):
-        if not np.isfinite(x):
-            raise PlannerError(f"{name} {text}: {what} (number {i + 1}) must be finite")
-        if i < 3 and abs(x) > MAX_COORDINATE:
-            raise PlannerError(f"{name} {text}: {what} = {x:g} m is beyond any robot cell (at most "
-                               f"{MAX_COORDINATE:g} m; the pose is in metres)")
+    v = []
+    for i, (part, what) in enumerate(zip(parts, ("x", "y", "z", "rx", "ry", "rz"), strict=True)):
+        units, kind = (LENGTH_UNITS, "mm") if i < 3 else (ANGLE_UNITS, "deg")
+        m = _QUANTITY.match(part)
+        if m is None:
+            raise PlannerError(f"{name} {text}: {what} = {part.strip()!r} is not a number with a unit (must be "
+                               f"{POSE_USAGE})", field=s.name, value=text)  # fmt: skip
+        x, unit = float(m.group(1)), m.group(2).lower()
+        if not math.isfinite(x):
+            raise PlannerError(f"{name} {text}: {what} (number {i + 1}) must be finite", field=s.name, value=text)
+        if unit == "" and x != 0.0:
+            si, typed = ("m", x * 1e3) if i < 3 else ("rad", math.degrees(x))
+            raise PlannerError(f"{name} {text}: {what} = {part.strip()} has no unit: a bare number meant {si} before "
+                               f"0.2, and {name} is typed in {kind} now; write {m.group(1)}{si} for what it meant "
+                               f"({quantity(typed, kind)}), or the value in {kind} with its unit",
+                               field=s.name, value=text)  # fmt: skip
+        if unit and unit not in units:
+            raise PlannerError(f"{name} {text}: {what} = {part.strip()}: unknown unit {unit!r} ("
+                               f"{'a length' if i < 3 else 'an angle'} takes {', '.join(units)})",
+                               field=s.name, value=text)  # fmt: skip
+        v.append(x / units[unit] if unit else 0.0)
+        if i < 3 and abs(v[-1]) > MAX_COORDINATE:
+            hint = (f"; did you mean {m.group(1)}mm?" if unit == "m" and abs(x) / 1e3 <= MAX_COORDINATE else "")
+            raise PlannerError(f"{name} {text}: {what} = {part.strip()} is beyond any robot cell (at most "
+                               f"{MAX_COORDINATE:g} m){hint}", field=s.name, value=text)  # fmt: skip
     if math.hypot(*v[3:]) > MAX_ROTVEC:
-        raise PlannerError(f"{name} {text}: the rotation vector rx,ry,rz is longer than {MAX_ROTVEC:g} rad "
-                           "(it is in radians: an angle of at most pi is enough)")
+        raise PlannerError(f"{name} {text}: the rotation vector rx,ry,rz is longer than {math.degrees(MAX_ROTVEC):.0f} "
+                           "deg (an angle of at most 180 deg is enough)", field=s.name, value=text)
     return tuple(v)
+
+
+def parse_pose(text: str, name: str = "part_frame"):
+    """A ``--part-frame`` (or, with ``name="tcp"``, ``--tcp``) value as typed -> 6 floats (m, rad) or its word
+    ("auto"); the inverse of :func:`planner.wording.pose_option`. PlannerError naming the option."""
+    return _pose(SETTING[name], text)
 
 
 def _output(s: Setting, text: str):
@@ -138,6 +173,33 @@ def check_numeric_options(args: argparse.Namespace) -> None:
     for opt in _numeric_options():
         if hasattr(args, opt.dest):
             opt.check(getattr(args, opt.dest))
+
+
+#: The likely mistake behind a typed value below / above its usual range: (unit meant, typed units per that unit).
+_LIKELY_UNIT = {"mm/s": (("m/s", 1e3), ("mm/min", 1.0 / 60.0))}
+
+
+def unusual_values(args: argparse.Namespace) -> list[str]:
+    """A line for each option whose value is valid but outside the range real jobs lie in (``Setting.usual``),
+    naming the likely unit mistake: ``--feed 0.05 mm/s is below the usual 1 to 2000 mm/s: did you type m/s ...``."""
+    lines = []
+    for s in PLAN_SETTINGS:
+        value = getattr(args, s.name, None)
+        if s.usual is None or value is None:
+            continue
+        lo, hi = (x * s.per_si for x in s.usual)
+        x = float(value)
+        if lo <= x <= hi:
+            continue
+        text = getattr(value, "text", None) or f"{x:g}"
+        line = f"{s.flag} {text} {s.typed_unit} is {'below' if x < lo else 'above'} the usual {lo:g} to {hi:g} " \
+               f"{s.typed_unit}"
+        likely = _LIKELY_UNIT.get(s.typed_unit)
+        if likely is not None:
+            meant, factor = likely[0 if x < lo else 1]
+            line += f": did you mean {text} {meant} ({x * factor:g} {s.typed_unit})?"
+        lines.append(line)
+    return lines
 
 
 def settings_from_args(args: argparse.Namespace) -> PlanSettings:
@@ -247,7 +309,7 @@ _ARGUMENT = {
     "number": _number_argument,
     "choice": lambda s: {"choices": list(s.choices), "default": s.default, "help": f"{s.doc} (default {s.default})"},
     "robot": lambda s: {"default": "none", "help": f"{s.doc} (default none)"},
-    "pose": lambda s: {"help": f"{s.doc} ({s.unit})"},
+    "pose": lambda s: {"help": f"{s.doc}: {POSE_USAGE}"},
     "output": lambda s: {"help": s.doc},
     "passes": lambda s: {"help": f"{s.doc}: K[,K...], longest or all (default all)"},
 }
