@@ -174,3 +174,14 @@ def test_a_client_that_never_reads_is_kept_and_does_not_hold_up_the_others(make_
             rt.close()
     finally:
         idle.close()
+
+
+@pytest.mark.parametrize("name", ["ur3e", "ur5e", "ur10e", "ur16e", "ur20"])
+def test_the_elbow_position_sent_every_period_is_the_link_frames_one(name):
+    """The elbow position (real-time and RTDE outputs) in closed form equals the kinematics' link frame 3."""
+    from planner.kinematics import link_frames
+    from sim.core import _link3_origin
+
+    model = get_model(name)
+    for q in np.random.default_rng(7).uniform(-2 * np.pi, 2 * np.pi, (300, 6)):
+        np.testing.assert_allclose(_link3_origin(model, q), link_frames(model, q)[3][:3, 3], rtol=0, atol=1e-15)
