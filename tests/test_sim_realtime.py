@@ -74,6 +74,7 @@ class RealtimeClient:
         self.sock.close()
 
 
+@pytest.mark.realtime  # rates of wall time: on their own, after the parallel run
 def test_one_package_per_control_period_in_the_510_layout(make_sim):
     sim = make_sim()
     rt = RealtimeClient(sim.host)
@@ -101,6 +102,7 @@ def test_one_package_per_control_period_in_the_510_layout(make_sim):
     np.testing.assert_allclose(p["tool_vector_actual"][:3], pose[:3], atol=1e-12)
 
 
+@pytest.mark.realtime  # rates of wall time: on their own, after the parallel run
 def test_joints_equal_rtde_period_by_period_during_a_move(make_sim):
     """During a movej, the real-time package of each control period carries the joints, speeds and TCP pose RTDE
     sends for that period (matched by the controller's time stamp), bit for bit; outputs and payload likewise."""
@@ -149,6 +151,7 @@ def test_joints_equal_rtde_period_by_period_during_a_move(make_sim):
     assert any(p["program_state"] == 2 for p, _ in matched)  # RTDE's runtime_state PLAYING
 
 
+@pytest.mark.realtime  # rates of wall time: on their own, after the parallel run
 def test_a_client_that_never_reads_is_kept_and_does_not_hold_up_the_others(make_sim):
     """ur_rtde keeps 30003 open to upload its control script and never reads it: its packages are skipped, it is
     not hung up on, a program it sends later still runs, and a reading client meanwhile gets every period."""
