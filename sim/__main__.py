@@ -94,7 +94,7 @@ def main(argv: list[str] | None = None) -> int:
         return 130
     try:
         print(f"simulated {sim.model} on {sim.host}: RTDE 30004, dashboard 29999, primary 30001, secondary 30002, "
-              "script 30003"
+              "real-time 30003"
               + (f", Modbus {sim.ports.get('modbus')}" if sim.ports.get("modbus") else "")
               + " (Ctrl-C stops; type 'help' for commands)", flush=True)
         signal.signal(signal.SIGTERM, lambda *_: sim.stop())

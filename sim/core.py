@@ -24,12 +24,13 @@ pendant's choice) the script ports refuse programs and the dashboard refuses wha
 from __future__ import annotations
 
 import collections
+import math
 import re
 import threading
 
 import numpy as np
 
-from planner.kinematics import forward, forward_matrix, link_frames
+from planner.kinematics import forward, forward_matrix
 from sim.control_script import ControlScript
 from sim.motion import DT, GRAVITY, MotionModel, Segment
 from sim.primary_packages import READ_ONLY_INTERFACE
@@ -50,6 +51,14 @@ PROGRAM_STOP_DELAY = 0.1
 MODE_NAMES = {3: "POWER_OFF", 5: "IDLE", 7: "RUNNING"}
 SAFETY_NAMES = {1: "NORMAL", 3: "PROTECTIVE_STOP", 6: "SYSTEM_EMERGENCY_STOP", 7: "ROBOT_EMERGENCY_STOP"}
 RUNTIME_NAMES = {1: "STOPPED", 2: "PLAYING", 4: "PAUSED"}
+
+
+def _link3_origin(model, q: np.ndarray) -> np.ndarray:
+    """``link_frames(model, q)[3][:3, 3]`` in closed form (UR's DH: alpha 90, 0, 0 degrees, d2 = d3 = a1 = 0)."""
+    q1, q2, q3 = float(q[0]), float(q[1]), float(q[2])
+    x = model.a2 * math.cos(q2) + model.a3 * math.cos(q2 + q3)  # in link 1's frame
+    y = model.a2 * math.sin(q2) + model.a3 * math.sin(q2 + q3)
+    return np.array([x * math.cos(q1), x * math.sin(q1), model.d1 + y])
 
 
 def _line_of(text: str) -> int:
@@ -103,6 +112,7 @@ class Core:
         self.watchdog: tuple[str, float] | None = None
         self._history: collections.deque[np.ndarray] = collections.deque(maxlen=1000)
         self._tcp_cache: tuple[int, np.ndarray, np.ndarray] | None = None
+        self._elbow_cache: tuple[int, np.ndarray] | None = None
         self._speed = np.zeros(6)
         self._accel = np.zeros(6)
         self._speed_step = -1
@@ -186,7 +196,13 @@ class Core:
         return self._tcp_matrix()[:3, :3].T @ GRAVITY
 
     def elbow_position(self) -> np.ndarray:
-        return link_frames(self.motion.model, self.motion.q)[3][:3, 3]
+        """The elbow's position (m, base frame) of the current joints (computed on demand, cached per period: the
+        real-time interface sends it every period)."""
+        cache = self._elbow_cache
+        if cache is None or cache[0] != self.steps:
+            cache = (self.steps, _link3_origin(self.motion.model, self.motion.q))
+            self._elbow_cache = cache
+        return cache[1]
 
     def tcp_changed(self) -> None:
         self._tcp_cache = None

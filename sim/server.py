@@ -5,11 +5,11 @@ process of its own (ur_rtde's constructors hold the GIL while they connect, so a
 client's process would deadlock). The child
 
 * binds RTDE 30004, dashboard 29999, the primary and secondary interfaces 30001 and 30002 (their 10 Hz state
-  stream, :mod:`sim.primary_server`), the script port 30003 and (if asked) Modbus on ``host`` only, then prints
-  one line ``READY {json}`` on stdout;
+  stream, :mod:`sim.primary_server`), the real-time interface 30003 (its 500 Hz state stream,
+  :mod:`sim.realtime_server`) and (if asked) Modbus on ``host`` only, then prints one line ``READY {json}`` on stdout;
 * runs the control loop on an absolute schedule: tick k is due at ``start + k * 2 ms`` of wall time
   (no drift); each tick advances ``speed`` control periods of simulated time (fractions carried over)
-  and sends the data packages due;
+  and sends the RTDE data packages due and one real-time state package;
 * reads JSON commands, one per line, on stdin (``{"cmd": "state"}``, ``{"cmd": "set_digital_in",
   "mask": m, "value": v}``, ``{"cmd": "emergency_stop", "pressed": true, "kind": "robot"}``,
   ``{"cmd": "remote_control", "on": false}``, ``{"cmd": "speed", "speed": 100}``, ``{"cmd": "stop"}``)
@@ -34,8 +34,8 @@ from sim.dashboard import DashboardServer
 from sim.hosts import check_host, check_speed, set_realtime_priority
 from sim.motion import DT
 from sim.primary_server import PrimaryServer
+from sim.realtime_server import RealtimeServer
 from sim.rtde_server import RTDEServer
-from sim.script_server import ScriptServer
 
 
 class Loop:
@@ -43,9 +43,10 @@ class Loop:
 
     realtime = True
 
-    def __init__(self, core: Core, rtde: RTDEServer, speed: float) -> None:
+    def __init__(self, core: Core, rtde: RTDEServer, speed: float, realtime: RealtimeServer | None = None) -> None:
         self.core = core
         self.rtde = rtde
+        self.realtime_server = realtime
         self.speed = speed
         self.stop = threading.Event()
         self.late = 0  # ticks skipped because the loop fell more than one period behind
@@ -60,7 +61,7 @@ class Loop:
         self.max_batch = int(4 * speed) if speed > 1 else 1 << 30
 
     def run(self) -> None:
-        core, rtde = self.core, self.rtde
+        core, rtde, realtime = self.core, self.rtde, self.realtime_server
         if self.realtime:
             set_realtime_priority(10)
         period = DT
@@ -99,6 +100,8 @@ class Loop:
                         core.tick()
                     done = n * w // wall
                     core.packages_sent += rtde.publish(1)
+                    if realtime is not None:
+                        realtime.publish()  # the same state as these RTDE packages
             core.execution_time_ms = (time.perf_counter() - start) * 1e3
             for conn in list(rtde.conns):
                 conn.flush()
@@ -194,7 +197,7 @@ def main(argv: list[str] | None = None) -> int:
     rtde = RTDEServer(core, host)
     dash = DashboardServer(core, host)
     primary = PrimaryServer(core, host)
-    script = ScriptServer(core, host)
+    realtime = RealtimeServer(core, host)
     modbus = None
     if args.modbus_port is not None:
         from sim.modbus import ModbusServerThread  # pymodbus: a dependency; asked for Modbus, fail loudly without
@@ -210,14 +213,15 @@ def main(argv: list[str] | None = None) -> int:
     # collection over it would stall the 500 Hz loop for milliseconds
     gc.collect()
     gc.freeze()
-    loop = Loop(core, rtde, args.speed)
+    loop = Loop(core, rtde, args.speed, realtime)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     signal.signal(signal.SIGINT, lambda *_: stop.set())
-    for srv in (rtde, dash, primary, script):
+    for srv in (rtde, dash, primary, realtime):
         srv.start()
     loop.thread.start()
-    ports = {"rtde": 30004, "dashboard": 29999, "primary": 30001, "secondary": 30002, "script": [30001, 30002, 30003],
+    ports = {"rtde": 30004, "dashboard": 29999, "primary": 30001, "secondary": 30002, "realtime": 30003,
+             "script": [30001, 30002, 30003],
              "modbus": modbus.port if modbus else None}
     print("READY " + json.dumps({"host": host, "pid": os.getpid(), "ports": ports}), flush=True)
     # replies to the parent's commands only after READY (the parent reads READY first)
@@ -227,7 +231,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         loop.stop.set()
         loop.thread.join(2.0)
-        for srv in (rtde, dash, primary, script):
+        for srv in (rtde, dash, primary, realtime):
             srv.close()
         if modbus is not None:
             modbus.stop()
