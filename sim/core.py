@@ -37,6 +37,7 @@ from sim.primary_packages import READ_ONLY_INTERFACE
 from sim.programs import PathMove, ProgramError, head_of, parse_program
 from sim.rtde_fields import Registers
 from sim.urscript import URScriptProgram, compile_line, compile_program
+from sim.versions import DEFAULT, REMOTE_CONTROL_SINCE, SoftwareVersion
 
 ROBOT_POWER_OFF, ROBOT_IDLE, ROBOT_RUNNING = 3, 5, 7
 SAFETY_NORMAL, SAFETY_PROTECTIVE_STOP = 1, 3
@@ -78,11 +79,14 @@ class Core:
         The controller's I/O, shared with the Modbus server.
     recorder : sim.recording.Recorder, optional
         Receives every period's state and every safety / program event.
+    version : sim.versions.SoftwareVersion
+        The PolyScope release the controller reports and behaves as (its RTDE fields, dashboard commands).
     """
 
-    def __init__(self, model: str, io, recorder=None) -> None:
+    def __init__(self, model: str, io, recorder=None, version: SoftwareVersion = DEFAULT) -> None:
         self.lock = threading.RLock()
         self.model_name = model
+        self.version = version
         self.motion = MotionModel(model)
         self.registers = Registers()
         self.io = io
@@ -291,8 +295,12 @@ class Core:
         return True
 
     def set_remote_control(self, on: bool) -> None:
-        """The pendant's switch between local and remote control (a running program keeps running)."""
+        """The pendant's switch between local and remote control (a running program keeps running); ValueError on a
+        controller older than PolyScope 5.6, which has no such switch (always remote)."""
         on = bool(on)
+        if not on and not self.version.at_least(REMOTE_CONTROL_SINCE):
+            raise ValueError(f"local control: PolyScope {self.version.text} has no local / remote control switch "
+                             "(from 5.6.0)")
         if on != self.remote_control:
             self.remote_control = on
             self.message(f"Control mode: {'remote' if on else 'local'}", source="Controller", level=3)

@@ -1,4 +1,5 @@
-"""The real-time interface's state package (TCP 30003, 500 Hz) in the layout of PolyScope 5.10 and later: 1220 bytes.
+"""The real-time interface's state package (TCP 30003, 500 Hz) in the layout of PolyScope 5.10 and later: 1220 bytes;
+a controller of an earlier release sends the prefix that release has (`SIZES`).
 
 A package is ``int32 size`` (1220, the whole package) then 152 big-endian 8-byte values, all doubles but the digital
 input and output words, which are the bits as an unsigned 64-bit integer (UR's documentation lists them as doubles
@@ -73,6 +74,17 @@ FIELDS: tuple[tuple[str, int, str, str | None], ...] = (
 BODY = struct.Struct(">" + "".join(code * n for _, n, code, _ in FIELDS))
 #: Bytes of one package: 1220.
 PACKAGE_SIZE = HEADER.size + BODY.size
+#: The package's length from each release on (earlier releases send a prefix of the 5.10 package, the fields they
+#: have): 1108 bytes 5.0-5.3, 1116 5.4-5.8 (Safety Status added), 1140 5.9, 1220 from 5.10 (sawUniversalRobot's
+#: packet structs per version, sim/PROTOCOLS.md).
+SIZES: tuple[tuple[tuple[int, int, int], int], ...] = (((5, 0, 0), 1108), ((5, 4, 0), 1116), ((5, 9, 0), 1140),
+                                                        ((5, 10, 0), PACKAGE_SIZE))
+
+
+def package_size(version) -> int:
+    """Bytes of one package (header included) sent by a controller of ``version`` (a
+    :class:`sim.versions.SoftwareVersion`)."""
+    return [size for since, size in SIZES if version.at_least(since)][-1]
 
 _SOURCES = tuple((n, OUTPUTS[src][1] if src else None) for _, n, _, src in FIELDS)
 
@@ -87,8 +99,9 @@ def offsets() -> dict[str, int]:
     return out
 
 
-def realtime_state(snap: Snapshot) -> bytes:
-    """One real-time state package of the controller as ``snap`` sees it: `PACKAGE_SIZE` bytes."""
+def realtime_state(snap: Snapshot, size: int = PACKAGE_SIZE) -> bytes:
+    """One real-time state package of the controller as ``snap`` sees it: ``size`` bytes (one of `SIZES`: the
+    package of that release, a prefix of the 5.10 one)."""
     values: list = []
     for n, getter in _SOURCES:
         if getter is None:
@@ -97,4 +110,4 @@ def realtime_state(snap: Snapshot) -> bytes:
             values.append(getter(snap))
         else:
             values.extend(getter(snap))
-    return HEADER.pack(PACKAGE_SIZE) + BODY.pack(*values)
+    return HEADER.pack(size) + BODY.pack(*values)[: size - HEADER.size]

@@ -1,7 +1,8 @@
 """The real-time client interface (TCP 30003) of one simulated controller: a 500 Hz state stream and a script port.
 
 Every control period of wall time (the control loop's schedule, :class:`sim.server.Loop`, the one RTDE's data packages
-follow) each connected client gets one state package (:func:`sim.realtime_packages.realtime_state`, 1220 bytes), built
+follow) each connected client gets one state package (:func:`sim.realtime_packages.realtime_state`, 1220 bytes from
+PolyScope 5.10, the prefix an earlier release sends before: :func:`sim.realtime_packages.package_size`), built
 under the controller's lock from the same state as that period's RTDE packages. What a client sends is URScript or a
 primary command (:func:`sim.script_server.serve_scripts`), as on 30001 and 30002.
 
@@ -17,7 +18,7 @@ from __future__ import annotations
 import socket
 
 from sim.listeners import Listeners
-from sim.realtime_packages import realtime_state
+from sim.realtime_packages import package_size, realtime_state
 from sim.rtde_fields import Snapshot
 from sim.script_server import serve_scripts
 from sim.streams import OutputStream
@@ -36,6 +37,7 @@ class RealtimeServer(Listeners):
         super().__init__(host, ports)
         self.core = core
         self.streams: set[OutputStream] = set()
+        self.package_size = package_size(core.version)  # the controller's release's package
         self.packages_sent = 0
         self.packages_skipped = 0
 
@@ -59,7 +61,7 @@ class RealtimeServer(Listeners):
             streams = [s for s in self.streams if not s.held]
         if not streams:
             return 0
-        package = realtime_state(Snapshot(self.core))
+        package = realtime_state(Snapshot(self.core), self.package_size)
         sent = 0
         for out in streams:
             out.flush()

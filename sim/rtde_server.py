@@ -6,6 +6,10 @@ another connection owns (recipe id 0 then); recipe ids count 1, 2, 3 ... per con
 packages ('U') are accepted before 'S' (RTDEIOInterface never starts). Output packages go out at the
 recipe's frequency, on the controller's absolute 500 Hz schedule, only while the connection is started.
 
+The controller's version (:attr:`sim.core.Core.version`) is what ``get_urcontrol_version`` answers, and it decides
+which fields exist: a field newer than it answers ``NOT_FOUND`` in an output or input recipe (recipe id 0), as an
+unknown name does (:func:`sim.rtde_fields.output_type`, :func:`sim.rtde_fields.input_type`).
+
 Protocol versions (the RTDE guide's, as UR's C++ client library speaks them): a connection speaks version 1
 until the client asks for version 2 ('V'); a version other than 1 or 2, or a change of version once a recipe is set
 up or the synchronization started, is refused (0) and the connection keeps its version. In version 1 an output
@@ -21,7 +25,6 @@ and is ignored; a data package longer than its recipe is applied (its recipe's f
 
 from __future__ import annotations
 
-import datetime
 import os
 import socket
 import struct
@@ -33,9 +36,6 @@ from sim.hosts import set_realtime_priority
 from sim.rtde_fields import INPUTS, OUTPUTS, Snapshot, input_type, output_type
 from sim.streams import OutputStream
 
-CONTROLLER_VERSION = (5, 11, 6, 108949)
-#: Release date of that PolyScope version (the dashboard's and the version message's build date).
-CONTROLLER_RELEASE = datetime.date(2021, 7, 27)
 MAX_FREQUENCY = 500.0
 
 
@@ -97,7 +97,7 @@ class Connection(OutputStream):
                 self.protocol = version
             self.write(rp.package(kind, bytes([1 if ok else 0])))
         elif kind == rp.GET_URCONTROL_VERSION:
-            self.write(rp.package(kind, struct.pack(">IIII", *CONTROLLER_VERSION)))
+            self.write(rp.package(kind, struct.pack(">IIII", *self.server.core.version.words)))
         elif kind == rp.SETUP_OUTPUTS:
             self._setup_outputs(payload)
         elif kind == rp.SETUP_INPUTS:
@@ -130,7 +130,7 @@ class Connection(OutputStream):
         else:
             (freq,) = struct.unpack_from(">d", payload)
             names = self._names(payload[8:])
-        types = tuple(output_type(n) for n in names)
+        types = tuple(output_type(n, self.server.core.version) for n in names)
         ok = bool(names) and all(t != "NOT_FOUND" for t in types) and 0.0 < freq
         rid = self.next_output_id if ok else 0
         if ok:
@@ -150,7 +150,7 @@ class Connection(OutputStream):
         with self.server.owner_lock:
             types = []
             for n in names:
-                t = input_type(n)
+                t = input_type(n, self.server.core.version)
                 owner = self.server.owners.get(n)
                 if t != "NOT_FOUND" and owner is not None and owner is not self:
                     t = "IN_USE"
@@ -304,4 +304,4 @@ class RTDEServer:
         return sent
 
 
-__all__ = ["RTDEServer", "Connection", "INPUTS", "CONTROLLER_VERSION", "CONTROLLER_RELEASE"]
+__all__ = ["RTDEServer", "Connection", "INPUTS"]

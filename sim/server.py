@@ -1,6 +1,6 @@
 """The simulated controller's process: every listener and the 500 Hz control loop.
 
-Run by :class:`sim.SimController` as ``python -m sim.server --host H --model M ...`` in a child
+Run by :class:`sim.SimController` as ``python -m sim.server --host H --model M --polyscope 5.11.6 ...`` in a child
 process of its own (ur_rtde's constructors hold the GIL while they connect, so a server inside the
 client's process would deadlock). The child
 
@@ -36,6 +36,7 @@ from sim.motion import DT
 from sim.primary_server import PrimaryServer
 from sim.realtime_server import RealtimeServer
 from sim.rtde_server import RTDEServer
+from sim.versions import DEFAULT, parse_polyscope
 
 
 class Loop:
@@ -170,10 +171,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--allow-remote", action="store_true")
     ap.add_argument("--no-realtime", action="store_true", help="no SCHED_FIFO priorities")
     ap.add_argument("--local-control", action="store_true", help="start in local control mode")
+    ap.add_argument("--polyscope", default=DEFAULT.text, help="the PolyScope 5 version reported (default 5.11.6)")
     args = ap.parse_args(argv)
     host = check_host(args.host, args.allow_remote)
     try:
         check_speed(args.speed)
+        version = parse_polyscope(args.polyscope)
     except ValueError as exc:
         raise SystemExit(f"--{exc}") from None
     sys.setswitchinterval(0.0002)  # bound the GIL hand-over latency seen by the control loop
@@ -192,8 +195,12 @@ def main(argv: list[str] | None = None) -> int:
         from sim.recording import Recorder
 
         recorder = Recorder(args.record)
-    core = Core(args.model, io, recorder)
-    core.remote_control = not args.local_control
+    core = Core(args.model, io, recorder, version)
+    if args.local_control:
+        try:
+            core.set_remote_control(False)
+        except ValueError as exc:
+            raise SystemExit(f"--{exc}") from None
     rtde = RTDEServer(core, host)
     dash = DashboardServer(core, host)
     primary = PrimaryServer(core, host)
