@@ -65,7 +65,7 @@ def _console(sim: SimController) -> None:
     for line in sys.stdin:
         try:
             out = command(sim, line)
-        except SimError as exc:
+        except (SimError, ValueError) as exc:  # ValueError: e.g. local control on a controller older than 5.6
             out = f"error: {exc}"
         if out:
             print(out, flush=True)
