@@ -320,6 +320,25 @@ class PlannedJob:
         """Whether the robot can do the whole job (None without a robot)."""
         return None if self.settings.robot is None else not self.problems
 
+    @property
+    def not_executable(self) -> str | None:
+        """Why the job cannot run on a robot, in one line, or None when it can: planned without a robot, moves the
+        robot cannot make (counted in moves, as the summary counts them, with the first), no start joints. The
+        drivers, ``planner run`` and the service refuse a job with a reason before anything moves.
+
+        >>> from planner import PlanSettings, plan
+        >>> print(plan("examples/nx_first_pass.cls", PlanSettings(robot="ur5e")).not_executable.split(" (")[0])
+        the robot cannot make 2 of the job's moves
+        """
+        if self.settings.robot is None:
+            return "the job was planned without a robot: plan it with robot=... (--robot) to execute it"
+        if self.problems:
+            return (f"the robot cannot make {len(self.problems)} of the job's moves (first: {self.problems[0]}); "
+                    "nothing is executed")
+        if self.start_joints is None:
+            return "the job has no start joints (no reachable first pose)"
+        return None
+
     def count(self, kind: str) -> int:
         """Number of moves of a kind ("cut", "rapid", "reorientation", "reconfiguration", "dwell", "skipped")."""
         return sum(1 for m in self.moves if m.kind == kind)
@@ -400,6 +419,8 @@ class PlannedJob:
                                           "singularity_margin": self.placement.singularity_margin,
                                           "joint_margin_deg": math.degrees(self.placement.joint_margin)}
             out["reachable"] = not self.problems
+            out["executable"] = self.not_executable is None
+            out["not_executable"] = self.not_executable
             out["unreachable_passes"] = [p.index for p in self.passes if p.reachable is False]
             out["slowed_passes"] = [p.index for p in self.passes if p.feed_caps]
             out["slowed"] = list(self.slowed)

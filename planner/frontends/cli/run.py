@@ -107,6 +107,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     finally:
         bars.close()
     print(f"planned {args.input}: {job.duration:.2f} s, {counted(len(job.passes), 'pass')}", flush=True)
+    if job.not_executable is not None:  # refused before a controller is started or a robot is reached
+        for line in job.describe():
+            print(line)
+        print(f"planner run: error: {job.not_executable}", file=sys.stderr)
+        return 2
     sim = None
     try:
         if args.sim:
