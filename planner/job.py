@@ -492,9 +492,13 @@ class PlannedJob:
         """
         from planner.export.files import write_bytes_atomic
 
-        blob = dump(self, JOB_TYPES)
+        blob = self.to_bytes()
         write_bytes_atomic(FilePath(target), blob)
         return len(blob)
+
+    def to_bytes(self) -> bytes:
+        """The saved job's bytes (what :meth:`save` writes; :func:`load_job` takes them back)."""
+        return dump(self, JOB_TYPES)
 
 
 def load_job(source) -> PlannedJob:
