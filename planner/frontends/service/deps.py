@@ -59,6 +59,7 @@ class Service:
 
     def stop(self) -> None:
         self.plotter.stop()
+        self.inserter.close()
         self.backend.stop()
         if self.checkpointer is not None:
             self.checkpointer.stop()

@@ -26,6 +26,8 @@ import time
 from collections.abc import Callable
 from typing import Any
 
+from sqlalchemy.exc import DBAPIError
+
 from planner.frontends.service.tasks.lifecycle import EXECUTION, JOB, Kind, Outcome, Progress, failed
 from planner.frontends.service.tasks.transitions import CANCEL_POLL, HEARTBEAT_EVERY, Transitions
 
@@ -127,8 +129,20 @@ class Slot:
         finally:
             self.current = None
             self.poke.clear()
-        if outcome is not None and self.store.finish(kind, task_id, attempt, outcome) and self.on_finish:
+        if outcome is not None and self._finish(kind, task_id, attempt, outcome) and self.on_finish:
             self.on_finish(kind, outcome, time.monotonic() - t0)
+
+    def _finish(self, kind: Kind, task_id: str, attempt: int, outcome: Outcome) -> bool:
+        """Store the end; the database away for a moment is waited for (1, 2, 4 ... s, up to a minute in all)."""
+        delay = 1.0
+        for _ in range(6):
+            try:
+                return self.store.finish(kind, task_id, attempt, outcome)
+            except DBAPIError as exc:
+                log.warning("cannot store the end of %s %s yet: %s", kind.name, task_id, str(exc).splitlines()[0])
+                time.sleep(delay)
+                delay *= 2
+        return self.store.finish(kind, task_id, attempt, outcome)
 
     def _run(self, kind: Kind, task_id: str, attempt: int, spec: Any) -> Outcome | None:
         """The task's outcome to store, or None if the task's end is stored already (cancelled) or it went back to
@@ -151,8 +165,13 @@ class Slot:
             if t >= next_look or self.poke.is_set() or self.stopping.is_set():
                 self.poke.clear()
                 next_look = t + CANCEL_POLL
-                state = self.store.state(kind, task_id)
-                if kind is JOB:
+                try:
+                    state = self.store.state(kind, task_id)
+                except DBAPIError:  # the database away for a moment: the work goes on, the next look tries again
+                    state = None
+                if state is None:
+                    pass
+                elif kind is JOB:
                     if self.stopping.is_set() or state != "running":  # cancelled (or ended) meanwhile; or stopping
                         self.stop_process(kill=True)
                         if self.stopping.is_set() and state == "running":
@@ -176,7 +195,8 @@ class Slot:
                 return failed("limit", f"planning took longer than the service's limit of {self.job_timeout_s:g} s")
             if t >= next_beat:
                 next_beat = t + HEARTBEAT_EVERY
-                self.store.heartbeat(kind, task_id, attempt)
+                with contextlib.suppress(DBAPIError):  # (a missed beat: the next one tries again)
+                    self.store.heartbeat(kind, task_id, attempt)
             try:
                 ready = self.conn.poll(0.05)
                 msg = self.conn.recv() if ready else None
@@ -198,7 +218,8 @@ class Slot:
                         kind is EXECUTION and msg.done >= msg.total > 0):
                     last_write = t
                     next_beat = t + HEARTBEAT_EVERY
-                    self.store.progress(kind, task_id, attempt, msg)
+                    with contextlib.suppress(DBAPIError):  # (progress shown at the next write)
+                        self.store.progress(kind, task_id, attempt, msg)
             elif isinstance(msg, Outcome):
                 if kind is EXECUTION:  # its process ends after it
                     self.stop_process()
