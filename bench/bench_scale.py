@@ -10,7 +10,9 @@ state and plans in PostgreSQL; Redis and PostgreSQL started by this script on lo
 2. Per-task overhead of the broker: jobs of 3 waypoints submitted one at a time, each waited for: the median time
    from the job's row stored to its start in a worker (started_at - created_at) on each backend, and the median
    submit-to-done round trip.
-3. The plan in the store: the whole NX job's saved plan (``shared/data/nx_clsf_variable_contour_ust_a2.cls``, the file
+3. The whole NX job split: its fits made in pieces by 2 processes (sent back as bytes, as between machines) and the
+   job planned with them, against one process.
+4. The plan in the store: the whole NX job's saved plan (``shared/data/nx_clsf_variable_contour_ust_a2.cls``, the file
    of bench_cam.py) written to and read from the ``job_data`` table, SQLite and PostgreSQL: size and times.
 
 Run: ``python bench/bench_scale.py [--jobs 1000] [--workers 1,2,4] [--quick]`` (``--quick``: 200 jobs, 1 and 2
@@ -174,14 +176,59 @@ def overhead(backend: str, pg, redis, n: int = 40) -> tuple[float, float]:
     return 1e3 * float(np.median(waits[5:])), 1e3 * float(np.median(trips[5:]))
 
 
-def plan_storage(pg) -> list[list[str]]:
+def _fit_piece(start: int, stop: int) -> tuple[bytes, float]:
+    import importlib
+
+    from planner.job import fits_to_bytes
+
+    tic = time.perf_counter()
+    fits = importlib.import_module("planner.plan").fit_passes_of(NX_FILE, None, start, stop)
+    return fits_to_bytes(fits), time.perf_counter() - tic
+
+
+def nx_split(workers: int = 2) -> tuple[list[list[str]], bytes]:
+    """The whole NX job planned in one process against its fits made in pieces by ``workers`` processes (the pieces'
+    fits sent back as bytes, as between machines) and the job planned with them; rows for the table, and the plan."""
+    import concurrent.futures as cf
+    import importlib
+
+    from planner import plan
+    from planner.job import fits_from_bytes
+
+    P = importlib.import_module("planner.plan")
+    tic = time.perf_counter()
+    whole = plan(NX_FILE)
+    t_one = time.perf_counter() - tic
+    fit_one = whole.timings["fit"]
+    tic = time.perf_counter()
+    batches = P.fit_batches(NX_FILE)
+    t_batches = time.perf_counter() - tic
+    per = -(-len(batches) // workers)
+    pieces = [(batches[k][0], batches[min(k + per, len(batches)) - 1][1]) for k in range(0, len(batches), per)]
+    with cf.ProcessPoolExecutor(workers) as pool:
+        list(pool.map(abs, range(workers)))  # the processes started (as warm workers are)
+        tic = time.perf_counter()
+        got = list(pool.map(_fit_piece, *zip(*pieces, strict=True)))
+        t_fit = time.perf_counter() - tic
+    tic = time.perf_counter()
+    fits = [f for data, _ in got for f in fits_from_bytes(data)]
+    plan(NX_FILE, fits=fits)
+    t_join = time.perf_counter() - tic
+    sent = sum(len(d) for d, _ in got)
+    rows = [["one process", f"{t_one:.1f}", f"{fit_one:.1f}", "", "", "1.00"],
+            [f"fits in {len(pieces)} pieces on {workers} processes + plan with them",
+             f"{t_batches + t_fit + t_join:.1f}",
+             f"{t_fit:.1f} (pieces {', '.join(f'{t:.1f}' for _, t in got)})", f"{t_batches:.1f}",
+             f"{sent / 2**20:.1f}", f"{t_one / (t_batches + t_fit + t_join):.2f}"]]
+    return rows, whole.to_bytes()
+
+
+def plan_storage(pg, blob: bytes) -> list[list[str]]:
     """The whole NX job's saved plan written to and read from job_data (SQLite, PostgreSQL): rows for the table."""
     from sqlalchemy import delete, insert, select
 
-    from planner import PlanSettings, plan
     from planner.frontends.service.store import JobData, now, open_store
 
-    blob = plan(NX_FILE, PlanSettings()).to_bytes()
     rows = []
     with tempfile.TemporaryDirectory() as tmp:
         for name, url in (("SQLite (WAL)", f"sqlite:///{tmp}/j.sqlite"), ("PostgreSQL", pg.create_database())):
@@ -211,9 +258,12 @@ def main() -> None:
     ap.add_argument("--quick", action="store_true", help="200 jobs, 1 and 2 workers, no NX plan")
     args = ap.parse_args()
     n_jobs, counts = (200, [1, 2]) if args.quick else (args.jobs, [int(x) for x in args.workers.split(",")])
+    import signal
+
     from tests.pg_server import PostgresServer
     from tests.redis_server import RedisServer
 
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # the servers stopped on a kill too
     pg, redis = PostgresServer().start(), RedisServer(appendonly=False).start()
     try:
         jobs = curves(n_jobs, 100)
@@ -243,8 +293,12 @@ def main() -> None:
         print_table(["backend", "stored -> started ms", "submit -> done seen ms"],
                     [[b, f"{a:.1f}", f"{t:.1f}"] for b, (a, t) in ov.items()])
         if not args.quick and NX_FILE.exists():
+            rows, blob = nx_split()
+            print(f"\nthe whole NX job ({NX_FILE.name}) split: its fits in pieces on other processes, then planned "
+                  "with them (the exports byte for byte the same: tests/test_plan_split.py)")
+            print_table(["", "wall s", "fitting s", "parse + split for the pieces s", "fits sent MiB", "x one"], rows)
             print(f"\nthe whole NX job's plan in the store ({NX_FILE.name}):")
-            print_table(["database", "plan MiB", "write ms", "read ms"], plan_storage(pg))
+            print_table(["database", "plan MiB", "write ms", "read ms"], plan_storage(pg, blob))
     finally:
         redis.stop()
         pg.stop()
