@@ -264,7 +264,8 @@ class Transitions:
                 error=f"interrupted by {whys} {max_attempts} times while running; not started again")).rowcount
             executions = conn.execute(update(Execution).where(stale_exec, Execution.attempts == 0).values(
                 state="failed", finished_at=t, error_kind="interrupted",
-                error=f"no worker took this execution (by {why}); it is not started")).rowcount
+                error=f"no worker took this execution within {LEASE_S:g} s (no worker serving the execute queue, or "
+                      "the service restarted); it is not started")).rowcount
             executions += conn.execute(update(Execution).where(stale_exec).values(
                 state="failed", finished_at=t, error_kind="interrupted",
                 error=f"interrupted by {why} during this execution (the controller stops the arm when its "
