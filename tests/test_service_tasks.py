@@ -133,3 +133,25 @@ def test_the_migration_to_the_task_columns_keeps_one_active_execution_per_robot(
             db.execute("insert into executions (id, job_id, owner, robot, mode, state, created_at, stage, done, "
                        "total, attempts) values ('e2', 'j', 'k', 'cell', 'stream', 'starting', 1.0, '', 0, 0, 0)")
     engine.dispose()
+
+
+def test_files_of_jobs_stored_before_the_move_into_the_database_are_imported_once(tmp_path):
+    from planner import plan
+    from planner.frontends.service.store import import_legacy_files
+
+    engine, _ = open_store(f"sqlite:///{tmp_path / 'jobs.sqlite'}")
+    store = Transitions(engine)
+    job_id = _job(store)
+    blob = plan([[0, 0, 0], [0.1, 0.02, 0], [0.2, 0, 0]]).to_bytes()
+    with engine.begin() as conn:
+        conn.execute(update(Job).where(Job.id == job_id).values(
+            state="done", attempts=1, job_file="plan.1.job", input_kind="file", input_name="a.csv"))
+    folder = tmp_path / "data" / "jobs" / job_id
+    (folder / "input").mkdir(parents=True)
+    (folder / "input" / "a.csv").write_bytes(b"0,0,0\n1,0,0\n")
+    (folder / "plan.1.job").write_bytes(blob)
+    assert import_legacy_files(engine, tmp_path / "data") == 2
+    assert import_legacy_files(engine, tmp_path / "data") == 0  # once
+    assert _plans(store, job_id) == [blob]
+    assert (folder / "plan.1.job").read_bytes() == blob  # the files left where they are
+    engine.dispose()

@@ -16,7 +16,7 @@ from planner.frontends.service.config import ServiceConfig
 from planner.frontends.service.inserter import Inserter
 from planner.frontends.service.metrics import Metrics
 from planner.frontends.service.plots import Plotter
-from planner.frontends.service.store import Checkpointer, Job, JobData, open_store
+from planner.frontends.service.store import Checkpointer, Job, JobData, import_legacy_files, open_store
 from planner.frontends.service.tasks.lifecycle import JOB, Kind, Outcome
 from planner.frontends.service.tasks.transitions import Transitions
 
@@ -49,7 +49,9 @@ class Service:
 
     def start(self) -> dict:
         (self.cfg.data_dir / "plots").mkdir(parents=True, exist_ok=True)  # this replica's cache of pictures
+        imported = import_legacy_files(self.engine, self.cfg.data_dir)  # the files of jobs stored by 0.1
         recovered = self.backend.start()
+        recovered["legacy_files_imported"] = imported
         for _ in range(recovered.get("executions_failed", 0)):
             self.metrics.count_execution("failed", None, "interrupted")
         self.plotter.start()

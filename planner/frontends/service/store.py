@@ -222,5 +222,33 @@ def open_store(url: str, *, background_checkpoints: bool = False) -> tuple[Engin
     return engine, sessionmaker(engine, expire_on_commit=False)
 
 
+def import_legacy_files(engine: Engine, data_dir: Path) -> int:
+    """Jobs stored before their bytes moved into the database (0.1 kept an uploaded input under
+    ``<data>/jobs/<id>/input/<name>`` and the plan as ``<data>/jobs/<id>/plan.<attempt>.job``): their files copied into
+    :class:`JobData` once (the files are left where they are). The number of files imported."""
+    from sqlalchemy import insert, select
+
+    folder = data_dir / "jobs"
+    if not folder.is_dir():
+        return 0
+    n = 0
+    with engine.begin() as conn:
+        have = {(j, name) for j, name in conn.execute(select(JobData.job_id, JobData.name))}
+        rows = conn.execute(select(Job.id, Job.input_kind, Job.input_name, Job.job_file)).all()
+        for job_id, kind, input_name, job_file in rows:
+            wanted = []
+            if kind == "file" and (job_id, "input") not in have:
+                wanted.append(("input", folder / job_id / "input" / input_name))
+            if job_file and (job_id, "plan") not in have:
+                wanted.append(("plan", folder / job_id / job_file))
+            for name, path in wanted:
+                if path.is_file():
+                    data = path.read_bytes()
+                    conn.execute(insert(JobData).values(job_id=job_id, name=name, data=data, bytes=len(data),
+                                                        created_at=now()))
+                    n += 1
+    return n
+
+
 def now() -> float:
     return time.time()
