@@ -75,7 +75,10 @@ class Slot:
         self.poke = threading.Event()
 
     # -- process ----------------------------------------------------------------------------------------------------
-    def start_process(self) -> None:
+    def start_process(self, beat: Callable[[], None] | None = None) -> None:
+        """Start the worker process and wait until it has imported the planner; ``beat`` (the claimed task's
+        heartbeat) is called every HEARTBEAT_EVERY s meanwhile (on a busy machine the imports take tens of seconds:
+        the task must not look dead)."""
         from planner.frontends.service.tasks.child import child_main
 
         ctx = mp.get_context("spawn")
@@ -85,9 +88,15 @@ class Slot:
         child.close()
         self.process, self.conn = proc, parent
         self.ready = False
+        deadline = time.monotonic() + WORKER_START_TIMEOUT
         try:  # its imports done: a job's time limit counts from its start, not from the worker's
-            if parent.poll(WORKER_START_TIMEOUT) and parent.recv() == ("ready",):
-                self.ready = True
+            while time.monotonic() < deadline:
+                if parent.poll(min(HEARTBEAT_EVERY, max(deadline - time.monotonic(), 0.0))):
+                    self.ready = parent.recv() == ("ready",)
+                    break
+                if beat is not None:
+                    with contextlib.suppress(DBAPIError):
+                        beat()
         except (EOFError, OSError):
             pass
         if not self.ready:
@@ -147,9 +156,12 @@ class Slot:
     def _run(self, kind: Kind, task_id: str, attempt: int, spec: Any) -> Outcome | None:
         """The task's outcome to store, or None if the task's end is stored already (cancelled) or it went back to
         the queue."""
+        def beat() -> None:
+            self.store.heartbeat(kind, task_id, attempt)
+
         if not self.alive:
             self.stop_process(kill=True)
-            self.start_process()
+            self.start_process(beat)
         if not self.alive:
             return failed("internal", f"the worker process did not start within {WORKER_START_TIMEOUT:g} s")
         assert self.conn is not None and self.process is not None
@@ -191,7 +203,7 @@ class Slot:
                                                                           f"end within {STOP_GRACE:g} s and was killed")
             if t > deadline:
                 self.stop_process(kill=True)
-                self.start_process()
+                self.start_process(beat)
                 return failed("limit", f"planning took longer than the service's limit of {self.job_timeout_s:g} s")
             if t >= next_beat:
                 next_beat = t + HEARTBEAT_EVERY
@@ -209,7 +221,7 @@ class Slot:
                 code = self.process.exitcode
                 self.stop_process(kill=True)
                 if kind is JOB:
-                    self.start_process()
+                    self.start_process(beat)
                     return failed("internal", f"the worker process planning this job died (exit code {code}); the "
                                               "job may need more memory than the worker has")
                 return failed("internal", f"the execution's process ended without a result (exit code {code})")
