@@ -514,9 +514,13 @@ class PlannedJob:
         """
         from planner.export.files import write_bytes_atomic
 
-        blob = dump(self, JOB_TYPES)
+        blob = self.to_bytes()
         write_bytes_atomic(FilePath(target), blob)
         return len(blob)
+
+    def to_bytes(self) -> bytes:
+        """The saved job's bytes (what :meth:`save` writes; :func:`load_job` takes them back)."""
+        return dump(self, JOB_TYPES)
 
 
 def load_job(source) -> PlannedJob:
@@ -591,3 +595,34 @@ def _seconds(t: float) -> str:
     if not math.isfinite(t):
         return "-"
     return f"{1e3 * t:.1f} ms" if t < 0.1 else f"{t:.2f} s"
+
+
+@dataclass(frozen=True)
+class FitChunk:
+    """The fits of some cutting passes of a job (made apart: :func:`planner.plan.fit_passes_of`), for their way to
+    the process that plans the job (:func:`fits_to_bytes`)."""
+
+    fits: tuple[PassFit, ...]
+
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job format (:mod:`planner.jobfile`)."""
+        return {"fits": self.fits}
+
+    @classmethod
+    def from_state(cls, state: dict) -> FitChunk:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(tuple(state["fits"]))
+
+
+#: The stored types of a chunk of fits (the job file's own format and types).
+FIT_TYPES = {**JOB_TYPES, "FitChunk": StoredType("FitChunk", FitChunk, {"fits": Seq(Ref("PassFit"))})}
+
+
+def fits_to_bytes(fits) -> bytes:
+    """Fits of passes as bytes (the job file's format: arrays and a JSON manifest, nothing executable on load)."""
+    return dump(FitChunk(tuple(fits)), FIT_TYPES)
+
+
+def fits_from_bytes(data: bytes) -> list[PassFit]:
+    """The fits :func:`fits_to_bytes` wrote (PlannerError, one line, if they are not)."""
+    return list(load(data, FIT_TYPES, "FitChunk", "the fits").fits)

@@ -219,6 +219,11 @@ class ServiceConfig(BaseModel):
         ``PLANNER_MAX_ATTEMPTS``).
     robots : tuple of RobotConfig
         The robots jobs may be executed on (``PLANNER_ROBOTS``; default: one simulated robot named "sim").
+    queue : "local" or "celery"
+        The task backend (``PLANNER_QUEUE``): "local" (the default) plans and executes in worker processes of the
+        service itself; "celery" sends every task to ``planner worker`` processes on any machine through the broker.
+    broker : str or None
+        The Celery broker's URL, ``redis://HOST:PORT/DB`` (``PLANNER_BROKER``; needed with ``queue="celery"``).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -233,6 +238,16 @@ class ServiceConfig(BaseModel):
         3600.0, json_schema_extra=_env("PLANNER_JOB_TIMEOUT"))
     max_attempts: int = Field(2, ge=1, json_schema_extra=_env("PLANNER_MAX_ATTEMPTS"))
     robots: tuple[RobotConfig, ...] = Field(DEFAULT_ROBOTS, json_schema_extra=_env("PLANNER_ROBOTS"))
+    queue: Literal["local", "celery"] = Field("local", json_schema_extra=_env("PLANNER_QUEUE"))
+    broker: str | None = Field(None, json_schema_extra=_env("PLANNER_BROKER"))
+
+    @model_validator(mode="after")
+    def _backend(self) -> ServiceConfig:
+        if self.queue == "celery" and not self.broker:
+            raise _refused("PLANNER_BROKER (the broker's URL, redis://HOST:PORT/0) is needed with PLANNER_QUEUE=celery")
+        if self.broker and not re.match(r"^rediss?://", self.broker):
+            raise _refused(f"PLANNER_BROKER must be a redis:// (or rediss://) URL, got {self.broker!r}")
+        return self
 
     def robot(self, name: str) -> RobotConfig | None:
         """The configured robot of that name, or None."""
@@ -248,7 +263,8 @@ class ServiceConfig(BaseModel):
     def from_env(cls, env: dict | None = None, **overrides) -> ServiceConfig:
         """The configuration from ``PLANNER_DB``, ``PLANNER_DATA``, ``PLANNER_WORKERS``, ``PLANNER_DEV_NO_AUTH``,
         ``PLANNER_MAX_REQUEST_BYTES``, ``PLANNER_MAX_WAYPOINTS``, ``PLANNER_JOB_TIMEOUT``, ``PLANNER_MAX_ATTEMPTS``,
-        ``PLANNER_ROBOTS`` (unset or empty: the default); ``overrides`` (by field name, None: not given) win.
+        ``PLANNER_ROBOTS``, ``PLANNER_QUEUE``, ``PLANNER_BROKER`` (unset or empty: the default); ``overrides`` (by
+        field name, None: not given) win.
         PlannerError naming the variable (or the field of an override) for a refused value."""
         env = dict(os.environ if env is None else env)
         names = cls.env_names()
