@@ -257,6 +257,15 @@ def test_refusals_name_the_problem(server, op, demo_job):
     r = op.post(f"/v1/jobs/{slow}/executions", json={"robot": "sim"})
     assert r.status_code == 409 and r.json()["detail"].startswith(f"job {slow} is ")
     op.delete(f"/v1/jobs/{slow}")
+    # a job its robot cannot make (issue 27: the README's example without a part frame): done, marked not
+    # executable with the reason counted in moves, and its execution refused with that reason, nothing started
+    r = op.post("/v1/jobs", json={"waypoints": [[0, 0, 0], [0.1, 0.05, 0], [0.2, 0, 0]], "settings": {"robot": "ur5e"}})
+    far = wait_state(op, r.json()["id"])
+    assert far["state"] == "done" and far["summary"]["executable"] is False
+    assert far["summary"]["not_executable"].startswith("the robot cannot make ")
+    r = op.post(f"/v1/jobs/{far['id']}/executions", json={"robot": "sim"})
+    assert r.status_code == 409
+    assert r.json()["detail"] == f"job {far['id']} cannot run on its robot: {far['summary']['not_executable']}"
     assert op.get("/v1/executions/0123").status_code == 404
     assert not any(_busy(op).values())  # nothing refused was started
 

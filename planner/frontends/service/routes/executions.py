@@ -67,7 +67,8 @@ def own_execution(svc: Service, who: Principal, execution_id: str) -> Execution:
 
 @router.post("/jobs/{job_id}/executions", status_code=202, response_model=ExecutionCreated,
              responses={403: {"description": "not an operator key"}, 404: {"description": "no such job of this key"},
-                        409: {"description": "job not done, planned without a robot, or the robot is busy"},
+                        409: {"description": "job not done, planned without a robot, not executable on "
+                                                    "its robot (summary.not_executable), or the robot is busy"},
                         422: {"description": "unknown robot, or a robot of another model"}})
 def create_execution(svc: ServiceDep, job_id: str, body: ExecutionRequest, who: Caller) -> JSONResponse:
     """Run a done job on a configured robot (by name), in "stream" (servoJ) or "program" (URScript) mode."""
@@ -87,6 +88,9 @@ def create_execution(svc: ServiceDep, job_id: str, body: ExecutionRequest, who: 
     if robot.model is not None and robot.model != model:
         raise Unprocessable(["body", "robot"], f"robot {robot.name!r} is a {robot.model}; job {job_id} is planned "
                                                f"for a {model}")
+    reason = json.loads(job.summary).get("not_executable") if job.summary else None
+    if reason:  # refused before a controller is started or a robot is reached (PlannedJob.not_executable)
+        raise HTTPException(409, f"job {job_id} cannot run on its robot: {reason}")
     execution_id = uuid.uuid4().hex
     try:
         svc.backend.start_execution(dict(id=execution_id, job_id=job.id, owner=who.key_id, robot=robot.name,
