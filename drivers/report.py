@@ -32,6 +32,10 @@ __all__ = ["ExecutionReport", "IOSwitch", "PathDeviation", "PathDeviationError",
            "distance_to_polyline", "execution_report", "joint_limit_margin", "new_recording", "planned_path"]
 
 
+#: The range of a path tolerance, m (exclusive, inclusive).
+PATH_TOLERANCE_RANGE = (0.0, 1.0)
+
+
 def check_tolerance(tolerance) -> float | None:
     """A path tolerance, m: None, or a finite number > 0 (ValueError naming ``path_tolerance`` otherwise)."""
     if tolerance is None:
@@ -40,9 +44,26 @@ def check_tolerance(tolerance) -> float | None:
         tol = float(tolerance)
     except (TypeError, ValueError):
         raise ValueError(f"path_tolerance must be a distance in m, got {tolerance!r}") from None
-    if not (math.isfinite(tol) and 0 < tol <= 1.0):
+    if not (math.isfinite(tol) and PATH_TOLERANCE_RANGE[0] < tol <= PATH_TOLERANCE_RANGE[1]):
         raise ValueError(f"path_tolerance must be within (0, 1] m, got {tolerance!r}")
     return tol
+
+
+@dataclass(frozen=True)
+class Seam:
+    """Where a job run as several programs (program mode, each under the controller's size limit) went from one to
+    the next: ``program`` (1-based) started ``wait`` s (controller time) after the one before ended at job time
+    ``job_time`` s (the recording's clock), the arm at rest between two moves there; ``line`` the source line of the
+    program's first move."""
+
+    program: int
+    job_time: float
+    wait: float
+    line: int
+
+    def describe(self) -> str:
+        return (f"program {self.program} at t = {self.job_time:.3f} s (line {self.line}): {1e3 * self.wait:.1f} ms "
+                "at rest")
 
 
 class PathDeviationError(DriverError):
@@ -155,6 +176,9 @@ class ExecutionReport:
     path_tolerance: float = math.nan
     deviations: tuple = ()
     deviation_count: int = 0
+    programs: int = 0
+    program_bytes: int = 0
+    seams: tuple = ()
 
     @property
     def max_io_distance_mm(self) -> float:
@@ -174,6 +198,12 @@ class ExecutionReport:
                      f"{self.samples} samples recorded")
         if self.loop is not None and self.loop.n:
             lines.append("  " + self.loop.describe())
+        if self.programs > 1:
+            waits = [sm.wait for sm in self.seams]
+            longest = max(self.seams, key=lambda sm: sm.wait) if self.seams else None
+            lines.append(f"  {self.programs} programs of at most {self.program_bytes} bytes (the controller's limit), "
+                         f"run one after the other; {counted(len(self.seams), 'seam')} between moves, the arm at rest: "
+                         f"{sum(waits):.3f} s in all" + (f", the longest {longest.describe()}" if longest else ""))
         if self.samples > 1 and math.isfinite(self.recorded_every):
             how = f"{self.recording}, " if self.recording else ""
             gaps = (f"{counted(self.gaps, 'gap')}: ~{self.missed} samples missed, the longest "
@@ -244,7 +274,8 @@ def planned_path(job, rate: float | None = None):
 def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=None, recorded_io=None, *, mode: str,
                      failure: DriverError | None = None, planned=None, loop: LoopStats | None = None,
                      recording: str = "", stalls=(), lag_cause: str = "",
-                     fail_on_deviation: bool = False) -> ExecutionReport:
+                     fail_on_deviation: bool = False, programs: int = 0, program_bytes: int = 0,
+                     seams=()) -> ExecutionReport:
     """The report of a run from what was recorded.
 
     Parameters
@@ -266,6 +297,8 @@ def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=Non
         others explains)
     fail_on_deviation : a run whose tracked path left the path tolerance (the recording's) fails with
         :class:`PathDeviationError` at its largest deviation (unless it failed otherwise)
+    programs, program_bytes, seams : a program-mode run in several programs: how many, the limit each kept to
+        (bytes), and the :class:`Seam` between each two
     """
     plan = as_planned(job, planned)
     if isinstance(recorded_times, Recording):
@@ -296,7 +329,8 @@ def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=Non
         failure=failure, path_length=plan.length, loop=loop, trace=trace, recorded_every=rec.step, gaps=rec.gaps,
         missed=rec.missed, longest_gap=rec.longest_gap, recording=recording,
         path_tolerance=math.nan if rec.tolerance is None else rec.tolerance, deviations=tuple(deviations),
-        deviation_count=rec.excursion_count)
+        deviation_count=rec.excursion_count, programs=int(programs), program_bytes=int(program_bytes),
+        seams=tuple(seams))
 
 
 #: A deviation within this much job time of a missed control period or of a stop is put down to it, s.

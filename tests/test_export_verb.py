@@ -10,7 +10,18 @@ from pathlib import Path
 import pytest
 
 from planner import PlannerError, PlanSettings, load_job, plan
-from planner.export import FORMATS, export, file_name, format_of, plot_title, stream, write
+from planner.export import (
+    FORMATS,
+    MAX_PROGRAM_BYTES,
+    export,
+    file_name,
+    format_of,
+    job_program,
+    job_program_pieces,
+    plot_title,
+    stream,
+    write,
+)
 from planner.frontends.cli.main import DEMO_PART_FRAME, EXAMPLE_CLS, example_path
 from planner.frontends.cli.main import main as cli_main
 
@@ -130,3 +141,40 @@ def test_file_name_of_a_download():
     assert file_name("<waypoints>", "json") == "<waypoints>.json"
     assert file_name("", "json") == "job.json"
     assert Path(file_name("a.b.nc", "script")).suffix == ".script"
+
+
+def test_a_program_larger_than_a_controller_takes_is_refused_naming_the_limit(demo_job, tmp_path):
+    whole = export(demo_job, "script")  # the demo pass: one program well under the limit
+    assert len(whole) < MAX_PROGRAM_BYTES
+    size = len(whole)
+    with pytest.raises(PlannerError) as caught:
+        write(demo_job, tmp_path / "job.script", max_program_bytes=size - 1)
+    text = str(caught.value)
+    assert text.startswith(f"not writing job.script: the program is {size} bytes (")
+    assert f"over the {size - 1} bytes a UR controller is known to take in one program" in text
+    assert "planner run --mode program" in text and "--max-program-bytes" in text and "\n" not in text
+    assert os.listdir(tmp_path) == []  # nothing written
+    with pytest.raises(PlannerError, match=r"^not writing nx_first_pass\.script: the program is \d+ bytes"):
+        stream(demo_job, "script", max_program_bytes=4096)  # refused before a first byte, as the service downloads
+    assert export(demo_job, "script", max_program_bytes=size) == whole  # at the limit: written
+    assert export(demo_job, "script", max_program_bytes=None) == whole  # no limit
+    with pytest.raises(PlannerError, match=r"^max_program_bytes must be a number of bytes > 0 or None, got -1"):
+        export(demo_job, "script", max_program_bytes=-1)
+    # the command line: --max-program-bytes N, 0 for none
+    out = tmp_path / "cli.script"
+    assert cli_main(["plan", str(DEMO), *DEMO_OPTIONS, "-o", str(out), "--max-program-bytes", "4096"]) == 2
+    assert not out.exists()
+    assert cli_main(["plan", str(DEMO), *DEMO_OPTIONS, "-o", str(out), "--max-program-bytes", "0"]) == 0
+    assert out.read_bytes().count(b"movep(") == whole.count(b"movep(")
+
+
+def test_program_pieces_under_a_limit(demo_job):
+    whole = job_program(demo_job)
+    (one,) = job_program_pieces(demo_job)  # under the limit: the program itself, in one piece
+    assert one.text == whole and one.size == len(whole.encode())
+    # one pass alone needs more than a small limit: refused naming the pass, its lines, the size and the limit
+    with pytest.raises(PlannerError, match=r"pass 0 \(lines \d+-\d+\) alone needs a program of \d+ bytes, over the "
+                                           r"limit of 8000 bytes per program"):
+        job_program_pieces(demo_job, max_bytes=8000)
+    with pytest.raises(PlannerError, match=r"max_bytes must be at least 4096 bytes, got 100"):
+        job_program_pieces(demo_job, max_bytes=100)
