@@ -145,7 +145,10 @@ def run_execution(task: dict, send, cancel: threading.Event, phase: Phase | None
 
 
 def _approach(task: dict) -> dict:
-    return {k: float(task["robot"][k]) for k in ("approach_speed", "approach_acceleration")}
+    """The driver's options of the task's robot (RobotConfig.driver_options: approach, servo, deviation, program
+    size); a task of an older service carries the approach only."""
+    robot = task["robot"]
+    return robot.get("driver") or {k: float(robot[k]) for k in ("approach_speed", "approach_acceleration")}
 
 
 def _cancelled():

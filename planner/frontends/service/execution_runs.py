@@ -118,7 +118,7 @@ class Executions:
             task = {"job_path": job_path, "mode": mode, "robot": {
                 "name": robot.name, "host": robot.host, "model": robot.model, "io": robot.io,
                 "modbus_port": robot.modbus_port, "sim_speed": robot.sim_speed, "approach_speed": robot.approach_speed,
-                "approach_acceleration": robot.approach_acceleration}}
+                "approach_acceleration": robot.approach_acceleration, "driver": robot.driver_options()}}
             runner = Runner(self, execution_id, task, row.created_at)
             self.runners[execution_id] = runner
         runner.start()
