@@ -15,6 +15,7 @@ if any, with the robot's reason and the job's time, pose and line.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -111,7 +112,11 @@ class IOSwitch:
     resolution_mm: length of that recorded step, mm: how far the TCP moved between the last sample that saw the
     old state and the first that saw the new one (the sampling's uncertainty about where the switch happened);
     unresolved_ms: for a switch not seen, when the recording could not have shown it: the time between the
-    recorded samples nearest its station, ms (longer than the planned state lasted there); NaN otherwise.
+    recorded samples nearest its station, ms (longer than the planned state lasted there); NaN otherwise;
+    missed_periods: control periods the streaming loop missed before the planned switch (each delays the rest of
+    the job by one period: the loop never catches up), 0 in program mode; ``period``: the control period, s. The
+    switch's lateness against the plan, ``delay_ms``, is then ``missed_ms`` (those periods) plus ``model_delay_ms``
+    (the rest: the servo's and the I/O path's latency, what the model does not predict).
     """
 
     bit: int
@@ -123,6 +128,23 @@ class IOSwitch:
     actual_t: float = math.nan
     resolution_mm: float = math.nan
     unresolved_ms: float = math.nan
+    missed_periods: int = 0
+    period: float = 0.002
+
+    @property
+    def delay_ms(self) -> float:
+        """Actual switch time minus planned, ms (NaN if not switched)."""
+        return (self.actual_t - self.planned_t) * 1e3
+
+    @property
+    def missed_ms(self) -> float:
+        """The part of :attr:`delay_ms` that the streaming loop's missed periods before the switch account for, ms."""
+        return self.missed_periods * self.period * 1e3
+
+    @property
+    def model_delay_ms(self) -> float:
+        """:attr:`delay_ms` less :attr:`missed_ms`: the servo's and the I/O path's latency, ms."""
+        return self.delay_ms - self.missed_ms
 
     @property
     def switched(self) -> bool:
@@ -239,8 +261,13 @@ class ExecutionReport:
                 if e.switched:  # under 0.5 um between the samples around it: the arm stood still (a stop)
                     there = (f"sampled every {e.resolution_mm:.3f} mm of travel there" if e.resolution_mm >= 5e-4
                              else "the TCP at rest there")
+                    late = (f"; {e.delay_ms:+.1f} ms against the plan: {e.missed_ms:.0f} ms of "
+                            f"{counted(e.missed_periods, 'missed control period')} before it, {e.model_delay_ms:+.1f} "
+                            "ms of servo and I/O latency" if self.loop is not None and math.isfinite(e.delay_ms)
+                            else "")
                     lines.append(f"    {bit_name(e.bit)} {state} at s = {e.actual_s:.4f} m "
-                                 f"(planned {e.planned_s:.4f} m, {e.distance_mm:.3f} mm from the station; {there})")
+                                 f"(planned {e.planned_s:.4f} m, {e.distance_mm:.3f} mm from the station; {there}"
+                                 f"{late})")
                 elif e.unresolved:
                     lines.append(f"    {bit_name(e.bit)} {state} planned at s = {e.planned_s:.4f} m: not seen, the "
                                  f"recording's samples there are {e.unresolved_ms:.1f} ms apart")
@@ -315,6 +342,11 @@ def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=Non
     rec.finish()
     trace = rec.trace()
     events = _io_events(trace, plan)
+    st = np.sort(np.asarray(list(stalls), dtype=float))
+    period = 1.0 / float(job.settings.rate)
+    if st.size or period != 0.002:  # the missed periods before each switch (planned job time), one entry per period
+        events = [dataclasses.replace(e, missed_periods=int(np.searchsorted(st, e.planned_t, side="right")),
+                                      period=period) for e in events]
     deviations = _deviations(rec, plan, failure, stalls, lag_cause or f"{mode} tracking")
     if deviations and fail_on_deviation and failure is None and rec.tolerance is not None:
         worst = max(deviations, key=lambda dv: dv.error)
@@ -351,7 +383,7 @@ def _deviations(rec: Recording, plan: PlannedPath, failure, stalls, lag_cause: s
             cause = failure.kind
         elif st.size and ((st >= a) & (st <= ex.t_end)).any():
             n = int(((st >= a) & (st <= ex.t_end)).sum())
-            cause = f"missed control periods (the streaming loop was late {counted(n, 'time')} just before)"
+            cause = f"missed control periods (the streaming loop missed {counted(n, 'period')} just before)"
         else:
             cause = lag_cause
         out.append(PathDeviation(ex.t_start, ex.t_end, ex.error, ex.t, int(line),

@@ -82,7 +82,7 @@ _READ_EVERY = 0.05
 #: SCHED_FIFO priority of the streaming loop (``realtime``): below a controller simulated on the same machine
 #: (its control loop runs at 10, its RTDE server at 8).
 LOOP_PRIORITY = 5
-#: Missed-period events of a stream remembered (their job times: the causes of path deviations).
+#: Missed periods of a stream remembered (the job time of each: the causes of path deviations and of late switches).
 MAX_STALLS = 10_000
 #: ur_rtde interfaces whose connection dropped: never disconnected or destroyed (see URDriver.close).
 _ABANDONED: list = []
@@ -219,7 +219,7 @@ class URDriver:
         self.max_program_bytes = max_program_bytes
         self._seams: list[Seam] = []  # the last program run's seams between its programs
         self._pieces = 0
-        self._stalls: list[float] = []  # job times at which the last stream's loop missed periods
+        self._stalls: list[float] = []  # job times at which the last stream's loop missed periods, one per period
         self.overrun_limit = float(overrun_limit)
         self.settle = float(settle)
         self.deceleration = float(deceleration)
@@ -678,10 +678,9 @@ class URDriver:
                         self._take(log, rec, ts0)
                         untaken = 0
                     now = sched.wait()
-                    if sched.missed != missed_seen:
+                    if sched.missed != missed_seen:  # one entry per period missed (each delays the rest by one)
+                        stalls.extend([t_cmd] * min(sched.missed - missed_seen, MAX_STALLS - len(stalls)))
                         missed_seen = sched.missed
-                        if len(stalls) < MAX_STALLS:
-                            stalls.append(t_cmd)
                     if now - last > overrun:
                         raise PeriodOverrunError(f"the control loop missed its period: {1e3 * (now - last):.1f} ms "
                                                  f"between targets (limit {1e3 * overrun:.0f} ms)")
