@@ -13,9 +13,10 @@ Two modes, one report (:func:`drivers.report.execution_report`):
   (30002); the driver watches it run (RTDE runtime state; progress by the planned sample nearest the actual TCP).
   A program larger than ``max_program_bytes`` (default :data:`planner.export.job_script.MAX_PROGRAM_BYTES`, what a
   controller is known to take) is sent as consecutive programs under it
-  (:func:`planner.export.job_script.job_program_pieces`), each cut between two moves where the arm is at rest and
-  the outputs off (never in a cut, never between passes joined at a corner), each sent once the one before has ended
-  at its last pose; the report says how many and the waits at the seams.
+  (:func:`planner.export.job_script.job_program_pieces`), each cut between two moves where the arm is at rest (never
+  in a cut; where the outputs are off unless a run of passes joined at corners needs two programs, then at a
+  corner, the output kept on), each sent once the one before has ended at its last pose; the report says how many
+  and the waits at the seams.
 
 In both modes the actual TCP, joints and digital outputs of every data package are recorded, whole, through a
 recording connection of its own (:class:`drivers.package_log.PackageLog`: a polled reading mixes packages and

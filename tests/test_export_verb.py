@@ -178,3 +178,48 @@ def test_program_pieces_under_a_limit(demo_job):
         job_program_pieces(demo_job, max_bytes=8000)
     with pytest.raises(PlannerError, match=r"max_bytes must be at least 4096 bytes, got 100"):
         job_program_pieces(demo_job, max_bytes=100)
+
+
+def test_passes_joined_at_a_corner_are_cut_at_the_corner_only_when_they_need_two_programs(tmp_path):
+    """Two passes joined at a 90-degree corner (the cut output on through it): one program under the limit; over
+    it, two programs cut at the corner, where the arm is at rest; the output stays on through the seam (the second
+    program sets it on again first). Run piece after piece by the simulated controller's core."""
+    import numpy as np
+
+    from sim.core import Core
+    from sim.io_state import IOState
+
+    t = np.linspace(0.0, 1.0, 200)
+    a = np.c_[0.1 * t, 0.005 * np.sin(6 * np.pi * t), 0 * t]
+    b = np.c_[0.1 + 0.005 * np.sin(6 * np.pi * t[1:]), -0.1 * t[1:], 0 * t[1:]]
+    src = tmp_path / "corner.csv"
+    src.write_text("x,y,z\n" + "\n".join(f"{x * 1e3:.4f},{y * 1e3:.4f},{z * 1e3:.4f}" for x, y, z in np.vstack((a, b))))
+    job = plan(src, PlanSettings(path="cam", feed=0.02, robot="ur5e", part_frame=(0.4, -0.1, 0.2, 0, 0, 0),
+                                 cut_output=("standard", 0)))
+    assert [m.kind for m in job.moves] == ["cut", "cut"]
+    whole = job_program(job)
+    (one,) = job_program_pieces(job, max_bytes=len(whole))
+    assert one.text == whole
+    first, second = job_program_pieces(job, max_bytes=len(whole) - 1)
+    assert (first.passes, second.passes) == ((0,), (1,)) and max(first.size, second.size) < len(whole)
+    assert first.text.count("set_standard_digital_out(0, True)") == 1 and "(0, False)" not in first.text
+    assert second.text.count("set_standard_digital_out(0, True)") == 1  # set on again, first
+    assert second.text.count("set_standard_digital_out(0, False)") == 1
+    core = Core("ur5e", IOState())
+    core.motion.q = np.array(job.start_joints, dtype=float)
+    assert core.load_program(first.text)
+    while core.program is not None:
+        core.tick()
+    assert np.abs(core.motion.qd).max() < 1e-12 and core.io.digital_out & 1  # at rest on the corner, the output on
+    np.testing.assert_allclose(core.tcp_pose()[:3], second.start[:3], atol=1e-6)
+    assert core.load_program(second.text)
+    bits = [core.io.digital_out & 1]
+    while core.program is not None:
+        core.tick()
+        bits.append(core.io.digital_out & 1)
+    assert np.count_nonzero(np.diff(bits)) == 1 and bits[-1] == 0  # on through the second pass, off at its end
+    assert core.safety_mode == 1
+    # one pass alone over the limit: a seam in it would stop the tool in the cut: refused, naming the pass
+    with pytest.raises(PlannerError, match=r"corner\.csv: pass 0 \(lines 2-201\) alone needs a program of \d+ bytes, "
+                                           r"over the limit of 30000 bytes per program"):
+        job_program_pieces(job, max_bytes=30000)

@@ -400,9 +400,11 @@ def job_program_pieces(
     """The job's program (:func:`job_program`, the same statements in the same order) cut into programs of at most
     ``max_bytes`` bytes each, to be run one after the other, each started once the one before has ended.
 
-    Every move of the job ends with the arm at rest (passes, rapids and turns end with r = 0), so a seam between
-    two programs is a wait at rest, never a stop in a cut; a seam is placed between moves only, and never between
-    two passes joined at a corner (the cut output stays on through the corner; between other moves it is off). The
+    Every move of the job ends with the arm at rest (passes, rapids and turns end with r = 0: passes end where the
+    CAM system stops, at rapids, corners and axis jumps), so a seam between two programs is a wait at rest, never a
+    stop in a cut; a seam is placed between moves only, preferably where the cut output is off: between two passes
+    joined at a corner only when that run of passes needs more than one program (the output stays on through the
+    seam; the next piece sets it on again first, in case the controller switched it off at the program's end). The
     first piece holds the whole header and the joint move onto the start; each later one a header naming the piece,
     its moves and passes, and ``set_tcp``, and continues from where the one before ended. Consecutive moves are
     packed greedily, so a job whose whole program fits is one piece, identical to :func:`job_program`'s text.
@@ -410,8 +412,8 @@ def job_program_pieces(
     Raises
     ------
     ExportError
-        As :func:`job_program`; and when one pass (or run of passes joined at corners) alone needs a program larger
-        than ``max_bytes``, naming the passes, their lines, the size and the limit.
+        As :func:`job_program`; and when one pass alone needs a program larger than ``max_bytes`` (a seam in a cut
+        would stop the tool there), naming the pass, its lines, the size and the limit.
     """
     name = check_name(name)
     max_bytes = int(max_bytes)
@@ -425,41 +427,61 @@ def job_program_pieces(
     head, body, tail, _ = _program_parts(job, moves, tolerance=tolerance, angle_tolerance=angle_tolerance,
                                          approach_speed=approach_speed, approach_acceleration=approach_acceleration,
                                          parameters=parameters, progress=progress)
+    s_out = job.settings.cut_output
     whole = _size([f"def {name}():", *head, *tail, "end"]) + sum(_size(b) for b in body)
     if whole <= max_bytes:
         text = "\n".join([f"def {name}():", *head, *(x for b in body for x in b), *tail, "end", ""])
         passes = tuple(m.pass_index for m in moves if m.kind == "cut")
         return (ProgramPiece(text, 0, len(moves) - 1, moves[0].start, moves[-1].target, passes, moves[0].first_line),)
-    # units: runs of moves no seam may cut (passes joined at corners)
+    # units: runs of moves a seam cuts only when they need more than one program (passes joined at corners)
     units: list[tuple[int, int]] = []
     for i, m in enumerate(moves):
         if units and m.kind == "cut" and moves[i - 1].kind == "cut":
             units[-1] = (units[-1][0], i)
         else:
             units.append((i, i))
-    later_head = 400 + len(name)  # the header of a later piece (comments, set_tcp), generous
-    groups: list[list[tuple[int, int]]] = [[]]
+    restate = "" if s_out is None else output_switch(s_out[0], s_out[1], True)
+    later_head = 400 + len(name) + len(restate)  # the header of a later piece (comments, set_tcp, the output), generous
+    groups: list[list[int]] = [[]]
     used = _size([f"def {name}():", *head, "end"])
     tail_size = _size(tail)
-    for u in units:
-        need = sum(_size(body[k]) for k in range(u[0], u[1] + 1))
-        room = max_bytes - (tail_size if u[1] == len(moves) - 1 else 0)
-        if used + need > room and groups[-1]:
+    last = len(moves) - 1
+
+    def room(b: int) -> int:
+        return max_bytes - (tail_size if b == last else 0)
+
+    def refuse(a: int, b: int, need: int):
+        first, final = moves[a], moves[b]
+        what = (f"pass {first.pass_index}" if a == b else f"passes {first.pass_index}-{final.pass_index} "
+                "(joined at corners)") if first.kind == "cut" else f"the {first.kind}"
+        return ExportError(f"{job.source}: {what} (lines {first.first_line}-{final.last_line}) alone needs a program "
+                           f"of {need} bytes, over the limit of {max_bytes} bytes per program; plan it with a larger "
+                           "tolerance (fewer movep targets), or stream it")
+
+    for a, b in units:
+        need = sum(_size(body[k]) for k in range(a, b + 1))
+        if used + need > room(b) and groups[-1]:
             groups.append([])
             used = later_head + _size(["end"])
-        if used + need > room:
-            first, last = moves[u[0]], moves[u[1]]
-            what = (f"pass {first.pass_index}" if u[0] == u[1] else f"passes {first.pass_index}-{last.pass_index} "
-                    "(joined at corners)") if first.kind == "cut" else f"the {first.kind}"
-            raise ExportError(f"{job.source}: {what} (lines {first.first_line}-{last.last_line}) alone needs a program "
-                              f"of {used + need} bytes, over the limit of {max_bytes} bytes per program; plan it "
-                              "with a larger tolerance (fewer movep targets), or stream it")
-        groups[-1].append(u)
-        used += need
+        if used + need <= room(b):
+            groups[-1] += list(range(a, b + 1))
+            used += need
+            continue
+        # a run of passes joined at corners that needs more than one program: cut at its corners, where the arm is
+        # at rest (each pass ends with r = 0); the cut output stays on through the seam
+        for k in range(a, b + 1):
+            need = _size(body[k])
+            if used + need > room(k) and groups[-1]:
+                groups.append([])
+                used = later_head + _size(["end"])
+            if used + need > room(k):
+                raise refuse(k, k, used + need)
+            groups[-1].append(k)
+            used += need
     tcp_line = head[-1]  # set_tcp(...)
     pieces = []
     for k, g in enumerate(groups):
-        a, b = g[0][0], g[-1][1]
+        a, b = g[0], g[-1]
         passes = tuple(moves[i].pass_index for i in range(a, b + 1) if moves[i].kind == "cut")
         piece_name = f"{name}_{k + 1}" if len(name) < 56 else f"{name[:55]}_{k + 1}"
         if k == 0:
@@ -472,6 +494,9 @@ def job_program_pieces(
                      comment(f"continues where piece {k} ended, the arm at rest there (each piece at most "
                              f"{max_bytes} bytes)"),
                      tcp_line]
+            if restate and moves[a].kind == "cut" and moves[a - 1].kind == "cut":  # within passes joined at a corner
+                lines += [comment("the cut output stays on from the piece before (passes joined at a corner)"),
+                          restate]
         for i in range(a, b + 1):
             lines += body[i]
         if k == len(groups) - 1:
