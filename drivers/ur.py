@@ -872,9 +872,10 @@ class URDriver:
                     time.sleep(0.01)
                     self._take(log, rec, float(ts0))
                     k = max(k, rec.last_segment)
-                    where = f" (program {n + 1} of {len(pieces)})" if len(pieces) > 1 else ""
+                    where = ("the job's last pose" if n == len(pieces) - 1 else
+                             f"the last pose of program {n + 1} of {len(pieces)}")
                     raise ProgramStoppedError(self._not_running_reason() + f"; the tool is {1e3 * d:.1f} mm "
-                                              f"from the end of the job's program{where}")
+                                              f"from {where}")
             time.sleep(0.01)
             if ts0 is not None:
                 self._take(log, rec, ts0)

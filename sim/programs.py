@@ -10,9 +10,10 @@ line is a one-line program of its own. ur_rtde 1.6.5 (src/script_client.cpp) sen
 
 Program size: the simulated controller refuses a program larger than :data:`MAX_PROGRAM_BYTES` whole, as a
 program that does not compile (nothing of it runs, the message names its size and the limit). UR documents no
-limit for the script ports; users report controllers that ignore or crash on programs of 1,000-2,500 moves (100-250
-kB) and more, so the simulator takes the conservative 100,000 bytes (ur_rtde 1.6.5's control script, 42 kB and
-1175 lines, runs), the limit :data:`planner.export.job_script.MAX_PROGRAM_BYTES` keeps the exported programs to.
+limit for the script ports; users report CB-Series controllers that ignore programs of 1,000-2,500 moves and one
+that crashed on 18 MB; RoboDK's UR post-processor cut programs into pages of 5,000 lines (about 350 kB). The
+simulator takes 250,000 bytes (ur_rtde 1.6.5's control script, 42 kB and 1175 lines, runs), the limit
+:data:`planner.export.job_script.MAX_PROGRAM_BYTES` keeps the exported programs to.
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ _MOVE = re.compile(
 _PROGRESS = re.compile(r"^\s*signal_async_progress\((\d+)\)\s*$")
 _HEAD = re.compile(r"^(def|sec)\s+([A-Za-z_][A-Za-z_0-9]*)\s*\(\s*\)\s*:\s*$")
 #: The largest program the simulated controller takes on its script ports, bytes (see the module doc).
-MAX_PROGRAM_BYTES = 100_000
+MAX_PROGRAM_BYTES = 250_000
 
 
 class ProgramError(ValueError):

@@ -1,12 +1,12 @@
 """The whole-job URScript program (planner.export.job_program) of the first 2000 GOTOs of shared/data's NX job
 (55 passes, 55 rapids, about an hour of motion; 1.1 MB as one program) run by the simulated controller in
-fast-forward, in the pieces a controller takes (planner.export.job_program_pieces: 12 programs under 100 kB), twice:
+fast-forward, in the pieces a controller takes (planner.export.job_program_pieces: 5 programs under 250 kB), twice:
 
 * by the simulator's core in this process, as fast as it goes (the interpreter and motion model of
   SimController, without sockets): the whole program refused as too large; the pieces, each loaded when the one
   before ended, every 20 ms of the actual TCP path within the program's tolerance of the planned path, the arm at
   rest at every seam, every output switched within 1 mm of its station, not one protective stop;
-* by SimController at 150x through URDriver's program mode and real ur_rtde: the run ends ok in 12 programs, every
+* by SimController at 150x through URDriver's program mode and real ur_rtde: the run ends ok in 5 programs, every
   recorded sample (one per ~0.3 s of job time) within the tolerance, no protective stop.
 
 Reads the whole NX file beside the repository (../shared/data), skipped with the reason when it is absent as on
@@ -89,8 +89,8 @@ def test_the_pieces(job, pieces):
     # the exporter keeps to the limit the simulated controller enforces
     assert MAX_PROGRAM_BYTES == SIM_LIMIT
     whole = job_program(job)
-    assert len(whole.encode()) > 10 * MAX_PROGRAM_BYTES
-    assert len(pieces) == 12 and all(p.size <= MAX_PROGRAM_BYTES for p in pieces)
+    assert len(whole.encode()) > 4 * MAX_PROGRAM_BYTES
+    assert len(pieces) == 5 and all(p.size <= MAX_PROGRAM_BYTES for p in pieces)
     # the same statements in the same order (each piece sets the TCP again), every pass in exactly one piece, in order
     def statements(text):
         return [ln for ln in text.split("\n") if ln.startswith("  ") and not ln.lstrip().startswith(("#", "set_tcp"))]
@@ -156,11 +156,11 @@ def test_whole_job_program_of_2000_gotos_through_urdriver_at_150x(make_sim, job,
         rep = d.execute(job, mode="program", progress=fast_forward)
         assert d.state().safety_mode == 1
     assert rep.ok, rep.describe()
-    # in the 12 programs a controller takes, one after the other, the arm at rest at each of the 11 seams
-    assert rep.programs == len(pieces) == 12 and rep.program_bytes == MAX_PROGRAM_BYTES
-    assert [sm.program for sm in rep.seams] == list(range(2, 13))
+    # in the 5 programs a controller takes, one after the other, the arm at rest at each of the 4 seams
+    assert rep.programs == len(pieces) == 5 and rep.program_bytes == MAX_PROGRAM_BYTES
+    assert [sm.program for sm in rep.seams] == list(range(2, 6))
     assert [sm.line for sm in rep.seams] == [p.line for p in pieces[1:]]
-    assert any(f"12 programs of at most {MAX_PROGRAM_BYTES} bytes" in line for line in rep.describe())
+    assert any(f"5 programs of at most {MAX_PROGRAM_BYTES} bytes" in line for line in rep.describe())
     assert rep.planned_duration > 3000.0
     # (each seam waits for the next program a few ms of wall time: at 150x, about a second of simulated time, more on
     # a loaded machine)

@@ -189,13 +189,15 @@ def _noted_events(job) -> list:
 #: default. UR documents no size limit for a program sent to ports 30001-30003 (the URScript manual, "Connecting to
 #: URControl", only asks that the client reads before closing), nor for interpreter mode (PolyScope 5.10+, port
 #: 30020: "there exists an upper limit" on the interpreted statements, no figure; UR's own example clears the
-#: interpreter after every 500 statements). Users report controllers that do not react to, or crash on, programs of
-#: 1,000 moves (a UR10, sent through ur_modern_driver, about 100 kB), of more than about 2,500 moves (a UR5 streamed
-#: by the Robots plug-in, about 250 kB) and of 200,000 lines (18 MB, a UR5); RoboDK's UR post-processor split programs
-#: into pages of 5,000 lines (about 350 kB of its short lines). ur_rtde 1.6.5's own control script, which every
-#: e-Series controller takes, is 42 kB. The conservative choice: 100,000 bytes (about 600 of this writer's movep
-#: lines), below every size reported to fail. The simulated controller (sim.programs) refuses larger programs.
-MAX_PROGRAM_BYTES = 100_000
+#: interpreter after every 500 statements). Users report CB-Series controllers that do not react to programs of
+#: 1,000 moves (a UR10 through ur_modern_driver, about 100 kB) or of more than about 2,500 moves (a UR5 streamed by
+#: the Robots plug-in), and a UR5 that crashed on 200,000 lines (18 MB); RoboDK's UR post-processor split programs
+#: into pages of 5,000 lines (about 350 kB of its short lines). ur_rtde 1.6.5's control script, which every e-Series
+#: controller takes, is 42 kB. The choice for the e-Series controller simulated here: 250,000 bytes (about 1,450 of
+#: this writer's movep lines), under RoboDK's page and enough for the longest pass of the shared NX job (207 kB,
+#: 1,220 movep targets), which no seam can cut without stopping the tool in the cut. For a CB-Series controller,
+#: 100,000 (``--max-program-bytes``). The simulated controller (sim.programs) refuses larger programs.
+MAX_PROGRAM_BYTES = 250_000
 
 
 @dataclass(frozen=True)

@@ -260,7 +260,7 @@ def _reader_and_output_options(p: argparse.ArgumentParser, outputs: bool) -> Non
     p.add_argument("--machine", help="machine kinematics for 5-axis G-code (e.g. haas-umc-750)")
     p.add_argument("--max-program-bytes", type=_program_bytes, default=MAX_PROGRAM_BYTES, metavar="N",
                    help="largest URScript program a controller takes, bytes (default "
-                        f"{MAX_PROGRAM_BYTES}: below every size reported to fail; UR documents none; 0: no limit): a "
+                        f"{MAX_PROGRAM_BYTES}; UR documents none; 100000 for a CB-Series controller; 0: no limit): a "
                         "larger .script is refused; planner run --mode program sends pieces of at most this size")
     if outputs:
         p.add_argument("--progress", action="store_true", help="show progress bars even when not on a terminal")
