@@ -95,12 +95,17 @@ def main() -> None:
     refused = not core.load_program(whole)
     qs, ts, switches, seams = [], [], [], []
     out = core.io.digital_out
+    stopped = "no"
     t0 = time.perf_counter()
     for n, piece in enumerate(pieces):
         if n:
             seams.append((core.time, float(np.abs(core.motion.qd).max()), core.io.digital_out))
-        if not core.load_program(piece.text):
-            sys.exit(f"piece {n + 1} refused: {list(core.log)[-2:]}")
+        if not core.load_program(piece.text):  # a stop in the piece before: reported with where it was
+            prev = pieces[n - 1]
+            stopped = (f"program {n} of {len(pieces)} (passes {prev.passes[0]}-{prev.passes[-1]}, from line "
+                       f"{prev.line}) at t = {core.time:.1f} s: "
+                       + "; ".join(m[2] for m in core.log if m[1] == "Safety")[:200])
+            break
         while core.program is not None:
             core.tick()
             if core.steps % EVERY == 0:
@@ -127,6 +132,7 @@ def main() -> None:
         ["output bits at the seams", sorted({s[2] for s in seams})],
         ["switches made (planned)", f"{len(switches)} ({n_switch})"],
         ["protective stops", sum(1 for m in core.log if m[1] == "Safety")],
+        ["run stopped", stopped],
         ["core wall time s", f"{t_run:.0f}"],
     ])
 
