@@ -15,6 +15,7 @@ import numpy as np
 
 from planner import __version__
 from planner.errors import NumericalError, PlannerError
+from planner.export.job_script import MAX_PROGRAM_BYTES
 from planner.frontends.cli.options import (
     Parser,
     Progress,
@@ -151,7 +152,7 @@ def cmd_plan(args: argparse.Namespace):
         print(f"  wrote     {args.plot} ({write(job, args.plot, parameters={'input': path_in.name})})")
     if out is not None:
         try:
-            print(f"  wrote     {out} ({export(job, out, {'input': path_in.name}, bar)})")
+            print(f"  wrote     {out} ({export(job, out, {'input': path_in.name}, bar, args.max_program_bytes)})")
         finally:
             bar.close()
     return job
@@ -168,7 +169,7 @@ def warning_lines(warnings: tuple, limit: int = 10) -> list[str]:
     return out
 
 
-def export(job, out: Path, parameters: dict, progress=None) -> str:
+def export(job, out: Path, parameters: dict, progress=None, max_program_bytes: int | None = MAX_PROGRAM_BYTES) -> str:
     """Write a job to ``out`` by its suffix (.csv / .json trajectory, .script program, .job saved plan) with the
     export verb (:func:`planner.export.write`); what was written, for a person."""
     from planner.export import write
@@ -179,7 +180,7 @@ def export(job, out: Path, parameters: dict, progress=None) -> str:
     if suffix in (".csv", ".json") and job.settings.robot is not None and job.problems:
         print(f"  warning   {job.settings.robot}: {counted(len(job.problems), 'move')} with problems; joints without "
               "an inverse kinematics solution are left empty", flush=True)
-    return write(job, out, parameters=parameters, progress=progress)
+    return write(job, out, parameters=parameters, progress=progress, max_program_bytes=max_program_bytes)
 
 
 def cmd_demo(args: argparse.Namespace) -> None:

@@ -16,7 +16,9 @@ import sys
 from dataclasses import dataclass
 from typing import Any
 
+from drivers.servo import GAIN_RANGE, LOOKAHEAD_RANGE
 from planner.errors import PlannerError
+from planner.export.job_script import MAX_PROGRAM_BYTES
 from planner.settings import OUTPUT_KINDS, SETTING, SETTINGS, PlanSettings, Setting, blame
 from planner.wording import quantity
 
@@ -160,8 +162,8 @@ def _numeric_options() -> tuple[NumericOption, ...]:
     return (
         *(NumericOption.of(s) for s in PLAN_SETTINGS if s.kind == "number"),
         # planner run's own (planner.frontends.cli.run): URDriver's servoJ ranges, the simulator's speed, a TCP port
-        NumericOption("--lookahead", "lookahead", "s", 0.03, 0.2, lo_closed=True),
-        NumericOption("--gain", "gain", "", 100.0, 2000.0, lo_closed=True),
+        NumericOption("--lookahead", "lookahead", "s", *LOOKAHEAD_RANGE, lo_closed=True),
+        NumericOption("--gain", "gain", "", *GAIN_RANGE, lo_closed=True),
         NumericOption("--sim-speed", "sim_speed", "", 0.0, None),
         NumericOption("--modbus-port", "modbus_port", "", 1.0, 65535.0, lo_closed=True),
     )
@@ -318,12 +320,29 @@ _ARGUMENT = {
 def _reader_and_output_options(p: argparse.ArgumentParser, outputs: bool) -> None:
     p.add_argument("--units", choices=["mm", "m", "inch"], help="units of a CSV/JSON file (default mm)")
     p.add_argument("--machine", help="machine kinematics for 5-axis G-code (e.g. haas-umc-750)")
+    p.add_argument("--max-program-bytes", type=_program_bytes, default=MAX_PROGRAM_BYTES, metavar="N",
+                   help="largest URScript program a controller takes, bytes (default "
+                        f"{MAX_PROGRAM_BYTES}; UR documents none; 100000 for a CB-Series controller; 0: no limit): a "
+                        "larger .script is refused; planner run --mode program sends pieces of at most this size")
     if outputs:
         p.add_argument("--progress", action="store_true", help="show progress bars even when not on a terminal")
         p.add_argument("-o", "--output", help="write the job: .csv / .json trajectory, .script URScript program "
                        "(movep along the passes within --tolerance, movel between), .job saved plan")
         p.add_argument("--plot", help="write a picture (.png, .svg, .pdf): paths and tool axes, frames, speed, "
                        "joints, fit")
+
+
+def _program_bytes(text: str) -> int | None:
+    """``--max-program-bytes``' value: a whole number of bytes, 0 (no limit: None) or at least 4096."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number of bytes, got {text!r}") from None
+    if n == 0:
+        return None
+    if not 4096 <= n <= 10**9:
+        raise argparse.ArgumentTypeError(f"must be 0 (no limit) or within 4096..1000000000 bytes, got {text!r}")
+    return n
 
 
 class Parser(argparse.ArgumentParser):

@@ -237,8 +237,7 @@ def execute_job(spec: ExecuteSpec, report: Report, cancel: threading.Event, phas
             raise CancelledError("cancelled by the caller")
         report(Progress("connecting"))
         result = run(job, host, mode=spec.mode, io=robot["io"], modbus_port=modbus_port, progress=progress,
-                     cancel=cancel, approach_speed=float(robot["approach_speed"]),
-                     approach_acceleration=float(robot["approach_acceleration"]))
+                     cancel=cancel, **robot["driver"])
         figures = report_figures(result)
         failure = figures.get("failure")
         if figures["ok"]:

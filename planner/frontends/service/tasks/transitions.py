@@ -180,7 +180,7 @@ class Transitions:
         assert robot is not None and plan is not None
         fields = {"name": robot.name, "host": robot.host, "model": robot.model, "io": robot.io,
                   "modbus_port": robot.modbus_port, "sim_speed": robot.sim_speed,
-                  "approach_speed": robot.approach_speed, "approach_acceleration": robot.approach_acceleration}
+                  "driver": robot.driver_options()}  # approach, servo, deviation and program size (RobotConfig)
         return execution_id, 1, ExecuteSpec(execution_id, plan, row["mode"], fields)
 
     def stop_execution(self, execution_id: str, reason: str = "stopped by the operator") -> bool:
