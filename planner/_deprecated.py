@@ -2,9 +2,9 @@
 release.
 
 Each old module serves its removed names from a module ``__getattr__`` (PEP 562) made by :func:`removed_names`: a
-class is the class that replaces it, returned after a ``DeprecationWarning``; a function is a thin wrapper that warns
-on every call and returns what its replacement returns. The warning names the replacement. They go in the release
-after the next one.
+class is the class that replaces it and a constant its value, returned after a ``DeprecationWarning``; a function is
+a thin wrapper that warns on every call and returns what its replacement returns. The warning names the replacement.
+They go in the release after the next one.
 """
 
 from __future__ import annotations
@@ -31,7 +31,7 @@ def removed_names(module: str, names: dict[str, Entry]) -> Callable[[str], Any]:
         replacement, target = entry
         obj = target()
         message = (f"{module}.{name} is deprecated and will be removed in {REMOVED_IN}: use {replacement}")
-        if isinstance(obj, type):
+        if isinstance(obj, type) or not callable(obj):  # a class or a constant: itself, after the warning
             warnings.warn(message, DeprecationWarning, stacklevel=2)
             return obj
 
@@ -120,6 +120,8 @@ _STREAM = {
     "StreamChunk": ("planner.Chunk: job.trajectory(rate).chunks() gives them", _CHUNK),
 }
 
+_VERSION_SETTING = " (the controller's version is a setting now: python -m sim --polyscope, SimController(polyscope=))"
+
 #: module -> its removed names.
 REMOVED: dict[str, dict[str, Entry]] = {
     "planner.cam": {
@@ -157,6 +159,23 @@ REMOVED: dict[str, dict[str, Entry]] = {
     "planner.motion": {
         name: (f"planner.rotations.{name}", _attr("planner.rotations", name))
         for name in ("matrix_to_quaternion", "quaternion_to_matrix", "quaternion_to_rotvec", "rotation_angle")
+    },
+    # the simulator: the controller's version is a setting now, 30001-30003 serve the state streams
+    "sim.rtde_server": {
+        "CONTROLLER_VERSION": (f"sim.versions.DEFAULT{_VERSION_SETTING}",
+                               lambda: (*_attr("sim.versions", "DEFAULT")().release,
+                                        _attr("sim.versions", "DEFAULT")().build)),
+    },
+    "sim.dashboard": {
+        "VERSION": (f"sim.versions.DEFAULT.text{_VERSION_SETTING}", lambda: _attr("sim.versions", "DEFAULT")().text),
+        "POLYSCOPE_VERSION": (f"sim.versions.DEFAULT.polyscope_text{_VERSION_SETTING}",
+                              lambda: _attr("sim.versions", "DEFAULT")().polyscope_text),
+    },
+    "sim.script_server": {
+        "ScriptServer": ("sim.realtime_server.RealtimeServer (port 30003, which takes programs too) and "
+                         "sim.primary_server.PrimaryServer (30001, 30002)",
+                         _attr("sim.realtime_server", "RealtimeServer")),
+        "SCRIPT_PORTS": ("the ports of sim.primary_server and sim.realtime_server", lambda: (30001, 30002, 30003)),
     },
 }
 

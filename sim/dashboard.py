@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import socket
 
+from planner._deprecated import module_getattr
 from sim import core as c
 from sim.listeners import Listeners
 
@@ -160,3 +161,7 @@ class DashboardServer(Listeners):
             if cmd.startswith("set operational mode "):
                 return f"Operational mode '{arg.split()[-1].lower()}' is set", False
         return f"could not understand: '{text}'", False
+
+
+# the names of 0.1.0 this module no longer defines (planner._deprecated)
+__getattr__ = module_getattr(__name__)

@@ -59,16 +59,17 @@ class RealtimeServer(Listeners):
             return 0
         with self._lock:
             streams = [s for s in self.streams if not s.held]
-        if not streams:
-            return 0
-        package = realtime_state(Snapshot(self.core), self.package_size)
-        sent = 0
+        ready = []
         for out in streams:
             out.flush()
             if out.backlog:  # the last package is still unsent: the client is not reading, skip this one
                 self.packages_skipped += 1
-                continue
+            else:
+                ready.append(out)
+        if not ready:  # no package is built for clients that do not read (ur_rtde's script connection)
+            return 0
+        package = realtime_state(Snapshot(self.core), self.package_size)
+        for out in ready:
             out.write(package)
-            sent += 1
-        self.packages_sent += sent
-        return sent
+        self.packages_sent += len(ready)
+        return len(ready)

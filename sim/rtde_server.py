@@ -25,11 +25,15 @@ and is ignored; a data package longer than its recipe is applied (its recipe's f
 
 from __future__ import annotations
 
+import collections
+import math
 import os
 import socket
 import struct
 import threading
+import time
 
+from planner._deprecated import module_getattr
 from planner.kinematics.ur_outputs import UR_OUTPUTS
 from sim import rtde_protocol as rp
 from sim.hosts import set_realtime_priority
@@ -182,7 +186,7 @@ class Connection(OutputStream):
             self.text(f"data package for input recipe {rid} has {len(body)} bytes, the recipe needs {layout.size}; "
                       "extra bytes ignored", level=rp.WARNING)
         values = rp.unflatten(recipe.types, layout.unpack_from(body))
-        self.server.apply_inputs(dict(zip(recipe.names, values, strict=True)))
+        self.server.receive_inputs(dict(zip(recipe.names, values, strict=True)))
 
 
 class RTDEServer:
@@ -202,6 +206,9 @@ class RTDEServer:
         self.owners: dict[str, Connection] = {}
         self.owner_lock = threading.Lock()
         self.ticks = 0
+        # data packages received and not yet applied: (perf_counter on arrival, fields), applied by the control
+        # loop before the period they arrived in (:meth:`apply_received`)
+        self._received: collections.deque[tuple[float, dict]] = collections.deque()
         self._thread = threading.Thread(target=self._accept, name="rtde-accept", daemon=True)
 
     def start(self) -> None:
@@ -234,6 +241,25 @@ class RTDEServer:
             c.close()
 
     # ---- inputs ------------------------------------------------------------------------------
+    def receive_inputs(self, fields: dict) -> None:
+        """One data package's fields, stamped with their arrival: the control loop applies them in their period.
+
+        A controller that never stalls applies each package in the period it arrives in. When this process is
+        held up (a shared machine stalls it for tens of ms now and then), the loop integrates the missed periods
+        afterwards; stamping the packages lets each of those periods see the inputs that had arrived by its time,
+        instead of all of them seeing the newest (a servo stream's targets would jump by the whole stall)."""
+        self._received.append((time.perf_counter(), fields))
+
+    def apply_received(self, until: float = math.inf) -> int:
+        """Apply the data packages received by ``until`` (perf_counter s) in arrival order (the control loop,
+        holding ``core.lock``, before each period's ticks); returns how many."""
+        received = self._received
+        n = 0
+        while received and received[0][0] <= until:
+            self.apply_inputs(received.popleft()[1])
+            n += 1
+        return n
+
     def apply_inputs(self, fields: dict) -> None:
         """One data package's fields into the controller (registers and I/O), atomically."""
         core = self.core
@@ -305,3 +331,7 @@ class RTDEServer:
 
 
 __all__ = ["RTDEServer", "Connection", "INPUTS"]
+
+
+# the names of 0.1.0 this module no longer defines (planner._deprecated)
+__getattr__ = module_getattr(__name__)

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import socket
 
+from planner._deprecated import module_getattr
 from sim.primary_packages import READ_ONLY_INTERFACE, WARNING
 from sim.programs import ProgramFramer
 
@@ -67,3 +68,6 @@ def serve_scripts(core, sock: socket.socket, on_quiet=None, quiet: float = 0.05)
             with core.lock:
                 take_script(core, text, port)
 
+
+# the names of 0.1.0 this module no longer defines (planner._deprecated)
+__getattr__ = module_getattr(__name__)

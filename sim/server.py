@@ -23,6 +23,7 @@ from __future__ import annotations
 import argparse
 import gc
 import json
+import math
 import os
 import signal
 import sys
@@ -83,6 +84,7 @@ class Loop:
                 # package sees no hole, as from a controller that never stalls
                 self.late += behind - 1
                 core.late_ticks += behind - 1
+            k_before = k
             k += max(behind, 1)
             owed += self.speed * max(behind, 1)
             n = int(owed + 1e-9)
@@ -97,6 +99,8 @@ class Loop:
                 wall = max(behind, 1)
                 done = 0
                 for w in range(1, wall + 1):
+                    # the RTDE inputs that had arrived by this period's time (all of them in the last period)
+                    rtde.apply_received(t0 + (k_before + w) * period if w < wall else math.inf)
                     for _ in range(n * w // wall - done):
                         core.tick()
                     done = n * w // wall
@@ -127,6 +131,7 @@ def _commands(core: Core, io, stop: threading.Event, loop: Loop) -> None:
             cmd = req.get("cmd")
             if cmd == "state":
                 with core.lock:
+                    loop.rtde.apply_received()  # the state as of now: every RTDE input received so far
                     reply = core.state()
             elif cmd == "set_digital_in":
                 io.set_digital_in(int(req["mask"]), int(req["value"]))

@@ -194,7 +194,7 @@ def test_the_simulated_controller_waits_at_each_bottom(drill_job):
     with SimDriver(record=True) as d:
         report = d.execute(drill_job, mode="program")
         rec = d.recording
-    assert report.ok, report.describe()
+    assert report.ok, "\n".join(report.describe())
     assert report.duration == pytest.approx(drill_job.duration, rel=0.01)  # the three sleeps included
     base = np.array(PART[:3])
     for x, y, top, _ in HOLES:

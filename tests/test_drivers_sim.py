@@ -66,7 +66,7 @@ def test_stream_follows_the_planned_joints(fast_job):
         report = d.execute(fast_job, mode="stream")
         rec = d.recording
         state = d.state()
-    assert report.ok, report.describe()
+    assert report.ok, "\n".join(report.describe())
     assert report.mode == "stream"
     n = len(Q)
     # one servo target per sample, in order: the commanded joints are the planner's own
@@ -93,7 +93,7 @@ def test_stream_shaped_targets_put_the_arm_on_the_planned_joints(fast_job):
         report = d.execute(fast_job, mode="stream")
         rec = d.recording
         state = d.state()
-    assert report.ok, report.describe()
+    assert report.ok, "\n".join(report.describe())
     n = len(Q)
     lead = np.abs(rec["target_q"][:n] - Q).max()
     assert lead > 1e-3  # shaped: the targets are not the planned joints (~v * 20 ms ahead)
@@ -110,7 +110,7 @@ def test_demo_job_dry_run_meets_the_streaming_targets():
     job = demo_job()
     with SimDriver() as d:
         report = d.execute(job)
-    assert report.ok, report.describe()
+    assert report.ok, "\n".join(report.describe())
     assert report.max_path_error < 0.2e-3
     assert all(e.switched for e in report.io_events)
     assert report.max_io_distance_mm < 1.0
@@ -119,7 +119,7 @@ def test_demo_job_dry_run_meets_the_streaming_targets():
 def test_program_runs_the_exported_script_within_its_tolerance(fast_job):
     with SimDriver() as d:
         report = d.execute(fast_job, mode="program")
-    assert report.ok, report.describe()
+    assert report.ok, "\n".join(report.describe())
     assert report.max_path_error < 0.05e-3  # movep within 10 um of the path, blends of at most 0.25 mm radius
     assert all(e.switched and e.distance_mm < 0.05 for e in report.io_events)
     # movep runs on trapezoids (no jerk limit): a few per cent faster than the planned jerk-limited feed
@@ -175,7 +175,7 @@ def test_pause_holds_the_arm_on_the_path(fast_job):
         report = d.execute(fast_job)
     with SimDriver() as d:
         base = d.execute(fast_job)
-    assert report.ok, report.describe()
+    assert report.ok, "\n".join(report.describe())
     # held on the path, not off it: within the stream mode's accuracy figure (0.05 mm) of the unpaused run (the
     # servo shaping of the stop and the restart, wherever the pause falls, moves it by up to about 0.02 mm)
     assert report.max_path_error == pytest.approx(base.max_path_error, abs=0.05e-3)
@@ -248,7 +248,7 @@ def _compare_stream(make_sim, tmp_path, job):
     sim = make_sim(record=path, modbus_port=5020)
     ur_report = _run_urdriver(sim, job, "stream")
     sim.stop()
-    assert ur_report.ok, ur_report.describe()
+    assert ur_report.ok, "\n".join(ur_report.describe())
     ctrl = recording.load(path)
     with SimDriver(record=True) as d:
         report = d.execute(job)
@@ -288,7 +288,7 @@ def _compare_program(make_sim, tmp_path, job):
     sim = make_sim(record=path, modbus_port=5020)
     ur_report = _run_urdriver(sim, job, "program")
     sim.stop()
-    assert ur_report.ok, ur_report.describe()
+    assert ur_report.ok, "\n".join(ur_report.describe())
     ctrl = recording.load(path)
     t_start = next(t for t, src, text in ctrl.events if src == "Program" and text == "program planner_job started")
     rows = np.flatnonzero(ctrl.t > t_start + 1e-9)
@@ -385,7 +385,7 @@ def check_reconfigured_run(job, report, t, actual_q, commanded_q=None) -> None:
     its planned path, every output switch within 1 mm of its station, and the joint move of the reconfiguration
     made (the arm's joints follow the planned ones through it, within the servo's following error, and end on
     the new configuration)."""
-    assert report.ok, report.describe()
+    assert report.ok, "\n".join(report.describe())
     assert report.max_path_error <= 0.2e-3, report.describe()
     n_cuts = sum(1 for m in job.moves if m.kind == "cut")
     assert 2 <= len(report.io_events) <= 2 * n_cuts

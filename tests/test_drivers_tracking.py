@@ -128,7 +128,7 @@ def test_bead_streamed_through_ur_rtde_within_0_05_mm_on_5_mm_bends(make_sim, be
     sim = make_sim()
     with URDriver(sim.host, "ur5e", path_tolerance=0.05e-3, **FAST) as d:
         rep = d.execute(bead5, mode="stream")
-    assert rep.ok, rep.describe()
+    assert rep.ok, "\n".join(rep.describe())
     assert 0.0 < rep.max_path_error <= 0.05e-3, rep.describe()
     assert rep.deviation_count == 0
     assert len(rep.io_events) == 2 and [e.value for e in rep.io_events] == [True, False]

@@ -57,7 +57,7 @@ def fast_job():
 
 
 def _check_followed(job, rep, path_tol: float, io_tol_mm: float = 1.0) -> None:
-    assert rep.ok, rep.describe()
+    assert rep.ok, "\n".join(rep.describe())
     assert rep.failure is None and rep.reason == ""
     assert rep.max_path_error <= path_tol, rep.describe()
     assert rep.max_path_error > 0.0  # the tracked path was measured, not copied from the plan
@@ -128,7 +128,7 @@ def test_program_mode_speed_holds_the_feed_every_package_recorded(make_sim, demo
     sim = make_sim(speed=10.0)
     with URDriver(sim.host, "ur5e", **FAST) as d:
         rep = d.execute(demo_job, mode="program")
-    assert rep.ok, rep.describe()
+    assert rep.ok, "\n".join(rep.describe())
     tr = rep.trace
     T = rep.planned_duration
     mid = (tr.t > 0.1 * T) & (tr.t < 0.9 * T)
@@ -422,7 +422,7 @@ def test_whole_nx_job_excerpt_program_in_fast_forward(make_sim, tmp_path):
     sim = make_sim(speed=20.0)
     with URDriver(sim.host, "ur5e", **FAST) as d:
         rep = d.execute(job, mode="program")
-    assert rep.ok, rep.describe()
+    assert rep.ok, "\n".join(rep.describe())
     assert rep.max_path_error <= job.settings.tolerance, rep.describe()
     # every switch made; at 20x a data package comes every 40 ms of job time, and a stall of the simulated
     # controller (a gap the report counts) may hide the brief off-on of a rapid: such a pair is reported

@@ -21,7 +21,7 @@ def run():
     job = plan(DEMO, PlanSettings(robot="ur5e", part_frame=PART, cut_output=("standard", 0), feed_override=4.0))
     with SimDriver() as d:
         rep = d.execute(job)
-    assert rep.ok, rep.describe()
+    assert rep.ok, "\n".join(rep.describe())
     return job, rep
 
 

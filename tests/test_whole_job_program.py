@@ -155,7 +155,7 @@ def test_whole_job_program_of_2000_gotos_through_urdriver_at_150x(make_sim, job,
     with URDriver(sim.host, "ur5e", **FAST) as d:
         rep = d.execute(job, mode="program", progress=fast_forward)
         assert d.state().safety_mode == 1
-    assert rep.ok, rep.describe()
+    assert rep.ok, "\n".join(rep.describe())
     # in the 5 programs a controller takes, one after the other, the arm at rest at each of the 4 seams
     assert rep.programs == len(pieces) == 5 and rep.program_bytes == MAX_PROGRAM_BYTES
     assert [sm.program for sm in rep.seams] == list(range(2, 6))
