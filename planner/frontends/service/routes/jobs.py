@@ -9,7 +9,7 @@ from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import JSONResponse
 from sqlalchemy import select
 
-from planner.frontends.service.deps import API, Caller, OwnJob, Service, ServiceDep, own_job, principal
+from planner.frontends.service.deps import API, MAX_CURSOR, Caller, OwnJob, Service, ServiceDep, own_job, principal
 from planner.frontends.service.deps import service as _service
 from planner.frontends.service.fast_submit import created
 from planner.frontends.service.schemas import JobCreated, JobList, JobView
@@ -89,10 +89,11 @@ async def submit(request: Request) -> JSONResponse:
 
 @router.get("", response_model=JobList, response_model_exclude_unset=True)
 def list_jobs(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge=1, le=500)] = 50,
-              cursor: Annotated[int | None, Query(ge=0, description="next_cursor of the previous page")] = None
+              cursor: Annotated[int | None, Query(ge=0, le=MAX_CURSOR,
+                                                  description="next_cursor of the previous page")] = None
               ) -> dict:
-    """The caller's jobs, newest first."""
-    q = select(Job).where(Job.owner == who.key_id)
+    """The caller's team's jobs, newest first."""
+    q = select(Job).where(Job.team == who.team)
     if cursor is not None:
         q = q.where(Job.seq < cursor)
     with svc.sessions() as s:
