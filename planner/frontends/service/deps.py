@@ -24,7 +24,7 @@ from planner.frontends.service.tasks.transitions import Transitions
 API = "/v1"
 #: A job's (and an execution's) id: 32 hex digits.
 JOB_ID = re.compile(r"^[0-9a-f]{32}$")
-#: The largest cursor of a list (a row's seq: a signed 64-bit integer in SQLite and PostgreSQL alike).
+#: The largest cursor of a list (422 above): a signed 64-bit integer, what SQLite binds.
 MAX_CURSOR = 2**63 - 1
 
 
@@ -35,6 +35,9 @@ class Service:
         self.cfg = cfg
         bg = cfg.db_url.startswith("sqlite")  # WAL checkpoints (and their fsync) out of the commits requests wait for
         self.engine, self.sessions = open_store(cfg.db_url, background_checkpoints=bg)
+        #: The largest seq a row can have (PostgreSQL's serial is 32-bit): a cursor above it is no limit at all,
+        #: and never bound (PostgreSQL refuses a parameter out of its column's range).
+        self.max_seq = 2**31 - 1 if self.engine.dialect.name == "postgresql" else MAX_CURSOR
         self.checkpointer = Checkpointer(self.engine) if bg else None
         self.metrics = Metrics()
         self.store = Transitions(self.engine)

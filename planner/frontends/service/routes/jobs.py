@@ -94,7 +94,7 @@ def list_jobs(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge=1, le
               ) -> dict:
     """The caller's team's jobs, newest first."""
     q = select(Job).where(Job.team == who.team)
-    if cursor is not None:
+    if cursor is not None and cursor <= svc.max_seq:  # (above: every row is before it)
         q = q.where(Job.seq < cursor)
     with svc.sessions() as s:
         rows = list(s.scalars(q.order_by(Job.seq.desc()).limit(limit + 1)))
