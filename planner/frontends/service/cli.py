@@ -120,9 +120,10 @@ def cmd_serve(args: argparse.Namespace) -> None:
 
 
 def cmd_worker(args: argparse.Namespace) -> None:
-    from planner.frontends.service.tasks.celery_backend import run_worker
+    from planner.frontends.service.tasks.celery_backend import run_worker, worker_queues
 
     cfg = ServiceConfig.from_env(options={"workers": "--concurrency"}, db_url=args.db, workers=args.concurrency)
+    worker_queues(cfg, args.queues)  # (refused before the store is opened, or a file made)
     check_store(args, cfg)
     print(f"planner worker: {cfg.workers} tasks at once on queues {args.queues}; broker {cfg.broker}; db "
           f"{cfg.db_url}", flush=True)
