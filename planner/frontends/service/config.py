@@ -265,7 +265,8 @@ class ServiceConfig(BaseModel):
         Starts of a job (a restart of the service while it runs re-queues it until this many;
         ``PLANNER_MAX_ATTEMPTS``).
     robots : tuple of RobotConfig
-        The robots jobs may be executed on (``PLANNER_ROBOTS``; default: one simulated robot named "sim").
+        The robots jobs may be executed on (``PLANNER_ROBOTS``; default: one simulated robot named "sim"); which of
+        them a team's operators may use is the team's (``planner teams robots``, :mod:`.teams`).
     queue : "local" or "celery"
         The task backend (``PLANNER_QUEUE``): "local" (the default) plans and executes in worker processes of the
         service itself; "celery" sends every task to ``planner worker`` processes on any machine through the broker.

@@ -104,14 +104,15 @@ def list_jobs(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge=1, le
 
 
 @router.get("/{job_id}", response_model=JobView, response_model_exclude_unset=True,
-            responses={404: {"description": "no such job of this key"}})
+            responses={404: {"description": "no such job of this key's team"}})
 def get_job(svc: ServiceDep, job: OwnJob) -> dict:
     """State, progress, timings, the summary the CLI prints, or the planner's error."""
     return job_view(svc, job)
 
 
 @router.delete("/{job_id}", response_model=JobView, response_model_exclude_unset=True,
-               responses={404: {"description": "no such job of this key"}, 409: {"description": "job has ended"}})
+               responses={404: {"description": "no such job of this key's team"},
+                          409: {"description": "job has ended"}})
 def cancel_job(svc: ServiceDep, who: Caller, job: OwnJob) -> dict:
     """Cancel a queued or running job (a running job's worker is stopped within a second)."""
     before = svc.backend.cancel_job(job.id)
