@@ -63,7 +63,8 @@ def server(tmp_path_factory, cell, slow_cell, stop_cell):
     s = ServiceProcess(tmp_path_factory.mktemp("executions"), workers=1, dev=False,
                        env={"PLANNER_ROBOTS": _robots(cell, slow_cell, stop_cell)}).start()
     s.operator = s.keys("create", "--name", "cell operator", "--role", "operator").split("key ")[1].split()[0]
-    s.other = s.keys("create", "--name", "other operator", "--role", "operator").split("key ")[1].split()[0]
+    s.teams("create", "other-cell", "--robots", "all")
+    s.other = s.key("other operator", "operator", "other-cell")  # another team's operator, allowed every robot
     s.planner = s.keys("create", "--name", "cam station", "--role", "planner").split("key ")[1].split()[0]
     yield s
     assert s.stop() == 0, s.log.read_text()
@@ -226,7 +227,7 @@ def test_refusals_name_the_problem(server, op, demo_job):
         r = planner.post(url, json={"robot": "sim"})
         assert r.status_code == 403 and "operator" in r.json()["detail"]
         assert planner.get("/v1/robots").status_code == 200
-    with server.client(server.other) as other:  # another key: neither the job nor its executions exist for it
+    with server.client(server.other) as other:  # another team: neither the job nor its executions exist for it
         assert other.post(url, json={"robot": "sim"}).status_code == 404
         mine = op.get("/v1/executions").json()["executions"]
         if mine:
@@ -236,8 +237,8 @@ def test_refusals_name_the_problem(server, op, demo_job):
     r = op.post(url, json={"robot": "lab"})
     assert r.status_code == 422
     assert r.json()["detail"] == [{"loc": ["body", "robot"], "type": "value_error",
-                                   "msg": "no robot named 'lab' in this service's configuration (configured: sim, "
-                                          "cell, big, slow, estop)"}]
+                                   "msg": "no robot named 'lab' for team 'default' (its robots: sim, cell, big, "
+                                          "slow, estop)"}]
     r = op.post(url, json={"robot": "cell", "host": "10.0.0.9"})  # a request never carries a host
     assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["body", "host"]
     r = op.post(url, json={"robot": "cell", "mode": "teach"})

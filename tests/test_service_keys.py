@@ -1,4 +1,5 @@
-"""API keys on a real service: ``planner keys create|list|revoke``, only hashes stored, roles, isolation (404)."""
+"""API keys on a real service: ``planner keys create|list|revoke``, only hashes stored, roles, isolation of teams
+(404; teams themselves: tests/test_service_teams.py)."""
 
 from __future__ import annotations
 
@@ -20,8 +21,10 @@ def created(out: str) -> tuple[str, str]:
 @pytest.fixture(scope="module")
 def keyed(tmp_path_factory):
     s = ServiceProcess(tmp_path_factory.mktemp("keys"), workers=1, dev=False)
-    keys = {name: created(s.keys("create", "--name", name, "--role", role))
-            for name, role in (("cam-a", "planner"), ("cam-b", "planner"), ("cell", "operator"))}
+    s.teams("create", "b")
+    keys = {name: created(s.keys("create", "--name", name, "--role", role, "--team", team))
+            for name, role, team in (("cam-a", "planner", "default"), ("cam-b", "planner", "b"),
+                                     ("cell", "operator", "default"))}
     s.start()
     yield s, keys
     assert s.stop() == 0, s.log.read_text()
@@ -56,7 +59,7 @@ def test_no_key_or_a_wrong_key_is_401(keyed):
         assert c.get("/healthz").status_code == 200 and c.get("/metrics").status_code == 200
 
 
-def test_a_key_never_sees_another_keys_jobs(keyed):
+def test_a_key_never_sees_another_teams_jobs(keyed):
     s, keys = keyed
     with s.client(keys["cam-a"][1]) as a, s.client(keys["cam-b"][1]) as b:
         job_a = a.post("/v1/jobs", json=PATH).json()["id"]
@@ -81,8 +84,9 @@ def test_executions_need_the_operator_role(keyed):
         wait_state(op, job_op)
         r = op.post(f"/v1/jobs/{job_op}/executions", json={"robot": "sim"})  # past the role check: the job's own
         assert r.status_code == 409 and "planned without a robot model" in r.json()["detail"]
-        assert op.post(f"/v1/jobs/{job_a}/executions", json={"robot": "sim"}).status_code == 404
         wait_state(a, job_a)
+        r = op.post(f"/v1/jobs/{job_a}/executions", json={"robot": "sim"})  # the team's planner's job: seen too
+        assert r.status_code == 409 and "planned without a robot model" in r.json()["detail"]
         wait_state(op, job_op)
 
 
@@ -94,4 +98,4 @@ def test_a_revoked_key_is_refused_at_once(keyed):
         assert f"revoked {key_id}" in s.keys("revoke", key_id)
         assert c.get("/v1/jobs").status_code == 401
     row = next(line for line in s.keys("list").splitlines() if line.startswith(key_id))
-    assert row.split()[1] == "planner" and "-" != row.split()[4]
+    assert row.split()[1:3] == ["planner", "default"] and "-" != row.split()[5]

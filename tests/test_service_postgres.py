@@ -40,7 +40,7 @@ def test_migrations_and_the_one_active_execution_per_robot_index(pg_url):
         assert engine.dialect.name == "postgresql"
         migrate(engine)  # again: nothing to do
         with engine.connect() as conn:
-            assert conn.execute(text("SELECT version_num FROM alembic_version")).scalar() == "0003"
+            assert conn.execute(text("SELECT version_num FROM alembic_version")).scalar() == "0004"
         names = set(inspect(engine).get_table_names())
         assert {"jobs", "api_keys", "executions", "job_data", "workers"} <= names
         with sessions() as s:
@@ -70,8 +70,6 @@ def test_migrations_and_the_one_active_execution_per_robot_index(pg_url):
         engine.dispose()
 
 
-def _key(server: ServiceProcess, name: str, role: str) -> str:
-    return server.keys("create", "--name", name, "--role", role).split("key ")[1].split()[0]
 
 
 def test_the_service_on_postgresql(postgres, tmp_path):
@@ -82,7 +80,8 @@ def test_the_service_on_postgresql(postgres, tmp_path):
     s.db = url  # `planner keys --db` on the same database
     s.start()
     try:
-        a, b = _key(s, "cam a", "operator"), _key(s, "cam b", "planner")
+        s.teams("create", "b")
+        a, b = s.key("cam a", "operator"), s.key("cam b", "planner", "b")
         with s.client(a) as ca, s.client(b) as cb:
             rng = np.random.default_rng(7)
             bodies = [{"waypoints": np.cumsum(rng.uniform(0.01, 0.05, (12, 3)), axis=0).round(6).tolist()}
@@ -93,7 +92,7 @@ def test_the_service_on_postgresql(postgres, tmp_path):
             ids = [r.json()["id"] for r in answers]
             views = [wait_state(ca, i) for i in ids]
             assert all(v["state"] == "done" and v["attempts"] == 1 for v in views), [v["error"] for v in views]
-            # the list: all of them, newest first, in pages; none of them for another key
+            # the list: all of them, newest first, in pages; none of them for another team
             listed, cursor = [], None
             while True:
                 page = ca.get("/v1/jobs", params={"limit": 10, **({"cursor": cursor} if cursor else {})}).json()

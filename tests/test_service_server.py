@@ -132,6 +132,17 @@ class ServiceProcess:
 
     def keys(self, *args: str) -> str:
         """``planner keys ...`` on this service's database (run in this process); its standard output."""
+        return self._command("keys", *args)
+
+    def teams(self, *args: str) -> str:
+        """``planner teams ...`` on this service's database (run in this process); its standard output."""
+        return self._command("teams", *args)
+
+    def key(self, name: str, role: str = "planner", team: str = "default") -> str:
+        """A new key (``planner keys create``) of ``role`` in ``team``: the key itself."""
+        return self.keys("create", "--name", name, "--role", role, "--team", team).split("key ")[1].split()[0]
+
+    def _command(self, command: str, *args: str) -> str:
         import contextlib
         import io
 
@@ -139,7 +150,7 @@ class ServiceProcess:
 
         out = io.StringIO()
         with contextlib.redirect_stdout(out):
-            code = main(["keys", "--db", self.db, *args])
+            code = main([command, "--db", self.db, *args])
         assert code == 0, out.getvalue()
         return out.getvalue()
 

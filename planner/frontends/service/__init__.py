@@ -6,12 +6,13 @@ uses (:mod:`planner.export.verb`: byte for byte the files ``planner plan -o`` wr
 
 Laid out as FastAPI's full-stack template: :mod:`.app` (``create_app``: the lifespan and the wiring),
 :mod:`.routes` (one module per resource: ``jobs``, ``exports``, ``executions``, ``service``), :mod:`.deps` (what
-the routes share, as ``Annotated`` dependencies: the service, the caller, the caller's own job), :mod:`.schemas`
+the routes share, as ``Annotated`` dependencies: the service, the caller, the caller's team's job), :mod:`.schemas`
 (the request and the typed response models, with their unit convention). Beside them: :mod:`.submit` (a job's
 input checked and stored), :mod:`.fast_submit` (the measured fast path of a JSON submit), :mod:`.body_limit`,
 :mod:`.errors` (422 naming the field), :mod:`.config` (settings from the environment), :mod:`.store` (tables,
-engine, migrations), :mod:`.auth` (API keys and roles), :mod:`.tasks` (the task layer: planning and executions
+engine, migrations), :mod:`.auth` (API keys and roles), :mod:`.teams` (teams: whose jobs a key sees, the robots its
+operators may use), :mod:`.tasks` (the task layer: planning and executions
 on robots, one life cycle, run by the local backend's worker processes or by Celery workers), :mod:`.inserter` (new
-jobs in group commits), :mod:`.plots` (the drawing process), :mod:`.cli` (``planner serve``, ``planner worker`` and
-``planner keys``).
+jobs in group commits), :mod:`.plots` (the drawing process), :mod:`.cli` (``planner serve``, ``planner worker``,
+``planner keys`` and ``planner teams``).
 """

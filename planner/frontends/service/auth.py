@@ -1,9 +1,9 @@
 """API keys: created, listed and revoked by ``planner keys``; only the SHA-256 of a key is stored.
 
 A key is ``pk_<id>_<secret>`` (the id names the key in lists and logs; the secret is 32 random bytes). A request
-sends it as ``Authorization: Bearer <key>`` (or ``X-API-Key``). Roles: ``planner`` submits and reads its own jobs,
-``operator`` may also run jobs on robots. A key never sees another key's jobs (404, as for a job that does not
-exist).
+sends it as ``Authorization: Bearer <key>`` (or ``X-API-Key``). A key belongs to a team (:mod:`.teams`); roles:
+``planner`` submits, reads and cancels the team's jobs, ``operator`` may also run them on the team's robots. A key
+never sees another team's jobs (404, as for a job that does not exist).
 """
 
 from __future__ import annotations
@@ -17,20 +17,21 @@ from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from planner.errors import PlannerError
-from planner.frontends.service.store import DEV_OWNER, ROLES, ApiKey, now
+from planner.frontends.service.store import DEFAULT_TEAM, DEV_OWNER, ROLES, ApiKey, Team, now
 
 
 @dataclass(frozen=True)
 class Principal:
-    """Who makes a request: the key's id (the owner of its jobs) and role."""
+    """Who makes a request: the key's id (the owner of the jobs it submits), role and team (whose jobs it sees)."""
 
     key_id: str
     role: str
     name: str = ""
+    team: str = DEFAULT_TEAM
 
 
-#: Everyone in development mode (PLANNER_DEV_NO_AUTH=1): an operator owning the "dev" jobs.
-DEV_PRINCIPAL = Principal(DEV_OWNER, "operator", "development mode")
+#: Everyone in development mode (PLANNER_DEV_NO_AUTH=1): an operator of the default team (jobs owned by "dev").
+DEV_PRINCIPAL = Principal(DEV_OWNER, "operator", "development mode", DEFAULT_TEAM)
 
 
 def key_hash(key: str) -> str:
@@ -38,15 +39,17 @@ def key_hash(key: str) -> str:
     return hashlib.sha256(key.encode("utf-8")).hexdigest()
 
 
-def create_key(session: Session, name: str, role: str) -> tuple[ApiKey, str]:
-    """A new key (stored as its hash) and the key itself, shown once."""
+def create_key(session: Session, name: str, role: str, team: str = DEFAULT_TEAM) -> tuple[ApiKey, str]:
+    """A new key of ``team`` (stored as its hash) and the key itself, shown once."""
     if role not in ROLES:
         raise PlannerError(f"role must be one of {', '.join(ROLES)}, got {role!r}")
     if not name or len(name) > 200:
         raise PlannerError("a key needs a name of 1..200 characters")
+    if session.get(Team, team) is None:
+        raise PlannerError(f"--team: no team {team!r} (planner teams create {team}; planner teams list)")
     key_id = secrets.token_hex(4)
     key = f"pk_{key_id}_{secrets.token_urlsafe(32)}"
-    row = ApiKey(id=key_id, name=name, role=role, key_hash=key_hash(key), created_at=now())
+    row = ApiKey(id=key_id, name=name, role=role, team=team, key_hash=key_hash(key), created_at=now())
     session.add(row)
     session.commit()
     return row, key
@@ -74,4 +77,4 @@ def authenticate(session: Session, key: str | None) -> Principal | None:
     row = session.scalars(select(ApiKey).where(ApiKey.key_hash == digest)).first()
     if row is None or row.revoked_at is not None or not hmac.compare_digest(row.key_hash, digest):
         return None
-    return Principal(row.id, row.role, row.name)
+    return Principal(row.id, row.role, row.name, row.team)

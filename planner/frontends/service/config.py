@@ -27,6 +27,8 @@ from planner.export.job_script import MAX_PROGRAM_BYTES
 ROLES = ("planner", "operator")
 #: Default database: one SQLite file in the working directory.
 DEFAULT_DB = "sqlite:///jobs.sqlite"
+#: The longest planning time a service may allow a job, s (30 days).
+MAX_JOB_TIMEOUT = 30 * 86400.0
 
 
 @dataclass(frozen=True)
@@ -106,13 +108,16 @@ def one_line(exc: ValidationError, names: dict[str, str] | None = None) -> str:
     kind, ctx, got = e["type"], e.get("ctx", {}), e.get("input")
     if kind == "planner":
         return str(ctx["text"])
+    if kind == "planner_field":
+        return f"{field} {ctx['text']}"
     if kind == "extra_forbidden":
         return f"unknown field {field!r}"
     rules = {"literal_error": lambda: f"must be {ctx['expected']}", "greater_than": lambda: f"must be > {ctx['gt']}",
              "greater_than_equal": lambda: f"must be at least {ctx['ge']}",
              "less_than": lambda: f"must be < {ctx['lt']}", "less_than_equal": lambda: f"must be at most {ctx['le']}"}
     rule = rules[kind]() if kind in rules else e["msg"][:1].lower() + e["msg"][1:]
-    return f"{field} {rule}, got {got!r}" if kind in rules else f"{field}: {rule}, got {got!r}"
+    shown = repr(got) if len(repr(got)) <= 80 else f"{repr(got)[:60]}... ({len(str(got))} characters)"
+    return f"{field} {rule}, got {shown}" if kind in rules else f"{field}: {rule}, got {shown}"
 
 
 class RobotSpec(BaseModel):
@@ -260,35 +265,48 @@ class ServiceConfig(BaseModel):
         Starts of a job (a restart of the service while it runs re-queues it until this many;
         ``PLANNER_MAX_ATTEMPTS``).
     robots : tuple of RobotConfig
-        The robots jobs may be executed on (``PLANNER_ROBOTS``; default: one simulated robot named "sim").
+        The robots jobs may be executed on (``PLANNER_ROBOTS``; default: one simulated robot named "sim"); which of
+        them a team's operators may use is the team's (``planner teams robots``, :mod:`.teams`).
     queue : "local" or "celery"
         The task backend (``PLANNER_QUEUE``): "local" (the default) plans and executes in worker processes of the
         service itself; "celery" sends every task to ``planner worker`` processes on any machine through the broker.
     broker : str or None
         The Celery broker's URL, ``redis://HOST:PORT/DB`` (``PLANNER_BROKER``; needed with ``queue="celery"``).
+    worker_nice : int
+        Niceness added to worker processes, 0..19 (``PLANNER_WORKER_NICE``; read by each worker process itself,
+        :data:`.tasks.child.WORKER_NICE`: checked here so that a bad value is refused when the service starts).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
 
-    db_url: str = Field(DEFAULT_DB, min_length=1, json_schema_extra=_env("PLANNER_DB"))
+    db_url: str = Field(DEFAULT_DB, min_length=1, max_length=4096, json_schema_extra=_env("PLANNER_DB"))
     data_dir: Path = Field(Path("jobs.sqlite.data"), json_schema_extra=_env("PLANNER_DATA"))
     workers: int = Field(2, ge=1, le=256, json_schema_extra=_env("PLANNER_WORKERS"))
     dev_no_auth: bool = Field(False, json_schema_extra=_env("PLANNER_DEV_NO_AUTH"))
     max_request_bytes: int = Field(64 * 2**20, ge=1, json_schema_extra=_env("PLANNER_MAX_REQUEST_BYTES"))
     max_waypoints: int = Field(100_000, ge=2, json_schema_extra=_env("PLANNER_MAX_WAYPOINTS"))
-    job_timeout_s: Annotated[float, Field(gt=0, allow_inf_nan=False)] = Field(
+    job_timeout_s: Annotated[float, Field(gt=0, le=MAX_JOB_TIMEOUT, allow_inf_nan=False)] = Field(
         3600.0, json_schema_extra=_env("PLANNER_JOB_TIMEOUT"))
-    max_attempts: int = Field(2, ge=1, json_schema_extra=_env("PLANNER_MAX_ATTEMPTS"))
+    max_attempts: int = Field(2, ge=1, le=1000, json_schema_extra=_env("PLANNER_MAX_ATTEMPTS"))
     robots: tuple[RobotConfig, ...] = Field(DEFAULT_ROBOTS, json_schema_extra=_env("PLANNER_ROBOTS"))
     queue: Literal["local", "celery"] = Field("local", json_schema_extra=_env("PLANNER_QUEUE"))
-    broker: str | None = Field(None, json_schema_extra=_env("PLANNER_BROKER"))
+    broker: str | None = Field(None, max_length=4096, json_schema_extra=_env("PLANNER_BROKER"))
+    worker_nice: int = Field(10, ge=0, le=19, json_schema_extra=_env("PLANNER_WORKER_NICE"))
+
+    @field_validator("db_url")
+    @classmethod
+    def _db_url(cls, url: str) -> str:
+        check_db_url(url)
+        return url
 
     @model_validator(mode="after")
     def _backend(self) -> ServiceConfig:
         if self.queue == "celery" and not self.broker:
             raise _refused("PLANNER_BROKER (the broker's URL, redis://HOST:PORT/0) is needed with PLANNER_QUEUE=celery")
-        if self.broker and not re.match(r"^rediss?://", self.broker):
-            raise _refused(f"PLANNER_BROKER must be a redis:// (or rediss://) URL, got {self.broker!r}")
+        if self.broker:
+            check_broker(self.broker)
+        if self.data_dir.exists() and not self.data_dir.is_dir():
+            raise _refused(f"PLANNER_DATA must be a folder (the service's own), got the file {str(self.data_dir)!r}")
         return self
 
     def robot(self, name: str) -> RobotConfig | None:
@@ -302,16 +320,21 @@ class ServiceConfig(BaseModel):
                 if isinstance(f.json_schema_extra, dict)}
 
     @classmethod
-    def from_env(cls, env: dict | None = None, **overrides) -> ServiceConfig:
+    def from_env(cls, env: dict | None = None, options: dict[str, str] | None = None, **overrides) -> ServiceConfig:
         """The configuration from ``PLANNER_DB``, ``PLANNER_DATA``, ``PLANNER_WORKERS``, ``PLANNER_DEV_NO_AUTH``,
         ``PLANNER_MAX_REQUEST_BYTES``, ``PLANNER_MAX_WAYPOINTS``, ``PLANNER_JOB_TIMEOUT``, ``PLANNER_MAX_ATTEMPTS``,
-        ``PLANNER_ROBOTS``, ``PLANNER_QUEUE``, ``PLANNER_BROKER`` (unset or empty: the default); ``overrides`` (by
-        field name, None: not given) win.
-        PlannerError naming the variable (or the field of an override) for a refused value."""
+        ``PLANNER_ROBOTS``, ``PLANNER_QUEUE``, ``PLANNER_BROKER``, ``PLANNER_WORKER_NICE`` (unset or empty: the
+        default); ``overrides`` (by field name, None: not given) win.
+        PlannerError, one line naming the variable (or the option of an override: :data:`OPTIONS`, or ``options``
+        by field name) and what is expected, for a refused value."""
         env = dict(os.environ if env is None else env)
         names = cls.env_names()
         raw: dict[str, Any] = {name: env[var] for name, var in names.items() if env.get(var)}
-        raw["dev_no_auth"] = env.get(names["dev_no_auth"], "") == "1"
+        dev = env.get(names["dev_no_auth"], "").strip()
+        if dev not in ("", "0", "1"):
+            raise PlannerError(f"PLANNER_DEV_NO_AUTH must be 1 (serve without API keys, loopback only) or 0 (keys "
+                               f"needed, the default), got {dev!r}")
+        raw["dev_no_auth"] = dev == "1"
         raw["robots"] = robots_from_env(env.get(names["robots"]))
         given = {k: v for k, v in overrides.items() if v is not None}
         raw.update(given)
@@ -320,8 +343,64 @@ class ServiceConfig(BaseModel):
         try:
             cfg = cls.model_validate(raw)
         except ValidationError as exc:
-            raise PlannerError(one_line(exc, {k: v for k, v in names.items() if k not in given})) from None
+            raise PlannerError(one_line(exc, {k: v for k, v in names.items() if k not in given}
+                                        | {k: v for k, v in (OPTIONS | (options or {})).items() if k in given})
+                               ) from None
         return cfg.model_copy(update={"data_dir": cfg.data_dir.resolve()})
+
+
+#: The command-line options of the fields (``planner serve``, ``worker``, ``keys``, ``teams``), named in errors of a
+#: value given by an option.
+OPTIONS = {"db_url": "--db", "data_dir": "--data", "workers": "--workers", "job_timeout_s": "--job-timeout"}
+
+#: The database URLs of the job store, as errors show them.
+DB_URLS = "sqlite:///PATH (a file) or postgresql+psycopg://USER@HOST:PORT/DB"
+
+
+def check_db_url(url: str) -> None:
+    """Refuse a database URL that SQLAlchemy cannot parse, a database other than SQLite and PostgreSQL, or one whose
+    driver is not installed (the field's name is put before the message, :func:`one_line`)."""
+    from sqlalchemy.engine import make_url
+    from sqlalchemy.exc import ArgumentError, NoSuchModuleError
+
+    try:
+        u = make_url(url)
+    except (ArgumentError, ValueError):
+        hint = f" (for a file: sqlite:///{url})" if "://" not in url and url.strip() else ""
+        raise _field_refused(f"must be a database URL, {DB_URLS}, got {url!r}{hint}") from None
+    if u.get_backend_name() not in ("sqlite", "postgresql"):
+        raise _field_refused(f"must be a SQLite or PostgreSQL URL, {DB_URLS}, got {u.get_backend_name()!r} in "
+                             f"{u.render_as_string(hide_password=True)!r}")
+    try:
+        u.get_dialect().import_dbapi()
+    except (NoSuchModuleError, ImportError) as exc:
+        raise _field_refused(f"names the driver {u.drivername!r}, which is not installed ({exc}); {DB_URLS}") from None
+    if u.port is not None and not 1 <= u.port <= 65535:
+        raise _field_refused(f"has the port {u.port}, not one of 1..65535: {u.render_as_string(hide_password=True)!r}")
+
+
+def check_broker(url: str) -> None:
+    """Refuse a broker URL that is not ``redis://HOST:PORT/DB`` (or ``rediss://``)."""
+    from urllib.parse import urlsplit
+
+    form = "redis://HOST:PORT/DB (or rediss://)"
+    try:
+        parts = urlsplit(url)
+        port = parts.port
+    except ValueError as exc:
+        raise _refused(f"PLANNER_BROKER must be {form}: {exc}, got {url!r}") from None
+    if parts.scheme not in ("redis", "rediss") or not parts.hostname:
+        raise _refused(f"PLANNER_BROKER must be {form}, got {url!r}")
+    if port is not None and port == 0:
+        raise _refused(f"PLANNER_BROKER: port 0 is no port, got {url!r}")
+    db = parts.path.strip("/")
+    if db and not (db.isdigit() and int(db) < 2**31):
+        raise _refused(f"PLANNER_BROKER must be {form} (DB a number), got {url!r}")
+
+
+def _field_refused(text: str) -> PydanticCustomError:
+    """A validator's refusal whose message follows the field's name (``PLANNER_DB must be ...``)."""
+    return PydanticCustomError("planner_field", "{text}", {"text": text})
 
 
 def default_data_dir(db_url: str) -> Path:

@@ -1,6 +1,6 @@
 """What the routes share, as FastAPI dependencies (``Annotated`` types a route takes as parameters): the service
-(:data:`ServiceDep`: configuration, store, task backend, metrics), the caller (:data:`Caller`) and the caller's own
-job of the path (:data:`OwnJob`, 404 for another key's).
+(:data:`ServiceDep`: configuration, store, task backend, metrics), the caller (:data:`Caller`) and the caller's team's
+job of the path (:data:`OwnJob`, 404 for another team's).
 """
 
 from __future__ import annotations
@@ -24,6 +24,8 @@ from planner.frontends.service.tasks.transitions import Transitions
 API = "/v1"
 #: A job's (and an execution's) id: 32 hex digits.
 JOB_ID = re.compile(r"^[0-9a-f]{32}$")
+#: The largest cursor of a list (422 above): a signed 64-bit integer, what SQLite binds.
+MAX_CURSOR = 2**63 - 1
 
 
 class Service:
@@ -33,6 +35,9 @@ class Service:
         self.cfg = cfg
         bg = cfg.db_url.startswith("sqlite")  # WAL checkpoints (and their fsync) out of the commits requests wait for
         self.engine, self.sessions = open_store(cfg.db_url, background_checkpoints=bg)
+        #: The largest seq a row can have (PostgreSQL's serial is 32-bit): a cursor above it is no limit at all,
+        #: and never bound (PostgreSQL refuses a parameter out of its column's range).
+        self.max_seq = 2**31 - 1 if self.engine.dialect.name == "postgresql" else MAX_CURSOR
         self.checkpointer = Checkpointer(self.engine) if bg else None
         self.metrics = Metrics()
         self.store = Transitions(self.engine)
@@ -116,10 +121,10 @@ Caller = Annotated[Principal, Depends(principal)]
 
 
 def own_job(svc: Service, who: Principal, job_id: str) -> Job:
-    """The caller's job, or 404 (also for another key's job: its existence is not revealed)."""
+    """The caller's team's job, or 404 (also for another team's job: its existence is not revealed)."""
     if JOB_ID.match(job_id):
         with svc.sessions() as s:
-            job = s.scalars(select(Job).where(Job.id == job_id, Job.owner == who.key_id)).first()
+            job = s.scalars(select(Job).where(Job.id == job_id, Job.team == who.team)).first()
         if job is not None:
             return job
     raise HTTPException(404, f"no job {job_id}")
@@ -129,9 +134,9 @@ ServiceDep = Annotated[Service, Depends(service)]
 
 
 def caller_job(job_id: str, svc: ServiceDep, who: Caller) -> Job:
-    """The caller's job named by the path's ``job_id``, or 404 (:func:`own_job`)."""
+    """The caller's team's job named by the path's ``job_id``, or 404 (:func:`own_job`)."""
     return own_job(svc, who, job_id)
 
 
-#: The caller's own job of the path (``/jobs/{job_id}...``), or 404.
+#: The caller's team's job of the path (``/jobs/{job_id}...``), or 404.
 OwnJob = Annotated[Job, Depends(caller_job)]

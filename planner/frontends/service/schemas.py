@@ -272,7 +272,7 @@ class JobList(BaseModel):
 class ExecutionRequest(Strict):
     """Run a done job on a configured robot."""
 
-    robot: str = Field(max_length=32, description="a robot name from the service's configuration (GET /v1/robots)")
+    robot: str = Field(max_length=32, description="the name of a robot of the key's team (GET /v1/robots)")
     mode: Literal["stream", "program"] = Field(
         default="stream", description="stream: servoJ with the planner's joints at the job's rate; program: the "
                                       "job's URScript program on the controller")

@@ -6,6 +6,9 @@ megabytes, 4.2 MB for the whole NX job), all in the database: every API replica 
 plan is stored in the same transaction that marks its job done. Exports are never stored: they are streamed from the
 saved plan.
 
+Teams: a key belongs to a team (:class:`Team`); a job and its executions belong to the team of the key that submitted
+the job (``team``; ``owner`` keeps the key itself). Keys and jobs made before teams are the :data:`DEFAULT_TEAM`'s.
+
 Jobs and executions are tasks of one life cycle (:mod:`.tasks.lifecycle`) and share its columns: state, stage,
 done, total, attempts, holder (the worker process running it, ``host:pid``), heartbeat_at (its holder's last sign
 of life: an execution's lease on its robot expires :data:`.tasks.transitions.LEASE_S` after it), created_at,
@@ -39,10 +42,23 @@ from planner.frontends.service.config import ROLES  # noqa: F401  (re-exported: 
 _ACTIVE = text("state IN ('starting', 'running', 'stopping')")
 #: The owner of jobs in development mode (PLANNER_DEV_NO_AUTH=1).
 DEV_OWNER = "dev"
+#: The team every key and job made before teams belongs to (migration 0004), keys made without ``--team`` and the
+#: development mode's jobs; it may use every configured robot until ``planner teams robots`` says otherwise.
+DEFAULT_TEAM = "default"
 
 
 class Base(DeclarativeBase):
     pass
+
+
+class Team(Base):
+    """A team: its keys' planners see and manage its jobs, its operators run them on the team's robots (names of
+    configured robots, ``PLANNER_ROBOTS``)."""
+
+    __tablename__ = "teams"
+    name: Mapped[str] = mapped_column(String(32), primary_key=True)
+    robots: Mapped[str | None] = mapped_column(Text, nullable=True)  # JSON list of robot names; NULL: every robot
+    created_at: Mapped[float] = mapped_column(Float)
 
 
 class ApiKey(Base):
@@ -52,6 +68,7 @@ class ApiKey(Base):
     id: Mapped[str] = mapped_column(String(32), primary_key=True)
     name: Mapped[str] = mapped_column(String(200))
     role: Mapped[str] = mapped_column(String(16))
+    team: Mapped[str] = mapped_column(String(32), server_default=DEFAULT_TEAM)  # a teams.name
     key_hash: Mapped[str] = mapped_column(String(64), unique=True)
     created_at: Mapped[float] = mapped_column(Float)
     revoked_at: Mapped[float | None] = mapped_column(Float, nullable=True)
@@ -64,6 +81,7 @@ class Job(Base):
     seq: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
     id: Mapped[str] = mapped_column(String(32), unique=True)
     owner: Mapped[str] = mapped_column(String(32))  # an api_keys.id, or "dev"
+    team: Mapped[str] = mapped_column(String(32), server_default=DEFAULT_TEAM)  # the owner's team: who sees the job
     state: Mapped[str] = mapped_column(String(16))
     created_at: Mapped[float] = mapped_column(Float)
     started_at: Mapped[float | None] = mapped_column(Float, nullable=True)
@@ -90,7 +108,7 @@ class Job(Base):
     holder: Mapped[str | None] = mapped_column(String(64), nullable=True)  # worker process running it, host:pid
     heartbeat_at: Mapped[float | None] = mapped_column(Float, nullable=True)
 
-    __table_args__ = (Index("ix_jobs_owner_seq", "owner", "seq"), Index("ix_jobs_state_seq", "state", "seq"))
+    __table_args__ = (Index("ix_jobs_team_seq", "team", "seq"), Index("ix_jobs_state_seq", "state", "seq"))
 
 
 class Execution(Base):
@@ -100,7 +118,8 @@ class Execution(Base):
     seq: Mapped[int] = mapped_column(Integer, primary_key=True, autoincrement=True)
     id: Mapped[str] = mapped_column(String(32), unique=True)
     job_id: Mapped[str] = mapped_column(String(32))
-    owner: Mapped[str] = mapped_column(String(32))
+    owner: Mapped[str] = mapped_column(String(32))  # the operator's key
+    team: Mapped[str] = mapped_column(String(32), server_default=DEFAULT_TEAM)  # its job's team
     robot: Mapped[str] = mapped_column(String(32))  # a configured robot's name
     mode: Mapped[str] = mapped_column(String(16))  # "stream" or "program"
     state: Mapped[str] = mapped_column(String(16))
@@ -121,7 +140,7 @@ class Execution(Base):
     holder: Mapped[str | None] = mapped_column(String(64), nullable=True)  # worker process running it, host:pid
     heartbeat_at: Mapped[float | None] = mapped_column(Float, nullable=True)  # its lease on the robot: + LEASE_S
 
-    __table_args__ = (Index("ix_executions_owner_seq", "owner", "seq"),
+    __table_args__ = (Index("ix_executions_team_seq", "team", "seq"),
                       Index("ux_executions_robot_active", "robot", unique=True, sqlite_where=_ACTIVE,
                             postgresql_where=_ACTIVE))
 
@@ -174,8 +193,9 @@ def make_engine(url: str, *, background_checkpoints: bool = False) -> Engine:
     return create_engine(url, pool_pre_ping=True, pool_size=20, max_overflow=20)  # the service's warm threads
 
 
-def migrate(engine: Engine) -> None:
-    """Bring the database to the newest schema (Alembic ``upgrade head``)."""
+def migrate(engine: Engine, revision: str = "head") -> None:
+    """Bring the database to the newest schema (Alembic ``upgrade head``; ``revision``: to that one, for tests of
+    a migration)."""
     from alembic import command
     from alembic.config import Config
 
@@ -183,7 +203,7 @@ def migrate(engine: Engine) -> None:
     cfg.set_main_option("script_location", str(Path(__file__).resolve().parent / "migrations"))
     with engine.begin() as conn:
         cfg.attributes["connection"] = conn
-        command.upgrade(cfg, "head")
+        command.upgrade(cfg, revision)
 
 
 class Checkpointer(threading.Thread):

@@ -56,8 +56,8 @@ async def accept_json(svc: Service, who: Principal, body: bytes) -> str:
 
 def _row(job_id: str, who: Principal, **values: Any) -> dict:
     """The columns of a new queued job."""
-    return dict(id=job_id, owner=who.key_id, state="queued", created_at=now(), stage="", done=0, total=0, attempts=0,
-                job_bytes=0, **values)
+    return dict(id=job_id, owner=who.key_id, team=who.team, state="queued", created_at=now(), stage="", done=0,
+                total=0, attempts=0, job_bytes=0, **values)
 
 
 def _checked_settings(model: SettingsModel, fmt: str, has_axes: bool, prefix: list) -> str:

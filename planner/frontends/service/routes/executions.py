@@ -2,7 +2,8 @@
 (:class:`.config.RobotConfig`, by name: a request never carries a host), one execution per robot at
 a time; ``GET /v1/executions/{id}`` shows its state, progress and the execution report's figures (or the failure's
 reason, job time, pose and source line); ``DELETE /v1/executions/{id}`` stops it (the arm stopped within a
-second); ``GET /v1/robots`` lists the configured robots. Only keys of the ``operator`` role may execute or stop.
+second); ``GET /v1/robots`` lists the team's robots. A team's keys see its executions; only keys of the
+``operator`` role may execute (on the team's robots, :mod:`..teams`) or stop. An execution belongs to its job's team.
 The runs themselves: the task layer (:mod:`planner.frontends.service.tasks`), on whichever backend.
 """
 
@@ -31,6 +32,7 @@ from planner.frontends.service.store import Execution, now
 from planner.frontends.service.tasks.lifecycle import EXECUTION
 from planner.frontends.service.tasks.runner import STOP_GRACE
 from planner.frontends.service.tasks.transitions import RobotBusy
+from planner.frontends.service.teams import team_robots
 
 router = APIRouter(tags=["executions"])
 
@@ -54,31 +56,35 @@ def execution_view(row: Execution) -> dict:
 
 
 def own_execution(svc: Service, who: Principal, execution_id: str) -> Execution:
-    """The caller's execution, or 404 (also for another key's: its existence is not revealed)."""
+    """The caller's team's execution, or 404 (also for another team's: its existence is not revealed)."""
 
     if JOB_ID.match(execution_id):
         with svc.sessions() as s:
             row = s.scalars(select(Execution).where(Execution.id == execution_id,
-                                                    Execution.owner == who.key_id)).first()
+                                                    Execution.team == who.team)).first()
         if row is not None:
             return row
     raise HTTPException(404, f"no execution {execution_id}")
 
 
 @router.post("/jobs/{job_id}/executions", status_code=202, response_model=ExecutionCreated,
-             responses={403: {"description": "not an operator key"}, 404: {"description": "no such job of this key"},
+             responses={403: {"description": "not an operator key"},
+                        404: {"description": "no such job of this key's team"},
                         409: {"description": "job not done, planned without a robot, not executable on "
                                                     "its robot (summary.not_executable), or the robot is busy"},
-                        422: {"description": "unknown robot, or a robot of another model"}})
+                        422: {"description": "no robot of that name for this key's team, or a robot of another "
+                                             "model"}})
 def create_execution(svc: ServiceDep, job_id: str, body: ExecutionRequest, who: Caller) -> JSONResponse:
-    """Run a done job on a configured robot (by name), in "stream" (servoJ) or "program" (URScript) mode."""
+    """Run a done job of the team on one of the team's robots (by name), in "stream" (servoJ) or "program"
+    (URScript) mode."""
     require_operator(who)
     job = own_job(svc, who, job_id)
-    robot = svc.cfg.robot(body.robot)
-    if robot is None:
-        names = ", ".join(r.name for r in svc.cfg.robots)
-        raise Unprocessable(["body", "robot"], f"no robot named {body.robot!r} in this service's configuration "
-                                               f"(configured: {names})")
+    robots = _team_robots(svc, who)
+    robot = next((r for r in robots if r.name == body.robot), None)
+    if robot is None:  # (a robot of another team is refused as one that is not configured)
+        names = ", ".join(r.name for r in robots) or "none"
+        raise Unprocessable(["body", "robot"], f"no robot named {body.robot!r} for team {who.team!r} (its robots: "
+                                               f"{names})")
     if job.state != "done" or not job.job_file:
         raise HTTPException(409, f"job {job_id} is {job.state}; only a done job can be executed")
     model = json.loads(job.settings).get("robot")
@@ -93,9 +99,9 @@ def create_execution(svc: ServiceDep, job_id: str, body: ExecutionRequest, who: 
         raise HTTPException(409, f"job {job_id} cannot run on its robot: {reason}")
     execution_id = uuid.uuid4().hex
     try:
-        svc.backend.start_execution(dict(id=execution_id, job_id=job.id, owner=who.key_id, robot=robot.name,
-                                         mode=body.mode, state="starting", created_at=now(), stage="starting", done=0,
-                                         total=0))
+        svc.backend.start_execution(dict(id=execution_id, job_id=job.id, owner=who.key_id, team=job.team,
+                                         robot=robot.name, mode=body.mode, state="starting", created_at=now(),
+                                         stage="starting", done=0, total=0))
     except RobotBusy:
         raise HTTPException(409, f"robot {robot.name!r} is busy with another execution; one execution per robot "
                                  "at a time") from None
@@ -108,9 +114,9 @@ def create_execution(svc: ServiceDep, job_id: str, body: ExecutionRequest, who: 
 def list_executions(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge=1, le=500)] = 50,
                     job_id: Annotated[str | None, Query(max_length=32, description="only this job's")] = None
                     ) -> dict:
-    """The caller's executions, newest first."""
+    """The caller's team's executions, newest first."""
 
-    q = select(Execution).where(Execution.owner == who.key_id)
+    q = select(Execution).where(Execution.team == who.team)
     if job_id is not None:
         q = q.where(Execution.job_id == job_id)
     with svc.sessions() as s:
@@ -119,7 +125,7 @@ def list_executions(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge
 
 
 @router.get("/executions/{execution_id}", response_model=ExecutionView,
-            responses={404: {"description": "no such execution of this key"}})
+            responses={404: {"description": "no such execution of this key's team"}})
 def get_execution(svc: ServiceDep, execution_id: str, who: Caller) -> dict:
     """An execution's state, progress, report figures and failure (reason, job time, pose, source line)."""
     return execution_view(own_execution(svc, who, execution_id))
@@ -127,7 +133,7 @@ def get_execution(svc: ServiceDep, execution_id: str, who: Caller) -> dict:
 
 @router.delete("/executions/{execution_id}", response_model=ExecutionView,
                responses={403: {"description": "not an operator key"},
-                          404: {"description": "no such execution of this key"},
+                          404: {"description": "no such execution of this key's team"},
                           409: {"description": "the execution has ended"}})
 def stop_execution(svc: ServiceDep, execution_id: str, who: Caller) -> dict:
     """Stop an execution: the arm is brought to rest (controlled stop) and the job's outputs switched off; answers
@@ -146,7 +152,13 @@ def stop_execution(svc: ServiceDep, execution_id: str, who: Caller) -> dict:
 
 @router.get("/robots", response_model=RobotList)
 def list_robots(svc: ServiceDep, who: Caller) -> dict:
-    """The robots jobs can be executed on: name, model (null: a simulated robot of the job's model), simulated,
-    busy."""
+    """The robots the caller's team may execute jobs on: name, model (null: a simulated robot of the job's model),
+    simulated, busy."""
     return {"robots": [{"name": r.name, "model": r.model, "simulated": r.simulated, "mode_default": "stream",
-                        "busy": svc.store.robot_busy(r.name)} for r in svc.cfg.robots]}
+                        "busy": svc.store.robot_busy(r.name)} for r in _team_robots(svc, who)]}
+
+
+def _team_robots(svc: Service, who: Principal):
+    """The configured robots of the caller's team."""
+    with svc.sessions() as s:
+        return team_robots(s, who.team, svc.cfg.robots)

@@ -16,7 +16,7 @@ from planner.frontends.service.errors import Unprocessable
 from planner.frontends.service.store import Job
 
 router = APIRouter(prefix="/jobs", tags=["exports"])
-_NOT_YOURS: dict[int | str, dict[str, Any]] = {404: {"description": "no such job of this key"},
+_NOT_YOURS: dict[int | str, dict[str, Any]] = {404: {"description": "no such job of this key's team"},
                                                409: {"description": "job not done"}}
 
 

@@ -9,7 +9,7 @@ from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import JSONResponse
 from sqlalchemy import select
 
-from planner.frontends.service.deps import API, Caller, OwnJob, Service, ServiceDep, own_job, principal
+from planner.frontends.service.deps import API, MAX_CURSOR, Caller, OwnJob, Service, ServiceDep, own_job, principal
 from planner.frontends.service.deps import service as _service
 from planner.frontends.service.fast_submit import created
 from planner.frontends.service.schemas import JobCreated, JobList, JobView
@@ -89,11 +89,12 @@ async def submit(request: Request) -> JSONResponse:
 
 @router.get("", response_model=JobList, response_model_exclude_unset=True)
 def list_jobs(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge=1, le=500)] = 50,
-              cursor: Annotated[int | None, Query(ge=0, description="next_cursor of the previous page")] = None
+              cursor: Annotated[int | None, Query(ge=0, le=MAX_CURSOR,
+                                                  description="next_cursor of the previous page")] = None
               ) -> dict:
-    """The caller's jobs, newest first."""
-    q = select(Job).where(Job.owner == who.key_id)
-    if cursor is not None:
+    """The caller's team's jobs, newest first."""
+    q = select(Job).where(Job.team == who.team)
+    if cursor is not None and cursor <= svc.max_seq:  # (above: every row is before it)
         q = q.where(Job.seq < cursor)
     with svc.sessions() as s:
         rows = list(s.scalars(q.order_by(Job.seq.desc()).limit(limit + 1)))
@@ -103,14 +104,15 @@ def list_jobs(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge=1, le
 
 
 @router.get("/{job_id}", response_model=JobView, response_model_exclude_unset=True,
-            responses={404: {"description": "no such job of this key"}})
+            responses={404: {"description": "no such job of this key's team"}})
 def get_job(svc: ServiceDep, job: OwnJob) -> dict:
     """State, progress, timings, the summary the CLI prints, or the planner's error."""
     return job_view(svc, job)
 
 
 @router.delete("/{job_id}", response_model=JobView, response_model_exclude_unset=True,
-               responses={404: {"description": "no such job of this key"}, 409: {"description": "job has ended"}})
+               responses={404: {"description": "no such job of this key's team"},
+                          409: {"description": "job has ended"}})
 def cancel_job(svc: ServiceDep, who: Caller, job: OwnJob) -> dict:
     """Cancel a queued or running job (a running job's worker is stopped within a second)."""
     before = svc.backend.cancel_job(job.id)

@@ -181,6 +181,21 @@ def _register(app) -> None:
         return "ran"
 
 
+def worker_queues(cfg: ServiceConfig, queues: str) -> list[str]:
+    """The queues of ``planner worker --queues``; PlannerError if the configuration is not the celery backend's or a
+    queue is unknown."""
+    from planner.errors import PlannerError
+
+    if cfg.queue != "celery":
+        raise PlannerError("planner worker needs PLANNER_QUEUE=celery and PLANNER_BROKER (redis://HOST:PORT/0)")
+    names = [q.strip() for q in queues.split(",") if q.strip()]
+    unknown = sorted(set(names) - {PLAN_QUEUE, EXECUTE_QUEUE})
+    if not names or unknown:
+        raise PlannerError(f"--queues: {', '.join(unknown) or 'none given'}; the queues are {PLAN_QUEUE} and "
+                           f"{EXECUTE_QUEUE}")
+    return names
+
+
 def run_worker(cfg: ServiceConfig, concurrency: int, queues: str, loglevel: str = "warning") -> None:
     """``planner worker``: a Celery worker (thread pool of ``concurrency``, each thread one worker process) on
     ``queues`` ("plan", "execute" or both, comma-separated). Ends on SIGTERM/SIGINT: running jobs are put back in the
@@ -188,17 +203,7 @@ def run_worker(cfg: ServiceConfig, concurrency: int, queues: str, loglevel: str 
     global _context
     from celery import signals
 
-    if cfg.queue != "celery":
-        from planner.errors import PlannerError
-
-        raise PlannerError("planner worker needs PLANNER_QUEUE=celery and PLANNER_BROKER (redis://HOST:PORT/0)")
-    names = [q.strip() for q in queues.split(",") if q.strip()]
-    unknown = sorted(set(names) - {PLAN_QUEUE, EXECUTE_QUEUE})
-    if not names or unknown:
-        from planner.errors import PlannerError
-
-        raise PlannerError(f"--queues: {', '.join(unknown) or 'none given'}; the queues are {PLAN_QUEUE} and "
-                           f"{EXECUTE_QUEUE}")
+    names = worker_queues(cfg, queues)
     app = make_celery(cfg)
     _context = WorkerContext(cfg, ",".join(names), concurrency)
     ctx = _context

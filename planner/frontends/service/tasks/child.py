@@ -18,8 +18,18 @@ import queue
 import signal
 import threading
 
-#: Niceness added to worker processes (PLANNER_WORKER_NICE, default 10).
-WORKER_NICE = int(os.environ.get("PLANNER_WORKER_NICE", "10") or 0)
+
+def _nice(value: str) -> int:
+    """PLANNER_WORKER_NICE as a worker process reads it (the service refused a bad value when it started,
+    :class:`..config.ServiceConfig`; here one is taken as the default, 10, and never ends the process)."""
+    try:
+        return min(max(int(value.strip() or 10), 0), 19)
+    except ValueError:
+        return 10
+
+
+#: Niceness added to worker processes (PLANNER_WORKER_NICE, 0..19, default 10).
+WORKER_NICE = _nice(os.environ.get("PLANNER_WORKER_NICE", ""))
 
 
 def name_process(name: str) -> None:
