@@ -89,6 +89,15 @@ HAAS = Excerpt(
     "nx2022_haas_umc750_5axis_gcode.txt",
     ((1, 76), (1385, 1659), (15501, 15655), (15961, 16121)),
 )
-EXCERPTS = {e.name: e for e in (NX, SW, HAAS)}
+#: The NX CLSF job again: the pass of lines 17682-17698, whose JSON export moved by one ulp when the PH quintic
+#: member's axis was computed in another order (issue 25), between passes that carry the modal tool axis to it and
+#: back to the last rapid's.
+NX_ROUNDING = Excerpt(
+    "nx_clsf_ust_a2_rounding_excerpt.cls",
+    "nx_clsf_variable_contour_ust_a2.cls",
+    ((1, 16), (4467, 4510), (7832, 7886), (10721, 10771), (17681, 17743), (17872, 17929), (20753, 20769),
+     (22237, 22242)),
+)
+EXCERPTS = {e.name: e for e in (NX, SW, HAAS, NX_ROUNDING)}
 
 NX_HEAD = NX.head(100)

@@ -3,7 +3,8 @@
 ``tests/data/corpus.json`` holds one case per input and way of planning it (``plan`` with given settings, or ``fit``
 with the spline methods), and the figures the current code gave when the case was frozen: counts (passes, moves,
 rapids, corners, ...), lengths, deviations, the duration, the first and last poses, and for the small inputs the
-SHA-256 of the exports' data rows (CSV, URScript). ``tests/test_corpus.py`` plans every case again and compares,
+SHA-256 of the exports' data rows (CSV, URScript) and of the JSON export's moves table (each move's duration to the
+last bit: a member of a fit moved by round-off moves it, while the CSV's printed digits stay the same). ``tests/test_corpus.py`` plans every case again and compares,
 each figure within the tolerance of its kind (:data:`TOLERANCES`); a failure names the case's file and the figure.
 
 A figure that moves on purpose is frozen again in the same commit, with the reason in the commit message::
@@ -58,7 +59,7 @@ FIGURE_KINDS: dict[str, str] = {
     "max_deviation_mm": "deviation_mm", "max_waypoint_error_mm": "deviation_mm",
     "max_twist_vs_exact_rmf_deg": "angle_deg", "max_axis_error_deg": "angle_deg", "spin_deg": "angle_deg",
     "first_pose": "pose", "last_pose": "pose",
-    "csv_rows_sha256": "hash", "script_sha256": "hash",
+    "csv_rows_sha256": "hash", "script_sha256": "hash", "moves_sha256": "hash",
     # fit cases: one entry per method
     "length": "length_mm", "waypoint_error_mm": "deviation_mm", "segments": "count",
 }
@@ -132,6 +133,8 @@ def plan_figures(case: dict) -> dict:
                 out["csv_rows_sha256"] = _data_rows_sha256(target.read_text(), "#")
             if "script" in exports:
                 out["script_sha256"] = _data_rows_sha256(job_program(job), "#")
+    if "moves" in exports:  # the moves table as the JSON export writes it (planner/export/tables.py)
+        out["moves_sha256"] = hashlib.sha256(json.dumps(tr.moves(), allow_nan=False).encode()).hexdigest()
     return out
 
 

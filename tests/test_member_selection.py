@@ -560,3 +560,77 @@ def test_straight_ties_go_to_a_member_without_a_stop(rule):
         sp = PHQuintic.from_quaternions(*RULES[rule](*args)[..., 0]).speed(t)
         stops += sp.min() <= 1e-3 * np.median(sp)
     assert checked > 800 and stops <= 2, (checked, stops)
+
+
+# ---------------------------------------------------------------------------------------------
+# The axis's arithmetic: the exports of every job depend on its rounding (issue 25: byte-identical exports)
+# ---------------------------------------------------------------------------------------------
+
+
+def _plain_axis(R, lam, dp):
+    """ph_quintic._pure_vector_axis with _blended_axis as at 2d3a501, frozen here verbatim (but for the names): the
+    plain formulas, whose rounding the members, the moves' durations and so the JSON export of every job carry."""
+    sc, ss = R[3], R[7]
+    s2 = sc * sc + ss * ss
+    k = 1.0 / np.sqrt(s2)
+    np.copysign(k, np.where(np.abs(ss) >= np.abs(sc), -ss, sc), out=k)
+    c, s = -ss * k, sc * k
+    near = np.flatnonzero(~(s2 >= ph_quintic._AXIS_FADE * lam))
+    if near.size:
+        Rn, lamn, dpn, s2n = R[:, near], lam[near], dp[:, near], s2[near]
+        scn, ssn = Rn[3], Rn[7]
+        bc, bs = _dot(Rn[:3], dpn), _dot(Rn[4:7], dpn)
+        w = _AXIS_FALLBACK * (1.0 - s2n / (ph_quintic._AXIS_FADE * lamn)) / (lamn * _dot(dpn, dpn))
+        w = np.where(np.isfinite(w), w, 0.0)
+        il = np.where(lamn > 0, 1.0 / lamn, 0.0)
+        Dx = (ssn * ssn - scn * scn) * il + (bc * bc - bs * bs) * w
+        Dy = (-2.0 * il) * ssn * scn + (2.0 * w) * bc * bs
+        r = np.hypot(Dx, Dy)
+        pos = Dx >= 0
+        x, y = np.where(pos, r + Dx, Dy), np.where(pos, Dy, r - Dx)
+        n = np.hypot(x, y)
+        ok = n > 0
+        c[near], s[near] = np.where(ok, x / n, 1.0), np.where(ok, y / n, 0.0)
+    return c, s
+
+
+def _axis_inputs(kind: str, n: int, seed: int):
+    """(R, r0, r1, dp) of n random segments of a kind, as _least_energy_block passes them to _pure_vector_axis."""
+    dp, d0, d1 = spline_data(n, seed) if kind == "spline" else hermite_data(kind, n, seed)
+    a, r = sqrt_rot(np.hstack((d0, d1)))
+    R = _PRODUCTS @ np.multiply(a[:, :n][:, None], a[:, n:][None]).reshape(16, n)
+    return R, r[:n], r[n:], dp
+
+
+@pytest.mark.parametrize("kind", KINDS + ("spline",))
+def test_the_axis_rounds_as_the_plain_formulas(kind):
+    """Wherever the plain formulas of 2d3a501 neither under- nor overflow, the axis is theirs bit for bit, in sigma's
+    branch and in the blend of near-antiparallel tangents: beab05b (issue 24) took 1 / hypot(sc, ss) for
+    1 / sqrt(s2) and a blend relative to sqrt(lam) and |dp|, which moved members by round-off and 1326 move
+    durations of the whole NX job's JSON export by one ulp."""
+    R, r0, r1, dp = _axis_inputs(kind, 20_000, seed=40 + (KINDS + ("spline",)).index(kind))
+    with np.errstate(all="ignore"):
+        want = _plain_axis(R, r0 * r1, dp)
+        got = ph_quintic._pure_vector_axis(R, r0, r1, dp)
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    if kind == "hairpin":  # the blend is exercised
+        assert np.count_nonzero(R[3] ** 2 + R[7] ** 2 < ph_quintic._AXIS_FADE * r0 * r1) > 1000
+
+
+@pytest.mark.parametrize("tangents, chord", [(-255, 0), (255, 0), (0, -255), (0, 255), (-255, 255), (255, -255)])
+def test_the_axis_is_the_same_at_any_scale(tangents, chord):
+    """Tangents scaled by 4^tangents and the chord by 4^chord (so a0, a2 by 2^tangents, R and |a|^2 by 4^tangents;
+    here 2^-510 to 2^510, where |a0|^2 |a2|^2 and the plain formulas' squares under- or overflow) give the axis of
+    the unscaled data bit for bit: every scaling inside the axis is exact, so it rounds at every scale as at 1."""
+    R, r0, r1, dp = _axis_inputs("hairpin", 5000, seed=61)
+    R2, r0b, r1b, dp2 = _axis_inputs("rough spatial", 5000, seed=62)
+    R, r0, r1, dp = np.hstack((R, R2)), np.concatenate((r0, r0b)), np.concatenate((r1, r1b)), np.hstack((dp, dp2))
+    with np.errstate(all="ignore"):
+        want = ph_quintic._pure_vector_axis(R, r0, r1, dp)
+        got = ph_quintic._pure_vector_axis(np.ldexp(R, 2 * tangents), np.ldexp(r0, 2 * tangents),
+                                           np.ldexp(r1, 2 * tangents), np.ldexp(dp, 2 * chord))
+        plain = _plain_axis(np.ldexp(R, 2 * tangents), np.ldexp(r0 * r1, 4 * tangents), np.ldexp(dp, 2 * chord))
+    np.testing.assert_array_equal(got[0], want[0])
+    np.testing.assert_array_equal(got[1], want[1])
+    assert not np.array_equal(plain[0], want[0])  # where the plain formulas lost it

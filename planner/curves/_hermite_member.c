@@ -168,31 +168,44 @@ typedef struct {
     Rule screen, screen_lo, full, full_lo;
 } Constants;
 
-/* ph_quintic._pure_vector_axis (with _blended_axis) for one segment: (c, s) of delta0; r0, r1 = |a0|^2, |a2|^2. */
+/* ph_quintic._even_exponent: the even e with x 2^-e in [0.5, 2) for a positive finite x; 0 for 0, inf or nan. */
+static int even_exponent(double x)
+{
+    int e = 0;
+    if (isfinite(x))
+        frexp(x, &e);
+    return e & ~1;
+}
+
+/* ph_quintic._pure_vector_axis (with _blended_axis) for one segment: (c, s) of delta0; r0, r1 = |a0|^2, |a2|^2.
+ * The operands scaled by powers of two as there (exact: every operation rounds as unscaled wherever that neither
+ * under- nor overflows, and none does whatever the sizes of the tangents and the chord). */
 static void pure_vector_axis(const double *R, double r0, double r1, const double *dp, const Constants *k, double *c,
                              double *s)
 {
-    double sc = R[3], ss = R[7];
+    int e0 = even_exponent(r0), e1 = even_exponent(r1), e = (e0 + e1) / 2;
+    double lam = ldexp(r0, -e0) * ldexp(r1, -e1);
+    double sc = ldexp(R[3], -e), ss = ldexp(R[7], -e);
     double s2 = sc * sc + ss * ss;
-    if (s2 >= k->axis_fade * (r0 * r1) && s2 > 0.0) {
-        double h = 1.0 / hypot(sc, ss);
+    if (s2 >= k->axis_fade * lam && s2 > 0.0) {
+        double h = 1.0 / sqrt(s2);
         h = copysign(h, fabs(ss) >= fabs(sc) ? -ss : sc);
         *c = -ss * h;
         *s = sc * h;
         return;
     }
-    double nl = sqrt(r0) * sqrt(r1);
-    double il = nl > 0.0 ? 1.0 / nl : 0.0;
-    double L = hypot(hypot(dp[0], dp[1]), dp[2]);
-    double idp = L > 0.0 ? 1.0 / L : 0.0;
-    double u[3] = {dp[0] * idp, dp[1] * idp, dp[2] * idp};
-    sc *= il;
-    ss *= il;
-    double bc = (R[0] * u[0] + R[1] * u[1] + R[2] * u[2]) * il;
-    double bs = (R[4] * u[0] + R[5] * u[1] + R[6] * u[2]) * il;
-    double w = k->axis_fallback * (1.0 - (sc * sc + ss * ss) / k->axis_fade);
-    double Dx = (ss * ss - sc * sc) + (bc * bc - bs * bs) * w;
-    double Dy = -2.0 * ss * sc + (2.0 * w) * bc * bs;
+    double m = fmax(fabs(dp[0]), fmax(fabs(dp[1]), fabs(dp[2])));
+    int f = even_exponent(m);
+    double u[3] = {ldexp(dp[0], -f), ldexp(dp[1], -f), ldexp(dp[2], -f)};
+    double bc = ldexp(R[0], -e) * u[0] + ldexp(R[1], -e) * u[1] + ldexp(R[2], -e) * u[2];
+    double bs = ldexp(R[4], -e) * u[0] + ldexp(R[5], -e) * u[1] + ldexp(R[6], -e) * u[2];
+    double w = k->axis_fallback * (1.0 - s2 / (k->axis_fade * lam))
+               / (lam * (u[0] * u[0] + u[1] * u[1] + u[2] * u[2]));
+    if (!isfinite(w))
+        w = 0.0;
+    double il = lam > 0.0 ? 1.0 / lam : 0.0;
+    double Dx = (ss * ss - sc * sc) * il + (bc * bc - bs * bs) * w;
+    double Dy = (-2.0 * il) * ss * sc + (2.0 * w) * bc * bs;
     double r = hypot(Dx, Dy);
     double x = Dx >= 0.0 ? r + Dx : Dy, y = Dx >= 0.0 ? Dy : r - Dx;
     double n = hypot(x, y);

@@ -156,34 +156,47 @@ def _pure_vector_axis(R, r0, r1, dp):
     map mirror-symmetric data onto their reversal), and so is the weight (|sigma| is invariant), so their blend
     is too. The sign of z is that of the half angle: cos delta >= 0 where |ss| >= |sc|, sin delta > 0 elsewhere.
     A zero end tangent (r0 or r1 = 0: a2 e^{i delta} or a0 is 0 for every delta) gives delta = 0.
+
+    The formulas run on operands scaled by powers of two (:func:`_even_exponent`): |a0|^2 and |a2|^2 into [0.5, 2),
+    sigma and the products R with the root of their product, dp by its largest component's. Such a scaling is exact,
+    so every product, sum, quotient and root is rounded as without it wherever that neither under- nor overflows
+    (the members of 2d3a501 and before, bit for bit: the moves' durations and the exports stay byte-identical),
+    and none under- or overflows whatever the tangents' and the chord's sizes (a chord 1e-160 of the tangents, or a
+    tangent 1e-320 of the chord, gave 0 * inf = nan; |sigma|^2 could underflow).
     Call under np.errstate(divide="ignore", invalid="ignore").
     """
+    e0, e1 = _even_exponent(r0), _even_exponent(r1)
+    r0, r1 = np.ldexp(r0, -e0), np.ldexp(r1, -e1)
+    R = np.ldexp(R[:8], -((e0 + e1) // 2))
+    lam = r0 * r1
     sc, ss = R[3], R[7]
     s2 = sc * sc + ss * ss
-    k = 1.0 / np.hypot(sc, ss)  # (not 1 / sqrt(s2): sigma may be as small as sqrt(r0 r1) ~ 1e-162, s2 would underflow)
+    k = 1.0 / np.sqrt(s2)
     np.copysign(k, np.where(np.abs(ss) >= np.abs(sc), -ss, sc), out=k)  # the sign of the half angle (see above)
     c, s = -ss * k, sc * k
-    near = np.flatnonzero(~((s2 >= _AXIS_FADE * (r0 * r1)) & (s2 > 0.0)))
+    near = np.flatnonzero(~((s2 >= _AXIS_FADE * lam) & (s2 > 0.0)))
     if near.size:
-        c[near], s[near] = _blended_axis(R[:, near], r0[near], r1[near], dp[:, near])
+        c[near], s[near] = _blended_axis(R[:, near], lam[near], dp[:, near], s2[near])
     return c, s
 
 
-def _blended_axis(R, r0, r1, dp):
-    """:func:`_pure_vector_axis` where |sigma|^2 < _AXIS_FADE lam: sigma's axis blended with b's (see there).
+def _even_exponent(x):
+    """The even exponents e (N,) (int) with x 2^-e in [0.5, 2) for positive finite x (N,); 0 for 0, inf or nan."""
+    e = np.frexp(x)[1] & ~1
+    return np.where(np.isfinite(x), e, 0)
 
-    Both are taken relative to their largest values, sigma / sqrt(lam) and b / (sqrt(lam) |dp|) (at most 1), so
-    that no square under- or overflows whatever the tangents' and the chord's sizes (a chord 1e-160 of the
-    tangents, or a tangent 1e-320 of the chord, gave 0 * inf = nan); a zero tangent has neither axis: (1, 0)."""
-    nl = np.sqrt(r0) * np.sqrt(r1)  # sqrt(lam) = |a0| |a2|
-    il = np.where(nl > 0, 1.0 / nl, 0.0)
-    L = np.hypot(np.hypot(dp[0], dp[1]), dp[2])
-    idp = np.where(L > 0, 1.0 / L, 0.0)
-    sc, ss = R[3] * il, R[7] * il
-    bc, bs = _dot(R[:3], dp * idp) * il, _dot(R[4:7], dp * idp) * il
-    w = _AXIS_FALLBACK * (1.0 - (sc * sc + ss * ss) / _AXIS_FADE)
-    Dx = (ss * ss - sc * sc) + (bc * bc - bs * bs) * w  # doubled angle of sigma_perp = (-ss, sc) ...
-    Dy = -2.0 * ss * sc + (2.0 * w) * bc * bs  # ... and of b
+
+def _blended_axis(R, lam, dp, s2):
+    """:func:`_pure_vector_axis` where |sigma|^2 < _AXIS_FADE lam: sigma's axis blended with b's (see there); R, lam
+    and s2 as scaled there, dp (3, N) scaled here (a zero tangent has neither axis: (1, 0))."""
+    dp = np.ldexp(dp, -_even_exponent(np.abs(dp).max(axis=0)))
+    sc, ss = R[3], R[7]
+    bc, bs = _dot(R[:3], dp), _dot(R[4:7], dp)
+    w = _AXIS_FALLBACK * (1.0 - s2 / (_AXIS_FADE * lam)) / (lam * _dot(dp, dp))
+    w = np.where(np.isfinite(w), w, 0.0)
+    il = np.where(lam > 0, 1.0 / lam, 0.0)
+    Dx = (ss * ss - sc * sc) * il + (bc * bc - bs * bs) * w  # doubled angle of sigma_perp = (-ss, sc) ...
+    Dy = (-2.0 * il) * ss * sc + (2.0 * w) * bc * bs  # ... and of b
     r = np.hypot(Dx, Dy)
     # half angle: (r + Dx, Dy) ~ z for Dx >= 0 and (Dy, r - Dx) ~ z otherwise (no cancellation either way)
     pos = Dx >= 0
