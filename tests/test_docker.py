@@ -74,7 +74,7 @@ def _execute_on_the_cell(client: httpx.Client, job: dict, stack: ComposeStack) -
     r = client.post(f"/v1/jobs/{job['id']}/executions", json={"robot": "cell", "mode": "program"})
     assert r.status_code == 202, r.text
     view = wait_execution(client, r.json()["id"], timeout=300)
-    assert view["state"] == "done", (view, stack.logs())
+    assert view["state"] == "done", f"execution {view['state']}: {view['error']}\n{view}\n{stack.logs()}"
     rep = view["report"]
     assert rep["ok"] and rep["failure"] is None and rep["mode"] == "program"
     assert 0.0 < rep["max_path_error_m"] < 0.2e-3, rep["describe"]

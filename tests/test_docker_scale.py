@@ -13,6 +13,7 @@ executed on the simulated "cell" robot through the other. ``down -v`` leaves no 
 
 from __future__ import annotations
 
+import concurrent.futures
 import json
 import time
 
@@ -107,15 +108,20 @@ def test_scaled_stack_200_jobs_through_two_replicas_a_worker_killed_each_job_don
             assert r.status_code == 202, r.text
             demo = r.json()["id"]
 
-            t0 = time.monotonic()
-            ids: list[str] = []
-            for i in range(JOBS):  # alternately to api-1 and api-2, each at its own address
+            def submit(i: int) -> tuple[str, float]:
+                tic = time.monotonic()
                 r = replicas[i % 2].post("/v1/jobs", files={"file": (f"helix-{i}.csv", waypoints_csv(i))})
                 assert r.status_code == 202, (i, r.text)
-                ids.append(r.json()["id"])
+                return r.json()["id"], time.monotonic() - tic
+
+            t0 = time.monotonic()
+            # alternately to api-1 and api-2, each at its own address, four requests at a time
+            with concurrent.futures.ThreadPoolExecutor(4) as pool:
+                submitted = list(pool.map(submit, range(JOBS)))
+            ids, latencies = [s[0] for s in submitted], [s[1] for s in submitted]
             TIMES[f"{JOBS} jobs submitted"] = time.monotonic() - t0
-            NOTES.append(f"{JOBS} submissions: {TIMES[f'{JOBS} jobs submitted'] / JOBS * 1e3:.0f} ms each on "
-                         f"average while the workers plan")
+            p50, p99 = np.percentile(latencies, [50, 99]) * 1e3
+            NOTES.append(f"{JOBS} submissions, 4 at a time while the workers plan: p50 {p50:.0f} ms, p99 {p99:.0f} ms")
             assert len(set(ids)) == JOBS
 
             # a worker container killed while it holds running jobs (a third of the jobs done, most still to run)
