@@ -2,12 +2,15 @@
 
 :class:`ComposeStack` runs Compose (Debian's ``docker-compose`` 1.29, or Compose v2's ``docker compose``: the files
 read the same in both) with a project name of its own, so that a test never meets another run's containers, and
-``down`` removes every container, network and volume of it. The helpers raise AssertionError with the services' logs
-when a service does not come up; nothing skips.
+``down`` removes every container, network and volume of it (the anonymous volumes of the images' ``VOLUME``s too,
+which carry no project label: :meth:`ComposeStack.resources` still finds those it saw). The helpers raise
+AssertionError with the services' logs when a service does not come up; nothing skips. :func:`planner_image` builds
+the planner's image once per test session, :func:`print_times` shows a module's step times in the test report.
 """
 
 from __future__ import annotations
 
+import contextlib
 import ipaddress
 import json
 import os
@@ -17,9 +20,53 @@ import time
 import uuid
 from pathlib import Path
 
-from tests.docker_images import ROOT, compose_command, docker, run
+from tests.docker_images import PYTHON, ROOT, compose_command, docker, ensure_test_images, run
 
 DOCKER = ROOT / "docker"
+#: The planner's image the tests build (a tag of its own: a user's ph-toolpath-planner:latest is left alone).
+IMAGE = "ph-toolpath-planner:test"
+_built: list[str] = []
+
+
+def planner_image(times: dict[str, float]) -> str:
+    """The planner's image :data:`IMAGE`, built by Compose from docker/compose.yaml's build section FROM the local
+    stand-in for python:3.11-slim, once per session (a later call finds it built); the seconds of each step added to
+    ``times``."""
+    if _built:
+        return _built[0]
+    for tag, seconds in ensure_test_images((PYTHON,)).items():
+        times[f"stand-in {tag}"] = seconds
+    before = image_id(IMAGE)
+    t0 = time.monotonic()
+    ComposeStack(DOCKER / "compose.yaml", {"PLANNER_IMAGE": IMAGE, "PLANNER_BASE_IMAGE": PYTHON}).compose(
+        "build", "planner", timeout=1800)
+    times["image build"] = time.monotonic() - t0
+    if before and before != image_id(IMAGE):  # the former build's 430 MB of installed packages, untagged now
+        docker("image", "rm", before, check=False)
+    _built.append(IMAGE)
+    return IMAGE
+
+
+def image_id(tag: str) -> str:
+    """The image id of ``tag``; "" when there is none."""
+    return run(["docker", "image", "inspect", "--format", "{{.Id}}", tag], timeout=60, what="docker image inspect",
+               check=False).stdout.decode().strip()
+
+
+def print_times(config, title: str, times: dict[str, float], notes: list[str] | None = None) -> None:
+    """``times`` (step: seconds) and ``notes`` (lines) written to the test session's report (also under -q and
+    without -s)."""
+    reporter = config.pluginmanager.get_plugin("terminalreporter")
+    capture = config.pluginmanager.get_plugin("capturemanager")
+    lines = [f"{title} step {name}: {seconds:.1f} s" for name, seconds in times.items()]
+    lines += [f"{title}: {note}" for note in notes or []]
+    if reporter is None:
+        print("\n".join(lines))
+        return
+    with capture.global_and_fixture_disabled() if capture else contextlib.nullcontext():
+        reporter.write_line("")
+        for line in lines:
+            reporter.write_line(line)
 
 
 def free_port() -> int:
@@ -57,6 +104,8 @@ class ComposeStack:
         self.project = f"plannertest{uuid.uuid4().hex[:10]}"
         self.env = {**os.environ, **env}
         self.command = compose_command()
+        #: Every volume seen mounted in the project's containers (named or anonymous), for :meth:`resources`.
+        self.volumes_seen: set[str] = set()
 
     def compose(self, *args: str, timeout: float = 300.0, check: bool = True) -> str:
         """``compose -p PROJECT -f FILE ARGS`` run to its end; its standard output."""
@@ -95,6 +144,19 @@ class ComposeStack:
             time.sleep(0.5)
         return time.monotonic() - t0
 
+    def address(self, service: str, index: int = 0) -> str:
+        """The IP address of ``service``'s container number ``index`` on the project's default network (reached from
+        the host through the engine's bridge: a replica addressed directly, past the proxy)."""
+        info = json.loads(docker("inspect", self.containers(service)[index], timeout=60))[0]
+        return info["NetworkSettings"]["Networks"][f"{self.project}_default"]["IPAddress"]
+
+    def _note_volumes(self) -> None:
+        label = f"label=com.docker.compose.project={self.project}"
+        ids = docker("ps", "--all", "--quiet", "--filter", label, timeout=60).split()
+        if ids:
+            for info in json.loads(docker("inspect", *ids, timeout=60)):
+                self.volumes_seen.update(m["Name"] for m in info["Mounts"] if m["Type"] == "volume")
+
     def exec(self, service: str, *args: str, timeout: float = 120.0) -> str:
         """``args`` run in ``service``'s container (no terminal); its standard output."""
         return self.compose("exec", "-T", service, *args, timeout=timeout)
@@ -105,12 +167,17 @@ class ComposeStack:
         return out[-6000:]
 
     def resources(self) -> dict[str, list[str]]:
-        """The project's containers, networks and volumes left on the engine (by Compose's project label)."""
+        """The project's containers, networks and volumes left on the engine (by Compose's project label, and the
+        volumes its containers were seen to mount before :meth:`down`)."""
         label = f"label=com.docker.compose.project={self.project}"
-        return {kind: docker(*cmd, "--filter", label, "--quiet", timeout=60).split()
+        left = {kind: docker(*cmd, "--filter", label, "--quiet", timeout=60).split()
                 for kind, cmd in (("containers", ("ps", "--all")), ("networks", ("network", "ls")),
                                   ("volumes", ("volume", "ls")))}
+        every = set(docker("volume", "ls", "--quiet", timeout=60).split())
+        left["volumes"] = sorted(set(left["volumes"]) | (self.volumes_seen & every))
+        return left
 
     def down(self) -> None:
-        """Containers stopped and removed with the project's networks and volumes."""
+        """Containers stopped and removed with the project's networks and volumes (the anonymous ones too)."""
+        self._note_volumes()
         self.compose("down", "--volumes", "--remove-orphans", "--timeout", "10", timeout=300)

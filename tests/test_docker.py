@@ -20,16 +20,14 @@ import numpy as np
 import pytest
 
 from planner.frontends.cli.main import DEMO_PART_FRAME
-from tests.compose_stack import DOCKER, ComposeStack, free_port, free_subnet
-from tests.docker_images import PYTHON, ROOT, docker, ensure_test_images, run
+from tests.compose_stack import DOCKER, ComposeStack, free_port, free_subnet, planner_image, print_times
+from tests.docker_images import PYTHON, ROOT, docker, run
 from tests.test_service_executions import wait_execution
 from tests.test_service_jobs import cli_outputs, cli_settings
 from tests.test_service_server import wait_state
 
 pytestmark = pytest.mark.docker
 
-#: The image the tests build (a tag of its own: a user's ph-toolpath-planner:latest is left alone).
-IMAGE = "ph-toolpath-planner:test"
 DEMO = ROOT / "examples" / "nx_first_pass.cls"
 #: The demo pass for the stack's ur5e at 4x its feed (16 s of motion), outputs on standard[0] while cutting.
 OPTIONS = ["--robot", "ur5e", "--part-frame", DEMO_PART_FRAME, "--feed-override", "4", "--cut-output", "standard:0"]
@@ -38,30 +36,15 @@ TIMES: dict[str, float] = {}
 
 
 @pytest.fixture(scope="module", autouse=True)
-def report_times():
+def report_times(request):
     yield
-    print("\n" + "\n".join(f"docker step {name}: {seconds:.1f} s" for name, seconds in TIMES.items()))
+    print_times(request.config, "docker", TIMES)
 
 
 @pytest.fixture(scope="module")
 def image() -> str:
     """The planner's image built by Compose from docker/compose.yaml's build section, FROM the local stand-in."""
-    for tag, seconds in ensure_test_images((PYTHON,)).items():
-        TIMES[f"stand-in {tag}"] = seconds
-    before = _image_id(IMAGE)
-    t0 = time.monotonic()
-    ComposeStack(DOCKER / "compose.yaml", {"PLANNER_IMAGE": IMAGE, "PLANNER_BASE_IMAGE": PYTHON}).compose(
-        "build", "planner", timeout=1800)
-    TIMES["image build"] = time.monotonic() - t0
-    if before and before != _image_id(IMAGE):  # the former build's 430 MB of installed packages, untagged now
-        docker("image", "rm", before, check=False)
-    return IMAGE
-
-
-def _image_id(tag: str) -> str:
-    """The image id of ``tag``; "" when there is none."""
-    return run(["docker", "image", "inspect", "--format", "{{.Id}}", tag], timeout=60, what="docker image inspect",
-               check=False).stdout.decode().strip()
+    return planner_image(TIMES)
 
 
 def test_the_image_builds_from_the_debian_stand_in_and_carries_the_service(image):
@@ -91,7 +74,7 @@ def _execute_on_the_cell(client: httpx.Client, job: dict, stack: ComposeStack) -
     r = client.post(f"/v1/jobs/{job['id']}/executions", json={"robot": "cell", "mode": "program"})
     assert r.status_code == 202, r.text
     view = wait_execution(client, r.json()["id"], timeout=300)
-    assert view["state"] == "done", (view, stack.logs())
+    assert view["state"] == "done", f"execution {view['state']}: {view['error']}\n{view}\n{stack.logs()}"
     rep = view["report"]
     assert rep["ok"] and rep["failure"] is None and rep["mode"] == "program"
     assert 0.0 < rep["max_path_error_m"] < 0.2e-3, rep["describe"]
