@@ -19,6 +19,7 @@ a window of it at a time: :mod:`drivers.plan_window`).
 from __future__ import annotations
 
 import math
+from collections.abc import Callable
 from dataclasses import dataclass
 
 import numpy as np
@@ -125,6 +126,9 @@ class Recording:
         self.missed = 0
         self.longest_gap = 0.0
         self.tolerance = None if tolerance is None else float(tolerance)
+        #: Called with every batch :meth:`extend` receives (t, x, q, bits), before it is reduced: a live view's feed
+        #: (it must return at once: a real-time loop calls it)
+        self.listener: Callable[[np.ndarray, np.ndarray, np.ndarray, np.ndarray], None] | None = None
         self.excursions: list[Excursion] = []
         self.excursion_count = 0
         self._open: Excursion | None = None  # the excursion the last sample reduced is in
@@ -163,6 +167,8 @@ class Recording:
         x = np.asarray(x, dtype=float).reshape(n, 6)
         q = np.asarray(q, dtype=float).reshape(n, 6)
         b = np.asarray(bits, dtype=np.int64).reshape(n)
+        if self.listener is not None and n:
+            self.listener(t, x, q, b)
         for a in range(0, n, self.block):
             self._reduce_arrays(t[a:a + self.block], x[a:a + self.block], q[a:a + self.block], b[a:a + self.block])
 

@@ -186,6 +186,10 @@ class URDriver:
     frequency : float
         The controller's control rate, Hz (500 e-Series, 125 CB-Series): a job is streamed at its planned rate,
         which must be this.
+    samples : callable or None
+        Called with each batch of the run's recorded samples as they are taken (job time (n,) s, actual TCP poses
+        (n, 6), actual joints (n, 6) rad, output bits (n,)): a live view's feed. It must return at once (the
+        streaming loop calls it).
     """
 
     def __init__(self, host: str, model: str = "ur5e", *, io: str = "rtde", modbus_port: int = 502,
@@ -193,7 +197,7 @@ class URDriver:
                  realtime: bool = True, path_tolerance: float | None = None, fail_on_deviation: bool = False,
                  max_program_bytes: int | None = MAX_PROGRAM_BYTES, overrun_limit: float = 0.2, settle: float = 0.3,
                  deceleration: float = 10.0, frequency: float = 500.0, approach_speed: float = 0.5,
-                 approach_acceleration: float = 0.5) -> None:
+                 approach_acceleration: float = 0.5, samples=None) -> None:
         if not isinstance(host, str) or not host.strip():
             raise ValueError(f"host must be the controller's address, got {host!r}")
         if io not in ("rtde", "modbus"):
@@ -230,6 +234,8 @@ class URDriver:
                              f"(0, 40] rad/s^2, got {approach_speed!r}, {approach_acceleration!r}")
         self.approach_speed = float(approach_speed)
         self.approach_acceleration = float(approach_acceleration)
+        #: Told of the run's recorded samples as they are taken (:attr:`drivers.recording.Recording.listener`)
+        self.samples = samples
         # ur_rtde's interfaces (no type information: Any), None when not connected
         self._r: Any | None = None  # rtde_receive.RTDEReceiveInterface
         self._c: Any | None = None  # rtde_control.RTDEControlInterface
@@ -601,6 +607,7 @@ class URDriver:
         # to spare, ~100 packages at a time (~0.5 ms; 2500 at a time took 10-15 ms, several missed periods every 5 s);
         # the plan's pieces it is compared with are made ahead by a thread
         rec = new_recording(job, planned, prefetch=True, tolerance=self.path_tolerance)
+        rec.listener = self.samples
         stalls = self._stalls = []
         missed_seen = 0
         t_cmd = 0.0
@@ -830,6 +837,7 @@ class URDriver:
         while r.getRuntimeState() == _PLAYING and time.monotonic() < end:
             time.sleep(0.002)
         rec = new_recording(job, planned, tolerance=self.path_tolerance)
+        rec.listener = self.samples
         failure = None
         k = 0
         log = None

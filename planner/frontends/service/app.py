@@ -32,6 +32,7 @@ from planner.frontends.service.deps import API, Service
 from planner.frontends.service.fast_submit import FastSubmit
 from planner.frontends.service.routes import api_router
 from planner.frontends.service.routes import service as service_routes
+from planner.frontends.service.routes import view as view_routes
 from planner.frontends.service.schemas import UNITS, WaypointJob
 from planner.frontends.service.submit import _checked_settings
 
@@ -80,6 +81,7 @@ def create_app(cfg: ServiceConfig | None = None, *, fast_submit: bool = True) ->
         return JSONResponse({"detail": store_unreachable(exc)}, status_code=503, headers={"Retry-After": "2"})
 
     app.include_router(service_routes.router)
+    app.include_router(view_routes.static_router)  # the 3D view's script and three.js
     app.include_router(api_router, prefix=API)
 
     def openapi() -> dict:

@@ -9,6 +9,8 @@ PAGE = r"""<!doctype html>
 <meta charset="utf-8">
 <meta name="viewport" content="width=device-width, initial-scale=1">
 <title>planner: path jobs</title>
+<link rel="stylesheet" href="/view3d/view.css">
+<script type="importmap">{"imports": {"three": "/view3d/vendor/three.module.min.js"}}</script>
 <style>
   :root { --fg: #1d2330; --muted: #5b6475; --line: #d5d9e0; --accent: #2457c5; --bad: #b3261e; --ok: #1e7b34; }
   * { box-sizing: border-box; }
@@ -116,6 +118,7 @@ PAGE = r"""<!doctype html>
         <pre id="exec-report" class="hidden"></pre>
       </div>
       <img id="plot" alt="plot of the planned job">
+      <div id="view3d"></div>
     </div>
   </section>
 </main>
@@ -256,6 +259,7 @@ async function poll() {
   }
   $("run").classList.remove("hidden");
   listRobots();
+  if (window.view3d) window.view3d.show(id).catch((e) => { $("job-error").textContent = "3D view: " + e.message; });
   try {
     const blob = await (await api(v.links.plot)).blob();
     if (id !== current) return;
@@ -287,6 +291,7 @@ $("execute").onclick = async () => {
       body: JSON.stringify({robot: $("exec-robot").value, mode: $("exec-mode").value}),
       headers: {"Content-Type": "application/json"}});
     execution = (await r.json()).id;
+    if (window.view3d) window.view3d.watch(execution);
     pollExecution();
   } catch (e) { $("execute-result").textContent = e.message; }
 };
@@ -338,6 +343,10 @@ fetch("/healthz").then((r) => r.json()).then((h) => {
   $("apikey").classList.toggle("hidden", devMode);
   listJobs();
 });
+</script>
+<script type="module">
+import { mount } from "/view3d/view.js";
+mount(document.getElementById("view3d"), api);
 </script>
 </body>
 </html>

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from planner.frontends.service.tasks.lifecycle import Outcome, Progress, failed
+from planner.frontends.service.tasks.lifecycle import Live, Outcome, Progress, failed
 
 #: Seconds between progress messages of a task.
 PROGRESS_EVERY = 0.2
@@ -25,6 +25,8 @@ PROGRESS_EVERY = 0.2
 IO_EVENTS_LISTED = 200
 #: Seconds between dashboard stops while a stopped execution has not reached its run's loop.
 DASHBOARD_STOP_EVERY = 0.25
+#: Samples per second of an execution's recording relayed live to the service (the page's 3D view), Hz.
+LIVE_RATE = 60.0
 
 Report = Callable[[Progress], None]
 
@@ -236,8 +238,10 @@ def execute_job(spec: ExecuteSpec, report: Report, cancel: threading.Event, phas
         if cancel.is_set():
             raise CancelledError("cancelled by the caller")
         report(Progress("connecting"))
+        relay = LiveRelay(report)
         result = run(job, host, mode=spec.mode, io=robot["io"], modbus_port=modbus_port, progress=progress,
-                     cancel=cancel, **robot["driver"])
+                     cancel=cancel, samples=relay.samples, **robot["driver"])
+        relay.close()
         figures = report_figures(result)
         failure = figures.get("failure")
         if figures["ok"]:
@@ -252,6 +256,38 @@ def execute_job(spec: ExecuteSpec, report: Report, cancel: threading.Event, phas
         if sim is not None:
             with contextlib.suppress(Exception):
                 sim.stop()
+
+
+class LiveRelay:
+    """The run's recorded samples thinned to :data:`LIVE_RATE` and sent as :class:`~.lifecycle.Live` messages by a
+    thread of their own (the driver's loop only hands a batch over)."""
+
+    def __init__(self, report: Report) -> None:
+        import queue
+
+        self.report = report
+        self.queue: queue.SimpleQueue = queue.SimpleQueue()
+        self.last = -1.0
+        self.thread = threading.Thread(target=self._send, name="execution-live", daemon=True)
+        self.thread.start()
+
+    def samples(self, t, x, q, bits) -> None:
+        import numpy as np
+
+        slot = np.floor(np.asarray(t) * LIVE_RATE)
+        keep = np.flatnonzero(np.diff(np.r_[self.last, slot]) > 0)  # the first sample of each 1/LIVE_RATE s
+        if keep.size:
+            self.last = float(slot[keep[-1]])
+            self.queue.put(Live(t[keep].copy(), q[keep].copy(), x[keep, :3].copy(), bits[keep].copy()))
+
+    def _send(self) -> None:
+        while (msg := self.queue.get()) is not None:
+            with contextlib.suppress(Exception):  # (the live view is a convenience: never the run's failure)
+                self.report(msg)
+
+    def close(self) -> None:
+        self.queue.put(None)
+        self.thread.join(2.0)
 
 
 def _ended(state, error: dict | None, **values) -> Outcome:

@@ -8,7 +8,7 @@ queue behind others) and has one more state, "stopping" (a stop was asked; the a
 from __future__ import annotations
 
 from dataclasses import dataclass, field
-from typing import Literal
+from typing import Any, Literal
 
 #: States of a planning job.
 JOB_STATES = ("queued", "running", "done", "failed", "cancelled")
@@ -57,6 +57,17 @@ class Progress:
     done: int = 0
     total: int = 0
     started: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class Live:
+    """An execution's recorded samples, thinned (the page's live view): t (n,) job time s, q (n, 6) actual joints
+    rad, xyz (n, 3) actual TCP position m, io (n,) actual output bits."""
+
+    t: Any
+    q: Any
+    xyz: Any
+    io: Any
 
 
 @dataclass(frozen=True)

@@ -28,7 +28,8 @@ from typing import Any
 
 from sqlalchemy.exc import DBAPIError
 
-from planner.frontends.service.tasks.lifecycle import EXECUTION, JOB, Kind, Outcome, Progress, failed
+from planner.frontends.service.live import HUB
+from planner.frontends.service.tasks.lifecycle import EXECUTION, JOB, Kind, Live, Outcome, Progress, failed
 from planner.frontends.service.tasks.transitions import CANCEL_POLL, HEARTBEAT_EVERY, Transitions
 
 log = logging.getLogger("planner.frontends.service")
@@ -138,8 +139,12 @@ class Slot:
         finally:
             self.current = None
             self.poke.clear()
-        if outcome is not None and self._finish(kind, task_id, attempt, outcome) and self.on_finish:
-            self.on_finish(kind, outcome, time.monotonic() - t0)
+        try:
+            if outcome is not None and self._finish(kind, task_id, attempt, outcome) and self.on_finish:
+                self.on_finish(kind, outcome, time.monotonic() - t0)
+        finally:
+            if kind is EXECUTION:  # (after its end is stored: the live stream's end names the final state)
+                HUB.end(task_id)
 
     def _finish(self, kind: Kind, task_id: str, attempt: int, outcome: Outcome) -> bool:
         """Store the end; the database away for a moment is waited for (1, 2, 4 ... s, up to a minute in all)."""
@@ -232,6 +237,8 @@ class Slot:
                     next_beat = t + HEARTBEAT_EVERY
                     with contextlib.suppress(DBAPIError):  # (progress shown at the next write)
                         self.store.progress(kind, task_id, attempt, msg)
+            elif isinstance(msg, Live):  # the execution's joint states, for the page's live view
+                HUB.add(task_id, msg.t, msg.q, msg.xyz, msg.io)
             elif isinstance(msg, Outcome):
                 if kind is EXECUTION:  # its process ends after it
                     self.stop_process()

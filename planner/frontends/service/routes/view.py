@@ -1,0 +1,177 @@
+"""The page's 3D view: its data and its files.
+
+- ``GET /v1/jobs/{id}/view``: a done job's scene (the arm's DH model, the part frame, the I/O stations, the problems
+  placed in time, and the path thinned to ``tolerance`` m, or to a pixel of a ``pixels``-wide view of the whole
+  job): :mod:`planner.frontends.service.view_data`.
+- ``GET /v1/jobs/{id}/view/path?t0=&t1=&tolerance=``: the path between two job times at a finer tolerance (detail on
+  demand, as the page zooms in).
+- ``GET /v1/executions/{id}/live``: the execution's joint states as Server-Sent Events (``text/event-stream``; each
+  event a JSON list of rows [t, q0..q5, x, y, z, io], its id the last row's number: a reconnecting client sends
+  ``Last-Event-ID`` and gets what it missed still kept); an ``end`` event once the execution ended. Read with the
+  API key's header (fetch and a stream reader: EventSource cannot send one).
+- ``GET /view3d/{name}``: the view's script and the vendored three.js (a fixed list of files, gzip'd once).
+"""
+
+from __future__ import annotations
+
+import asyncio
+import gzip
+import json
+import threading
+from collections import OrderedDict
+from functools import lru_cache
+from pathlib import Path
+from typing import Annotated
+
+import numpy as np
+from fastapi import APIRouter, HTTPException, Query, Request
+from fastapi.responses import JSONResponse, Response, StreamingResponse
+from starlette.concurrency import run_in_threadpool
+
+from planner.frontends.service import view_data
+from planner.frontends.service.deps import Caller, OwnJob, Service, ServiceDep
+from planner.frontends.service.live import HUB
+from planner.frontends.service.routes.executions import own_execution
+from planner.frontends.service.store import Job
+from planner.frontends.service.tasks.lifecycle import EXECUTION
+
+router = APIRouter(tags=["view"])
+#: The view's files (under ``static/view3d``), with their media types.
+STATIC = Path(__file__).resolve().parents[1] / "static" / "view3d"
+FILES = {"view.js": "text/javascript; charset=utf-8", "view.css": "text/css; charset=utf-8",
+         "vendor/three.module.min.js": "text/javascript; charset=utf-8",
+         "vendor/OrbitControls.js": "text/javascript; charset=utf-8"}
+#: Fine paths kept in memory (jobs).
+CACHED = 4
+#: Seconds between the live stream's events at most (a comment keeps an idle connection open).
+LIVE_IDLE = 5.0
+
+_cache: OrderedDict[tuple[str, int], tuple] = OrderedDict()
+_cache_lock = threading.Lock()
+_building: dict[tuple[str, int], threading.Lock] = {}
+
+
+def _fine(svc: Service, row: Job):
+    """(job, fine path, reach) of a done job, made once per job and kept (the :data:`CACHED` last)."""
+    from planner.job import load_job
+
+    if row.state != "done" or not row.job_file:
+        raise HTTPException(409, f"job {row.id} is {row.state}; its view exists once it is done")
+    key = (row.id, int(row.attempts))
+    with _cache_lock:
+        lock = _building.setdefault(key, threading.Lock())
+    with lock:  # one build per job at a time; the others wait for it
+        with _cache_lock:
+            if key in _cache:
+                _cache.move_to_end(key)
+                return _cache[key]
+        job = load_job(svc.plan_bytes(row))
+        entry = (job, view_data.fine_path(job), view_data._reach(job))
+        with _cache_lock:
+            _cache[key] = entry
+            while len(_cache) > CACHED:
+                _cache.popitem(last=False)
+            _building.pop(key, None)
+        return entry
+
+
+@router.get("/jobs/{job_id}/view", responses={404: {"description": "no such job of this key"},
+                                              409: {"description": "job not done"}})
+def view(svc: ServiceDep, row: OwnJob,
+         tolerance: Annotated[float | None, Query(description="path tolerance, m (default: a pixel)")] = None,
+         pixels: Annotated[int, Query(ge=100, le=20_000, description="the view's width, px")] = 1000) -> JSONResponse:
+    """The 3D view's scene of a done job: the arm (DH), part frame, stations, problems and the path within
+    ``tolerance`` (default: the size of one pixel of a ``pixels``-wide view of the whole path)."""
+    job, fine, reach = _fine(svc, row)
+    if tolerance is None:
+        diag = float(np.linalg.norm(fine.xyz.max(axis=0) - fine.xyz.min(axis=0)))
+        tolerance = min(max(diag / pixels, view_data.FINE_TOLERANCE), view_data.MAX_TOLERANCE)
+    view_data.checked_window(tolerance, None, None)
+    overview = view_data.window(fine, tolerance, reach=reach)
+    return JSONResponse(view_data.scene_json(job, fine, overview, tolerance))
+
+
+@router.get("/jobs/{job_id}/view/path", responses={404: {"description": "no such job of this key"},
+                                                   409: {"description": "job not done"}})
+def view_path(svc: ServiceDep, row: OwnJob, t0: float, t1: float,
+              tolerance: Annotated[float, Query(description="path tolerance, m")] = view_data.FINE_TOLERANCE
+              ) -> JSONResponse:
+    """The path between job times ``t0`` and ``t1`` s within ``tolerance`` m (detail on demand)."""
+    view_data.checked_window(tolerance, t0, t1)
+    job, fine, reach = _fine(svc, row)
+    part = view_data.window(fine, tolerance, t0, t1, reach=reach)
+    return JSONResponse({"t0": t0, "t1": t1, "path": view_data.path_json(part, tolerance)})
+
+
+@router.get("/executions/{execution_id}/live", response_class=StreamingResponse,
+            responses={200: {"content": {"text/event-stream": {}}},
+                       404: {"description": "no such execution of this key"}})
+async def live(svc: ServiceDep, execution_id: str, who: Caller, request: Request) -> StreamingResponse:
+    """The execution's joint states as they are recorded (Server-Sent Events, see the module doc)."""
+    await run_in_threadpool(own_execution, svc, who, execution_id)
+    try:
+        seq = int(request.headers.get("last-event-id") or request.query_params.get("after") or 0)
+    except ValueError:
+        seq = 0
+
+    async def events():
+        nonlocal seq
+        yield "retry: 1000\n\n"
+        idle = 0.0
+        while True:
+            feed = HUB.feed(execution_id)
+            if feed is None:  # not (or not yet) run by this process: its state tells whether to wait
+                state = await run_in_threadpool(svc.store.state, EXECUTION, execution_id)
+                if state not in EXECUTION.active:
+                    yield f"event: end\ndata: {json.dumps({'state': state})}\n\n"
+                    return
+                await asyncio.sleep(0.2)
+                idle += 0.2
+                if idle >= LIVE_IDLE:
+                    idle = 0.0
+                    yield ": waiting\n\n"
+                continue
+            rows, ended = await run_in_threadpool(feed.after, seq, 0.1)
+            if await request.is_disconnected():
+                return
+            if len(rows):
+                seq = int(rows[-1, 0])
+                data = np.round(rows[:, 1:], 6).tolist()
+                yield f"id: {seq}\ndata: {json.dumps(data)}\n\n"
+                idle = 0.0
+            elif ended:  # (its end is stored before the feed ends; a moment more for another replica's read)
+                for _ in range(50):
+                    state = await run_in_threadpool(svc.store.state, EXECUTION, execution_id)
+                    if state not in EXECUTION.active:
+                        break
+                    await asyncio.sleep(0.1)
+                yield f"event: end\ndata: {json.dumps({'state': state})}\n\n"
+                return
+            else:
+                idle += 0.1
+                if idle >= LIVE_IDLE:
+                    idle = 0.0
+                    yield ": idle\n\n"
+
+    return StreamingResponse(events(), media_type="text/event-stream",
+                             headers={"Cache-Control": "no-cache", "X-Accel-Buffering": "no"})
+
+
+@lru_cache(maxsize=len(FILES))
+def _packed(name: str) -> tuple[bytes, bytes]:
+    data = (STATIC / name).read_bytes()
+    return data, gzip.compress(data, 9, mtime=0)
+
+
+static_router = APIRouter(include_in_schema=False)
+
+
+@static_router.get("/view3d/{name:path}")
+def asset(name: str, request: Request) -> Response:
+    if name not in FILES:  # a fixed list: no name from a request reaches the file system
+        raise HTTPException(404, f"no view file {name}")
+    plain, packed = _packed(name)
+    headers = {"Cache-Control": "no-cache", "Vary": "Accept-Encoding"}
+    if "gzip" in request.headers.get("accept-encoding", ""):
+        return Response(packed, media_type=FILES[name], headers={**headers, "Content-Encoding": "gzip"})
+    return Response(plain, media_type=FILES[name], headers=headers)
