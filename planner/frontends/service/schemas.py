@@ -375,6 +375,21 @@ class RobotList(BaseModel):
     robots: list[RobotView]
 
 
+class FieldError(BaseModel):
+    """One refused field: where (``loc``: "body", "query", "path" then the field's names and indices), why."""
+
+    loc: list[str | int]
+    msg: str
+    type: str
+
+
+class Problem(BaseModel):
+    """Every error answer (4xx, 503): ``detail`` is one line saying what is wrong, or (422) a list of the refused
+    fields, each naming its place."""
+
+    detail: str | list[FieldError]
+
+
 class Health(BaseModel):
     """``GET /healthz``: the database answers; planning workers alive and busy; development mode (no keys)."""
 

@@ -17,9 +17,9 @@ from fastapi import APIRouter, HTTPException, Query
 from fastapi.responses import JSONResponse
 from sqlalchemy import select
 
-from planner.frontends.service.auth import Principal
-from planner.frontends.service.deps import API, JOB_ID, Caller, Service, ServiceDep, own_job
-from planner.frontends.service.errors import Unprocessable
+from planner.frontends.service.auth import NOT_OPERATOR, Principal
+from planner.frontends.service.deps import API, JOB_ID, Caller, Service, ServiceDep, own_job, shown_id
+from planner.frontends.service.errors import CheckedRoute, Unprocessable, documented
 from planner.frontends.service.schemas import (
     ExecutionCreated,
     ExecutionList,
@@ -32,12 +32,12 @@ from planner.frontends.service.tasks.lifecycle import EXECUTION
 from planner.frontends.service.tasks.runner import STOP_GRACE
 from planner.frontends.service.tasks.transitions import RobotBusy
 
-router = APIRouter(tags=["executions"])
+router = APIRouter(tags=["executions"], route_class=CheckedRoute)
 
 
 def require_operator(who: Principal) -> None:
     if who.role != "operator":
-        raise HTTPException(403, "running a job on a robot needs a key of the operator role")
+        raise HTTPException(403, NOT_OPERATOR)
 
 
 def execution_view(row: Execution) -> dict:
@@ -62,14 +62,15 @@ def own_execution(svc: Service, who: Principal, execution_id: str) -> Execution:
                                                     Execution.owner == who.key_id)).first()
         if row is not None:
             return row
-    raise HTTPException(404, f"no execution {execution_id}")
+    raise HTTPException(404, f"no execution {shown_id(execution_id)}")
 
 
 @router.post("/jobs/{job_id}/executions", status_code=202, response_model=ExecutionCreated,
-             responses={403: {"description": "not an operator key"}, 404: {"description": "no such job of this key"},
-                        409: {"description": "job not done, planned without a robot, not executable on "
-                                                    "its robot (summary.not_executable), or the robot is busy"},
-                        422: {"description": "unknown robot, or a robot of another model"}})
+             responses=documented(403, 404, 409, 413, 422,
+                                  e409="the job is not done, was planned without a robot, cannot run on its robot "
+                                       "(summary.not_executable: the reason), or the robot is busy",
+                                  e422="an unknown robot, a robot of another model, or a refused body (not a "
+                                       "JSON object, not UTF-8, an unknown field)"))
 def create_execution(svc: ServiceDep, job_id: str, body: ExecutionRequest, who: Caller) -> JSONResponse:
     """Run a done job on a configured robot (by name), in "stream" (servoJ) or "program" (URScript) mode."""
     require_operator(who)
@@ -104,7 +105,7 @@ def create_execution(svc: ServiceDep, job_id: str, body: ExecutionRequest, who: 
                         headers={"Location": location})
 
 
-@router.get("/executions", response_model=ExecutionList)
+@router.get("/executions", response_model=ExecutionList, responses=documented(422))
 def list_executions(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge=1, le=500)] = 50,
                     job_id: Annotated[str | None, Query(max_length=32, description="only this job's")] = None
                     ) -> dict:
@@ -118,17 +119,15 @@ def list_executions(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge
     return {"executions": [execution_view(r) for r in rows]}
 
 
-@router.get("/executions/{execution_id}", response_model=ExecutionView,
-            responses={404: {"description": "no such execution of this key"}})
+@router.get("/executions/{execution_id}", response_model=ExecutionView, responses=documented(404))
 def get_execution(svc: ServiceDep, execution_id: str, who: Caller) -> dict:
     """An execution's state, progress, report figures and failure (reason, job time, pose, source line)."""
     return execution_view(own_execution(svc, who, execution_id))
 
 
 @router.delete("/executions/{execution_id}", response_model=ExecutionView,
-               responses={403: {"description": "not an operator key"},
-                          404: {"description": "no such execution of this key"},
-                          409: {"description": "the execution has ended"}})
+               responses=documented(403, 404, 409, e409="the execution has ended: only a running one can be "
+                                                          "stopped"))
 def stop_execution(svc: ServiceDep, execution_id: str, who: Caller) -> dict:
     """Stop an execution: the arm is brought to rest (controlled stop) and the job's outputs switched off; answers
     once the execution has ended (a few seconds at most)."""
@@ -144,7 +143,7 @@ def stop_execution(svc: ServiceDep, execution_id: str, who: Caller) -> dict:
     return execution_view(own_execution(svc, who, execution_id))
 
 
-@router.get("/robots", response_model=RobotList)
+@router.get("/robots", response_model=RobotList, responses=documented())
 def list_robots(svc: ServiceDep, who: Caller) -> dict:
     """The robots jobs can be executed on: name, model (null: a simulated robot of the job's model), simulated,
     busy."""
