@@ -149,3 +149,15 @@ def test_the_largest_cursor_is_an_empty_page_and_ids_of_any_shape_are_404(keyed)
                 assert r.status_code == 404, (path[:80], r.status_code)
                 detail = r.json()["detail"]
                 assert "\n" not in detail and len(detail) < 120, detail
+
+
+@pytest.mark.parametrize("settings, loc", [
+    ({"feed": True}, ["body", "settings", "feed"]), ({"passes": [False]}, ["body", "settings", "passes"]),
+    ({"feed": "0.05"}, ["body", "settings", "feed"]), ({"passes": [INT64_MAX + 1]}, ["body", "settings", "passes"]),
+])
+def test_true_false_strings_and_huge_integers_are_not_numbers(keyed, settings, loc):
+    s, keys = keyed
+    with s.client(keys["cam"]) as c:
+        r = c.post("/v1/jobs", json={**PATH, "settings": settings})
+        assert r.status_code == 422, r.text
+        assert r.json()["detail"][0]["loc"][:3] == loc, r.text

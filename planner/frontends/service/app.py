@@ -66,6 +66,7 @@ def create_app(cfg: ServiceConfig | None = None, *, fast_submit: bool = True) ->
             await run_in_threadpool(svc.stop)
 
     app = FastAPI(title="planner service", version="1", lifespan=lifespan, docs_url=None, redoc_url=None,
+                  generate_unique_id_function=lambda route: route.name,  # operationIds: the route functions' names
                   description="Path jobs for robot tool-orientation planning: submit waypoints or a toolpath file, "
                               "watch the job, download the trajectory (CSV, JSON), the URScript program and the plot, "
                               "run it on a robot. " + UNITS)

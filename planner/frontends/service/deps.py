@@ -22,9 +22,6 @@ from planner.frontends.service.tasks.transitions import Transitions
 
 #: The prefix of every versioned route.
 API = "/v1"
-#: The largest integer the API takes in a query or a body (a signed 64-bit integer, as the store keeps them: a larger
-#: one is a 422 naming its field, never an overflow in the database).
-INT64_MAX = 2**63 - 1
 #: A job's (and an execution's) id: 32 hex digits.
 JOB_ID = re.compile(r"^[0-9a-f]{32}$")
 

@@ -16,8 +16,11 @@ from pydantic import BaseModel, ConfigDict, Field, create_model
 
 from planner.settings import OUTPUT_KINDS, SETTINGS, PlanSettings, Setting
 
-#: A finite number (NaN and +-inf refused, naming the field).
-Finite = Annotated[float, Field(allow_inf_nan=False)]
+#: A finite number (NaN and +-inf refused, naming the field; true and false are not numbers).
+Finite = Annotated[float, Field(allow_inf_nan=False, strict=True)]
+#: An integer the store can hold (signed 64 bits): a larger one is refused naming its field.
+INT64_MAX = 2**63 - 1
+Int64 = Annotated[int, Field(ge=-INT64_MAX - 1, le=INT64_MAX, strict=True)]
 Vec3 = tuple[Finite, Finite, Finite]
 Pose6 = tuple[Finite, Finite, Finite, Finite, Finite, Finite]
 
@@ -57,10 +60,10 @@ def _type(s: Setting) -> Any:
     if kind == "pose":
         return Pose6 | Literal[s.choices] | None if s.choices else Pose6 | None
     if kind == "output":
-        return tuple[Literal[tuple(OUTPUT_KINDS)], int] | None  # type: ignore[misc]
+        return tuple[Literal[tuple(OUTPUT_KINDS)], Int64] | None  # type: ignore[misc]
     if kind == "passes":
-        return Annotated[list[Annotated[int, Field(ge=0)]], Field(min_length=1, max_length=100_000)] | Literal[
-            "longest"] | None
+        index = Annotated[int, Field(ge=0, le=INT64_MAX, strict=True)]
+        return Annotated[list[index], Field(min_length=1, max_length=100_000)] | Literal["longest"] | None
     raise AssertionError(f"setting {s.name}: no JSON type for kind {kind!r}")
 
 
@@ -117,6 +120,9 @@ class ReadOptions(Strict):
 
 class WaypointJob(Strict):
     """A job from waypoints in metres (part frame): one pass, interpolated by default."""
+
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"waypoints": [[0.0, 0.0, 0.0], [0.1, 0.02, 0.0], [0.2, 0.0, 0.01]], "settings": {"feed": 0.05}}]})
 
     waypoints: Annotated[list[Vec3], Field(min_length=2)]
     axes: list[Vec3] | None = Field(default=None, description="tool axis per waypoint (CAM convention)")
@@ -272,6 +278,8 @@ class JobList(BaseModel):
 class ExecutionRequest(Strict):
     """Run a done job on a configured robot."""
 
+    model_config = ConfigDict(json_schema_extra={"examples": [{"robot": "sim", "mode": "program"}]})
+
     robot: str = Field(max_length=32, description="a robot name from the service's configuration (GET /v1/robots)")
     mode: Literal["stream", "program"] = Field(
         default="stream", description="stream: servoJ with the planner's joints at the job's rate; program: the "
@@ -373,6 +381,14 @@ class RobotView(BaseModel):
 
 class RobotList(BaseModel):
     robots: list[RobotView]
+
+
+def links(param: str, *operations: str) -> dict[str, dict]:
+    """OpenAPI links from a 202's ``id`` to the operations (by operationId: the route function's name) taking it as
+    the path parameter ``param``: clients and test tools follow them (a job created, then read, cancelled,
+    exported, executed)."""
+    return {operation: {"operationId": operation, "parameters": {param: "$response.body#/id"},
+                        "description": f"the {param} of the resource created"} for operation in operations}
 
 
 class FieldError(BaseModel):

@@ -26,6 +26,7 @@ from planner.frontends.service.schemas import (
     ExecutionRequest,
     ExecutionView,
     RobotList,
+    links,
 )
 from planner.frontends.service.store import Execution, now
 from planner.frontends.service.tasks.lifecycle import EXECUTION
@@ -66,11 +67,12 @@ def own_execution(svc: Service, who: Principal, execution_id: str) -> Execution:
 
 
 @router.post("/jobs/{job_id}/executions", status_code=202, response_model=ExecutionCreated,
-             responses=documented(403, 404, 409, 413, 422,
+             responses={202: {"links": links("execution_id", "get_execution", "stop_execution")},
+                        **documented(403, 404, 409, 413, 422,
                                   e409="the job is not done, was planned without a robot, cannot run on its robot "
                                        "(summary.not_executable: the reason), or the robot is busy",
                                   e422="an unknown robot, a robot of another model, or a refused body (not a "
-                                       "JSON object, not UTF-8, an unknown field)"))
+                                       "JSON object, not UTF-8, an unknown field)")})
 def create_execution(svc: ServiceDep, job_id: str, body: ExecutionRequest, who: Caller) -> JSONResponse:
     """Run a done job on a configured robot (by name), in "stream" (servoJ) or "program" (URScript) mode."""
     require_operator(who)

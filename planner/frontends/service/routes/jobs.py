@@ -9,11 +9,11 @@ from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import JSONResponse
 from sqlalchemy import select
 
-from planner.frontends.service.deps import API, INT64_MAX, Caller, OwnJob, Service, ServiceDep, own_job, principal
+from planner.frontends.service.deps import API, Caller, OwnJob, Service, ServiceDep, own_job, principal
 from planner.frontends.service.deps import service as _service
 from planner.frontends.service.errors import CheckedRoute, documented
 from planner.frontends.service.fast_submit import created
-from planner.frontends.service.schemas import JobCreated, JobList, JobView
+from planner.frontends.service.schemas import INT64_MAX, JobCreated, JobList, JobView, links
 from planner.frontends.service.store import Job, now
 from planner.frontends.service.submit import accept_file, accept_json
 
@@ -70,8 +70,10 @@ _JOB_BODY = {
 
 
 @router.post("", status_code=202, response_model=JobCreated, openapi_extra=_JOB_BODY,
-             responses=documented(413, 415, 422, e415="not application/json (waypoints) or multipart/form-data "
-                                                      "(a toolpath file)"))
+             responses={202: {"links": links("job_id", "get_job", "cancel_job", "trajectory", "plot",
+                                              "create_execution")},
+                        **documented(413, 415, 422, e415="not application/json (waypoints) or multipart/form-data "
+                                                      "(a toolpath file)")})
 async def submit(request: Request) -> JSONResponse:
     """Submit a job: JSON waypoints (WaypointJob) or a multipart upload of a toolpath file. (A JSON job is mostly
     answered by the fast submit path, :mod:`..fast_submit`, with the same answer.)"""
