@@ -6,6 +6,8 @@ not UTF-8 is a 422 naming the byte offset; cursors, limits and ids of any size a
 from __future__ import annotations
 
 import json
+import time
+from pathlib import Path
 
 import pytest
 
@@ -161,3 +163,27 @@ def test_true_false_strings_and_huge_integers_are_not_numbers(keyed, settings, l
         r = c.post("/v1/jobs", json={**PATH, "settings": settings})
         assert r.status_code == 422, r.text
         assert r.json()["detail"][0]["loc"][:3] == loc, r.text
+
+
+def test_planning_progress_counts_passes_planned_of_passes(keyed):
+    s, keys = keyed
+    src = Path(__file__).parent / "data" / "nx_clsf_ust_a2_excerpt.cls"
+    with s.client(keys["cam"]) as c:
+        job = c.post("/v1/jobs", files={"file": (src.name, src.read_bytes())}).json()["id"]
+        seen = []
+        while (v := c.get(f"/v1/jobs/{job}").json())["state"] in ("queued", "running"):
+            seen.append(v["progress"])
+            time.sleep(0.03)
+    assert v["state"] == "done", v
+    n = v["summary"]["passes"]
+    assert n == 33
+    assert v["progress"] == {"stage": "done", "done": n, "total": n, "unit": "passes", "pass": None, "line": None,
+                             "text": f"{n} passes planned"}
+    counting = [p for p in seen if p["unit"] == "passes"]
+    assert counting, seen  # (written every 0.5 s while it plans: a few seconds here)
+    assert all(p["total"] == n and 0 <= p["done"] <= n for p in counting), counting
+    for p in counting:
+        what = {"fit": "fitting the passes", "plan": "planning tool frames and time laws"}[p["stage"]]
+        assert p["text"] == f"{what}: {p['done']:g} of {n} passes"
+    assert all(p["text"] in ("waiting for a worker", "starting: reading the input") for p in seen if not p["unit"])
+    assert not any(p["total"] == 0 and p["stage"] == "done" for p in seen)  # never "done 0/0"

@@ -149,11 +149,21 @@ class Closed(BaseModel):
 
 
 class Progress(BaseModel):
-    """Where a job (or an execution) is: its stage and the items done of the stage's total."""
+    """Where a job (or an execution) is: its stage and ``done`` of the stage's ``total`` in ``unit``: a planning job
+    counts cutting passes (passes planned of the job's passes), an execution's run job time (s of job time done of
+    the job's) with the pass and source line being carried out; ``text`` says it in one line."""
 
-    stage: str
-    done: int
-    total: int
+    model_config = ConfigDict(populate_by_name=True)
+
+    stage: str = Field(description="planning: fit, plan, place, reach, done; an execution: starting, controller, "
+                                   "connecting, then the move being carried out (\"cut pass 3 line 120\"), done")
+    done: float
+    total: float
+    unit: str = Field(description="of done and total: passes (planning), s (job time of an execution's run), or "
+                                  "empty before the counting begins")
+    pass_: int | None = Field(None, alias="pass", description="an execution: the pass being cut (null between passes)")
+    line: int | None = Field(None, description="an execution: the source line of the move being carried out")
+    text: str = Field(description="the progress in one line, as the page shows it")
 
 
 class ErrorView(BaseModel):
@@ -346,6 +356,8 @@ class ExecutionLinks(BaseModel):
 
     self_: str = Field(alias="self", description="this execution")
     job: str = Field(description="the job executed")
+    plot: str | None = Field(None, description="the picture of the run over the planned job (PNG), once it has "
+                                               "ended after its run began")
 
 
 class ExecutionView(BaseModel):

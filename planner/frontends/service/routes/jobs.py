@@ -16,6 +16,7 @@ from planner.frontends.service.fast_submit import created
 from planner.frontends.service.schemas import INT64_MAX, JobCreated, JobList, JobView, links
 from planner.frontends.service.store import Job, now
 from planner.frontends.service.submit import accept_file, accept_json
+from planner.frontends.service.tasks.lifecycle import progress_view
 
 router = APIRouter(prefix="/jobs", tags=["jobs"], route_class=CheckedRoute)
 
@@ -37,7 +38,7 @@ def job_view(svc: Service, job: Job) -> dict:
     return {
         "id": job.id, "state": job.state, "created_at": job.created_at, "started_at": job.started_at,
         "finished_at": job.finished_at,
-        "progress": {"stage": job.stage, "done": job.done, "total": job.total},
+        "progress": progress_view("job", job.state, job.stage, job.done, job.total),
         "attempts": job.attempts,
         "input": {"kind": job.input_kind, "name": job.input_name, "format": job.input_format,
                   "bytes": job.input_bytes},
