@@ -62,7 +62,10 @@ WAYPOINT_FORMATS = ("csv", "json", "waypoints")
 #: CAM chords fitted in one batch at most (the batched fit needs about 5 kB per chord while it runs).
 FIT_BATCH_SPANS = 8192
 
-#: A progress callback: (stage, done, total), e.g. ("moves", 120, 457). The CLI draws it with tqdm.
+#: A progress callback: (stage, done, total), counted in cutting passes at every stage of planning: "fit" (passes
+#: fitted), "plan" (passes given their tool frames and time law), "place" and "reach" (the whole job placed and
+#: checked on the robot: 0 of the passes, then all), e.g. ("plan", 12, 40). The CLI draws it with tqdm; the service
+#: shows it as passes planned of passes.
 Progress = Callable[[str, int, int], None]
 
 
@@ -168,7 +171,8 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
     settings : PlanSettings, optional
         Default ``PlanSettings()``.
     progress : callable (stage, done, total), optional
-        Called as the work advances (stages "fit", "moves", "reach").
+        Called as the work advances, in cutting passes done of the job's passes (stages "fit", "plan", "place",
+        "reach": :data:`Progress`).
     fits : sequence of PassFit, optional
         The fitted paths of every cutting pass, made apart (a large job fitted in pieces on several machines:
         :func:`fit_batches`, :func:`fit_passes_of`); the job is then the one this call would plan, export for
@@ -211,20 +215,23 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
         cuts = seg.passes
+        n_cuts = len(cuts)
         tic = time.perf_counter()
+        if progress is not None:
+            progress("fit", 0, n_cuts)
         if fits is None:
-            fits = _fit(tp.source, cuts, s)
+            fits = _fit(tp.source, cuts, s, progress)
         else:
             fits = _given_fits(tp.source, cuts, fits)
         fit_time = time.perf_counter() - tic
         timings["fit"] = fit_time
         if progress is not None:
-            progress("fit", len(cuts), len(cuts))
+            progress("fit", n_cuts, n_cuts)
         spans_total = max(sum(len(p) - 1 for p in cuts), 1)
         moves, reports = _plan_moves(tp, seg, fits, s, fit_time / spans_total, timings, progress)
     caught += [str(x.message) for x in w]
     if progress is not None:
-        progress("moves", len(seg.moves), len(seg.moves))
+        progress("plan", n_cuts, n_cuts)
     timings["plan"] = time.perf_counter() - t_plan
     placement = None
     if isinstance(s.part_frame, str):  # "auto": the part placed for the robot, then checked like any frame
@@ -232,10 +239,12 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
 
         assert s.robot is not None  # PlanSettings.checked() refuses "auto" without a robot
         if progress is not None:
-            progress("place", 0, 1)
+            progress("place", 0, n_cuts)
         tic = time.perf_counter()
         placement = place_part(moves, s.robot, s.tcp, source=tp.source)
         timings["place"] = time.perf_counter() - tic
+        if progress is not None:
+            progress("place", n_cuts, n_cuts)
         s = replace(s, part_frame=placement.part_frame)
     job = PlannedJob(tp.source, s, tp, seg, tuple(moves), tuple(reports), timings, warnings=tuple(caught),
                      placement=placement)
@@ -243,7 +252,7 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
         from planner.cam.reach import check_job
 
         if progress is not None:
-            progress("reach", 0, 1)
+            progress("reach", 0, n_cuts)
         tic = time.perf_counter()
         reach = check_job(job)
         timings["reach"] = time.perf_counter() - tic
@@ -257,7 +266,7 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
         job = PlannedJob(tp.source, s, tp, seg, tuple(moves), tuple(reports), timings, tuple(reach.problems),
                          tuple(reach.slowed), reach.start_joints, reach.start_note, tuple(caught), placement)
         if progress is not None:
-            progress("reach", 1, 1)
+            progress("reach", n_cuts, n_cuts)
     return job
 
 
@@ -404,8 +413,10 @@ def _format_of(name: str) -> str:
     return ""
 
 
-def _fit(source: str, cuts, s: PlanSettings) -> list[PassFit]:
-    """The PH path of every pass: within tolerance of the polyline ("cam") or through the points ("interpolate")."""
+def _fit(source: str, cuts, s: PlanSettings, progress: Progress | None = None) -> list[PassFit]:
+    """The PH path of every pass: within tolerance of the polyline ("cam") or through the points ("interpolate");
+    ``progress("fit", passes fitted, passes)`` after each batch (cam) or pass."""
+    n = len(cuts)
     if s.path == "cam":  # batched over passes, in groups of bounded size (memory grows with the spans fitted at once)
         out: list[PassFit] = []
         group: list = []
@@ -416,6 +427,8 @@ def _fit(source: str, cuts, s: PlanSettings) -> list[PassFit]:
             if spans >= FIT_BATCH_SPANS:
                 out += fit_passes(group, s.tolerance)
                 group, spans = [], 0
+                if progress is not None:
+                    progress("fit", len(out), n)
         return out + (fit_passes(group, s.tolerance) if group else [])
     from planner.curves import fit_ph_cubic_spline, fit_ph_spline
 
@@ -427,6 +440,8 @@ def _fit(source: str, cuts, s: PlanSettings) -> list[PassFit]:
             raise PlannerError(f"{_where(source, p)}: {exc}") from exc
         dev = _chord_deviation(path, p.points)
         out.append(PassFit(path, p.points, float(dev.max()), dev, 0, 0, 0))
+        if progress is not None:
+            progress("fit", len(out), n)
     return out
 
 
@@ -503,9 +518,10 @@ def _plan_moves(tp, seg: Segmentation, fits, s: PlanSettings, fit_share: float, 
     tic = time.perf_counter()
     fields = _path_fields(seg, fits, s)
     t_frames += time.perf_counter() - tic
+    n_cuts = len(seg.passes)
     for n_done, item in enumerate(seg.moves):
-        if progress is not None and n_done % 25 == 0:
-            progress("moves", n_done, len(seg.moves))
+        if progress is not None and isinstance(item, CutPass):
+            progress("plan", len(reports), n_cuts)  # passes given their frames and time law so far
         try:
             if isinstance(item, CutPass):
                 tic = time.perf_counter()

@@ -243,6 +243,43 @@ def sample_counts(moves, rate: float) -> np.ndarray:
     return np.where(d > 0.0, np.ceil(d * rate - 1e-9), 0.0).astype(np.int64)
 
 
+@dataclass(frozen=True, eq=False)
+class SamplePlace:
+    """Where in the job a trajectory sample lies: its job time ``t`` (s), the move's kind ("cut", "rapid", ...),
+    its pass (``pass_index``, -1 for a move between passes) and the source line of the move's first record."""
+
+    t: float
+    kind: str
+    pass_index: int
+    line: int
+
+
+class SamplePlaces:
+    """The moves' places along a job's trajectory at ``rate`` Hz: :meth:`at` gives a sample's (a driver's progress
+    counts samples) job time, move, pass and source line. ``duration``: the last sample's job time, s."""
+
+    def __init__(self, job, rate: float) -> None:
+        counts = sample_counts(job.moves, rate)
+        self.rate = float(rate)
+        self.first = np.concatenate(([0], np.cumsum(counts)[:-1])) if counts.size else np.zeros(0, np.int64)
+        self.n = int(counts.sum()) + 1
+        self.duration = (self.n - 1) / self.rate
+        self._moves = [(m.kind, int(m.pass_index), int(m.line)) for m in job.moves]
+        self._moving = counts > 0
+
+    def at(self, k: int) -> SamplePlace:
+        """Sample ``k``'s place (clipped to the trajectory): the moving move it lies in (the last one for the last
+        sample)."""
+        k = min(max(int(k), 0), self.n - 1)
+        t = k / self.rate
+        if not self._moves:
+            return SamplePlace(t, "", -1, -1)
+        candidates = np.flatnonzero(self._moving & (self.first <= k))
+        m = int(candidates[-1]) if candidates.size else 0
+        kind, pass_index, line = self._moves[m]
+        return SamplePlace(t, kind, pass_index, line)
+
+
 #: Samples per chunk at most: a move longer than this comes in several chunks (bounded memory: a slow pass of
 #: an hour is 1.8 million samples at 500 Hz).
 CHUNK_SAMPLES = 65_536

@@ -111,7 +111,7 @@ def test_cli_plans_a_whole_multi_pass_file(tmp_path, capsys):
     assert main(["plan", str(src), "-o", str(out), "--progress"]) == 0
     captured = capsys.readouterr()
     text = captured.out
-    assert re.search(r"moves: +100%\|", captured.err) and re.search(r"samples: +100%\|", captured.err)  # tqdm
+    assert re.search(r"plan: +100%\|[^|]*\| 3/3 ", captured.err) and re.search(r"samples: +100%\|", captured.err)  # tqdm
     assert re.search(r"-> \d+ pass(es)?, \d+ rapids?, ", text) and "largest deviation from the CAM polyline" in text
     rows = [r for r in out.read_text().splitlines() if r and r[0] not in "#t"]
     data = np.array([[float(x) for x in r.split(",")] for r in rows])

@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import re
+
 import pytest
 
 from drivers.execute import run_demo_on_sim
@@ -14,9 +16,17 @@ PART = "400mm,996.5mm,-100mm,0,0,0"
 
 def test_planner_run_sim_program_mode_prints_the_report(capsys):
     rc = main(["run", DEMO, "--robot", "ur5e", "--part-frame", PART, "--cut-output", "standard:0", "--sim",
-               "--mode", "program", "--sim-speed", "20", "--io", "modbus"])
-    out = capsys.readouterr().out
+               "--mode", "program", "--sim-speed", "20", "--io", "modbus", "--progress"])
+    captured = capsys.readouterr()
+    out = captured.out
     assert rc == 0, out
+    # the run's bar: job time done of the job's, with the pass and source line (the demo: one pass)
+    bars = re.findall(r"execute: +\d+%\|[^|]*\| ([\d.]+)/([\d.]+) s of job time, (pass \d+|rapid|dwell|move), "
+                      r"source line (\d+)", captured.err)
+    assert bars, captured.err[-2000:]
+    total = {float(b[1]) for b in bars}
+    assert len(total) == 1 and all(0.0 <= float(b[0]) <= float(b[1]) for b in bars)
+    assert any(b[2] == "pass 0" and int(b[3]) > 0 for b in bars), bars
     assert "simulated ur5e controller on 127." in out
     assert "execution (program): ok" in out
     assert "I/O: 2 of 2 switches made" in out

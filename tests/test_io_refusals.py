@@ -304,11 +304,11 @@ def test_plan_refuses_bad_waypoint_arrays_by_name(kwargs, argument, message):
     assert info.value.argument == argument and re.fullmatch(f"{re.escape(argument)}: {message}", str(info.value))
 
 
-def test_plan_progress_is_called_with_stages():
+def test_plan_progress_counts_passes_at_every_stage():
     calls = []
     plan(WAYPOINTS, PlanSettings(rate=50.0), progress=lambda stage, done, total: calls.append((stage, done, total)))
-    assert ("moves", 1, 1) in calls or any(c[0] == "moves" and c[1] == c[2] for c in calls)
-    assert all(isinstance(c[0], str) and 0 <= c[1] <= c[2] for c in calls)
+    assert calls[0] == ("fit", 0, 1) and calls[-1] == ("plan", 1, 1)
+    assert all(isinstance(c[0], str) and 0 <= c[1] <= c[2] == 1 for c in calls)
 
 
 def test_nurbs_sampling_tolerance_is_checked():

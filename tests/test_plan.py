@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import io
 import re
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -311,3 +312,18 @@ def test_reader_options_that_do_not_apply_are_refused_by_name(tmp_path):
         plan(f, read_options={"machine": "haas-umc-750"})
     with pytest.raises(PlannerError, match="option 'colour' does not apply to apt files$"):
         plan(f, read_options={"colour": "red"})
+
+
+def test_progress_counts_the_passes_planned_of_the_passes():
+    """A CAM file of 33 passes: every call counts cutting passes (total 33), each stage's count never goes back and
+    reaches the total, and the stages come in order (fit, then plan)."""
+    calls: list[tuple[str, int, int]] = []
+    src = Path(__file__).parent / "data" / "nx_clsf_ust_a2_excerpt.cls"
+    job = plan(src, PlanSettings(), progress=lambda *c: calls.append(c))
+    n = job.summary()["passes"]
+    assert n == 33 and {total for _, _, total in calls} == {n}
+    assert [stage for stage, _, _ in calls] == sorted((stage for stage, _, _ in calls), key=["fit", "plan"].index)
+    for stage in ("fit", "plan"):
+        done = [d for st, d, _ in calls if st == stage]
+        assert done[0] == 0 and done[-1] == n and all(a <= b for a, b in zip(done, done[1:], strict=False)), stage
+    assert len([d for st, d, _ in calls if st == "plan"]) == n + 1  # one call per pass: the bar moves pass by pass

@@ -127,15 +127,35 @@ def test_program_on_the_simulated_robot_follows_the_plan_and_holds_the_robot(ser
     assert again.status_code == 409 and "busy" in again.json()["detail"]
     assert _busy(op) == {"sim": True, "cell": False, "big": False, "slow": False, "estop": False}
     wait_until(lambda: len(server.children("planner-exec")) == 1, 10, "the execution's own process")
-    seen = []
+    seen, progress = [], []
     while (v := op.get(f"/v1/executions/{eid}").json())["state"] not in ENDED:
         seen.append((v["state"], v["progress"]["done"], v["progress"]["total"]))
+        progress.append(v["progress"])
         time.sleep(0.05)
     assert v["state"] == "done", v
     assert v["robot"] == "sim" and v["mode"] == "program" and v["job_id"] == job_id and v["error"] is None
     running = [(d, t) for s, d, t in seen if s == "running" and t > 0]
     assert running and all(0 <= d <= t for d, t in running), seen  # progress shown while it ran
     assert v["progress"]["done"] == v["progress"]["total"] > 0
+    # progress in job time (s) of the job's, with the pass and source line being carried out
+    job_view = op.get(f"/v1/jobs/{job_id}").json()
+    assert v["progress"]["unit"] == "s" and v["progress"]["stage"] == "done"
+    assert v["progress"]["total"] == pytest.approx(job_view["summary"]["duration_s"], abs=0.05)
+    assert v["progress"]["text"] == f"executed: {v['progress']['total']:.1f} of {v['progress']['total']:.1f} s of job time"
+    cutting = [p for p in progress if p["unit"] == "s" and p["pass"] is not None]
+    assert cutting, progress
+    for p in cutting:
+        assert p["stage"] == f"cut pass {p['pass']} line {p['line']}" and p["line"] > 0
+        assert p["text"] == (f"executing: {p['done']:.1f} of {p['total']:.1f} s of job time, pass {p['pass']}, "
+                             f"source line {p['line']}")
+    times = [p["done"] for p in progress if p["unit"] == "s"]
+    assert times == sorted(times), times
+    # the run's plot (actual over planned), as planner run --plot draws it
+    assert v["links"]["plot"] == f"/v1/executions/{eid}/plot.png"
+    r = op.get(v["links"]["plot"])
+    assert r.status_code == 200 and r.headers["content-type"] == "image/png" and r.content[:8] == b"\x89PNG\r\n\x1a\n"
+    width, height = int.from_bytes(r.content[16:20], "big"), int.from_bytes(r.content[20:24], "big")
+    assert width > 1000 and height > 700, (width, height)
     assert v["created_at"] <= v["started_at"] <= v["finished_at"]
     rep = v["report"]
     assert rep["ok"] and rep["failure"] is None and rep["mode"] == "program"
@@ -211,6 +231,10 @@ def test_metrics_count_executions_by_state_robot_time_and_failure(server, op, de
     finally:
         stop_cell.release_emergency_stop()
     assert view["state"] == "failed" and view["error"]["kind"] == "emergency stop", view
+    # its progress says where it stopped: job time, and the move carried out then
+    assert view["progress"]["unit"] == "s" and 0 < view["progress"]["done"] < view["progress"]["total"], view
+    assert view["progress"]["text"].startswith("failed while executing: "), view
+    assert op.get(view["links"]["plot"]).headers["content-type"] == "image/png"  # the run up to the stop, drawn
     last = metrics(op)
     assert last['planner_execution_failures_total{kind="emergency stop"}'] == (
         after.get('planner_execution_failures_total{kind="emergency stop"}', 0) + 1)
@@ -281,7 +305,7 @@ def test_stop_brings_the_arm_to_rest_within_a_second(op, demo_job, cell):
     watch = rtde_receive.RTDEReceiveInterface(cell.host)
     try:
         deadline = time.monotonic() + 30
-        while op.get(f"/v1/executions/{eid}").json()["progress"]["done"] < 1500:  # 3 s into the pass
+        while op.get(f"/v1/executions/{eid}").json()["progress"]["done"] < 3.0:  # 3 s of job time into the pass
             assert time.monotonic() < deadline
             time.sleep(0.05)
         assert np.abs(watch.getActualQd()).max() > 0.01  # moving
@@ -386,7 +410,7 @@ def test_sigterm_during_a_streamed_execution_stops_the_arm_and_the_restart_shows
             job = plan_demo(c)
             eid = start_running(c, job["id"], robot="cell", mode="stream")
             deadline = time.monotonic() + 30
-            while c.get(f"/v1/executions/{eid}").json()["progress"]["done"] < 1500:  # 3 s into the pass
+            while c.get(f"/v1/executions/{eid}").json()["progress"]["done"] < 3.0:  # 3 s of job time into the pass
                 assert time.monotonic() < deadline
                 time.sleep(0.05)
         assert np.abs(watch.getActualQd()).max() > 0.01  # moving

@@ -6,7 +6,9 @@ from __future__ import annotations
 
 import io
 import json
+import re
 import shutil
+import time
 from pathlib import Path
 
 import numpy as np
@@ -98,8 +100,11 @@ def test_paste_waypoints_watch_the_job_and_see_the_plot(server, browser, tmp_pat
     colours = len(np.unique(region.reshape(-1, 3), axis=0))
     assert colours > 200, f"the plot region has only {colours} colours"
     assert (region.min(axis=2) < 128).mean() > 0.005  # lines and text drawn on it
-    d.find_element("id", "execute").click()  # planned without a robot: the API's refusal on the page
-    wait(d, lambda d: "planned without a robot model" in d.find_element("id", "execute-result").text)
+    # planned without a robot: Run is disabled, saying why
+    wait(d, lambda d: d.find_element("id", "run-reason").text != "")
+    assert not d.find_element("id", "execute").is_enabled()
+    assert d.find_element("id", "run-reason").text == ("Run is disabled: the job was planned without a robot model; "
+                                                       "plan it for a robot to run it")
 
 
 def test_upload_a_clsf_file_for_a_robot_and_a_refused_input(server, browser):
@@ -123,7 +128,9 @@ def test_upload_a_clsf_file_for_a_robot_and_a_refused_input(server, browser):
                                 d.find_element("id", "exec-stage").text)) or
          d.find_element("id", "exec-state").text in ("done", "failed", "cancelled"), 120)
     assert d.find_element("id", "exec-state").text == "done", d.find_element("id", "execute-result").text
-    assert any(state == "running" and "execute" in stage for state, stage in seen), seen
+    # progress in job time with the pass and source line being cut
+    assert any(state == "running" and re.fullmatch(r"\(executing: [\d.]+ of [\d.]+ s of job time, pass \d+, source "
+                                                   r"line \d+\)", stage) for state, stage in seen), seen
     report = d.find_element("id", "exec-report").text
     job_id = d.find_element("id", "job-id").text
     with server.client() as c:
@@ -132,6 +139,9 @@ def test_upload_a_clsf_file_for_a_robot_and_a_refused_input(server, browser):
     assert report.splitlines() == runs[0]["report"]["describe"]
     assert report.startswith("execution (program): ok")
     assert float(d.find_element("id", "exec-progress").get_attribute("value")) == 1.0
+    # the run's plot (actual over planned) under the report, as planner run --plot draws it
+    wait(d, lambda d: d.execute_script("const p = document.getElementById('exec-plot'); "
+                                       "return p.complete && p.naturalWidth > 1000 && p.offsetWidth > 300;"), 120)
     # a refused input: the API's 422 message, naming the field, on the page
     d.find_element("id", "tab-points").click()
     d.find_element("id", "points").send_keys("0, 0, 0\n0, 0, 0\n100, 0, 0")
@@ -152,3 +162,87 @@ def test_the_docs_page_renders_from_the_service_alone(server, browser):
     loaded = d.execute_script("return performance.getEntriesByType('resource').map(e => e.name)")
     assert loaded and all(u.startswith(server.url + "/") for u in loaded), loaded
     assert not d.find_elements("css selector", ".swagger-ui .errors-wrapper")
+
+
+def test_a_job_the_robot_cannot_reach_has_run_disabled_with_its_reason(server, browser):
+    """The README's REST example (no part frame: the part at the robot's base) planned from the page: done, but Run
+    is disabled with the summary's reason, and the API refuses its execution with nothing started."""
+    d = browser
+    d.get(server.url + "/")
+    d.find_element("id", "file").send_keys(str(ROOT / "examples" / "nx_first_pass.cls"))
+    from selenium.webdriver.support.ui import Select
+
+    Select(d.find_element("id", "robot")).select_by_visible_text("ur5e")
+    d.find_element("id", "submit").click()
+    assert until_done(d) == "done", d.find_element("id", "job-error").text
+    job_id = d.find_element("id", "job-id").text
+    with server.client() as c:
+        summary = c.get(f"/v1/jobs/{job_id}").json()["summary"]
+        assert summary["executable"] is False and summary["not_executable"]
+        wait(d, lambda d: d.find_element("id", "run-reason").text != "", 30)
+        assert d.find_element("id", "run-reason").text == "Run is disabled: " + summary["not_executable"]
+        assert not d.find_element("id", "execute").is_enabled()
+        d.find_element("id", "execute").click()  # a click on the disabled button does nothing
+        time.sleep(0.5)
+        assert d.find_element("id", "exec-state").text == "" and d.find_element("id", "execute-result").text == ""
+        before = _executions(c)
+        r = c.post(f"/v1/jobs/{job_id}/executions", json={"robot": "sim", "mode": "program"})
+        assert r.status_code == 409 and r.json()["detail"] == f"job {job_id} cannot run on its robot: " \
+                                                             f"{summary['not_executable']}"
+        assert _executions(c) == before and server.children("planner-exec") == []  # nothing started
+
+
+@pytest.fixture(scope="module")
+def keyed_server(tmp_path_factory):
+    from tests.test_service_keys import created
+
+    s = ServiceProcess(tmp_path_factory.mktemp("docs"), workers=1, dev=False)
+    key = created(s.keys("create", "--name", "docs", "--role", "planner"))[1]
+    s.start()
+    yield s, key
+    assert s.stop() == 0, s.log.read_text()
+
+
+def _try_list_jobs(d, previous: str = "") -> tuple[str, str]:
+    """Execute GET /v1/jobs from its "Try it out" panel: the (status, body) Swagger UI shows (a body other than
+    ``previous``: this call's)."""
+    block = d.find_element("id", "operations-jobs-list_jobs")
+    block.find_element("css selector", "button.execute").click()
+    status = ".live-responses-table tbody tr.response .response-col_status"
+    body = ".live-responses-table tbody tr.response .response-col_description pre"
+
+    def answered(_d):
+        got = block.find_elements("css selector", body)
+        return bool(got) and got[0].text.strip() not in ("", previous)
+
+    wait(d, answered, 30)
+    return (block.find_element("css selector", status).text.strip(),
+            block.find_element("css selector", body).text)
+
+
+def test_the_docs_page_authorizes_with_a_key_and_try_it_out_answers_200(keyed_server, browser):
+    """/docs with keys required: Authorize takes the key (the schema's X-API-Key scheme) and a "Try it out" call of
+    GET /v1/jobs answers 200 with the key's job; without the key the same call is the 401 naming the header."""
+    s, key = keyed_server
+    with s.client(key) as c:
+        job = c.post("/v1/jobs", json={"waypoints": [[0, 0, 0], [0.1, 0, 0], [0.2, 0.05, 0]]}).json()["id"]
+    d = browser
+    d.get(s.url + "/docs")
+    wait(d, lambda d: d.find_elements("id", "operations-jobs-list_jobs"), 60)
+    d.find_element("css selector", "#operations-jobs-list_jobs .opblock-summary").click()
+    wait(d, lambda d: d.find_elements("css selector", "#operations-jobs-list_jobs .try-out__btn"), 30)
+    d.find_element("css selector", "#operations-jobs-list_jobs .try-out__btn").click()
+    status, body = _try_list_jobs(d)  # not authorized yet
+    assert status == "401" and "X-API-Key" in body, (status, body)
+    d.find_element("css selector", ".scheme-container button.authorize").click()
+    wait(d, lambda d: d.find_elements("css selector", ".modal-ux .auth-container input"), 30)
+    modal = d.find_element("css selector", ".modal-ux")
+    assert "X-API-Key" in modal.text and "header" in modal.text
+    modal.find_element("css selector", ".auth-container input").send_keys(key)
+    modal.find_element("css selector", ".auth-btn-wrapper button.authorize").click()
+    wait(d, lambda d: d.find_elements("css selector", ".modal-ux .auth-btn-wrapper button.btn-done"), 30)
+    d.find_element("css selector", ".modal-ux .auth-btn-wrapper button.btn-done").click()
+    wait(d, lambda d: not d.find_elements("css selector", ".modal-ux"), 30)
+    status, body = _try_list_jobs(d, previous=body)
+    assert status == "200", (status, body)
+    assert [j["id"] for j in json.loads(body)["jobs"]] == [job]

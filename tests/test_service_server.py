@@ -73,7 +73,7 @@ class ServiceProcess:
             time.sleep(0.1)
 
     def client(self, key: str | None = None) -> httpx.Client:
-        headers = {"Authorization": f"Bearer {key}"} if key else {}
+        headers = {"X-API-Key": key} if key else {}
         return httpx.Client(base_url=self.url, headers=headers, timeout=60)
 
     def children(self, name: str | None = None) -> list[int]:

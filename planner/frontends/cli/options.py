@@ -13,6 +13,7 @@ import argparse
 import math
 import re
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from typing import Any
 
@@ -263,6 +264,10 @@ def _passes(s: Setting, text: str):
     return passes
 
 
+#: The bar of a run in job time (s), with the place being carried out after it.
+_SECONDS = "{desc}: {percentage:3.0f}%|{bar}| {n:.1f}/{total:.1f} s of job time{postfix}"
+
+
 class Progress:
     """tqdm bars on stderr, one per stage (the callback the service uses too): (stage, done, total)."""
 
@@ -270,18 +275,39 @@ class Progress:
         self.enabled = enabled
         self.bars: dict = {}
 
-    def __call__(self, stage: str, done: int, total: int) -> None:
+    def __call__(self, stage: str, done: float, total: float, note: str | None = None) -> None:
         if not self.enabled:
             return
         from tqdm import tqdm
 
         bar = self.bars.get(stage)
         if bar is None:
-            bar = self.bars[stage] = tqdm(total=total, desc=f"  {stage}", unit=" poses" if stage == "samples" else "",
-                                          file=sys.stderr, leave=False, dynamic_ncols=True)
+            unit = {"samples": " poses", "fit": " passes", "plan": " passes"}.get(stage, "")
+            bar = self.bars[stage] = tqdm(total=total, desc=f"  {stage}", unit=unit, file=sys.stderr, leave=False,
+                                          dynamic_ncols=True, bar_format=_SECONDS if note is not None else None)
         bar.total = total
         bar.n = done
+        if note is not None:
+            bar.set_postfix_str(note, refresh=False)
         bar.refresh()
+
+    def job_time(self, job) -> Callable[[str, int, int], None]:
+        """A driver's progress callback ((stage, samples done, samples) at the job's rate) that shows the run as job
+        time done of the job's, s, with the pass and source line being carried out (as the service does)."""
+        from planner.trajectory import SamplePlaces
+
+        places = SamplePlaces(job, job.settings.rate)
+
+        def progress(stage: str, done: int, total: int) -> None:
+            if not self.enabled:
+                return
+            where = places.at(done)
+            t = places.duration if done >= total else where.t
+            note = (f"pass {where.pass_index}" if where.pass_index >= 0 else f"{where.kind or 'move'}") + (
+                f", source line {where.line}" if where.line >= 0 else "")
+            self(stage, t, places.duration, note)
+
+        return progress
 
     def close(self) -> None:
         for bar in self.bars.values():

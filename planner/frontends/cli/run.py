@@ -128,7 +128,8 @@ def cmd_run(args: argparse.Namespace) -> int:
             modbus_port = args.modbus_port
         bars = Progress(args.progress or sys.stderr.isatty())
         try:
-            report = execute_job(job, host, mode=args.mode, io=args.io, modbus_port=modbus_port, progress=bars,
+            report = execute_job(job, host, mode=args.mode, io=args.io, modbus_port=modbus_port,
+                                 progress=bars.job_time(job),
                                  lookahead=args.lookahead, gain=args.gain, compensate=args.compensate,
                                  path_tolerance=None if args.path_tolerance is None else args.path_tolerance * 1e-3,
                                  fail_on_deviation=args.fail_on_deviation, max_program_bytes=args.max_program_bytes)

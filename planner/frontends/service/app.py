@@ -21,6 +21,7 @@ from collections.abc import AsyncIterator
 
 from fastapi import FastAPI, Request
 from fastapi.concurrency import run_in_threadpool
+from fastapi.exceptions import RequestValidationError
 from fastapi.responses import JSONResponse
 from sqlalchemy import select
 from sqlalchemy.exc import InterfaceError, OperationalError
@@ -29,7 +30,9 @@ from planner.errors import PlannerError
 from planner.frontends.service.body_limit import BodyLimit
 from planner.frontends.service.config import ServiceConfig
 from planner.frontends.service.deps import API, Service
+from planner.frontends.service.errors import validation_detail
 from planner.frontends.service.fast_submit import FastSubmit
+from planner.frontends.service.methods import Methods
 from planner.frontends.service.routes import api_router
 from planner.frontends.service.routes import service as service_routes
 from planner.frontends.service.routes import view as view_routes
@@ -64,9 +67,11 @@ def create_app(cfg: ServiceConfig | None = None, *, fast_submit: bool = True) ->
             await run_in_threadpool(svc.stop)
 
     app = FastAPI(title="planner service", version="1", lifespan=lifespan, docs_url=None, redoc_url=None,
+                  generate_unique_id_function=lambda route: route.name,  # operationIds: the route functions' names
                   description="Path jobs for robot tool-orientation planning: submit waypoints or a toolpath file, "
                               "watch the job, download the trajectory (CSV, JSON), the URScript program and the plot, "
                               "run it on a robot. " + UNITS)
+    app.add_middleware(Methods)  # (innermost: OPTIONS and 405 list the path's methods)
     if fast_submit:
         app.add_middleware(FastSubmit)
     app.add_middleware(BodyLimit, limit=cfg.max_request_bytes)  # (added last: outside FastSubmit)
@@ -74,6 +79,10 @@ def create_app(cfg: ServiceConfig | None = None, *, fast_submit: bool = True) ->
     @app.exception_handler(PlannerError)
     async def _planner_error(request: Request, exc: PlannerError):
         return JSONResponse({"detail": [{"loc": [], "msg": str(exc), "type": "planner_error"}]}, status_code=422)
+
+    @app.exception_handler(RequestValidationError)
+    async def _refused(request: Request, exc: RequestValidationError):  # the input is not echoed (huge, not JSON)
+        return JSONResponse({"detail": validation_detail(list(exc.errors()))}, status_code=422)
 
     @app.exception_handler(OperationalError)
     @app.exception_handler(InterfaceError)
@@ -93,6 +102,7 @@ def create_app(cfg: ServiceConfig | None = None, *, fast_submit: bool = True) ->
             comps = spec.setdefault("components", {}).setdefault("schemas", {})
             comps.update(schema.pop("$defs", {}))
             comps["WaypointJob"] = schema
+            one_error_model(spec)
             app.openapi_schema = spec
         return app.openapi_schema
 
@@ -101,6 +111,21 @@ def create_app(cfg: ServiceConfig | None = None, *, fast_submit: bool = True) ->
 
     add_docs(app)
     return app
+
+
+def one_error_model(spec: dict) -> None:
+    """Every error answer of the schema with the service's error model (:class:`.schemas.Problem`): the 422 the
+    framework adds to a route with parameters named its own model, which the service's answers do not follow (the
+    input is never echoed)."""
+    ref = "#/components/schemas/Problem"
+    for operations in spec.get("paths", {}).values():
+        for operation in operations.values():
+            for answer in operation.get("responses", {}).values():
+                schema = answer.get("content", {}).get("application/json", {}).get("schema", {})
+                if schema.get("$ref") == "#/components/schemas/HTTPValidationError":
+                    schema["$ref"] = ref
+    for name in ("HTTPValidationError", "ValidationError"):
+        spec.get("components", {}).get("schemas", {}).pop(name, None)
 
 
 def store_unreachable(exc: Exception) -> str:

@@ -1,9 +1,10 @@
 """API keys: created, listed and revoked by ``planner keys``; only the SHA-256 of a key is stored.
 
 A key is ``pk_<id>_<secret>`` (the id names the key in lists and logs; the secret is 32 random bytes). A request
-sends it as ``Authorization: Bearer <key>`` (or ``X-API-Key``). A key belongs to a team (:mod:`.teams`); roles:
-``planner`` submits, reads and cancels the team's jobs, ``operator`` may also run them on the team's robots. A key
-never sees another team's jobs (404, as for a job that does not exist).
+sends it in the ``X-API-Key`` header (:data:`KEY_HEADER`; the OpenAPI scheme :data:`API_KEY` makes ``/docs`` ask for
+it; ``Authorization: Bearer <key>`` is accepted too, as before, but not taught). A key belongs to a team
+(:mod:`.teams`); roles: ``planner`` submits, reads and cancels the team's jobs, ``operator`` may also run them on the
+team's robots. A key never sees another team's jobs (404, as for a job that does not exist).
 """
 
 from __future__ import annotations
@@ -13,11 +14,28 @@ import hmac
 import secrets
 from dataclasses import dataclass
 
+from fastapi.security import APIKeyHeader
 from sqlalchemy import select
 from sqlalchemy.orm import Session
 
 from planner.errors import PlannerError
 from planner.frontends.service.store import DEFAULT_TEAM, DEV_OWNER, ROLES, ApiKey, Team, now
+
+#: The header a request carries its key in: the one the docs, the page and every 401/403 text name.
+KEY_HEADER = "X-API-Key"
+#: The API's security scheme in the OpenAPI schema (``components.securitySchemes.APIKey``, required by every route
+#: under /v1): /docs shows Authorize and its "Try it out" calls send the key. The key itself is checked by the
+#: service (``deps.principal``), not by this object (``auto_error=False``).
+API_KEY = APIKeyHeader(name=KEY_HEADER, scheme_name="APIKey", auto_error=False,
+                       description="an API key from `planner keys create` (pk_...), sent in the X-API-Key header")
+#: The 401's text: no key, or one that is not valid (unknown, revoked).
+NO_KEY = (f"a valid API key is needed in the {KEY_HEADER} header ({KEY_HEADER}: pk_...; `planner keys create` "
+          "makes one)")
+#: The 401's ``WWW-Authenticate`` header: the scheme and the header to use.
+CHALLENGE = {"WWW-Authenticate": f'APIKey header="{KEY_HEADER}"'}
+#: The 403's text: a planner key asked to run (or stop) a job on a robot.
+NOT_OPERATOR = (f"the key in {KEY_HEADER} is of the planner role; running a job on a robot (or stopping it) needs a "
+                "key of the operator role (`planner keys create --role operator`)")
 
 
 @dataclass(frozen=True)

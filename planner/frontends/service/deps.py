@@ -11,7 +11,7 @@ from typing import Annotated
 from fastapi import Depends, HTTPException, Request
 from sqlalchemy import select
 
-from planner.frontends.service.auth import DEV_PRINCIPAL, Principal, authenticate
+from planner.frontends.service.auth import CHALLENGE, DEV_PRINCIPAL, NO_KEY, Principal, authenticate
 from planner.frontends.service.config import ServiceConfig
 from planner.frontends.service.inserter import Inserter
 from planner.frontends.service.metrics import Metrics
@@ -97,7 +97,7 @@ def service(request: Request) -> Service:
 
 
 async def principal(request: Request) -> Principal:
-    """The caller: the key of ``Authorization: Bearer`` / ``X-API-Key``, or the development operator (checked in
+    """The caller: the key of ``X-API-Key`` (or ``Authorization: Bearer``), or the development operator (checked in
     the event loop: one indexed read, no thread hand-over)."""
     return caller(service(request), request.headers.get("x-api-key"), request.headers.get("authorization", ""))
 
@@ -112,8 +112,7 @@ def caller(svc: Service, api_key: str | None, authorization: str) -> Principal:
     with svc.sessions() as s:
         who = authenticate(s, key)
     if who is None:
-        raise HTTPException(401, "a valid API key is needed (Authorization: Bearer <key>)",
-                            headers={"WWW-Authenticate": "Bearer"})
+        raise HTTPException(401, NO_KEY, headers=CHALLENGE)
     return who
 
 
@@ -127,7 +126,15 @@ def own_job(svc: Service, who: Principal, job_id: str) -> Job:
             job = s.scalars(select(Job).where(Job.id == job_id, Job.team == who.team)).first()
         if job is not None:
             return job
-    raise HTTPException(404, f"no job {job_id}")
+    raise HTTPException(404, f"no job {shown_id(job_id)}")
+
+
+def shown_id(value: str) -> str:
+    """An id from a request as a 404 names it: itself if it has an id's shape, else its first characters (a path of
+    any length is answered in one line)."""
+    if JOB_ID.match(value):
+        return value
+    return f"{value[:40]!r}{'...' if len(value) > 40 else ''} (an id is 32 hex digits)"
 
 
 ServiceDep = Annotated[Service, Depends(service)]

@@ -105,6 +105,7 @@ PAGE = r"""<!doctype html>
       <div id="downloads"></div>
       <pre id="summary" class="hidden"></pre>
       <div id="run" class="hidden">
+        <div id="run-reason" style="color: var(--bad)"></div>
         <div class="row" style="grid-template-columns: 1fr 1fr auto auto; align-items: end">
           <div><label for="exec-robot">robot</label><select id="exec-robot"><option>sim</option></select></div>
           <div><label for="exec-mode">mode</label><select id="exec-mode"><option value="program">program (URScript)</option>
@@ -116,6 +117,7 @@ PAGE = r"""<!doctype html>
         <progress id="exec-progress" max="1" value="0"></progress>
         <div id="execute-result" style="color: var(--bad)"></div>
         <pre id="exec-report" class="hidden"></pre>
+        <img id="exec-plot" alt="plot of the run over the planned job" class="hidden" style="max-width: 100%; border: 1px solid var(--line); margin-top: 8px">
       </div>
       <img id="plot" alt="plot of the planned job">
       <div id="view3d"></div>
@@ -132,7 +134,7 @@ $("apikey").addEventListener("change", () => { localStorage.setItem("planner-key
 function headers(extra) {
   const h = Object.assign({}, extra || {});
   const key = $("apikey").value.trim();
-  if (key) h["Authorization"] = "Bearer " + key;
+  if (key) h["X-API-Key"] = key;
   return h;
 }
 async function api(path, options) {
@@ -229,6 +231,8 @@ function show(id) {
   $("run").classList.add("hidden"); $("execute-result").textContent = ""; $("exec-report").classList.add("hidden");
   $("exec-state").textContent = ""; $("exec-stage").textContent = ""; $("exec-progress").value = 0;
   $("exec-stop").classList.add("hidden"); execution = null; if (execTimer) clearTimeout(execTimer);
+  $("exec-plot").classList.add("hidden"); $("exec-plot").removeAttribute("src"); $("run-reason").textContent = "";
+  $("execute").disabled = false;
   if (timer) clearTimeout(timer);
   poll();
 }
@@ -239,7 +243,7 @@ async function poll() {
   if (id !== current) return;
   $("job-state").textContent = v.state;
   $("job-state").className = "state-" + v.state;
-  $("job-stage").textContent = v.progress.stage ? `(${v.progress.stage} ${v.progress.done}/${v.progress.total})` : "";
+  $("job-stage").textContent = v.progress.text ? `(${v.progress.text})` : "";
   $("job-progress").value = v.state === "done" ? 1 : (v.progress.total ? v.progress.done / v.progress.total : 0);
   $("cancel").classList.toggle("hidden", !(v.state === "queued" || v.state === "running"));
   if (v.state === "queued" || v.state === "running") { timer = setTimeout(poll, 500); return; }
@@ -258,6 +262,9 @@ async function poll() {
     $("downloads").appendChild(a);
   }
   $("run").classList.remove("hidden");
+  const reason = notRunnable(v.summary || {});
+  $("execute").disabled = reason !== "";
+  $("run-reason").textContent = reason ? "Run is disabled: " + reason : "";
   listRobots();
   if (window.view3d) window.view3d.show(id).catch((e) => { $("job-error").textContent = "3D view: " + e.message; });
   try {
@@ -266,6 +273,11 @@ async function poll() {
     $("plot").src = URL.createObjectURL(blob);
     $("plot").style.display = "block";
   } catch (e) { $("job-error").textContent = "plot: " + e.message; }
+}
+function notRunnable(s) {
+  if (!s.robot) return "the job was planned without a robot model; plan it for a robot to run it";
+  if (s.executable === false) return s.not_executable || "the job cannot run on its robot";
+  return "";
 }
 $("cancel").onclick = async () => {
   try { await api("/v1/jobs/" + current, {method: "DELETE"}); } catch (e) { $("job-error").textContent = e.message; }
@@ -307,7 +319,7 @@ async function pollExecution() {
   const active = ["starting", "running", "stopping"].includes(v.state);
   $("exec-state").textContent = v.state;
   $("exec-state").className = "state-" + v.state;
-  $("exec-stage").textContent = v.progress.total ? `(${v.progress.stage} ${v.progress.done}/${v.progress.total})` : `(${v.progress.stage})`;
+  $("exec-stage").textContent = `(${v.progress.text})`;
   $("exec-progress").value = v.state === "done" ? 1 : (v.progress.total ? v.progress.done / v.progress.total : 0);
   $("exec-stop").classList.toggle("hidden", !active);
   $("execute").disabled = active;
@@ -321,6 +333,14 @@ async function pollExecution() {
   }
   if (v.report) { $("exec-report").textContent = v.report.describe.join("\n"); $("exec-report").classList.remove("hidden"); }
   listRobots();
+  if (v.links.plot) {
+    try {
+      const blob = await (await api(v.links.plot)).blob();
+      if (id !== execution) return;
+      $("exec-plot").src = URL.createObjectURL(blob);
+      $("exec-plot").classList.remove("hidden");
+    } catch (e) { $("execute-result").textContent = "run plot: " + e.message; }
+  }
 }
 async function listJobs() {
   try {

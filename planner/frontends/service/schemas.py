@@ -16,8 +16,11 @@ from pydantic import BaseModel, ConfigDict, Field, create_model
 
 from planner.settings import OUTPUT_KINDS, SETTINGS, PlanSettings, Setting
 
-#: A finite number (NaN and +-inf refused, naming the field).
-Finite = Annotated[float, Field(allow_inf_nan=False)]
+#: A finite number (NaN and +-inf refused, naming the field; true and false are not numbers).
+Finite = Annotated[float, Field(allow_inf_nan=False, strict=True)]
+#: An integer the store can hold (signed 64 bits): a larger one is refused naming its field.
+INT64_MAX = 2**63 - 1
+Int64 = Annotated[int, Field(ge=-INT64_MAX - 1, le=INT64_MAX, strict=True)]
 Vec3 = tuple[Finite, Finite, Finite]
 Pose6 = tuple[Finite, Finite, Finite, Finite, Finite, Finite]
 
@@ -57,10 +60,10 @@ def _type(s: Setting) -> Any:
     if kind == "pose":
         return Pose6 | Literal[s.choices] | None if s.choices else Pose6 | None
     if kind == "output":
-        return tuple[Literal[tuple(OUTPUT_KINDS)], int] | None  # type: ignore[misc]
+        return tuple[Literal[tuple(OUTPUT_KINDS)], Int64] | None  # type: ignore[misc]
     if kind == "passes":
-        return Annotated[list[Annotated[int, Field(ge=0)]], Field(min_length=1, max_length=100_000)] | Literal[
-            "longest"] | None
+        index = Annotated[int, Field(ge=0, le=INT64_MAX, strict=True)]
+        return Annotated[list[index], Field(min_length=1, max_length=100_000)] | Literal["longest"] | None
     raise AssertionError(f"setting {s.name}: no JSON type for kind {kind!r}")
 
 
@@ -118,6 +121,9 @@ class ReadOptions(Strict):
 class WaypointJob(Strict):
     """A job from waypoints in metres (part frame): one pass, interpolated by default."""
 
+    model_config = ConfigDict(json_schema_extra={"examples": [
+        {"waypoints": [[0.0, 0.0, 0.0], [0.1, 0.02, 0.0], [0.2, 0.0, 0.01]], "settings": {"feed": 0.05}}]})
+
     waypoints: Annotated[list[Vec3], Field(min_length=2)]
     axes: list[Vec3] | None = Field(default=None, description="tool axis per waypoint (CAM convention)")
     feeds: list[Finite | None] | None = Field(default=None, description="feed into each waypoint, m/s (null: "
@@ -143,11 +149,21 @@ class Closed(BaseModel):
 
 
 class Progress(BaseModel):
-    """Where a job (or an execution) is: its stage and the items done of the stage's total."""
+    """Where a job (or an execution) is: its stage and ``done`` of the stage's ``total`` in ``unit``: a planning job
+    counts cutting passes (passes planned of the job's passes), an execution's run job time (s of job time done of
+    the job's) with the pass and source line being carried out; ``text`` says it in one line."""
 
-    stage: str
-    done: int
-    total: int
+    model_config = ConfigDict(populate_by_name=True)
+
+    stage: str = Field(description="planning: fit, plan, place, reach, done; an execution: starting, controller, "
+                                   "connecting, then the move being carried out (\"cut pass 3 line 120\"), done")
+    done: float
+    total: float
+    unit: str = Field(description="of done and total: passes (planning), s (job time of an execution's run), or "
+                                  "empty before the counting begins")
+    pass_: int | None = Field(None, alias="pass", description="an execution: the pass being cut (null between passes)")
+    line: int | None = Field(None, description="an execution: the source line of the move being carried out")
+    text: str = Field(description="the progress in one line, as the page shows it")
 
 
 class ErrorView(BaseModel):
@@ -272,6 +288,8 @@ class JobList(BaseModel):
 class ExecutionRequest(Strict):
     """Run a done job on a configured robot."""
 
+    model_config = ConfigDict(json_schema_extra={"examples": [{"robot": "sim", "mode": "program"}]})
+
     robot: str = Field(max_length=32, description="the name of a robot of the key's team (GET /v1/robots)")
     mode: Literal["stream", "program"] = Field(
         default="stream", description="stream: servoJ with the planner's joints at the job's rate; program: the "
@@ -338,6 +356,8 @@ class ExecutionLinks(BaseModel):
 
     self_: str = Field(alias="self", description="this execution")
     job: str = Field(description="the job executed")
+    plot: str | None = Field(None, description="the picture of the run over the planned job (PNG), once it has "
+                                               "ended after its run began")
 
 
 class ExecutionView(BaseModel):
@@ -373,6 +393,29 @@ class RobotView(BaseModel):
 
 class RobotList(BaseModel):
     robots: list[RobotView]
+
+
+def links(param: str, *operations: str) -> dict[str, dict]:
+    """OpenAPI links from a 202's ``id`` to the operations (by operationId: the route function's name) taking it as
+    the path parameter ``param``: clients and test tools follow them (a job created, then read, cancelled,
+    exported, executed)."""
+    return {operation: {"operationId": operation, "parameters": {param: "$response.body#/id"},
+                        "description": f"the {param} of the resource created"} for operation in operations}
+
+
+class FieldError(BaseModel):
+    """One refused field: where (``loc``: "body", "query", "path" then the field's names and indices), why."""
+
+    loc: list[str | int]
+    msg: str
+    type: str
+
+
+class Problem(BaseModel):
+    """Every error answer (4xx, 503): ``detail`` is one line saying what is wrong, or (422) a list of the refused
+    fields, each naming its place."""
+
+    detail: str | list[FieldError]
 
 
 class Health(BaseModel):

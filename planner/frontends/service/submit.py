@@ -106,8 +106,8 @@ async def accept_file(svc: Service, who: Principal, request: Request) -> str:
     HTTPException 422 naming the field or the file's line, before any row is stored, if it is bad."""
     try:
         form = await request.form(max_files=1, max_fields=10)
-    except HTTPException:
-        raise
+    except HTTPException as exc:  # too many files or fields (the framework's 400): a refused body, as any other
+        raise Unprocessable(["body"], f"not a form this route takes: {exc.detail}") from None
     except Exception as exc:
         raise Unprocessable(["body"], f"not a readable multipart form ({exc})") from None
     try:

@@ -9,37 +9,41 @@ The runs themselves: the task layer (:mod:`planner.frontends.service.tasks`), on
 
 from __future__ import annotations
 
+import asyncio
 import json
 import time
 import uuid
 from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Query
-from fastapi.responses import JSONResponse
+from fastapi.concurrency import run_in_threadpool
+from fastapi.responses import FileResponse, JSONResponse
 from sqlalchemy import select
 
-from planner.frontends.service.auth import Principal
-from planner.frontends.service.deps import API, JOB_ID, Caller, Service, ServiceDep, own_job
-from planner.frontends.service.errors import Unprocessable
+from planner.errors import PlannerError
+from planner.frontends.service.auth import NOT_OPERATOR, Principal
+from planner.frontends.service.deps import API, JOB_ID, Caller, Service, ServiceDep, own_job, shown_id
+from planner.frontends.service.errors import CheckedRoute, Unprocessable, documented
 from planner.frontends.service.schemas import (
     ExecutionCreated,
     ExecutionList,
     ExecutionRequest,
     ExecutionView,
     RobotList,
+    links,
 )
-from planner.frontends.service.store import Execution, now
-from planner.frontends.service.tasks.lifecycle import EXECUTION
+from planner.frontends.service.store import Execution, JobData, now
+from planner.frontends.service.tasks.lifecycle import EXECUTION, progress_view
 from planner.frontends.service.tasks.runner import STOP_GRACE
 from planner.frontends.service.tasks.transitions import RobotBusy
 from planner.frontends.service.teams import team_robots
 
-router = APIRouter(tags=["executions"])
+router = APIRouter(tags=["executions"], route_class=CheckedRoute)
 
 
 def require_operator(who: Principal) -> None:
     if who.role != "operator":
-        raise HTTPException(403, "running a job on a robot needs a key of the operator role")
+        raise HTTPException(403, NOT_OPERATOR)
 
 
 def execution_view(row: Execution) -> dict:
@@ -50,9 +54,16 @@ def execution_view(row: Execution) -> dict:
                  "pose": None if row.error_pose is None else json.loads(row.error_pose), "line": row.error_line}
     return {"id": row.id, "job_id": row.job_id, "robot": row.robot, "mode": row.mode, "state": row.state,
             "created_at": row.created_at, "started_at": row.started_at, "finished_at": row.finished_at,
-            "progress": {"stage": row.stage, "done": row.done, "total": row.total},
+            "progress": progress_view("execution", row.state, row.stage, row.done, row.total),
             "report": None if row.report is None else json.loads(row.report), "error": error, "note": row.note,
-            "links": {"self": f"{API}/executions/{row.id}", "job": f"{API}/jobs/{row.job_id}"}}
+            "links": {"self": f"{API}/executions/{row.id}", "job": f"{API}/jobs/{row.job_id}",
+                      **({"plot": f"{API}/executions/{row.id}/plot.png"} if _plotted(row) else {})}}
+
+
+def _plotted(row: Execution) -> bool:
+    """Whether the execution has a picture of its run: it ended after its run began (its trace stored as it
+    ended)."""
+    return row.state not in EXECUTION.active and row.started_at is not None
 
 
 def own_execution(svc: Service, who: Principal, execution_id: str) -> Execution:
@@ -64,16 +75,17 @@ def own_execution(svc: Service, who: Principal, execution_id: str) -> Execution:
                                                     Execution.team == who.team)).first()
         if row is not None:
             return row
-    raise HTTPException(404, f"no execution {execution_id}")
+    raise HTTPException(404, f"no execution {shown_id(execution_id)}")
 
 
 @router.post("/jobs/{job_id}/executions", status_code=202, response_model=ExecutionCreated,
-             responses={403: {"description": "not an operator key"},
-                        404: {"description": "no such job of this key's team"},
-                        409: {"description": "job not done, planned without a robot, not executable on "
-                                                    "its robot (summary.not_executable), or the robot is busy"},
-                        422: {"description": "no robot of that name for this key's team, or a robot of another "
-                                             "model"}})
+             responses={202: {"links": links("execution_id", "get_execution", "stop_execution", "execution_plot")},
+                        **documented(403, 404, 409, 413, 422,
+                                     e404="no such job of this key's team",
+                                     e409="the job is not done, was planned without a robot, cannot run on its robot "
+                                          "(summary.not_executable: the reason), or the robot is busy",
+                                     e422="no robot of that name for this key's team, a robot of another model, or a "
+                                          "refused body (not a JSON object, not UTF-8, an unknown field)")})
 def create_execution(svc: ServiceDep, job_id: str, body: ExecutionRequest, who: Caller) -> JSONResponse:
     """Run a done job of the team on one of the team's robots (by name), in "stream" (servoJ) or "program"
     (URScript) mode."""
@@ -110,7 +122,7 @@ def create_execution(svc: ServiceDep, job_id: str, body: ExecutionRequest, who: 
                         headers={"Location": location})
 
 
-@router.get("/executions", response_model=ExecutionList)
+@router.get("/executions", response_model=ExecutionList, responses=documented(422))
 def list_executions(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge=1, le=500)] = 50,
                     job_id: Annotated[str | None, Query(max_length=32, description="only this job's")] = None
                     ) -> dict:
@@ -125,16 +137,15 @@ def list_executions(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge
 
 
 @router.get("/executions/{execution_id}", response_model=ExecutionView,
-            responses={404: {"description": "no such execution of this key's team"}})
+            responses=documented(404, e404="no such execution of this key's team"))
 def get_execution(svc: ServiceDep, execution_id: str, who: Caller) -> dict:
     """An execution's state, progress, report figures and failure (reason, job time, pose, source line)."""
     return execution_view(own_execution(svc, who, execution_id))
 
 
 @router.delete("/executions/{execution_id}", response_model=ExecutionView,
-               responses={403: {"description": "not an operator key"},
-                          404: {"description": "no such execution of this key's team"},
-                          409: {"description": "the execution has ended"}})
+               responses=documented(403, 404, 409, e404="no such execution of this key's team",
+                                    e409="the execution has ended: only a running one can be stopped"))
 def stop_execution(svc: ServiceDep, execution_id: str, who: Caller) -> dict:
     """Stop an execution: the arm is brought to rest (controlled stop) and the job's outputs switched off; answers
     once the execution has ended (a few seconds at most)."""
@@ -150,7 +161,42 @@ def stop_execution(svc: ServiceDep, execution_id: str, who: Caller) -> dict:
     return execution_view(own_execution(svc, who, execution_id))
 
 
-@router.get("/robots", response_model=RobotList)
+@router.get("/executions/{execution_id}/plot.png", response_class=FileResponse,
+            responses={200: {"content": {"image/png": {}}},
+                       **documented(404, 409, e404="no such execution of this key's team, or no plot of it: it ended "
+                                                   "before its run recorded anything",
+                                    e409="the execution has not ended: its plot is drawn once it has")})
+async def execution_plot(svc: ServiceDep, execution_id: str, who: Caller) -> FileResponse:
+    """The picture of the job with the run drawn over it (actual over planned), as ``planner run --plot`` draws it
+    (from the run's trace stored as it ended; drawn once, in the drawing process, then kept in this replica's cache
+    folder)."""
+    row = await run_in_threadpool(own_execution, svc, who, execution_id)
+    if row.state in EXECUTION.active:
+        raise HTTPException(409, f"execution {execution_id} is {row.state}; its plot is drawn once it has ended")
+    target = svc.cfg.data_dir / "plots" / f"run-{row.id}.png"
+    if not target.is_file():
+        trace, plan = await run_in_threadpool(_run_data, svc, row)
+        if trace is None or plan is None or row.report is None:
+            raise HTTPException(404, f"execution {execution_id} has no plot: it ended ({row.state}) before its run "
+                                     "recorded anything")
+        try:
+            await asyncio.wrap_future(svc.plotter.draw_run(plan, json.loads(row.report), trace, str(target)))
+        except PlannerError as exc:  # the service's own folder holds something it must not replace
+            raise HTTPException(500, f"execution {row.id}: the picture cannot be stored: {exc}") from None
+    return FileResponse(target, media_type="image/png")
+
+
+def _run_data(svc: Service, row: Execution) -> tuple[bytes | None, bytes | None]:
+    """An execution's stored trace and its job's saved plan (None where missing)."""
+    with svc.engine.connect() as conn:
+        data = dict(conn.execute(select(JobData.job_id, JobData.data).where(
+            ((JobData.job_id == row.id) & (JobData.name == "run.trace")) |
+            ((JobData.job_id == row.job_id) & (JobData.name == "plan")))).all())
+    trace, plan = data.get(row.id), data.get(row.job_id)
+    return None if trace is None else bytes(trace), None if plan is None else bytes(plan)
+
+
+@router.get("/robots", response_model=RobotList, responses=documented())
 def list_robots(svc: ServiceDep, who: Caller) -> dict:
     """The robots the caller's team may execute jobs on: name, model (null: a simulated robot of the job's model),
     simulated, busy."""

@@ -12,16 +12,18 @@ from fastapi.responses import FileResponse, Response, StreamingResponse
 
 from planner.errors import PlannerError
 from planner.frontends.service.deps import OwnJob, Service, ServiceDep
-from planner.frontends.service.errors import Unprocessable
+from planner.frontends.service.errors import CheckedRoute, Unprocessable, documented
 from planner.frontends.service.store import Job
 
-router = APIRouter(prefix="/jobs", tags=["exports"])
-_NOT_YOURS: dict[int | str, dict[str, Any]] = {404: {"description": "no such job of this key's team"},
-                                               409: {"description": "job not done"}}
+router = APIRouter(prefix="/jobs", tags=["exports"], route_class=CheckedRoute)
+_NOT_YOURS: dict[int | str, dict[str, Any]] = documented(404, 409, e404="no such job of this key's team",
+                                                         e409="the job is not done: exports exist once it is done")
 
 
 @router.get("/{job_id}/trajectory",
-            responses={200: {"content": {"text/csv": {}, "application/json": {}, "text/plain": {}}}, **_NOT_YOURS})
+            responses={200: {"content": {"text/csv": {}, "application/json": {}, "text/plain": {}}}, **_NOT_YOURS,
+                       **documented(422, e422="a format this job cannot be exported to (script: a job planned "
+                                              "without a robot)")})
 def trajectory(svc: ServiceDep, row: OwnJob,
                format: Literal["csv", "json", "script"] = "csv") -> Response:  # noqa: A002
     """The trajectory (CSV, JSON) or URScript program: the bytes ``planner plan -o`` writes, streamed."""

@@ -11,12 +11,14 @@ from sqlalchemy import select
 
 from planner.frontends.service.deps import API, MAX_CURSOR, Caller, OwnJob, Service, ServiceDep, own_job, principal
 from planner.frontends.service.deps import service as _service
+from planner.frontends.service.errors import CheckedRoute, documented
 from planner.frontends.service.fast_submit import created
-from planner.frontends.service.schemas import JobCreated, JobList, JobView
+from planner.frontends.service.schemas import JobCreated, JobList, JobView, links
 from planner.frontends.service.store import Job, now
 from planner.frontends.service.submit import accept_file, accept_json
+from planner.frontends.service.tasks.lifecycle import progress_view
 
-router = APIRouter(prefix="/jobs", tags=["jobs"])
+router = APIRouter(prefix="/jobs", tags=["jobs"], route_class=CheckedRoute)
 
 
 def job_view(svc: Service, job: Job) -> dict:
@@ -36,7 +38,7 @@ def job_view(svc: Service, job: Job) -> dict:
     return {
         "id": job.id, "state": job.state, "created_at": job.created_at, "started_at": job.started_at,
         "finished_at": job.finished_at,
-        "progress": {"stage": job.stage, "done": job.done, "total": job.total},
+        "progress": progress_view("job", job.state, job.stage, job.done, job.total),
         "attempts": job.attempts,
         "input": {"kind": job.input_kind, "name": job.input_name, "format": job.input_format,
                   "bytes": job.input_bytes},
@@ -69,8 +71,10 @@ _JOB_BODY = {
 
 
 @router.post("", status_code=202, response_model=JobCreated, openapi_extra=_JOB_BODY,
-             responses={413: {"description": "request too large"}, 415: {"description": "not JSON or multipart"},
-                        422: {"description": "bad input, naming the field"}})
+             responses={202: {"links": links("job_id", "get_job", "cancel_job", "trajectory", "plot",
+                                              "create_execution")},
+                        **documented(413, 415, 422, e415="not application/json (waypoints) or multipart/form-data "
+                                                      "(a toolpath file)")})
 async def submit(request: Request) -> JSONResponse:
     """Submit a job: JSON waypoints (WaypointJob) or a multipart upload of a toolpath file. (A JSON job is mostly
     answered by the fast submit path, :mod:`..fast_submit`, with the same answer.)"""
@@ -87,7 +91,7 @@ async def submit(request: Request) -> JSONResponse:
     return JSONResponse(body, status_code=202, headers={"Location": location})
 
 
-@router.get("", response_model=JobList, response_model_exclude_unset=True)
+@router.get("", response_model=JobList, response_model_exclude_unset=True, responses=documented(422))
 def list_jobs(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge=1, le=500)] = 50,
               cursor: Annotated[int | None, Query(ge=0, le=MAX_CURSOR,
                                                   description="next_cursor of the previous page")] = None
@@ -104,15 +108,15 @@ def list_jobs(svc: ServiceDep, who: Caller, limit: Annotated[int, Query(ge=1, le
 
 
 @router.get("/{job_id}", response_model=JobView, response_model_exclude_unset=True,
-            responses={404: {"description": "no such job of this key's team"}})
+            responses=documented(404, e404="no such job of this key's team"))
 def get_job(svc: ServiceDep, job: OwnJob) -> dict:
     """State, progress, timings, the summary the CLI prints, or the planner's error."""
     return job_view(svc, job)
 
 
 @router.delete("/{job_id}", response_model=JobView, response_model_exclude_unset=True,
-               responses={404: {"description": "no such job of this key's team"},
-                          409: {"description": "job has ended"}})
+               responses=documented(404, 409, e404="no such job of this key's team",
+                                    e409="the job has ended: only a queued or running job can be cancelled"))
 def cancel_job(svc: ServiceDep, who: Caller, job: OwnJob) -> dict:
     """Cancel a queued or running job (a running job's worker is stopped within a second)."""
     before = svc.backend.cancel_job(job.id)

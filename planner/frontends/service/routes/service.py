@@ -7,6 +7,7 @@ from fastapi.responses import HTMLResponse, PlainTextResponse
 from sqlalchemy import select
 
 from planner.frontends.service.deps import ServiceDep
+from planner.frontends.service.errors import documented
 from planner.frontends.service.schemas import Health
 from planner.frontends.service.tasks.lifecycle import EXECUTION, JOB
 
@@ -20,7 +21,7 @@ def page() -> HTMLResponse:
     return HTMLResponse(PAGE)
 
 
-@router.get("/healthz", response_model=Health)
+@router.get("/healthz", response_model=Health, responses=documented(key=False))
 def healthz(svc: ServiceDep) -> dict:
     """The database answers; the planning workers alive and busy; whether keys are needed."""
     with svc.sessions() as s:
@@ -29,7 +30,7 @@ def healthz(svc: ServiceDep) -> dict:
     return {"status": "ok", "workers": alive, "busy": busy, "dev_no_auth": svc.cfg.dev_no_auth}
 
 
-@router.get("/metrics", response_class=PlainTextResponse)
+@router.get("/metrics", response_class=PlainTextResponse, responses=documented(key=False))
 def metrics(svc: ServiceDep) -> PlainTextResponse:
     """Prometheus text: jobs and executions by state (the whole cluster's, from the store), queue depth (from the
     queue itself), workers alive and busy, this process's request figures."""

@@ -17,7 +17,7 @@ from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
-from planner.frontends.service.tasks.lifecycle import Live, Outcome, Progress, failed
+from planner.frontends.service.tasks.lifecycle import EXECUTION_TICKS, Live, Outcome, Progress, execution_stage, failed
 
 #: Seconds between progress messages of a task.
 PROGRESS_EVERY = 0.2
@@ -95,8 +95,10 @@ def plan_job(spec: PlanSpec, report: Report) -> Outcome:
     try:
         job = _plan(spec, _throttled(report))
         blob = job.to_bytes()
-        return Outcome("done", values={"summary": json.dumps(plain(job.summary())),
-                                       "describe": json.dumps(list(job.describe())), "stage": "done"},
+        summary = plain(job.summary())
+        passes = int(summary.get("passes") or 0)
+        return Outcome("done", values={"summary": json.dumps(summary), "describe": json.dumps(list(job.describe())),
+                                       "stage": "done", "done": passes, "total": passes},
                        plan=blob, planning_s=float(sum(v for k, v in job.timings.items()
                                                        if k in ("parse", "plan", "reach"))))
     except PlannerError as exc:
@@ -213,17 +215,27 @@ def execute_job(spec: ExecuteSpec, report: Report, cancel: threading.Event, phas
     from drivers.execute import execute_job as run
     from drivers.execute import start_sim
     from planner.job import load_job
+    from planner.trajectory import SamplePlaces
 
     robot = spec.robot
     phase = phase or Phase()
     job = load_job(spec.plan)
     throttled = _throttled(report)
+    places = SamplePlaces(job, job.settings.rate)  # the driver counts samples at the job's rate
+    ticks = EXECUTION_TICKS
+    last: dict = {}  # the run's last progress: where a failed run stopped
 
     def progress(stage: str, done: int, total: int) -> None:
+        """The driver's (stage, samples done, samples) as job time done of the job's, ms, with the move's place."""
+        where = places.at(done)
+        of = round(ticks * places.duration)
+        now = min(round(ticks * where.t), of) if done < total else of
+        stage = execution_stage(where.kind, where.pass_index, where.line)
+        last.update(stage=stage, done=now, total=of)
         if not phase.running:
             phase.running = True
-            report(Progress(str(stage), int(done), int(total), started=True))
-        throttled(stage, done, total)
+            report(Progress(stage, now, of, started=True))
+        throttled(stage, now, of)
 
     sim = None
     try:
@@ -244,10 +256,14 @@ def execute_job(spec: ExecuteSpec, report: Report, cancel: threading.Event, phas
         relay.close()
         figures = report_figures(result)
         failure = figures.get("failure")
+        files = trace_files(result)
         if figures["ok"]:
-            return Outcome("done", values={"report": json.dumps(figures)})
+            of = round(ticks * places.duration)
+            return Outcome("done", values={"report": json.dumps(figures), "stage": "done", "done": of, "total": of},
+                           files=files)
         state = "cancelled" if failure and failure["kind"] == "cancelled" else "failed"
-        return _ended(state, failure, report=json.dumps(figures))
+        outcome = _ended(state, failure, report=json.dumps(figures), **last)  # (progress: where it stopped)
+        return Outcome(outcome.state, outcome.error_kind, outcome.error, outcome.values, files=files)
     except DriverError as exc:  # refused or failed before the run: after a stop, cancelled
         error = error_figures(exc)
         return _ended("cancelled" if error["kind"] == "cancelled" or cancel.is_set() else "failed", error)
@@ -288,6 +304,23 @@ class LiveRelay:
     def close(self) -> None:
         self.queue.put(None)
         self.thread.join(2.0)
+def trace_files(result) -> dict[str, bytes]:
+    """The run's trace (:class:`drivers.recording.ExecutionTrace`: job time, actual TCP position and speed, output
+    bits; at most ~20,000 samples) as the bytes stored with the execution's end, {"run.trace": npz}, from which the
+    service draws the run's plot when asked (:func:`planner.frontends.service.plots.draw_run`); {} when the run
+    recorded nothing (it ended before it began)."""
+    import io
+
+    import numpy as np
+
+    trace = getattr(result, "trace", None)
+    if trace is None or len(trace) < 2:
+        return {}
+    buf = io.BytesIO()
+    np.savez_compressed(buf, t=np.asarray(trace.t, float), xyz=np.asarray(trace.xyz, float),
+                        speed=np.asarray(trace.speed, float), io=np.asarray(trace.io, np.int64),
+                        spacing=np.float64(trace.spacing))
+    return {"run.trace": buf.getvalue()}
 
 
 def _ended(state, error: dict | None, **values) -> Outcome:

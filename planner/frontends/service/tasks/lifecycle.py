@@ -7,6 +7,7 @@ queue behind others) and has one more state, "stopping" (a stop was asked; the a
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass, field
 from typing import Any, Literal
 
@@ -87,6 +88,8 @@ class Outcome:
         A planned job's saved plan (:meth:`planner.PlannedJob.to_bytes`).
     planning_s : float or None
         Planning time (parse to saved plan), s.
+    files : dict of str to bytes
+        Further bytes stored with the task's end under its id (an execution's trace of its run, "run.trace").
     """
 
     state: Literal["done", "failed", "cancelled"]
@@ -95,8 +98,78 @@ class Outcome:
     values: dict = field(default_factory=dict)
     plan: bytes | None = None
     planning_s: float | None = None
+    files: dict[str, bytes] = field(default_factory=dict)
 
 
 def failed(kind: str, reason: str, **values) -> Outcome:
     """A failed task's outcome."""
     return Outcome("failed", error_kind=kind, error=reason, values=values)
+
+
+# -- progress as people read it -----------------------------------------------------------------------------------
+# A task's progress is stored as (stage, done, total) (the store's columns): a planning job's counts are cutting
+# passes (planner.plan's progress); an execution's are job time in milliseconds, with the move being carried out
+# in its stage ("cut pass 3 line 120", "rapid line 140": :func:`execution_stage`).
+
+#: The longest stage the store keeps (its column's width).
+STAGE_CHARS = 32
+_PLACE = re.compile(r"^(?P<kind>[a-z]+)(?: pass (?P<pass>\d+))?(?: line (?P<line>-?\d+))?$")
+#: What a planning stage does, for a person.
+PLAN_STAGES = {"fit": "fitting the passes", "plan": "planning tool frames and time laws",
+               "place": "placing the part for the robot", "reach": "checking the robot's reach"}
+#: The execution's stages before its run, for a person.
+EXECUTION_STAGES = {"starting": "starting", "controller": "starting the simulated controller",
+                    "connecting": "connecting to the robot"}
+#: Execution progress is stored in these units of job time per second.
+EXECUTION_TICKS = 1000
+
+
+def execution_stage(kind: str, pass_index: int, line: int) -> str:
+    """The stage of an execution's run carrying out a move: its kind, pass (cuts) and source line (fits the
+    store's column)."""
+    out = kind or "move"
+    if pass_index >= 0:
+        out += f" pass {pass_index}"
+    if line >= 0:
+        out += f" line {line}"
+    return out[:STAGE_CHARS]
+
+
+def progress_view(kind: str, state: str, stage: str, done: int, total: int) -> dict[str, Any]:
+    """A task's stored progress as the API shows it (:class:`..schemas.Progress`): the stage, done of total in
+    ``unit`` ("passes" for planning, "s" of job time for an execution's run), the pass and source line being carried
+    out, and one line of ``text`` for a person."""
+    view: dict[str, Any] = {"stage": stage, "done": float(done), "total": float(total), "unit": "", "pass": None,
+                            "line": None}
+    if kind == "job":
+        if stage in PLAN_STAGES or stage == "done":
+            view["unit"] = "passes"
+            what = PLAN_STAGES.get(stage)
+            view["text"] = (f"{total} passes planned" if stage == "done" else
+                            f"{what}: {done} of {total} passes" if stage in ("fit", "plan") else
+                            f"{what} ({total} passes)")
+        else:
+            view["text"] = {"": "waiting for a worker", "starting": "starting: reading the input"}.get(stage, stage)
+        if state in ("failed", "cancelled") and stage != "done":
+            view["text"] = f"{state} while {view['text']}"
+        return view
+    place = _PLACE.match(stage)
+    if stage == "execute":  # stored by an earlier version: samples
+        view.update(unit="samples", text=f"executing: {done} of {total} samples")
+    elif stage == "done" or (place is not None and stage not in EXECUTION_STAGES):
+        seconds, of = done / EXECUTION_TICKS, total / EXECUTION_TICKS
+        view.update(done=seconds, total=of, unit="s")
+        text = f"{seconds:.1f} of {of:.1f} s of job time"
+        if stage == "done":
+            view["text"] = f"executed: {text}"
+        else:
+            assert place is not None
+            p, line = place["pass"], place["line"]
+            view.update({"pass": None if p is None else int(p), "line": None if line is None else int(line)})
+            where = f"pass {p}" if p is not None else f"{place['kind']} move"
+            view["text"] = f"executing: {text}, {where}" + (f", source line {line}" if line is not None else "")
+    else:
+        view["text"] = EXECUTION_STAGES.get(stage, stage)
+    if state in ("failed", "cancelled") and stage != "done":
+        view["text"] = f"{state} while {view['text']}"
+    return view

@@ -226,8 +226,8 @@ class Transitions:
             conn.execute(update(table).where(*where, table.state.in_(kind.active)).values(**values))
 
     def finish(self, kind: Kind, task_id: str, attempt: int, outcome: Outcome) -> bool:
-        """End a task of this attempt with ``outcome`` (and store its plan in the same transaction); False if it was
-        no longer active in this attempt (cancelled meanwhile, or taken again): nothing is stored then."""
+        """End a task of this attempt with ``outcome`` (and store its plan and files in the same transaction); False if
+        it was no longer active in this attempt (cancelled meanwhile, or taken again): nothing is stored then."""
         table = _table(kind)
         values: dict = {"state": outcome.state, "finished_at": now(), **outcome.values}
         if outcome.error is not None:
@@ -239,10 +239,11 @@ class Transitions:
         with self.write_lock, self.engine.begin() as conn:
             n = conn.execute(update(table).where(table.id == task_id, table.attempts == attempt,
                                                  table.state.in_(kind.active)).values(**values)).rowcount
-            if n == 1 and outcome.plan is not None:
-                conn.execute(delete(JobData).where(JobData.job_id == task_id, JobData.name == "plan"))
-                conn.execute(insert(JobData).values(job_id=task_id, name="plan", data=outcome.plan,
-                                                    bytes=len(outcome.plan), created_at=now()))
+            stored = {**outcome.files, **({} if outcome.plan is None else {"plan": outcome.plan})}
+            for name, data in stored.items() if n == 1 else ():  # (keyed by the task's id: jobs' and executions'
+                conn.execute(delete(JobData).where(JobData.job_id == task_id, JobData.name == name))  # never meet)
+                conn.execute(insert(JobData).values(job_id=task_id, name=name, data=data, bytes=len(data),
+                                                    created_at=now()))
         return n == 1
 
     def recover(self, stale_before: float, max_attempts: int, why: str, whys: str) -> dict[str, Any]:
