@@ -30,12 +30,13 @@ from starlette.concurrency import run_in_threadpool
 
 from planner.frontends.service import view_data
 from planner.frontends.service.deps import Caller, OwnJob, Service, ServiceDep
+from planner.frontends.service.errors import CheckedRoute, documented
 from planner.frontends.service.live import HUB
 from planner.frontends.service.routes.executions import own_execution
 from planner.frontends.service.store import Job
 from planner.frontends.service.tasks.lifecycle import EXECUTION
 
-router = APIRouter(tags=["view"])
+router = APIRouter(tags=["view"], route_class=CheckedRoute)
 #: The view's files (under ``static/view3d``), with their media types.
 STATIC = Path(__file__).resolve().parents[1] / "static" / "view3d"
 FILES = {"view.js": "text/javascript; charset=utf-8", "view.css": "text/css; charset=utf-8",
@@ -75,8 +76,8 @@ def _fine(svc: Service, row: Job):
         return entry
 
 
-@router.get("/jobs/{job_id}/view", responses={404: {"description": "no such job of this key"},
-                                              409: {"description": "job not done"}})
+@router.get("/jobs/{job_id}/view", responses=documented(404, 409, 422, e404="no such job of this key's team",
+                                                         e409="the job is not done"))
 def view(svc: ServiceDep, row: OwnJob,
          tolerance: Annotated[float | None, Query(description="path tolerance, m (default: a pixel)")] = None,
          pixels: Annotated[int, Query(ge=100, le=20_000, description="the view's width, px")] = 1000) -> JSONResponse:
@@ -91,8 +92,8 @@ def view(svc: ServiceDep, row: OwnJob,
     return JSONResponse(view_data.scene_json(job, fine, overview, tolerance))
 
 
-@router.get("/jobs/{job_id}/view/path", responses={404: {"description": "no such job of this key"},
-                                                   409: {"description": "job not done"}})
+@router.get("/jobs/{job_id}/view/path", responses=documented(404, 409, 422, e404="no such job of this key's team",
+                                                              e409="the job is not done"))
 def view_path(svc: ServiceDep, row: OwnJob, t0: float, t1: float,
               tolerance: Annotated[float, Query(description="path tolerance, m")] = view_data.FINE_TOLERANCE
               ) -> JSONResponse:
@@ -105,7 +106,7 @@ def view_path(svc: ServiceDep, row: OwnJob, t0: float, t1: float,
 
 @router.get("/executions/{execution_id}/live", response_class=StreamingResponse,
             responses={200: {"content": {"text/event-stream": {}}},
-                       404: {"description": "no such execution of this key"}})
+                       **documented(404, e404="no such execution of this key's team")})
 async def live(svc: ServiceDep, execution_id: str, who: Caller, request: Request) -> StreamingResponse:
     """The execution's joint states as they are recorded (Server-Sent Events, see the module doc)."""
     await run_in_threadpool(own_execution, svc, who, execution_id)
