@@ -14,8 +14,13 @@ trajectory
     joint reaches them, as on the controller); ``movel`` by the tool's path length (rotation-only
     moves by the rotation angle times `ROTATION_RADIUS`), so ``v`` is the tool speed.
     Blends replace each corner by a quadratic Bezier arc from ``r`` before to ``r`` after the
-    waypoint (``r`` clipped to half the neighbouring segments). For ``movej`` the blend radius is
-    applied in joint space (rad), an approximation of the controller's tool-space radius.
+    waypoint (``r`` clipped to half the neighbouring segments). A linear blend blends the whole pose, as
+    UR's Cartesian blends are a smooth transition: the position along that arc, the orientation along
+    its analogue on rotations (de Casteljau's construction with slerp), so the tool's angular velocity
+    turns from the one segment's to the next's through the blend instead of jumping at the waypoint
+    (a jump within one period is a joint acceleration of the jump / ``DT``: 0.08 rad/s is 40 rad/s^2).
+    For ``movej`` the blend radius is applied in joint space (rad), an approximation of the
+    controller's tool-space radius.
 servo
     ``servoj``: the commanded target passes a first-order lookahead filter (time constant
     ``lookahead_time / 2``) and the joints follow the filtered target with a first-order tracking
@@ -44,7 +49,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation
 
 from planner.kinematics import (
     UnreachableError,
@@ -140,6 +145,17 @@ def _time_law(d: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> tuple[np.nda
     return np.concatenate([[0.0], np.cumsum(dt)]), v
 
 
+def _corner_radii(radii: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """Blend radius (m+1,) at every waypoint of a path of m segments, in the path parameter's units: the move's
+    ``r`` into the waypoint clipped to half of either neighbouring segment; 0 at the ends and where the arm
+    passes the waypoint unblended (``r`` 0, or a segment of length 0)."""
+    r = np.zeros(len(lengths) + 1)
+    if len(lengths) > 1:
+        r[1:-1] = np.minimum(radii[:-1], 0.5 * np.minimum(lengths[:-1], lengths[1:]))
+        r[1:-1][(lengths[:-1] <= 0) | (lengths[1:] <= 0)] = 0.0
+    return np.maximum(r, 0.0)
+
+
 def _blend_points(W: np.ndarray, radii: np.ndarray, lengths: np.ndarray, d: np.ndarray):
     """Points of the polyline ``W`` (m+1, k) at polyline parameter ``d`` with corners blended.
 
@@ -151,10 +167,9 @@ def _blend_points(W: np.ndarray, radii: np.ndarray, lengths: np.ndarray, d: np.n
     frac = np.divide(d - D[seg], lengths[seg], out=np.ones_like(d), where=lengths[seg] > 0)
     frac = np.clip(frac, 0.0, 1.0)
     P = W[seg] + frac[:, None] * (W[seg + 1] - W[seg])
-    for i in range(1, len(W) - 1):  # interior corners
-        r = min(radii[i - 1], 0.5 * lengths[i - 1], 0.5 * lengths[i])
-        if r <= 0.0 or lengths[i - 1] <= 0 or lengths[i] <= 0:
-            continue
+    corner_r = _corner_radii(radii, lengths)
+    for i in np.flatnonzero(corner_r > 0.0):  # interior corners with a blend
+        r = corner_r[i]
         zone = (d >= D[i] - r) & (d <= D[i] + r)
         if not zone.any():
             continue
@@ -164,6 +179,38 @@ def _blend_points(W: np.ndarray, radii: np.ndarray, lengths: np.ndarray, d: np.n
         w = ((d[zone] - (D[i] - r)) / (2.0 * r))[:, None]
         P[zone] = (1 - w) ** 2 * A + 2 * w * (1 - w) * W[i] + w**2 * B
     return P, seg, frac
+
+
+def _blend_rotations(rots: Rotation, radii: np.ndarray, lengths: np.ndarray, d: np.ndarray, seg: np.ndarray,
+                     frac: np.ndarray) -> np.ndarray:
+    """Rotation vectors (n, 3) at path parameter ``d`` of a linear path through the orientations ``rots`` (m+1),
+    with its corners blended as :func:`_blend_points` blends the positions.
+
+    On segment k the orientation is the slerp R_k exp(f e_k), e_k = log(R_k^-1 R_k+1), at the fraction f
+    (``seg``, ``frac`` from :func:`_blend_points`). Within ``r`` of waypoint j it is the quadratic Bezier curve
+    on rotations from R_A (``r`` before the waypoint on segment j-1) over R_j to R_B (``r`` after it on segment
+    j) by de Casteljau's construction with slerp, at w = (d - D_j + r) / 2r: with rho = r / length of each
+    segment, R_j X(w), X = exp(a) exp(w log(exp(-a) exp(b))), a = (w - 1) rho_j-1 e_j-1, b = w rho_j e_j. It
+    starts at R_A and ends at R_B with the segments' angular velocities (d/dw = 2 rho e), as the position arc
+    starts and ends with the segments' velocities: the angular velocity is continuous through the blend."""
+    e = (rots[:-1].inv() * rots[1:]).as_rotvec()  # (m, 3)
+    out = (rots[seg] * Rotation.from_rotvec(frac[:, None] * e[seg])).as_rotvec()
+    corner_r = _corner_radii(radii, lengths)
+    if not (corner_r > 0.0).any():
+        return out
+    D = np.concatenate([[0.0], np.cumsum(lengths)])
+    j = np.clip(np.searchsorted(0.5 * (D[:-1] + D[1:]), d), 0, len(D) - 1)  # the nearest waypoint
+    r = corner_r[j]
+    zone = np.flatnonzero((r > 0.0) & (np.abs(d - D[j]) <= r))
+    if not len(zone):
+        return out
+    j, r = j[zone], r[zone]
+    w = np.clip((d[zone] - D[j] + r) / (2.0 * r), 0.0, 1.0)
+    a = Rotation.from_rotvec(((w - 1.0) * r / lengths[j - 1])[:, None] * e[j - 1])
+    b = Rotation.from_rotvec((w * r / lengths[j])[:, None] * e[j])
+    X = a * Rotation.from_rotvec(w[:, None] * (a.inv() * b).as_rotvec())
+    out[zone] = (rots[j] * X).as_rotvec()
+    return out
 
 
 def _path_grid(lengths: np.ndarray, segs: list[Segment]):
@@ -428,13 +475,9 @@ class MotionModel:
         d, v, a = _path_grid(lengths, segs)
         t, vt = _time_law(d, v, a)
         dk = _sample_times(t, d, vt)
-        pos, seg, frac = _blend_points(poses[:, :3], np.array([s.r for s in segs]), lengths, dk)
-        rot = np.empty((len(dk), 3))
-        for i in range(len(segs)):
-            sel = seg == i
-            if sel.any():
-                rot[sel] = Slerp([0.0, 1.0], rots[i : i + 2])(frac[sel]).as_rotvec()
-        samples = np.hstack([pos, rot])
+        radii = np.array([s.r for s in segs])
+        pos, seg, frac = _blend_points(poses[:, :3], radii, lengths, dk)
+        samples = np.hstack([pos, _blend_rotations(rots, radii, lengths, dk, seg, frac)])
         samples[-1] = poses[-1]
         q = inverse_path(self.model, samples, q0, tcp=self.tcp, allow_unreachable=True)
         fault = None

@@ -77,6 +77,16 @@ NX = Excerpt(
     "nx_clsf_variable_contour_ust_a2.cls",
     ((1, 305), (4792, 4851), (7247, 7307), (7538, 7653), (20179, 20416), (20753, 20823), (22237, 22242)),
 )
+#: The same NX job's pass whose tool axis turns one way and then back (pass 116 of the whole job, lines 4703-4727,
+#: after pass 115 from line 4678): the axis turns by 82 deg over lines 4703-4711 and back by 1.3 deg at line 4712
+#: (a reversal of the tool's turn at a movep target: issue 29's protective stop in program mode). The header up to
+#: the only FEDRAT (line 16, the axis then 0,0,-1 as at line 4677), the rapid of line 4677 to the rapid after pass
+#: 116 (line 4730).
+NX_AXIS_REVERSAL = Excerpt(
+    "nx_clsf_ust_a2_axis_reversal.cls",
+    "nx_clsf_variable_contour_ust_a2.cls",
+    ((1, 16), (4677, 4730)),
+)
 #: SOLIDWORKS CAM APT, 3+2 job (mm, CIRCLE records, CUTCOM, CSYS frames, tool changes, FINI).
 SW = Excerpt(
     "solidworks_cam_apt_boss_excerpt.apt",
@@ -89,6 +99,6 @@ HAAS = Excerpt(
     "nx2022_haas_umc750_5axis_gcode.txt",
     ((1, 76), (1385, 1659), (15501, 15655), (15961, 16121)),
 )
-EXCERPTS = {e.name: e for e in (NX, SW, HAAS)}
+EXCERPTS = {e.name: e for e in (NX, NX_AXIS_REVERSAL, SW, HAAS)}
 
 NX_HEAD = NX.head(100)

@@ -1,15 +1,22 @@
 """Paths of the simulated arm's motion model, in process: ur_rtde's ``movePath`` mixing joint and linear moves
-(``move_path_async_example.py``'s path), and unblended waypoints, where the arm comes to rest."""
+(``move_path_async_example.py``'s path), unblended waypoints, where the arm comes to rest, and blends that turn
+the tool smoothly where its turn reverses (issue 29: the NX job's pass 116 in program mode)."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
+from scipy.spatial.transform import Rotation
 
+from drivers.report import distance_to_polyline, planned_path
+from planner import PlanSettings, plan
+from planner.export import job_program
+from planner.frontends.cli.main import DEMO_PART
 from planner.kinematics import forward
 from sim.core import Core
 from sim.io_state import IOState
-from sim.motion import DT, JOINT_ACCEL_MAX, MotionError, Segment
+from sim.motion import DT, JOINT_ACCEL_MAX, ROTATION_RADIUS, MotionError, Segment
+from tests.cam_excerpts import NX_AXIS_REVERSAL
 
 # ur_rtde 1.6.5 examples/py/move_path_async_example.py: MoveJ and MoveL entries to tool poses, v 0.5, a 4, r 0.099
 EXAMPLE_PATH = [
@@ -89,6 +96,82 @@ def test_unblended_waypoint_of_a_linear_path_is_a_stop():
     # the blended waypoint (r 0.02) is passed at speed
     j = traj.starts[2]
     assert tool_speed[j - 2 : j + 2].min() > 0.05
+
+
+def _tool_angular_accelerations(q: np.ndarray) -> np.ndarray:
+    """|change of the tool's angular velocity| / DT (rad/s^2) between consecutive periods of joints q (K, 6)."""
+    R = Rotation.from_rotvec(forward("ur5e", q)[:, 3:])
+    w = (R[:-1].inv() * R[1:]).as_rotvec() / DT  # in the tool frame
+    return np.linalg.norm(np.diff(w, axis=0), axis=1) / DT
+
+
+def test_linear_blend_turns_the_tool_smoothly_where_its_turn_reverses():
+    """A blend blends the orientation with the position (UR's Cartesian blends are smooth transitions): two moves
+    along x that turn the tool about its y axis by 0.07 rad and back, blended with r 0.33 mm at 5 mm/s. The tool
+    turns at v / ROTATION_RADIUS = 0.05 rad/s each way; turning the angular velocity by 0.1 rad/s within one period
+    at the waypoint was 50 rad/s^2 for the tool and a joint (a protective stop); through the blend, 2 r of the
+    path parameter at v, it is 0.1 rad/s * v / 2r = 0.76 rad/s^2."""
+    core = Core("ur5e", IOState())
+    m = core.motion
+    P0 = forward(m.model, m.q)
+    R0 = Rotation.from_rotvec(P0[3:])
+
+    def pose(dx: float, angle: float) -> np.ndarray:
+        return np.r_[P0[:3] + [dx, 0.0, 0.0], (R0 * Rotation.from_rotvec([0.0, angle, 0.0])).as_rotvec()]
+
+    turn, v, r = 0.07, 0.005, 0.00033
+    corner = pose(0.002, turn)
+    m.plan_linear([Segment(corner, v, 0.5, r), Segment(pose(0.004, 0.0), v, 0.5, 0.0)])
+    q, _ = _play(core)
+    assert core.safety_mode == 1 and not [x for x in core.log if x[1] == "Safety"], list(core.log)
+    P = forward(m.model, q)
+    R = Rotation.from_rotvec(P[:, 3:])
+    assert np.abs(P[-1, :3] - P0[:3] - [0.004, 0.0, 0.0]).max() < 1e-12
+    assert (R[-1].inv() * R0).magnitude() < 1e-9
+    # the positions stay on the straight line (collinear waypoints: the blend does not move them off it)
+    assert np.abs(P[:, 1:3] - P0[1:3]).max() < 1e-12
+    omega = v / ROTATION_RADIUS  # rad/s: the turn is the longer part of the path parameter on both moves
+    bound = 2.0 * omega * v / (2.0 * r)
+    assert _tool_angular_accelerations(q).max() <= bound * (1 + 1e-3)
+    _, acc = _speeds_and_accelerations(q)
+    assert np.abs(acc).max() <= 2.0 * bound  # joint 4 turns the tool about its y axis here
+    # the blend cuts the turn's corner as the position blend cuts a corner: by r |change of the rate| / 4 at its
+    # middle (the rates along the path parameter: +-turn / (turn ROTATION_RADIUS) rad per m)
+    cut = r * 2.0 / ROTATION_RADIUS / 4.0
+    nearest = (R.inv() * Rotation.from_rotvec(corner[3:])).magnitude().min()
+    assert nearest == pytest.approx(cut, rel=1e-3)
+
+
+def test_program_of_a_pass_whose_tool_axis_turns_back_runs_to_its_end():
+    """Issue 29: the whole NX job in program mode stopped at t = 7618.6 s in its pass 116 (lines 4703-4727) with
+    'movel: joint 5 acceleration 44.9 rad/s^2 beyond the limit 40': the tool axis turns by 82 deg and then back
+    by 1.3 deg (line 4712), the movep target there is blended, and the simulator turned the tool's angular
+    velocity around within one period at it. The excerpt of those passes (the same moves, the same stop before the
+    fix) runs to its end: every period's joint accelerations and the tool's within limits, the TCP within the
+    program's tolerance of the planned path."""
+    job = plan(NX_AXIS_REVERSAL.path, PlanSettings(path="cam", part_frame=DEMO_PART, robot="ur5e",
+                                                   cut_output=("standard", 0)))
+    assert job.problems == ()
+    assert [int(NX_AXIS_REVERSAL.original_line(p.first_line)) for p in job.passes] == [4678, 4703]
+    _, pp, _, _, _ = planned_path(job)
+    core = Core("ur5e", IOState())
+    core.motion.q = np.array(job.start_joints, dtype=float)
+    assert core.load_program(job_program(job)), list(core.log)[-3:]
+    qs = [core.motion.q]
+    while core.program is not None:
+        core.tick()
+        qs.append(core.motion.q)
+        assert core.time < 1000.0, "the program did not end"
+    assert core.safety_mode == 1 and not [x for x in core.log if x[1] == "Safety"], list(core.log)[-5:]
+    q = np.array(qs)
+    _, acc = _speeds_and_accelerations(q)
+    assert np.abs(acc).max() <= 0.1 * JOINT_ACCEL_MAX
+    # the tool's turns: the movep speeds (at most 4.2 mm/s) over blends of at least 0.03 mm: at most 2 rad/s^2
+    assert _tool_angular_accelerations(q).max() <= 2.0
+    tcp = forward("ur5e", q)[:, :3]
+    assert np.abs(tcp[-1] - pp[-1, :3]).max() < 1e-9
+    d, _ = distance_to_polyline(tcp[::5], pp[:, :3])
+    assert d.max() <= job.settings.tolerance
 
 
 def test_path_to_an_unreachable_pose_by_movej_is_refused_before_the_arm_moves():
