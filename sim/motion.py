@@ -9,7 +9,9 @@ trajectory
     ``movej`` / ``movel`` / ``movep`` (single targets or blended paths) and ``stopj`` / ``stopl``:
     a joint trajectory sampled at the control period, planned when the move starts. The time law is
     the time-optimal profile along the path under the move's speed ``v`` and acceleration ``a``
-    (a trapezoid for a single move, continuous speed through blends). ``movej`` parameterizes the
+    (a trapezoid for a single move, continuous speed through blends, slow enough through a blend that
+    turning the path's direction there needs at most ``a`` too: a blend too small for the speed is passed
+    slowly, never within one control period at full speed). ``movej`` parameterizes the
     joint-space path by its infinity-norm length, so ``v`` and ``a`` bound every joint (the leading
     joint reaches them, as on the controller); ``movel`` by the tool's path length (rotation-only
     moves by the rotation angle times `ROTATION_RADIUS`), so ``v`` is the tool speed.
@@ -213,18 +215,63 @@ def _blend_rotations(rots: Rotation, radii: np.ndarray, lengths: np.ndarray, d: 
     return out
 
 
-def _path_grid(lengths: np.ndarray, segs: list[Segment]):
+def _inf_norm(x: np.ndarray, axis: int) -> np.ndarray:
+    return np.abs(x).max(axis=axis)
+
+
+def _corner_turns(parts: list[np.ndarray], lengths: np.ndarray, norm) -> np.ndarray:
+    """How sharply the path turns at each waypoint (m+1,): the change of its direction there, the direction of a
+    segment being its displacement per unit of the path parameter (``parts``: arrays (m, k) of displacements, e.g.
+    position and scaled rotation, each measured by ``norm`` over its last axis; the largest part counts, as the
+    path parameter is the largest part's length). 0 at the ends and next to a segment of length 0."""
+    turn = np.zeros(len(lengths) + 1)
+    if len(lengths) < 2:
+        return turn
+    ok = lengths > 0
+    inv = np.divide(1.0, lengths, out=np.zeros_like(lengths), where=ok)
+    for x in parts:
+        u = x * inv[:, None]
+        turn[1:-1] = np.maximum(turn[1:-1], norm(u[1:] - u[:-1], axis=1))
+    turn[1:-1][~(ok[:-1] & ok[1:])] = 0.0
+    return turn
+
+
+def _path_grid(lengths: np.ndarray, segs: list[Segment], turns: np.ndarray | None = None):
     """Parameter grid over the whole path, with per-sample speed and acceleration limits.
 
     The grid holds every waypoint; the speed limit is 0 at an interior waypoint without a blend (``r`` 0 on
-    the move that ends there): the arm comes to rest there, as the controller stops at an unblended waypoint."""
+    the move that ends there): the arm comes to rest there, as the controller stops at an unblended waypoint.
+    Through a blend the speed is at most sqrt(2 a r / turn) (``turns`` from :func:`_corner_turns`, r from
+    :func:`_corner_radii`): a blend turns the direction by ``turn`` over 2 r of the path parameter (the quadratic
+    Bezier arc of :func:`_blend_points`, whose second derivative is turn / 2r), so at speed v it accelerates the
+    arm by v^2 turn / 2r, which ``a`` bounds as it bounds the speeding up and slowing down along the path (UR's
+    movel/movep ``a`` is the tool's acceleration). A blend too small for the speed is thus passed slowly, never
+    within one control period at full speed."""
     total = float(lengths.sum())
     n = int(min(GRID_MAX, max(GRID_MIN, math.ceil(total / GRID_STEP)))) + 1
     D = np.concatenate([[0.0], np.cumsum(lengths)])
     d = np.union1d(np.linspace(0.0, total, n), D)
+    vs = np.array([s.v for s in segs])
+    As = np.array([s.a for s in segs])
+    cap = r = None
+    if turns is not None and len(segs) > 1:
+        r = _corner_radii(np.array([s.r for s in segs]), lengths)
+        cap = np.full(len(D), np.inf)
+        sharp = np.flatnonzero((r > 0.0) & (turns > 0.0))
+        cap[sharp] = np.sqrt(2.0 * np.minimum(As[sharp - 1], As[sharp]) * r[sharp] / turns[sharp])
+        slow = np.flatnonzero(cap < np.maximum(vs[np.maximum(np.arange(len(D)) - 1, 0)],
+                                               vs[np.minimum(np.arange(len(D)), len(segs) - 1)]))
+        if len(slow):  # the blend's ends on the grid, so that the speed is capped over the whole blend
+            d = np.union1d(d, np.clip(np.concatenate([D[slow] - r[slow], D[slow] + r[slow]]), 0.0, total))
+        else:
+            cap = None
     seg = np.clip(np.searchsorted(D, d, side="right") - 1, 0, len(segs) - 1)
-    v = np.array([s.v for s in segs])[seg]
-    a = np.array([s.a for s in segs])[seg]
+    v = vs[seg]
+    a = As[seg]
+    if cap is not None and r is not None:
+        j = np.clip(np.searchsorted(0.5 * (D[:-1] + D[1:]), d), 0, len(D) - 1)  # the nearest waypoint
+        zone = np.abs(d - D[j]) <= r[j] * (1.0 + 1e-12)
+        v[zone] = np.minimum(v[zone], cap[j[zone]])
     stops = [D[i + 1] for i, s in enumerate(segs[:-1]) if s.r <= 0.0]
     if stops:
         v[np.searchsorted(d, stops)] = 0.0
@@ -445,7 +492,7 @@ class MotionModel:
         lengths = np.abs(np.diff(W, axis=0)).max(axis=1)
         if lengths.sum() <= 0.0:
             return Trajectory(np.array(q0, dtype=float)[None].copy(), [0] * len(segs))
-        d, v, a = _path_grid(lengths, segs)
+        d, v, a = _path_grid(lengths, segs, _corner_turns([np.diff(W, axis=0)], lengths, _inf_norm))
         t, vt = _time_law(d, v, a)
         dk = _sample_times(t, d, vt)
         q, _, _ = _blend_points(W, np.array([s.r for s in segs]), lengths, dk)
@@ -462,9 +509,9 @@ class MotionModel:
             if not (s.v > 0 and s.a > 0):
                 raise MotionError(f"movel target {i}: speed and acceleration must be > 0")
         rots = Rotation.from_rotvec(poses[:, 3:])
-        angles = (rots[:-1].inv() * rots[1:]).magnitude()
-        dist = np.linalg.norm(np.diff(poses[:, :3], axis=0), axis=1)
-        lengths = np.maximum(dist, angles * ROTATION_RADIUS)
+        turn = (rots[:-1].inv() * rots[1:]).as_rotvec()  # each segment's rotation, in its start frame
+        chord = np.diff(poses[:, :3], axis=0)
+        lengths = np.maximum(np.linalg.norm(chord, axis=1), np.linalg.norm(turn, axis=1) * ROTATION_RADIUS)
         # the target itself must be reachable before the arm moves
         try:
             q_end = inverse_path(self.model, poses[-1:], q0, tcp=self.tcp)[0]
@@ -472,7 +519,9 @@ class MotionModel:
             raise MotionError("movel: target pose is not reachable (no inverse kinematics solution)") from None
         if lengths.sum() <= 0.0:
             return Trajectory(np.array(q0, dtype=float)[None].copy(), [0] * len(segs))
-        d, v, a = _path_grid(lengths, segs)
+        # the angular velocity at a waypoint, before and after it, in the frame there: e_k-1 and e_k (the slerp
+        # R_k-1 exp(f e_k-1) turns about e_k-1, which R_k-1 exp(e_k-1) = R_k leaves unchanged)
+        d, v, a = _path_grid(lengths, segs, _corner_turns([chord, ROTATION_RADIUS * turn], lengths, np.linalg.norm))
         t, vt = _time_law(d, v, a)
         dk = _sample_times(t, d, vt)
         radii = np.array([s.r for s in segs])
