@@ -215,6 +215,16 @@ def _blend_rotations(rots: Rotation, radii: np.ndarray, lengths: np.ndarray, d: 
     return out
 
 
+def _stretched(t: np.ndarray, v: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray]:
+    """The profile (times, speeds) of :func:`_time_law` slowed down uniformly to last ``duration`` s (a move's
+    ``t``; never faster than planned): times times c, speeds over c, accelerations over c^2, c = duration / T."""
+    T = float(t[-1])
+    if not (duration > T > 0.0):
+        return t, v
+    c = duration / T
+    return t * c, v / c
+
+
 def _inf_norm(x: np.ndarray, axis: int) -> np.ndarray:
     return np.abs(x).max(axis=axis)
 
@@ -430,13 +440,15 @@ class MotionModel:
         self.mode = "trajectory"
         return traj
 
-    def plan_joint(self, segs: list[Segment]) -> Trajectory:
-        """Plan and start a (blended) joint-space move through ``segs`` (targets are joints)."""
-        return self._start(self._joint_samples(self.q, segs), "movej")
+    def plan_joint(self, segs: list[Segment], duration: float = 0.0) -> Trajectory:
+        """Plan and start a (blended) joint-space move through ``segs`` (targets are joints); ``duration`` > 0 (a
+        move's ``t``, s) slows its profile down uniformly to last that long, before the limits are checked."""
+        return self._start(self._joint_samples(self.q, segs, duration), "movej")
 
-    def plan_linear(self, segs: list[Segment]) -> Trajectory:
-        """Plan and start a (blended) linear tool move through ``segs`` (targets are TCP poses)."""
-        return self._start(self._linear_samples(self.q, segs), "movel")
+    def plan_linear(self, segs: list[Segment], duration: float = 0.0) -> Trajectory:
+        """Plan and start a (blended) linear tool move through ``segs`` (targets are TCP poses); ``duration`` as
+        for :meth:`plan_joint`."""
+        return self._start(self._linear_samples(self.q, segs, duration), "movel")
 
     def plan_path(self, moves: list[tuple[str, Segment, bool]]) -> Trajectory:
         """Plan and start a path of ``(kind, segment, target_is_pose)`` moves, kind ``movej``/``movel``/``movep``.
@@ -482,8 +494,9 @@ class MotionModel:
             q0 = tr.q[-1]
         return self._start(Trajectory(np.vstack(parts), starts, fault), "path")
 
-    def _joint_samples(self, q0: np.ndarray, segs: list[Segment]) -> Trajectory:
-        """The samples of a (blended) joint-space move from ``q0`` through ``segs`` (not started)."""
+    def _joint_samples(self, q0: np.ndarray, segs: list[Segment], duration: float = 0.0) -> Trajectory:
+        """The samples of a (blended) joint-space move from ``q0`` through ``segs`` (not started), lasting at least
+        ``duration`` s."""
         W = np.vstack([q0] + [np.asarray(s.target, dtype=float) for s in segs])
         for i, s in enumerate(segs):
             self._check_q(W[i + 1], f"movej target {i}")
@@ -493,14 +506,15 @@ class MotionModel:
         if lengths.sum() <= 0.0:
             return Trajectory(np.array(q0, dtype=float)[None].copy(), [0] * len(segs))
         d, v, a = _path_grid(lengths, segs, _corner_turns([np.diff(W, axis=0)], lengths, _inf_norm))
-        t, vt = _time_law(d, v, a)
+        t, vt = _stretched(*_time_law(d, v, a), duration)
         dk = _sample_times(t, d, vt)
         q, _, _ = _blend_points(W, np.array([s.r for s in segs]), lengths, dk)
         q[-1] = W[-1]
         return Trajectory(q, _starts(dk, lengths))
 
-    def _linear_samples(self, q0: np.ndarray, segs: list[Segment]) -> Trajectory:
-        """The samples of a (blended) linear tool move from joints ``q0`` through ``segs`` (not started)."""
+    def _linear_samples(self, q0: np.ndarray, segs: list[Segment], duration: float = 0.0) -> Trajectory:
+        """The samples of a (blended) linear tool move from joints ``q0`` through ``segs`` (not started), lasting at
+        least ``duration`` s."""
         P0 = forward(self.model, q0, self.tcp)
         poses = np.vstack([P0] + [np.asarray(s.target, dtype=float) for s in segs])
         for i, s in enumerate(segs):
@@ -522,7 +536,7 @@ class MotionModel:
         # the angular velocity at a waypoint, before and after it, in the frame there: e_k-1 and e_k (the slerp
         # R_k-1 exp(f e_k-1) turns about e_k-1, which R_k-1 exp(e_k-1) = R_k leaves unchanged)
         d, v, a = _path_grid(lengths, segs, _corner_turns([chord, ROTATION_RADIUS * turn], lengths, np.linalg.norm))
-        t, vt = _time_law(d, v, a)
+        t, vt = _stretched(*_time_law(d, v, a), duration)
         dk = _sample_times(t, d, vt)
         radii = np.array([s.r for s in segs])
         pos, seg, frac = _blend_points(poses[:, :3], radii, lengths, dk)

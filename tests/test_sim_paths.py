@@ -175,6 +175,38 @@ def test_blend_too_small_for_the_speed_is_passed_slowly():
     assert along.max() == pytest.approx(v, rel=1e-6)  # at full speed on both moves
 
 
+def test_timed_move_is_slowed_down_before_its_joints_are_checked():
+    """movel(..., t): the move lasts t, its profile slowed uniformly (speeds over c, accelerations over c^2,
+    c = t / the profile's own duration), and the joints are checked on that. A 3 m/s move across the workspace
+    needs more than the joints' speed limits at its own pace (a protective stop); given 2 s it runs. The issue-29
+    run stopped on such a check at t = 30287 s: a rapid of line 18800 near the wrist singularity, 45 rad/s^2 at its
+    own pace, 29 in its planned 0.353 s."""
+    core = Core("ur5e", IOState())
+    m = core.motion
+    q0 = m.q.copy()
+    target = forward(m.model, q0) + [0.0, 0.35, -0.2, 0.0, 0.0, 0.0]
+    own = m._linear_samples(q0, [Segment(target, 3.0, 20.0)]).q
+    v_own, acc_own = _speeds_and_accelerations(np.vstack([q0, q0, own]))
+    assert (np.abs(v_own) > m.qd_max).any()  # too fast at its own pace
+    duration = 2.0
+    c = duration / (len(own) * DT)
+    text = "def timed():\n  movel(p[" + ", ".join(f"{x:.9f}" for x in target) + "], a=20.0, v=3.0, t=2.0, r=0)\nend\n"
+    assert core.load_program(text)
+    qs = [core.motion.q]
+    while core.program is not None:
+        core.tick()
+        qs.append(core.motion.q)
+        assert len(qs) < 5000
+    assert core.safety_mode == 1 and not [x for x in core.log if x[1] == "Safety"], list(core.log)
+    q = np.array(qs)
+    moving = np.flatnonzero(np.abs(np.diff(q, axis=0)).max(axis=1) > 0)
+    assert (moving[-1] + 1 - moving[0]) * DT == pytest.approx(duration, abs=2 * DT)
+    assert np.abs(forward(m.model, q[-1])[:3] - target[:3]).max() < 1e-12
+    v, acc = _speeds_and_accelerations(q)
+    assert np.abs(v).max() == pytest.approx(np.abs(v_own).max() / c, rel=1e-2)
+    assert np.abs(acc).max() == pytest.approx(np.abs(acc_own).max() / c**2, rel=5e-2)
+
+
 def test_program_of_passes_whose_tool_axis_turns_back_runs_to_its_end():
     """Issue 29: the whole NX job in program mode stopped at t = 7618.6 s in its pass 116 (lines 4703-4727) with
     'movel: joint 5 acceleration 44.9 rad/s^2 beyond the limit 40': the tool axis turns by 82 deg and then back
