@@ -44,7 +44,7 @@ def main() -> None:
     from drivers.geometry import PolylineIndex
     from planner import PlanSettings, plan
     from planner.export import MAX_PROGRAM_BYTES, job_program, job_program_pieces, plan_job_program
-    from planner.frontends.cli.main import DEMO_PART_FRAME
+    from planner.frontends.cli.main import DEMO_PART
     from planner.kinematics import forward
     from sim.core import Core
     from sim.io_state import IOState
@@ -55,7 +55,7 @@ def main() -> None:
 
         src = Path("/tmp") / f"bench_programs_{args.gotos}.cls"
         src.write_text(first_gotos(NX.read_text(), args.gotos))
-    part = tuple(float(x) for x in DEMO_PART_FRAME.split(","))
+    part = DEMO_PART
     t0 = time.perf_counter()
     job = plan(src, PlanSettings(path="cam", part_frame=part, robot="ur5e", cut_output=("standard", 0)))
     t_plan = time.perf_counter() - t0

@@ -9,13 +9,20 @@ trajectory
     ``movej`` / ``movel`` / ``movep`` (single targets or blended paths) and ``stopj`` / ``stopl``:
     a joint trajectory sampled at the control period, planned when the move starts. The time law is
     the time-optimal profile along the path under the move's speed ``v`` and acceleration ``a``
-    (a trapezoid for a single move, continuous speed through blends). ``movej`` parameterizes the
+    (a trapezoid for a single move, continuous speed through blends, slow enough through a blend that
+    turning the path's direction there needs at most ``a`` too: a blend too small for the speed is passed
+    slowly, never within one control period at full speed). ``movej`` parameterizes the
     joint-space path by its infinity-norm length, so ``v`` and ``a`` bound every joint (the leading
     joint reaches them, as on the controller); ``movel`` by the tool's path length (rotation-only
     moves by the rotation angle times `ROTATION_RADIUS`), so ``v`` is the tool speed.
     Blends replace each corner by a quadratic Bezier arc from ``r`` before to ``r`` after the
-    waypoint (``r`` clipped to half the neighbouring segments). For ``movej`` the blend radius is
-    applied in joint space (rad), an approximation of the controller's tool-space radius.
+    waypoint (``r`` clipped to half the neighbouring segments). A linear blend blends the whole pose, as
+    UR's Cartesian blends are a smooth transition: the position along that arc, the orientation along
+    its analogue on rotations (de Casteljau's construction with slerp), so the tool's angular velocity
+    turns from the one segment's to the next's through the blend instead of jumping at the waypoint
+    (a jump within one period is a joint acceleration of the jump / ``DT``: 0.08 rad/s is 40 rad/s^2).
+    For ``movej`` the blend radius is applied in joint space (rad), an approximation of the
+    controller's tool-space radius.
 servo
     ``servoj``: the commanded target passes a first-order lookahead filter (time constant
     ``lookahead_time / 2``) and the joints follow the filtered target with a first-order tracking
@@ -44,7 +51,7 @@ import math
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
+from scipy.spatial.transform import Rotation
 
 from planner.kinematics import (
     UnreachableError,
@@ -140,6 +147,17 @@ def _time_law(d: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> tuple[np.nda
     return np.concatenate([[0.0], np.cumsum(dt)]), v
 
 
+def _corner_radii(radii: np.ndarray, lengths: np.ndarray) -> np.ndarray:
+    """Blend radius (m+1,) at every waypoint of a path of m segments, in the path parameter's units: the move's
+    ``r`` into the waypoint clipped to half of either neighbouring segment; 0 at the ends and where the arm
+    passes the waypoint unblended (``r`` 0, or a segment of length 0)."""
+    r = np.zeros(len(lengths) + 1)
+    if len(lengths) > 1:
+        r[1:-1] = np.minimum(radii[:-1], 0.5 * np.minimum(lengths[:-1], lengths[1:]))
+        r[1:-1][(lengths[:-1] <= 0) | (lengths[1:] <= 0)] = 0.0
+    return np.maximum(r, 0.0)
+
+
 def _blend_points(W: np.ndarray, radii: np.ndarray, lengths: np.ndarray, d: np.ndarray):
     """Points of the polyline ``W`` (m+1, k) at polyline parameter ``d`` with corners blended.
 
@@ -151,10 +169,9 @@ def _blend_points(W: np.ndarray, radii: np.ndarray, lengths: np.ndarray, d: np.n
     frac = np.divide(d - D[seg], lengths[seg], out=np.ones_like(d), where=lengths[seg] > 0)
     frac = np.clip(frac, 0.0, 1.0)
     P = W[seg] + frac[:, None] * (W[seg + 1] - W[seg])
-    for i in range(1, len(W) - 1):  # interior corners
-        r = min(radii[i - 1], 0.5 * lengths[i - 1], 0.5 * lengths[i])
-        if r <= 0.0 or lengths[i - 1] <= 0 or lengths[i] <= 0:
-            continue
+    corner_r = _corner_radii(radii, lengths)
+    for i in np.flatnonzero(corner_r > 0.0):  # interior corners with a blend
+        r = corner_r[i]
         zone = (d >= D[i] - r) & (d <= D[i] + r)
         if not zone.any():
             continue
@@ -166,18 +183,105 @@ def _blend_points(W: np.ndarray, radii: np.ndarray, lengths: np.ndarray, d: np.n
     return P, seg, frac
 
 
-def _path_grid(lengths: np.ndarray, segs: list[Segment]):
+def _blend_rotations(rots: Rotation, radii: np.ndarray, lengths: np.ndarray, d: np.ndarray, seg: np.ndarray,
+                     frac: np.ndarray) -> np.ndarray:
+    """Rotation vectors (n, 3) at path parameter ``d`` of a linear path through the orientations ``rots`` (m+1),
+    with its corners blended as :func:`_blend_points` blends the positions.
+
+    On segment k the orientation is the slerp R_k exp(f e_k), e_k = log(R_k^-1 R_k+1), at the fraction f
+    (``seg``, ``frac`` from :func:`_blend_points`). Within ``r`` of waypoint j it is the quadratic Bezier curve
+    on rotations from R_A (``r`` before the waypoint on segment j-1) over R_j to R_B (``r`` after it on segment
+    j) by de Casteljau's construction with slerp, at w = (d - D_j + r) / 2r: with rho = r / length of each
+    segment, R_j X(w), X = exp(a) exp(w log(exp(-a) exp(b))), a = (w - 1) rho_j-1 e_j-1, b = w rho_j e_j. It
+    starts at R_A and ends at R_B with the segments' angular velocities (d/dw = 2 rho e), as the position arc
+    starts and ends with the segments' velocities: the angular velocity is continuous through the blend."""
+    e = (rots[:-1].inv() * rots[1:]).as_rotvec()  # (m, 3)
+    out = (rots[seg] * Rotation.from_rotvec(frac[:, None] * e[seg])).as_rotvec()
+    corner_r = _corner_radii(radii, lengths)
+    if not (corner_r > 0.0).any():
+        return out
+    D = np.concatenate([[0.0], np.cumsum(lengths)])
+    j = np.clip(np.searchsorted(0.5 * (D[:-1] + D[1:]), d), 0, len(D) - 1)  # the nearest waypoint
+    r = corner_r[j]
+    zone = np.flatnonzero((r > 0.0) & (np.abs(d - D[j]) <= r))
+    if not len(zone):
+        return out
+    j, r = j[zone], r[zone]
+    w = np.clip((d[zone] - D[j] + r) / (2.0 * r), 0.0, 1.0)
+    a = Rotation.from_rotvec(((w - 1.0) * r / lengths[j - 1])[:, None] * e[j - 1])
+    b = Rotation.from_rotvec((w * r / lengths[j])[:, None] * e[j])
+    X = a * Rotation.from_rotvec(w[:, None] * (a.inv() * b).as_rotvec())
+    out[zone] = (rots[j] * X).as_rotvec()
+    return out
+
+
+def _stretched(t: np.ndarray, v: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray]:
+    """The profile (times, speeds) of :func:`_time_law` slowed down uniformly to last ``duration`` s (a move's
+    ``t``; never faster than planned): times times c, speeds over c, accelerations over c^2, c = duration / T."""
+    T = float(t[-1])
+    if not (duration > T > 0.0):
+        return t, v
+    c = duration / T
+    return t * c, v / c
+
+
+def _inf_norm(x: np.ndarray, axis: int) -> np.ndarray:
+    return np.abs(x).max(axis=axis)
+
+
+def _corner_turns(parts: list[np.ndarray], lengths: np.ndarray, norm) -> np.ndarray:
+    """How sharply the path turns at each waypoint (m+1,): the change of its direction there, the direction of a
+    segment being its displacement per unit of the path parameter (``parts``: arrays (m, k) of displacements, e.g.
+    position and scaled rotation, each measured by ``norm`` over its last axis; the largest part counts, as the
+    path parameter is the largest part's length). 0 at the ends and next to a segment of length 0."""
+    turn = np.zeros(len(lengths) + 1)
+    if len(lengths) < 2:
+        return turn
+    ok = lengths > 0
+    inv = np.divide(1.0, lengths, out=np.zeros_like(lengths), where=ok)
+    for x in parts:
+        u = x * inv[:, None]
+        turn[1:-1] = np.maximum(turn[1:-1], norm(u[1:] - u[:-1], axis=1))
+    turn[1:-1][~(ok[:-1] & ok[1:])] = 0.0
+    return turn
+
+
+def _path_grid(lengths: np.ndarray, segs: list[Segment], turns: np.ndarray | None = None):
     """Parameter grid over the whole path, with per-sample speed and acceleration limits.
 
     The grid holds every waypoint; the speed limit is 0 at an interior waypoint without a blend (``r`` 0 on
-    the move that ends there): the arm comes to rest there, as the controller stops at an unblended waypoint."""
+    the move that ends there): the arm comes to rest there, as the controller stops at an unblended waypoint.
+    Through a blend the speed is at most sqrt(2 a r / turn) (``turns`` from :func:`_corner_turns`, r from
+    :func:`_corner_radii`): a blend turns the direction by ``turn`` over 2 r of the path parameter (the quadratic
+    Bezier arc of :func:`_blend_points`, whose second derivative is turn / 2r), so at speed v it accelerates the
+    arm by v^2 turn / 2r, which ``a`` bounds as it bounds the speeding up and slowing down along the path (UR's
+    movel/movep ``a`` is the tool's acceleration). A blend too small for the speed is thus passed slowly, never
+    within one control period at full speed."""
     total = float(lengths.sum())
     n = int(min(GRID_MAX, max(GRID_MIN, math.ceil(total / GRID_STEP)))) + 1
     D = np.concatenate([[0.0], np.cumsum(lengths)])
     d = np.union1d(np.linspace(0.0, total, n), D)
+    vs = np.array([s.v for s in segs])
+    As = np.array([s.a for s in segs])
+    cap = r = None
+    if turns is not None and len(segs) > 1:
+        r = _corner_radii(np.array([s.r for s in segs]), lengths)
+        cap = np.full(len(D), np.inf)
+        sharp = np.flatnonzero((r > 0.0) & (turns > 0.0))
+        cap[sharp] = np.sqrt(2.0 * np.minimum(As[sharp - 1], As[sharp]) * r[sharp] / turns[sharp])
+        slow = np.flatnonzero(cap < np.maximum(vs[np.maximum(np.arange(len(D)) - 1, 0)],
+                                               vs[np.minimum(np.arange(len(D)), len(segs) - 1)]))
+        if len(slow):  # the blend's ends on the grid, so that the speed is capped over the whole blend
+            d = np.union1d(d, np.clip(np.concatenate([D[slow] - r[slow], D[slow] + r[slow]]), 0.0, total))
+        else:
+            cap = None
     seg = np.clip(np.searchsorted(D, d, side="right") - 1, 0, len(segs) - 1)
-    v = np.array([s.v for s in segs])[seg]
-    a = np.array([s.a for s in segs])[seg]
+    v = vs[seg]
+    a = As[seg]
+    if cap is not None and r is not None:
+        j = np.clip(np.searchsorted(0.5 * (D[:-1] + D[1:]), d), 0, len(D) - 1)  # the nearest waypoint
+        zone = np.abs(d - D[j]) <= r[j] * (1.0 + 1e-12)
+        v[zone] = np.minimum(v[zone], cap[j[zone]])
     stops = [D[i + 1] for i, s in enumerate(segs[:-1]) if s.r <= 0.0]
     if stops:
         v[np.searchsorted(d, stops)] = 0.0
@@ -336,13 +440,15 @@ class MotionModel:
         self.mode = "trajectory"
         return traj
 
-    def plan_joint(self, segs: list[Segment]) -> Trajectory:
-        """Plan and start a (blended) joint-space move through ``segs`` (targets are joints)."""
-        return self._start(self._joint_samples(self.q, segs), "movej")
+    def plan_joint(self, segs: list[Segment], duration: float = 0.0) -> Trajectory:
+        """Plan and start a (blended) joint-space move through ``segs`` (targets are joints); ``duration`` > 0 (a
+        move's ``t``, s) slows its profile down uniformly to last that long, before the limits are checked."""
+        return self._start(self._joint_samples(self.q, segs, duration), "movej")
 
-    def plan_linear(self, segs: list[Segment]) -> Trajectory:
-        """Plan and start a (blended) linear tool move through ``segs`` (targets are TCP poses)."""
-        return self._start(self._linear_samples(self.q, segs), "movel")
+    def plan_linear(self, segs: list[Segment], duration: float = 0.0) -> Trajectory:
+        """Plan and start a (blended) linear tool move through ``segs`` (targets are TCP poses); ``duration`` as
+        for :meth:`plan_joint`."""
+        return self._start(self._linear_samples(self.q, segs, duration), "movel")
 
     def plan_path(self, moves: list[tuple[str, Segment, bool]]) -> Trajectory:
         """Plan and start a path of ``(kind, segment, target_is_pose)`` moves, kind ``movej``/``movel``/``movep``.
@@ -388,8 +494,9 @@ class MotionModel:
             q0 = tr.q[-1]
         return self._start(Trajectory(np.vstack(parts), starts, fault), "path")
 
-    def _joint_samples(self, q0: np.ndarray, segs: list[Segment]) -> Trajectory:
-        """The samples of a (blended) joint-space move from ``q0`` through ``segs`` (not started)."""
+    def _joint_samples(self, q0: np.ndarray, segs: list[Segment], duration: float = 0.0) -> Trajectory:
+        """The samples of a (blended) joint-space move from ``q0`` through ``segs`` (not started), lasting at least
+        ``duration`` s."""
         W = np.vstack([q0] + [np.asarray(s.target, dtype=float) for s in segs])
         for i, s in enumerate(segs):
             self._check_q(W[i + 1], f"movej target {i}")
@@ -398,15 +505,16 @@ class MotionModel:
         lengths = np.abs(np.diff(W, axis=0)).max(axis=1)
         if lengths.sum() <= 0.0:
             return Trajectory(np.array(q0, dtype=float)[None].copy(), [0] * len(segs))
-        d, v, a = _path_grid(lengths, segs)
-        t, vt = _time_law(d, v, a)
+        d, v, a = _path_grid(lengths, segs, _corner_turns([np.diff(W, axis=0)], lengths, _inf_norm))
+        t, vt = _stretched(*_time_law(d, v, a), duration)
         dk = _sample_times(t, d, vt)
         q, _, _ = _blend_points(W, np.array([s.r for s in segs]), lengths, dk)
         q[-1] = W[-1]
         return Trajectory(q, _starts(dk, lengths))
 
-    def _linear_samples(self, q0: np.ndarray, segs: list[Segment]) -> Trajectory:
-        """The samples of a (blended) linear tool move from joints ``q0`` through ``segs`` (not started)."""
+    def _linear_samples(self, q0: np.ndarray, segs: list[Segment], duration: float = 0.0) -> Trajectory:
+        """The samples of a (blended) linear tool move from joints ``q0`` through ``segs`` (not started), lasting at
+        least ``duration`` s."""
         P0 = forward(self.model, q0, self.tcp)
         poses = np.vstack([P0] + [np.asarray(s.target, dtype=float) for s in segs])
         for i, s in enumerate(segs):
@@ -415,9 +523,9 @@ class MotionModel:
             if not (s.v > 0 and s.a > 0):
                 raise MotionError(f"movel target {i}: speed and acceleration must be > 0")
         rots = Rotation.from_rotvec(poses[:, 3:])
-        angles = (rots[:-1].inv() * rots[1:]).magnitude()
-        dist = np.linalg.norm(np.diff(poses[:, :3], axis=0), axis=1)
-        lengths = np.maximum(dist, angles * ROTATION_RADIUS)
+        turn = (rots[:-1].inv() * rots[1:]).as_rotvec()  # each segment's rotation, in its start frame
+        chord = np.diff(poses[:, :3], axis=0)
+        lengths = np.maximum(np.linalg.norm(chord, axis=1), np.linalg.norm(turn, axis=1) * ROTATION_RADIUS)
         # the target itself must be reachable before the arm moves
         try:
             q_end = inverse_path(self.model, poses[-1:], q0, tcp=self.tcp)[0]
@@ -425,16 +533,14 @@ class MotionModel:
             raise MotionError("movel: target pose is not reachable (no inverse kinematics solution)") from None
         if lengths.sum() <= 0.0:
             return Trajectory(np.array(q0, dtype=float)[None].copy(), [0] * len(segs))
-        d, v, a = _path_grid(lengths, segs)
-        t, vt = _time_law(d, v, a)
+        # the angular velocity at a waypoint, before and after it, in the frame there: e_k-1 and e_k (the slerp
+        # R_k-1 exp(f e_k-1) turns about e_k-1, which R_k-1 exp(e_k-1) = R_k leaves unchanged)
+        d, v, a = _path_grid(lengths, segs, _corner_turns([chord, ROTATION_RADIUS * turn], lengths, np.linalg.norm))
+        t, vt = _stretched(*_time_law(d, v, a), duration)
         dk = _sample_times(t, d, vt)
-        pos, seg, frac = _blend_points(poses[:, :3], np.array([s.r for s in segs]), lengths, dk)
-        rot = np.empty((len(dk), 3))
-        for i in range(len(segs)):
-            sel = seg == i
-            if sel.any():
-                rot[sel] = Slerp([0.0, 1.0], rots[i : i + 2])(frac[sel]).as_rotvec()
-        samples = np.hstack([pos, rot])
+        radii = np.array([s.r for s in segs])
+        pos, seg, frac = _blend_points(poses[:, :3], radii, lengths, dk)
+        samples = np.hstack([pos, _blend_rotations(rots, radii, lengths, dk, seg, frac)])
         samples[-1] = poses[-1]
         q = inverse_path(self.model, samples, q0, tcp=self.tcp, allow_unreachable=True)
         fault = None

@@ -9,7 +9,7 @@ calls
   ``movep(pose, a=1.2, v=0.25, r=0)``: consecutive moves of one family (joint, or linear/process)
   whose blend radius is > 0 are executed as one blended path; statements between them run when the
   arm reaches the next move (the controller runs them as the blend starts). ``t > 0`` makes a
-  single move last t seconds (speed and acceleration scaled down);
+  single move last t seconds (its profile slowed down uniformly, before its joints are checked);
 * ``servoj(q, a, v, t=0.002, lookahead_time=0.1, gain=300)`` (blocks for t), ``stopj(a)``, ``stopl(a)``;
 * ``sleep(t)``, ``sync()``, ``textmsg(...)``, ``set_tcp(pose)``,
   ``set_standard_digital_out(n, b)``, ``set_configurable_digital_out(n, b)``, ``set_tool_digital_out(n, b)``;
@@ -395,27 +395,13 @@ class URScriptProgram:
             pending.append(group)
             if r <= 0.0 or t > 0:
                 break
-        try:
-            traj = self.motion.plan_joint(segs) if family == "joint" else self.motion.plan_linear(segs)
+        try:  # a timed move is planned to last t before its joints are checked against their limits
+            plan_run = self.motion.plan_joint if family == "joint" else self.motion.plan_linear
+            plan_run(segs, timed)
         except MotionError as exc:
             self.core.protective_stop(str(exc))
             self.blocked = True
             return
-        if timed > 0:
-            self._retime(traj, timed)
         self.pending = pending
         self._progress = 0
         self.blocked = True
-
-    def _retime(self, traj, duration: float) -> None:
-        """Stretch a planned single move to last ``duration`` s (never faster than planned)."""
-        K = len(traj.q)
-        K_new = max(K, math.ceil(duration / DT - 1e-9))
-        if K_new == K:
-            return
-        src = np.arange(1, K + 1) / K
-        dst = np.arange(1, K_new + 1) / K_new
-        origin = self.motion.q
-        Q = np.vstack([origin, traj.q])
-        xs = np.concatenate([[0.0], src])
-        traj.q = np.stack([np.interp(dst, xs, Q[:, j]) for j in range(6)], axis=1)

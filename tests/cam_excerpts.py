@@ -77,6 +77,16 @@ NX = Excerpt(
     "nx_clsf_variable_contour_ust_a2.cls",
     ((1, 305), (4792, 4851), (7247, 7307), (7538, 7653), (20179, 20416), (20753, 20823), (22237, 22242)),
 )
+#: The same NX job's passes whose tool axis turns one way and then back, each a protective stop of issue 29 in
+#: program mode: pass 116 of the whole job (lines 4703-4727; 82 deg one way up to line 4711, back by 1.3 deg at line
+#: 4712, after pass 115 from line 4678) and pass 124 (lines 4794-4851; back by 5.0 deg within the 0.081 mm step from
+#: line 4833 to 4834). The header up to the only FEDRAT (line 16, the axis then 0,0,-1 as at line 4677), the rapid
+#: of line 4677 to the rapid after pass 116 (line 4730), and the NX excerpt's range of pass 124.
+NX_AXIS_REVERSAL = Excerpt(
+    "nx_clsf_ust_a2_axis_reversal.cls",
+    "nx_clsf_variable_contour_ust_a2.cls",
+    ((1, 16), (4677, 4730), (4792, 4851)),
+)
 #: SOLIDWORKS CAM APT, 3+2 job (mm, CIRCLE records, CUTCOM, CSYS frames, tool changes, FINI).
 SW = Excerpt(
     "solidworks_cam_apt_boss_excerpt.apt",
@@ -98,6 +108,6 @@ NX_ROUNDING = Excerpt(
     ((1, 16), (4467, 4510), (7832, 7886), (10721, 10771), (17681, 17743), (17872, 17929), (20753, 20769),
      (22237, 22242)),
 )
-EXCERPTS = {e.name: e for e in (NX, SW, HAAS, NX_ROUNDING)}
+EXCERPTS = {e.name: e for e in (NX, NX_AXIS_REVERSAL, SW, HAAS, NX_ROUNDING)}
 
 NX_HEAD = NX.head(100)
