@@ -1,0 +1,514 @@
+"""Choosing the spin about an axisymmetric tool for the arm (``spin="reach"``).
+
+The tool axis and the TCP path are the CAM system's; the rotation about the axis is free. Along each run of passes
+(the passes between two rapids, :func:`planner.cam.configure.groups`: the arm keeps one configuration there) the spin
+psi is chosen in two stages, the first global and coarse, the second continuous:
+
+1. **Rating at the RMM spin.** The run is sampled every ``reach_step`` (at most :data:`MAX_RUN_SAMPLES` samples) at
+   its planned times, and the inverse kinematics of every sample is solved on the eight branches. Where some branch
+   reaches every sample with singularity margin at least :data:`SING_SAFE`, no joint faster than :data:`SPEED_SAFE`
+   of its limit and the non-multiturn joints :data:`JOINT_SAFE` from their limits, the run keeps the RMM spin
+   (psi = 0): a tool spun for nothing is a tool spun.
+2. **Global search on a spin grid** (otherwise): psi on :data:`GRID` values over a full turn at every sample, each
+   branch on its own; a shortest path through the (sample, spin) graph (dynamic programming, Viterbi) minimizes the
+   sum of node costs (singularity margin below :data:`SING_SAFE`: min of |sin q3|, |sin q5| and the shoulder factor
+   as in :mod:`planner.cam.placement`; joint-limit margin; distance from the RMM spin) and step costs (a joint
+   beyond :data:`SPEED_SAFE` of its speed limit over the step, at the planned times; wrist travel |dq4| + |dq6|,
+   against wind-up; a spin step faster than ``spin_rate``), steps moving at most :data:`MAX_STEP` grid values.
+   Samples out of reach cost :data:`OUT_OF_REACH`. This is the ladder graph of ROS-Industrial Descartes and the
+   sampled spin of RoboDK, over the whole run at once.
+3. **Continuous refinement.** psi becomes a clamped cubic B-spline (C2) of arc length along the run, at most
+   :data:`MAX_COEFFS` coefficients: the least-squares fit to the grid path, smoothed, under the spin bounds at every
+   sample as linear constraints on the coefficients, |psi'(s) v| <= ``spin_rate`` and |psi''(s) v^2 + psi'(s) a| <=
+   ``spin_acceleration`` with the planned feed v and its acceleration a (scipy.optimize, SLSQP; the start is the
+   least-squares fit scaled into the bounds, which is feasible). The result is rated like the RMM spin and kept only
+   where it is better (fewer samples out of reach, fewer too fast, then a larger least singularity margin).
+
+Where the tool is on the flange axis (the TCP's rotation about its z and its offset along it), a spin is wrist 3 alone
+(q6 + psi): the inverse kinematics is solved once per sample and the grid is a shift of q6. Otherwise (an angled
+nozzle) every grid value is solved.
+
+Between runs, in the rapids, psi goes from the end of one run to the start of the next (a C2 transition in arc
+length), the rapid slowed where the spin bounds need it. A turn in place or a dwell keeps psi. The result is the moves
+with their frames wrapped in :class:`~planner.cam.spin.SpunFrames` (and the start and end frames turned), the first
+cut of every run carrying its :class:`~planner.cam.spin.SpinFigures`.
+"""
+
+from __future__ import annotations
+
+import math
+import time
+from dataclasses import dataclass, replace
+
+import numpy as np
+from scipy.interpolate import BSpline
+from scipy.optimize import minimize
+
+from planner.cam.configure import groups
+from planner.cam.spin import SPIN_DEGREE, SpinCurve, SpinFigures, SpunFrames, spun
+from planner.kinematics import get_model, inverse_batch
+from planner.kinematics.poses import as_transform
+from planner.motion import MotionLimits, plan_feed, poses_at_length, tool_orientation
+from planner.rotations import matrix_to_rotvec
+
+#: Spin values of the grid over a full turn (15 deg apart).
+GRID = 24
+#: Grid values a step between two samples may move at most.
+MAX_STEP = 2
+#: Samples rated per run at most (the spacing grows beyond).
+MAX_RUN_SAMPLES = 4000
+#: B-spline coefficients of a run's spin at most.
+MAX_COEFFS = 48
+#: Singularity margin below which a sample costs (min of |sin q3|, |sin q5|, shoulder factor).
+SING_SAFE = 0.2
+#: Joint-limit margin (rad) below which a sample costs (non-multiturn joints).
+JOINT_SAFE = math.radians(20.0)
+#: Fraction of a joint's speed limit above which a step costs.
+SPEED_SAFE = 0.8
+#: Cost weights: singularity, joint limit, a step too fast (beyond SPEED_SAFE, and beyond the limit), wrist travel
+#: (per rad), spin rate beyond its bound, distance from the RMM spin (per sample, at half a turn).
+W_SING, W_JOINT, W_SPEED, W_FAST, W_TRAVEL, W_RATE, W_RMM = 1.0, 1.0, 10.0, 20.0, 0.01, 5.0, 0.01
+#: Cost of a sample out of reach on a branch.
+OUT_OF_REACH = 1e6
+
+
+def spin_is_wrist3(tcp) -> bool:
+    """Whether a spin about the tool axis is wrist 3 alone: the TCP turned about the flange z only and offset
+    along it only (then T_tcp commutes with Rz and the tool axis is the flange axis)."""
+    if tcp is None:
+        return True
+    T = as_transform(tcp, "tcp")
+    return bool(abs(T[0, 3]) < 1e-12 and abs(T[1, 3]) < 1e-12 and abs(T[2, 2] - 1.0) < 1e-12)
+
+
+@dataclass(frozen=True)
+class SpinChoice:
+    """The job's moves with the chosen spin and what it took.
+
+    Attributes
+    ----------
+    moves : list of PlannedMove
+        Every move, frames wrapped in SpunFrames (rapids re-timed where the spin needs it).
+    runs, spun_runs : int
+        Runs of passes rated, and those given a spin other than the RMM's.
+    seconds : float
+        Wall time of the choice, s.
+    """
+
+    moves: list
+    runs: int
+    spun_runs: int
+    seconds: float
+
+
+@dataclass(frozen=True, eq=False)
+class _Samples:
+    """A run's rated samples: run coordinate X (n,) (arc length along the cuts, constant over a turn), times (n,),
+    base-frame positions (n, 3) and tool frames (n, 3, 3) at the RMM spin, planned feed v and acceleration a (n,),
+    and the move each belongs to (n,) with its coordinate (n,); ``extra`` (X, v, a) at the cuts' time-law phase
+    boundaries and midpoints (where the spin bounds are checked besides the samples)."""
+
+    X: np.ndarray
+    t: np.ndarray
+    p: np.ndarray
+    R: np.ndarray
+    v: np.ndarray
+    a: np.ndarray
+    move: np.ndarray
+    x: np.ndarray
+    extra: tuple | None = None
+
+
+def _samples(moves, ks, Tb: np.ndarray, step: float) -> tuple[_Samples, dict]:
+    """The run's samples and each move's offset in the run coordinate {k: X at its start}."""
+    total = sum(float(moves[k].path.length) for k in ks if moves[k].kind == "cut")
+    h = max(step, total / MAX_RUN_SAMPLES, 1e-6)
+    parts: list[tuple] = []
+    X0 = t0 = 0.0
+    offsets = {}
+    extra: list[tuple] = []
+    for k in ks:
+        m = moves[k]
+        offsets[k] = X0
+        if m.profile is None:
+            continue
+        if m.kind == "cut":
+            L = float(m.path.length)
+            x = np.linspace(0.0, L, max(2, math.ceil(L / h) + 1))
+            p, R, _ = poses_at_length(m.path, tool_orientation(m.frames), x, base=Tb)
+            X = X0 + x
+        else:  # a turn in place: its start and end, the coordinate stands
+            x = np.array([0.0, m.frames.angle])
+            R = np.matmul(Tb[:3, :3], m.frames.frames(x))
+            p = np.broadcast_to(Tb[:3, :3] @ m.point + Tb[:3, 3], (2, 3))
+            X = np.full(2, X0)
+        tl = m.profile.time_at(x)
+        v, a = m.profile.v(tl), m.profile.a(tl)
+        if m.kind != "cut":
+            v, a = np.zeros(2), np.zeros(2)
+        parts.append((X, t0 + tl, p, R, v, a, np.full(x.size, k), x))
+        if m.kind == "cut":
+            tp = m.profile.t
+            te = np.concatenate((tp, 0.5 * (tp[1:] + tp[:-1])))
+            extra.append((X0 + m.profile.s(te), m.profile.v(te), m.profile.a(te)))
+        X0 = float(X[-1])
+        t0 += float(m.profile.duration)
+    cols = [np.concatenate([c[i] for c in parts]) for i in range(8)]
+    keep = np.ones(cols[0].size, bool)  # a pose repeated at a move boundary (same coordinate, same time) once
+    keep[1:] = (np.diff(cols[0]) > 0.0) | (np.diff(cols[1]) > 0.0)
+    more = tuple(np.concatenate([e[i] for e in extra]) for i in range(3)) if extra else None
+    X, t, p, R, v, a, move, x = (c[keep] for c in cols)
+    return _Samples(X, t, p, R, v, a, move, x, more), offsets
+
+
+class _Arm:
+    """Joints and their costs for one robot and TCP."""
+
+    def __init__(self, robot: str, tcp):
+        self.robot, self.tcp = robot, tcp
+        self.model = get_model(robot)
+        self.wrist3 = spin_is_wrist3(tcp)
+        self.vmax = self.model.speed_limits
+        self.fixed = ~self.model.multiturn
+
+    def joints(self, p: np.ndarray, R: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Joints (n, 8, G, 6) and validity (n, 8, G) of positions p (n, 3), frames R (n, 3, 3) turned by each
+        spin of psi (G,) (a row of spins (n, G) per sample also works)."""
+        psi = np.broadcast_to(psi, (p.shape[0],) + np.shape(psi)[-1:])
+        n, G = psi.shape
+        if self.wrist3:
+            sol = inverse_batch(self.robot, np.hstack((p, matrix_to_rotvec(R))), tcp=self.tcp)
+            q = np.repeat(sol.q[:, :, None, :], G, axis=2)
+            q[..., 5] = _wrap(q[..., 5] + psi[:, None, :])
+            return q, np.repeat(sol.valid[:, :, None], G, axis=2)
+        F = spun(np.repeat(R[:, None], G, axis=1), psi)
+        poses = np.hstack((np.repeat(p, G, axis=0), matrix_to_rotvec(F.reshape(-1, 3, 3))))
+        sol = inverse_batch(self.robot, poses, tcp=self.tcp)
+        return (np.swapaxes(sol.q.reshape(n, G, 8, 6), 1, 2), np.swapaxes(sol.valid.reshape(n, G, 8), 1, 2))
+
+    def node_cost(self, q: np.ndarray, valid: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray,
+                                                                                   np.ndarray]:
+        """(cost, singularity margin, joint-limit margin), each (..., ) over q (..., 6), valid (...)."""
+        m = self.model
+        qz = np.where(valid[..., None], q, 0.0)
+        sing = np.minimum(np.minimum(np.abs(np.sin(qz[..., 2])), np.abs(np.sin(qz[..., 4]))),
+                          np.abs(m.a2 * np.cos(qz[..., 1]) + m.a3 * np.cos(qz[..., 1] + qz[..., 2])
+                                 + m.d5 * np.sin(qz[..., 1] + qz[..., 2] + qz[..., 3])) / (abs(m.a2) + abs(m.a3)))
+        if self.fixed.any():
+            jm = np.minimum(qz[..., self.fixed] - m.lower[self.fixed], m.upper[self.fixed] - qz[..., self.fixed])
+            joint = jm.min(axis=-1)
+        else:
+            joint = np.full(sing.shape, math.pi)
+        cost = (W_SING * np.maximum(0.0, 1.0 - sing / SING_SAFE) ** 2
+                + W_JOINT * np.maximum(0.0, 1.0 - joint / JOINT_SAFE) ** 2
+                + W_RMM * (_wrap(psi) / math.pi) ** 2)
+        return np.where(valid, cost, OUT_OF_REACH), sing, joint
+
+    def step_ratio(self, dq: np.ndarray, dt) -> np.ndarray:
+        """Largest joint speed over a step as a fraction of its limit, (...) from dq (..., 6) and dt."""
+        dt = np.asarray(dt, dtype=float)
+        r = np.abs(dq) / self.vmax
+        top = r.max(axis=-1)
+        return np.where(dt > 0.0, top / np.where(dt > 0.0, dt, 1.0), np.where(top > 1e-9, np.inf, 0.0))
+
+
+def _wrap(x):
+    return (np.asarray(x) + math.pi) % (2.0 * math.pi) - math.pi
+
+
+def _figures(arm: _Arm, S: _Samples, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Figures (8, 5) of spin psi (n,) on every branch (see SpinFigures) and each branch's rank key (8, 3)."""
+    q, valid = arm.joints(S.p, S.R, psi[:, None])
+    q, valid = q[:, :, 0], valid[:, :, 0]
+    _, sing, joint = arm.node_cost(q, valid, psi[:, None])
+    dq = _wrap(np.diff(q, axis=0))
+    ratio = arm.step_ratio(dq, np.diff(S.t)[:, None])
+    both = valid[1:] & valid[:-1]
+    fast = np.where(both, ratio > 1.0, False).sum(axis=0)
+    out = (~valid).sum(axis=0)
+    travel = np.where(both, np.abs(dq[..., 3]) + np.abs(dq[..., 5]), 0.0).sum(axis=0)
+    s_min = np.where(valid, sing, np.inf).min(axis=0)
+    j_min = np.where(valid, joint, np.inf).min(axis=0)
+    fig = np.stack([s_min, j_min, fast, out, travel], axis=1)
+    key = np.stack([out, fast, -np.minimum(s_min, SING_SAFE)], axis=1)
+    return fig, key
+
+
+def _best(key: np.ndarray) -> int:
+    return int(np.lexsort(key.T[::-1])[0])
+
+
+def _fine(arm: _Arm, fig: np.ndarray, b: int, S: _Samples) -> bool:
+    """Whether branch b is fine at the RMM spin: everything in reach, margins and speeds safe."""
+    if fig[b, 3] or fig[b, 2]:
+        return False
+    if fig[b, 0] < SING_SAFE or fig[b, 1] < JOINT_SAFE:
+        return False
+    psi0 = np.zeros(S.X.size)
+    q, valid = arm.joints(S.p, S.R, psi0[:, None])
+    ratio = arm.step_ratio(_wrap(np.diff(q[:, b, 0], axis=0)), np.diff(S.t))
+    return bool((ratio <= SPEED_SAFE).all())
+
+
+def _grid_path(arm: _Arm, S: _Samples, rate: float) -> tuple[np.ndarray, int]:
+    """The grid search: spin (n,) (unwrapped, radians) and branch of the cheapest path through (sample, spin)."""
+    grid = np.linspace(-math.pi, math.pi, GRID, endpoint=False)
+    q, valid = arm.joints(S.p, S.R, grid)  # (n, 8, G, 6)
+    node, _, _ = arm.node_cost(q, valid, np.broadcast_to(grid, valid.shape))
+    n = S.X.size
+    shifts = np.arange(-MAX_STEP, MAX_STEP + 1)
+    src = (np.arange(GRID)[None, :] - shifts[:, None]) % GRID  # (2K+1, G): the predecessor of g by each shift
+    gstep = 2.0 * math.pi / GRID
+    dX, dt = np.diff(S.X), np.diff(S.t)
+    allowed = np.abs(shifts)[:, None] * gstep  # spin change of each shift (2K+1, 1)
+    D = node[0].copy()  # (8, G)
+    back = np.empty((n - 1, 8, GRID), dtype=np.int8)
+    for i in range(n - 1):  # the graph is a chain over samples: one vectorized relaxation per step
+        qp = q[i][:, src]  # (8, 2K+1, G, 6)
+        dq = np.nan_to_num(_wrap(q[i + 1][:, None] - qp))  # out of reach: its node cost says so
+        ratio = arm.step_ratio(dq, dt[i])
+        trans = (W_SPEED * np.maximum(0.0, ratio - SPEED_SAFE) ** 2 + W_FAST * (ratio > 1.0)
+                 + W_TRAVEL * (np.abs(dq[..., 3]) + np.abs(dq[..., 5])))
+        spin_rate = allowed / max(dt[i], 1e-9)
+        trans = trans + W_RATE * np.maximum(0.0, spin_rate / max(rate, 1e-9) - 1.0)[None] ** 2
+        if dX[i] <= 0.0:  # psi is a function of the run's arc length: it stands over a turn in place
+            trans = trans + np.where(shifts[:, None] != 0, OUT_OF_REACH, 0.0)[None]
+        total = D[:, src] + np.minimum(trans, OUT_OF_REACH)
+        j = total.argmin(axis=1)  # (8, G)
+        back[i] = j
+        D = np.take_along_axis(total, j[:, None], axis=1)[:, 0] + node[i + 1]
+    b = int(D.min(axis=1).argmin())
+    g = np.empty(n, dtype=np.int64)
+    g[-1] = int(D[b].argmin())
+    for i in range(n - 2, -1, -1):  # backtrack (integers only)
+        g[i] = src[back[i, b, g[i + 1]], g[i + 1]]
+    psi = np.unwrap(grid[g])
+    psi -= 2.0 * math.pi * round(float(psi.mean()) / (2.0 * math.pi))
+    return psi, b
+
+
+def _knots(end: float) -> np.ndarray:
+    """Clamped cubic knots on [0, end] with uniform interior knots (at most MAX_COEFFS coefficients)."""
+    pieces = max(1, MAX_COEFFS - SPIN_DEGREE)
+    return np.concatenate(([0.0] * SPIN_DEGREE, np.linspace(0.0, end, pieces + 1), [end] * SPIN_DEGREE))
+
+
+def _refine(S: _Samples, target: np.ndarray, rate: float, acc: float) -> SpinCurve:
+    """The C2 spin (a clamped cubic B-spline of the run coordinate) nearest the grid path under the spin bounds."""
+    end = float(S.X[-1])
+    if end <= 0.0:
+        return SpinCurve.constant(float(target[0]))
+    t = _knots(end)
+    B0 = BSpline.design_matrix(S.X, t, SPIN_DEGREE).toarray()
+    K = B0.shape[1]
+    eye = np.eye(K)
+    B1 = BSpline(t, eye, SPIN_DEGREE).derivative(1)(S.X)  # (n, K): psi' at the samples per coefficient
+    B2 = BSpline(t, eye, SPIN_DEGREE).derivative(2)(S.X)
+    # the bounds in time at the planned feed: |psi' v| <= rate, |psi'' v^2 + psi' a| <= acc
+    A1 = B1 * S.v[:, None]
+    A2 = B2 * (S.v ** 2)[:, None] + B1 * S.a[:, None]
+    if S.extra is not None:  # the time laws' phase boundaries and midpoints: where the feed accelerates
+        Xe, ve, ae = S.extra
+        E1 = BSpline(t, eye, SPIN_DEGREE).derivative(1)(Xe)
+        E2 = BSpline(t, eye, SPIN_DEGREE).derivative(2)(Xe)
+        A1 = np.vstack((A1, E1 * ve[:, None]))
+        A2 = np.vstack((A2, E2 * (ve ** 2)[:, None] + E1 * ae[:, None]))
+    D = np.diff(eye, n=2, axis=0)
+    smooth = 1e-4
+    lhs = B0.T @ B0 + smooth * D.T @ D + 1e-9 * eye
+    c0 = np.linalg.solve(lhs, B0.T @ target)
+
+    def scale_into(c):
+        r1 = np.abs(A1 @ c).max(initial=0.0) / rate if rate > 0 else math.inf
+        r2 = np.abs(A2 @ c).max(initial=0.0) / acc if acc > 0 else math.inf
+        return c / max(1.0, r1, r2) if np.isfinite(max(r1, r2)) else np.zeros_like(c)
+
+    start = scale_into(c0)
+    n = S.X.size
+
+    def f(c):
+        r = B0 @ c - target
+        d = D @ c
+        return float(r @ r / n + smooth * d @ d / n)
+
+    def grad(c):
+        return 2.0 * (B0.T @ (B0 @ c - target) + smooth * D.T @ (D @ c)) / n
+
+    A = np.vstack((A1, -A1, A2, -A2))
+    ub = np.concatenate((np.full(2 * len(A1), rate), np.full(2 * len(A2), acc)))
+    cons = [{"type": "ineq", "fun": lambda c: ub - A @ c, "jac": lambda c: -A}] if len(A) else []
+    res = minimize(f, start, jac=grad, method="SLSQP", constraints=cons, options={"maxiter": 100, "ftol": 1e-10})
+    c = scale_into(res.x) if np.isfinite(res.x).all() else start  # within the bounds to round-off
+    return SpinCurve(t, c)
+
+
+def choose_spin(moves, settings) -> SpinChoice:
+    """The spin of every run of passes (see the module doc) and the moves with it.
+
+    Parameters
+    ----------
+    moves : list of PlannedMove
+        The job's moves with the RMM spin, planned in the part frame.
+    settings : PlanSettings
+        Checked, with a robot; ``part_frame`` a frame (the placement already made), ``tcp``, ``reach_step``,
+        ``spin_rate``, ``spin_acceleration``.
+    """
+    tic = time.perf_counter()
+    Tb = as_transform(settings.part_frame, "part_frame")
+    arm = _Arm(settings.robot, settings.tcp)
+    rate, acc = float(settings.spin_rate), float(settings.spin_acceleration)
+    psi_x: dict[int, SpinCurve] = {}  # the spin of every move of a run, in the move's coordinate
+    figures: dict[int, SpinFigures] = {}
+    ends: list[tuple[float, float]] = []  # per group: (spin at the run's start, at its end)
+    runs = spun_runs = 0
+    plan_groups = groups(moves)
+    for g in plan_groups:
+        ks = [k for k in g.run if moves[k].kind in ("cut", "reorientation", "dwell", "skipped")]
+        if not ks:
+            ends.append((math.nan, math.nan))
+            continue
+        runs += 1
+        S, offsets = _samples(moves, ks, Tb, float(settings.reach_step))
+        zero = np.zeros(S.X.size)
+        fig0, key0 = _figures(arm, S, zero)
+        b0 = _best(key0)
+        curve = SpinCurve.constant(0.0, max(float(S.X[-1]), 1e-300))
+        fig, b = fig0[b0], b0
+        if S.X.size >= 2 and not _fine(arm, fig0, b0, S):
+            target, _ = _grid_path(arm, S, rate)
+            if np.any(target):
+                cand = _refine(S, target, rate, acc)
+                fig1, key1 = _figures(arm, S, cand(S.X))
+                b1 = _best(key1)
+                if tuple(key1[b1]) < tuple(key0[b0]):
+                    curve, fig, b = cand, fig1[b1], b1
+                    spun_runs += 1
+        first_cut = next(k for k in ks if moves[k].kind == "cut")
+        figures[first_cut] = SpinFigures(int(S.X.size), int(b), fig0[b0].astype(float), fig.astype(float))
+        for k in ks:
+            off = offsets[k]
+            if moves[k].kind == "reorientation":  # psi stands over a turn in place
+                psi_x[k] = SpinCurve.constant(float(curve(off)[0]), float(moves[k].frames.span))
+            else:
+                psi_x[k] = SpinCurve(curve.knots - off, curve.coeffs)
+        s0, s1 = (float(curve(0.0)[0]), float(curve(S.X[-1])[0]))
+        ends.append((s0, s1))
+    out = _apply(moves, plan_groups, psi_x, figures, ends, rate, acc)
+    return SpinChoice(out, runs, spun_runs, time.perf_counter() - tic)
+
+
+def _apply(moves, plan_groups, psi_x: dict, figures: dict, ends: list, rate: float, acc: float) -> list:
+    """Every move with its spin: runs as chosen, gaps moving from one run's end spin to the next run's start."""
+    out = list(moves)
+    prev = math.nan  # the spin where the arm is
+    starts = [e[0] for e in ends]
+    for gi, g in enumerate(plan_groups):
+        nxt = starts[gi] if not math.isnan(starts[gi]) else prev
+        if math.isnan(prev):
+            prev = nxt if not math.isnan(nxt) else 0.0
+        if math.isnan(nxt):
+            nxt = prev
+        rapid_len = sum(float(moves[k].path.length) for k in g.gap if moves[k].kind == "rapid")
+        done = 0.0
+        for k in g.gap:
+            m = moves[k]
+            if m.kind == "rapid" and rapid_len > 0.0:
+                L = float(m.path.length)
+                a = prev + (nxt - prev) * done / rapid_len
+                done += L
+                b = prev + (nxt - prev) * done / rapid_len
+                out[k] = _spun_rapid(m, SpinCurve.transition(a, b, L), rate, acc)
+            else:
+                here = prev + (nxt - prev) * done / rapid_len if rapid_len > 0.0 else nxt
+                out[k] = _spun_move(m, SpinCurve.constant(here, _coordinate_end(m)))
+        for k in g.run:
+            m = moves[k]
+            curve = psi_x.get(k)
+            if curve is None:  # a move inside the run without motion of its own: the spin where it is
+                curve = SpinCurve.constant(float(ends[gi][0]), _coordinate_end(m))
+            out[k] = _spun_move(m, curve, figures.get(k))
+        if not math.isnan(ends[gi][1]):
+            prev = ends[gi][1]
+        else:
+            prev = nxt
+    return out
+
+
+def _coordinate_end(m) -> float:
+    if m.kind in ("cut", "rapid"):
+        return float(m.path.length)
+    if m.kind == "reorientation":
+        return float(m.frames.span)
+    return 1.0
+
+
+def _spun_move(m, curve: SpinCurve, figures: SpinFigures | None = None):
+    """The move with its frames turned by the spin (start and end frames too)."""
+    if m.frames is not None:
+        frames = SpunFrames(m.frames, curve, figures)
+        return replace(m, frames=frames, start_frame=frames.start, end_frame=frames.end)
+    psi = curve(0.0)
+    return replace(m, start_frame=spun(m.start_frame[None], psi)[0], end_frame=spun(m.end_frame[None], psi)[0])
+
+
+def _spun_rapid(m, curve: SpinCurve, rate: float, acc: float):
+    """A rapid with a spin transition, slowed so that the spin keeps its bounds (rate and acceleration in time)."""
+    moved = _spun_move(m, curve)
+    L = float(m.path.length)
+    x = np.linspace(0.0, L, 65)
+    d1 = float(np.abs(curve(x, 1)).max())
+    d2 = float(np.abs(curve(x, 2)).max())
+    if d1 == 0.0 or m.profile is None:
+        return moved
+    lim = m.profile.limits
+    v = float(m.profile.commanded.max())
+    v_new = min(v, rate / d1, math.sqrt(0.5 * acc / d2) if d2 > 0.0 else math.inf)
+    a_new = min(float(lim.acceleration), 0.5 * acc / d1)
+    if v_new >= v and a_new >= lim.acceleration:
+        return moved
+    j_new = float(lim.jerk) * a_new / float(lim.acceleration)
+    profile = plan_feed(L, v_new, MotionLimits(v_new, a_new, j_new))
+    return replace(moved, profile=profile)
+
+
+def spin_rates(m) -> tuple[float, float]:
+    """Largest spin rate (rad/s) and acceleration (rad/s^2) in time of a move with SpunFrames, at its planned
+    time law (sampled every 2 ms)."""
+    if not isinstance(m.frames, SpunFrames) or m.profile is None or m.frames.spin.is_zero:
+        return 0.0, 0.0
+    T = float(m.profile.duration)
+    t = np.linspace(0.0, T, max(3, math.ceil(T / 2e-3) + 1))
+    x, v, a = m.profile.s(t), m.profile.v(t), m.profile.a(t)
+    c = m.frames.spin
+    d1, d2 = c(x, 1), c(x, 2)
+    if m.kind == "reorientation":
+        d1, d2 = np.zeros_like(x), np.zeros_like(x)
+    return float(np.abs(d1 * v).max()), float(np.abs(d2 * v * v + d1 * a).max())
+
+
+def spin_summary(moves) -> dict | None:
+    """What the spin bought over a job's moves, against the RMM spin on the same samples (None without SpunFrames):
+    runs rated and spun, least singularity and joint-limit margins, sample steps too fast for a joint, samples out
+    of reach, wrist travel, largest spin rate and acceleration at the planned time laws, and whether the spin
+    alone makes every run reachable."""
+    figs = [m.frames.figures for m in moves if isinstance(m.frames, SpunFrames) and m.frames.figures is not None]
+    if not figs:
+        return None
+    rmm = np.array([f.rmm for f in figs])
+    reach = np.array([f.reach for f in figs])
+    spun_moves = [m for m in moves if isinstance(m.frames, SpunFrames) and not m.frames.spin.is_zero
+                  and np.ptp(m.frames.spin.coeffs) > 0.0]
+    rates = [spin_rates(m) for m in spun_moves]
+
+    def side(a: np.ndarray) -> dict:
+        return {"singularity_margin": float(a[:, 0].min()), "joint_margin_deg": math.degrees(float(a[:, 1].min())),
+                "too_fast_steps": int(a[:, 2].sum()), "out_of_reach_samples": int(a[:, 3].sum()),
+                "wrist_travel_deg": math.degrees(float(a[:, 4].sum()))}
+
+    return {"runs": len(figs), "spun_runs": int(sum(not np.array_equal(f.rmm, f.reach) for f in figs)),
+            "samples": int(sum(f.samples for f in figs)), "rmm": side(rmm), "reach": side(reach),
+            "max_spin_deg": math.degrees(max((float(np.abs(m.frames.spin.coeffs).max()) for m in spun_moves),
+                                             default=0.0)),
+            "max_spin_rate_deg_s": math.degrees(max((r[0] for r in rates), default=0.0)),
+            "max_spin_acceleration_deg_s2": math.degrees(max((r[1] for r in rates), default=0.0)),
+            "reachable_only_by_spin": bool(rmm[:, 3].sum() > 0 and reach[:, 3].sum() == 0)}
