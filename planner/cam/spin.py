@@ -84,6 +84,11 @@ class SpinCurve:
         b = BSpline(self.knots, self.coeffs, SPIN_DEGREE, extrapolate=False)
         return b, b.derivative(1), b.derivative(2)
 
+    @cached_property
+    def is_constant(self) -> bool:
+        """psi is one value everywhere."""
+        return bool(np.all(self.coeffs == self.coeffs[0]))
+
     @property
     def is_zero(self) -> bool:
         """psi is 0 everywhere (the move keeps its frames exactly)."""
@@ -92,6 +97,8 @@ class SpinCurve:
     def __call__(self, x, nu: int = 0) -> np.ndarray:
         """psi (nu = 0), dpsi/dx (1) or d2psi/dx2 (2) at x (n,); beyond the ends psi is constant."""
         x = np.atleast_1d(np.asarray(x, dtype=float))
+        if self.is_constant:
+            return np.full(x.shape, float(self.coeffs[0]) if nu == 0 else 0.0)
         lo, hi = float(self.knots[0]), float(self.knots[-1])
         inside = (x >= lo) & (x <= hi)
         out = self._splines[nu](np.clip(x, lo, hi))

@@ -9,14 +9,15 @@ psi is chosen in two stages, the first global and coarse, the second continuous:
    reaches every sample with singularity margin at least :data:`SING_SAFE`, no joint faster than :data:`SPEED_SAFE`
    of its limit and the non-multiturn joints :data:`JOINT_SAFE` from their limits, the run keeps the RMM spin
    (psi = 0): a tool spun for nothing is a tool spun.
-2. **Global search on a spin grid** (otherwise): psi on :data:`GRID` values over a full turn at every sample, each
-   branch on its own; a shortest path through the (sample, spin) graph (dynamic programming, Viterbi) minimizes the
-   sum of node costs (singularity margin below :data:`SING_SAFE`: min of |sin q3|, |sin q5| and the shoulder factor
-   as in :mod:`planner.cam.placement`; joint-limit margin; distance from the RMM spin) and step costs (a joint
-   beyond :data:`SPEED_SAFE` of its speed limit over the step, at the planned times; wrist travel |dq4| + |dq6|,
-   against wind-up; a spin step faster than ``spin_rate``), steps moving at most :data:`MAX_STEP` grid values.
-   Samples out of reach cost :data:`OUT_OF_REACH`. This is the ladder graph of ROS-Industrial Descartes and the
-   sampled spin of RoboDK, over the whole run at once.
+2. **Global search on a spin grid** (otherwise): psi on a grid of 15 degrees over [-180, 180] degrees from the RMM
+   spin (no more than half a turn: the spin adds no wind-up of its own) at every sample, each branch on its own; a
+   shortest path through the (sample, spin) graph (dynamic programming, Viterbi) minimizes the sum of node costs
+   (singularity margin below :data:`SING_SAFE`: min of |sin q3|, |sin q5| and the shoulder factor as in
+   :mod:`planner.cam.placement`; joint-limit margin; distance from the RMM spin) and step costs (a joint beyond
+   :data:`SPEED_SAFE` of its speed limit over the step, at the planned times; wrist travel |dq4| + |dq6|, against
+   wind-up; a spin step faster than ``spin_rate``), steps moving at most :data:`MAX_STEP` grid values. Samples out of
+   reach cost :data:`OUT_OF_REACH`. This is the ladder graph of ROS-Industrial Descartes and the sampled spin of
+   RoboDK, over the whole run at once.
 3. **Continuous refinement.** psi becomes a clamped cubic B-spline (C2) of arc length along the run, at most
    :data:`MAX_COEFFS` coefficients: the least-squares fit to the grid path, smoothed, under the spin bounds at every
    sample as linear constraints on the coefficients, |psi'(s) v| <= ``spin_rate`` and |psi''(s) v^2 + psi'(s) a| <=
@@ -48,10 +49,10 @@ from planner.cam.configure import groups
 from planner.cam.spin import SPIN_DEGREE, SpinCurve, SpinFigures, SpunFrames, spun
 from planner.kinematics import get_model, inverse_batch
 from planner.kinematics.poses import as_transform
-from planner.motion import MotionLimits, plan_feed, poses_at_length, tool_orientation
+from planner.motion import MotionLimits, plan_feed
 from planner.rotations import matrix_to_rotvec
 
-#: Spin values of the grid over a full turn (15 deg apart).
+#: Steps of the spin grid over [-pi, pi] from the RMM spin (15 deg apart, both ends included).
 GRID = 24
 #: Grid values a step between two samples may move at most.
 MAX_STEP = 2
@@ -104,19 +105,18 @@ class SpinChoice:
 @dataclass(frozen=True, eq=False)
 class _Samples:
     """A run's rated samples: run coordinate X (n,) (arc length along the cuts, constant over a turn), times (n,),
-    base-frame positions (n, 3) and tool frames (n, 3, 3) at the RMM spin, planned feed v and acceleration a (n,),
-    and the move each belongs to (n,) with its coordinate (n,); ``extra`` (X, v, a) at the cuts' time-law phase
-    boundaries and midpoints (where the spin bounds are checked besides the samples)."""
+    base-frame positions (n, 3) and tool frames (n, 3, 3) at the RMM spin, the time in its move (n,), and the move
+    each belongs to (n,) with its coordinate (n,); ``cuts``: (move index, X at its start) of the run's
+    cuts."""
 
     X: np.ndarray
     t: np.ndarray
     p: np.ndarray
     R: np.ndarray
-    v: np.ndarray
-    a: np.ndarray
+    tl: np.ndarray
     move: np.ndarray
     x: np.ndarray
-    extra: tuple | None = None
+    cuts: tuple = ()
 
 
 def _samples(moves, ks, Tb: np.ndarray, step: float) -> tuple[_Samples, dict]:
@@ -126,39 +126,70 @@ def _samples(moves, ks, Tb: np.ndarray, step: float) -> tuple[_Samples, dict]:
     parts: list[tuple] = []
     X0 = t0 = 0.0
     offsets = {}
-    extra: list[tuple] = []
+    cuts: list[tuple] = []
     for k in ks:
         m = moves[k]
         offsets[k] = X0
         if m.profile is None:
             continue
-        if m.kind == "cut":
-            L = float(m.path.length)
-            x = np.linspace(0.0, L, max(2, math.ceil(L / h) + 1))
-            p, R, _ = poses_at_length(m.path, tool_orientation(m.frames), x, base=Tb)
+        T = float(m.profile.duration)
+        L = float(m.path.length) if m.kind == "cut" else 0.0
+        if m.kind == "cut" and L <= h:  # a short cut: its ends, known without evaluating anything
+            tl, x = np.array([0.0, T]), np.array([0.0, L])
+            p = np.vstack((m.point, m.item.points[-1])) @ Tb[:3, :3].T + Tb[:3, 3]
+            R = np.matmul(Tb[:3, :3], np.stack((m.start_frame, m.end_frame)))
+            X = X0 + x
+        elif m.kind == "cut":  # evenly in the path parameter, about every h of arc length
+            k0, k1 = float(m.path.knots[0]), float(m.path.knots[-1])
+            u = np.linspace(k0, k1, max(2, math.ceil(L / h) + 1))
+            # arc length between the knots by linear interpolation: the rating's coordinate, not the spin's
+            x = np.interp(u, m.path.knots, m.path.cumulative_lengths)
+            # the time law inverted on a table of s(t) (closed form): the rating needs times, not to round-off
+            tg = np.linspace(0.0, T, 4 * u.size + 16)
+            tl = np.interp(x, np.maximum.accumulate(m.profile.s(tg)), tg)
+            # positions on the CAM polyline (within the fit's tolerance of the path): what the rating needs
+            wk, cp = m.path.waypoint_knots, m.item.points
+            p = np.stack([np.interp(u, wk, cp[:, i]) for i in range(3)], axis=1) @ Tb[:3, :3].T + Tb[:3, 3]
+            R = np.matmul(Tb[:3, :3], m.frames.frames(u))
             X = X0 + x
         else:  # a turn in place: its start and end, the coordinate stands
+            tl = np.array([0.0, T])
             x = np.array([0.0, m.frames.angle])
             R = np.matmul(Tb[:3, :3], m.frames.frames(x))
             p = np.broadcast_to(Tb[:3, :3] @ m.point + Tb[:3, 3], (2, 3))
             X = np.full(2, X0)
-        tl = m.profile.time_at(x)
-        v, a = m.profile.v(tl), m.profile.a(tl)
-        if m.kind != "cut":
-            v, a = np.zeros(2), np.zeros(2)
-        parts.append((X, t0 + tl, p, R, v, a, np.full(x.size, k), x))
+        parts.append((X, t0 + tl, p, R, tl, np.full(x.size, k), x))
         if m.kind == "cut":
-            tp = m.profile.t
-            te = np.concatenate((tp, 0.5 * (tp[1:] + tp[:-1])))
-            extra.append((X0 + m.profile.s(te), m.profile.v(te), m.profile.a(te)))
+            cuts.append((k, X0))
         X0 = float(X[-1])
         t0 += float(m.profile.duration)
-    cols = [np.concatenate([c[i] for c in parts]) for i in range(8)]
+    cols = [np.concatenate([c[i] for c in parts]) for i in range(7)]
     keep = np.ones(cols[0].size, bool)  # a pose repeated at a move boundary (same coordinate, same time) once
-    keep[1:] = (np.diff(cols[0]) > 0.0) | (np.diff(cols[1]) > 0.0)
-    more = tuple(np.concatenate([e[i] for e in extra]) for i in range(3)) if extra else None
-    X, t, p, R, v, a, move, x = (c[keep] for c in cols)
-    return _Samples(X, t, p, R, v, a, move, x, more), offsets
+    keep[1:] = (np.diff(cols[0]) > 0.0) | (np.diff(cols[1]) > 0.0)  # (and a time law's rest at its ends)
+    X, t, p, R, tl, move, x = (c[keep] for c in cols)
+    return _Samples(X, t, p, R, tl, move, x, tuple(cuts)), offsets
+
+
+def _feed_at(moves, S: _Samples) -> tuple[np.ndarray, np.ndarray]:
+    """The planned feed v (n,) and its acceleration a (n,) at the samples (0 on a turn in place)."""
+    v, a = np.zeros(S.X.size), np.zeros(S.X.size)
+    for k in np.unique(S.move):
+        if moves[k].kind == "cut":
+            rows = S.move == k
+            v[rows], a[rows] = moves[k].profile.v(S.tl[rows]), moves[k].profile.a(S.tl[rows])
+    return v, a
+
+
+def _phase_points(moves, cuts) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(X, v, a) at the phase boundaries and midpoints of the cuts' time laws (cuts: (move index, X at its start)):
+    where the feed accelerates, the spin bounds are checked besides the samples."""
+    out = []
+    for k, X0 in cuts:
+        prof = moves[k].profile
+        tp = prof.t
+        te = np.concatenate((tp, 0.5 * (tp[1:] + tp[:-1])))
+        out.append((X0 + prof.s(te), prof.v(te), prof.a(te)))
+    return tuple(np.concatenate([e[i] for e in out]) for i in range(3))  # type: ignore[return-value]
 
 
 class _Arm:
@@ -217,7 +248,8 @@ def _wrap(x):
 
 
 def _figures(arm: _Arm, S: _Samples, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Figures (8, 5) of spin psi (n,) on every branch (see SpinFigures) and each branch's rank key (8, 3)."""
+    """Figures (8, 6) of spin psi (n,) on every branch (see SpinFigures; the sixth: the largest joint speed over a
+    step as a fraction of its limit) and each branch's rank key (8, 3)."""
     q, valid = arm.joints(S.p, S.R, psi[:, None])
     q, valid = q[:, :, 0], valid[:, :, 0]
     _, sing, joint = arm.node_cost(q, valid, psi[:, None])
@@ -229,7 +261,8 @@ def _figures(arm: _Arm, S: _Samples, psi: np.ndarray) -> tuple[np.ndarray, np.nd
     travel = np.where(both, np.abs(dq[..., 3]) + np.abs(dq[..., 5]), 0.0).sum(axis=0)
     s_min = np.where(valid, sing, np.inf).min(axis=0)
     j_min = np.where(valid, joint, np.inf).min(axis=0)
-    fig = np.stack([s_min, j_min, fast, out, travel], axis=1)
+    top = np.where(both, ratio, 0.0).max(axis=0, initial=0.0)
+    fig = np.stack([s_min, j_min, fast, out, travel, top], axis=1)
     key = np.stack([out, fast, -np.minimum(s_min, SING_SAFE)], axis=1)
     return fig, key
 
@@ -238,31 +271,28 @@ def _best(key: np.ndarray) -> int:
     return int(np.lexsort(key.T[::-1])[0])
 
 
-def _fine(arm: _Arm, fig: np.ndarray, b: int, S: _Samples) -> bool:
+def _fine(fig: np.ndarray, b: int) -> bool:
     """Whether branch b is fine at the RMM spin: everything in reach, margins and speeds safe."""
-    if fig[b, 3] or fig[b, 2]:
-        return False
-    if fig[b, 0] < SING_SAFE or fig[b, 1] < JOINT_SAFE:
-        return False
-    psi0 = np.zeros(S.X.size)
-    q, valid = arm.joints(S.p, S.R, psi0[:, None])
-    ratio = arm.step_ratio(_wrap(np.diff(q[:, b, 0], axis=0)), np.diff(S.t))
-    return bool((ratio <= SPEED_SAFE).all())
+    return bool(fig[b, 3] == 0 and fig[b, 2] == 0 and fig[b, 0] >= SING_SAFE and fig[b, 1] >= JOINT_SAFE
+                and fig[b, 5] <= SPEED_SAFE)
 
 
 def _grid_path(arm: _Arm, S: _Samples, rate: float) -> tuple[np.ndarray, int]:
-    """The grid search: spin (n,) (unwrapped, radians) and branch of the cheapest path through (sample, spin)."""
-    grid = np.linspace(-math.pi, math.pi, GRID, endpoint=False)
+    """The grid search: spin (n,) (radians, in [-pi, pi]) and branch of the cheapest path through (sample, spin)."""
+    grid = np.linspace(-math.pi, math.pi, GRID + 1)  # within half a turn of the RMM spin: no wind-up from the spin
     q, valid = arm.joints(S.p, S.R, grid)  # (n, 8, G, 6)
     node, _, _ = arm.node_cost(q, valid, np.broadcast_to(grid, valid.shape))
     n = S.X.size
     shifts = np.arange(-MAX_STEP, MAX_STEP + 1)
-    src = (np.arange(GRID)[None, :] - shifts[:, None]) % GRID  # (2K+1, G): the predecessor of g by each shift
-    gstep = 2.0 * math.pi / GRID
+    G = grid.size
+    pred = np.arange(G)[None, :] - shifts[:, None]  # (2K+1, G): the predecessor of g by each shift
+    beyond = np.where((pred < 0) | (pred >= G), OUT_OF_REACH, 0.0)[None]  # no predecessor past the grid's ends
+    src = np.clip(pred, 0, G - 1)
+    gstep = float(grid[1] - grid[0])
     dX, dt = np.diff(S.X), np.diff(S.t)
     allowed = np.abs(shifts)[:, None] * gstep  # spin change of each shift (2K+1, 1)
     D = node[0].copy()  # (8, G)
-    back = np.empty((n - 1, 8, GRID), dtype=np.int8)
+    back = np.empty((n - 1, 8, G), dtype=np.int8)
     for i in range(n - 1):  # the graph is a chain over samples: one vectorized relaxation per step
         qp = q[i][:, src]  # (8, 2K+1, G, 6)
         dq = np.nan_to_num(_wrap(q[i + 1][:, None] - qp))  # out of reach: its node cost says so
@@ -273,7 +303,7 @@ def _grid_path(arm: _Arm, S: _Samples, rate: float) -> tuple[np.ndarray, int]:
         trans = trans + W_RATE * np.maximum(0.0, spin_rate / max(rate, 1e-9) - 1.0)[None] ** 2
         if dX[i] <= 0.0:  # psi is a function of the run's arc length: it stands over a turn in place
             trans = trans + np.where(shifts[:, None] != 0, OUT_OF_REACH, 0.0)[None]
-        total = D[:, src] + np.minimum(trans, OUT_OF_REACH)
+        total = D[:, src] + np.minimum(trans, OUT_OF_REACH) + beyond
         j = total.argmin(axis=1)  # (8, G)
         back[i] = j
         D = np.take_along_axis(total, j[:, None], axis=1)[:, 0] + node[i + 1]
@@ -282,9 +312,7 @@ def _grid_path(arm: _Arm, S: _Samples, rate: float) -> tuple[np.ndarray, int]:
     g[-1] = int(D[b].argmin())
     for i in range(n - 2, -1, -1):  # backtrack (integers only)
         g[i] = src[back[i, b, g[i + 1]], g[i + 1]]
-    psi = np.unwrap(grid[g])
-    psi -= 2.0 * math.pi * round(float(psi.mean()) / (2.0 * math.pi))
-    return psi, b
+    return grid[g], b
 
 
 def _knots(end: float) -> np.ndarray:
@@ -293,7 +321,7 @@ def _knots(end: float) -> np.ndarray:
     return np.concatenate(([0.0] * SPIN_DEGREE, np.linspace(0.0, end, pieces + 1), [end] * SPIN_DEGREE))
 
 
-def _refine(S: _Samples, target: np.ndarray, rate: float, acc: float) -> SpinCurve:
+def _refine(moves, S: _Samples, target: np.ndarray, rate: float, acc: float) -> SpinCurve:
     """The C2 spin (a clamped cubic B-spline of the run coordinate) nearest the grid path under the spin bounds."""
     end = float(S.X[-1])
     if end <= 0.0:
@@ -305,10 +333,11 @@ def _refine(S: _Samples, target: np.ndarray, rate: float, acc: float) -> SpinCur
     B1 = BSpline(t, eye, SPIN_DEGREE).derivative(1)(S.X)  # (n, K): psi' at the samples per coefficient
     B2 = BSpline(t, eye, SPIN_DEGREE).derivative(2)(S.X)
     # the bounds in time at the planned feed: |psi' v| <= rate, |psi'' v^2 + psi' a| <= acc
-    A1 = B1 * S.v[:, None]
-    A2 = B2 * (S.v ** 2)[:, None] + B1 * S.a[:, None]
-    if S.extra is not None:  # the time laws' phase boundaries and midpoints: where the feed accelerates
-        Xe, ve, ae = S.extra
+    v, a = _feed_at(moves, S)
+    A1 = B1 * v[:, None]
+    A2 = B2 * (v ** 2)[:, None] + B1 * a[:, None]
+    if S.cuts:  # the time laws' phase boundaries and midpoints: where the feed accelerates
+        Xe, ve, ae = _phase_points(moves, S.cuts)
         E1 = BSpline(t, eye, SPIN_DEGREE).derivative(1)(Xe)
         E2 = BSpline(t, eye, SPIN_DEGREE).derivative(2)(Xe)
         A1 = np.vstack((A1, E1 * ve[:, None]))
@@ -374,17 +403,17 @@ def choose_spin(moves, settings) -> SpinChoice:
         b0 = _best(key0)
         curve = SpinCurve.constant(0.0, max(float(S.X[-1]), 1e-300))
         fig, b = fig0[b0], b0
-        if S.X.size >= 2 and not _fine(arm, fig0, b0, S):
+        if S.X.size >= 2 and not _fine(fig0, b0):
             target, _ = _grid_path(arm, S, rate)
             if np.any(target):
-                cand = _refine(S, target, rate, acc)
+                cand = _refine(moves, S, target, rate, acc)
                 fig1, key1 = _figures(arm, S, cand(S.X))
                 b1 = _best(key1)
                 if tuple(key1[b1]) < tuple(key0[b0]):
                     curve, fig, b = cand, fig1[b1], b1
                     spun_runs += 1
         first_cut = next(k for k in ks if moves[k].kind == "cut")
-        figures[first_cut] = SpinFigures(int(S.X.size), int(b), fig0[b0].astype(float), fig.astype(float))
+        figures[first_cut] = SpinFigures(int(S.X.size), int(b), fig0[b0, :5].astype(float), fig[:5].astype(float))
         for k in ks:
             off = offsets[k]
             if moves[k].kind == "reorientation":  # psi stands over a turn in place
@@ -443,7 +472,10 @@ def _coordinate_end(m) -> float:
 
 
 def _spun_move(m, curve: SpinCurve, figures: SpinFigures | None = None):
-    """The move with its frames turned by the spin (start and end frames too)."""
+    """The move with its frames turned by the spin (start and end frames too); the move itself where the spin is 0
+    and there are no figures to carry."""
+    if figures is None and curve.is_zero:
+        return m
     if m.frames is not None:
         frames = SpunFrames(m.frames, curve, figures)
         return replace(m, frames=frames, start_frame=frames.start, end_frame=frames.end)
