@@ -578,7 +578,7 @@ JOB_TYPES = {**{t.name: t for t in (
 def _spin_line(sp: dict, seconds: float) -> str:
     """The summary's spin figures for a person (spin="reach"), each against the RMM spin on the same samples."""
     a, b = sp["rmm"], sp["reach"]
-    only = "; reachable only with this spin" if sp["reachable_only_by_spin"] else ""
+    only = "; the passes reachable only with this spin" if sp["reachable_only_by_spin"] else ""
     return (f"  spin      reach (axisymmetric tool): {sp['spun_runs']} of {counted(sp['runs'], 'run')} spun, up to "
             f"{sp['max_spin_deg']:.3g} deg from the RMM spin, at most {sp['max_spin_rate_deg_s']:.3g} deg/s and "
             f"{sp['max_spin_acceleration_deg_s2']:.3g} deg/s^2; against the RMM spin on {sp['samples']} samples: "

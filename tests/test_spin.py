@@ -171,3 +171,37 @@ def test_the_joints_of_a_spun_job_are_its_poses(angled):
         assert np.abs(T - P).max() < 1e-9
         sol = inverse_batch("ur5e", chunk.poses[ok][:5], tcp=ANGLED)
         assert sol.valid.any(axis=1).all()
+
+
+@pytest.fixture(scope="module")
+def excerpt():
+    """The NX excerpt (33 passes, 18 runs) with the angled nozzle where the RMM spin leaves passes out of reach."""
+    s = dict(robot="ur5e", part_frame=(0.25, 0.3, -0.25, 0.0, 0.0, 0.0), tcp=ANGLED)
+    src = "tests/data/nx_clsf_ust_a2_excerpt.cls"
+    return plan(src, PlanSettings(**s)), plan(src, PlanSettings(spin="reach", **s))
+
+
+def test_reach_makes_the_passes_reachable_where_the_rmm_spin_cannot(excerpt):
+    rmm, reach = excerpt
+    assert rmm.summary()["unreachable_passes"]
+    assert not reach.summary()["unreachable_passes"]
+    sp = reach.summary()["spin"]
+    assert sp["rmm"]["out_of_reach_samples"] > 0 and sp["reach"]["out_of_reach_samples"] == 0
+    assert sp["reachable_only_by_spin"] and sp["spun_runs"] >= 2
+    assert any("reachable only with this spin" in line for line in reach.describe())
+    assert len(reach.problems) < len(rmm.problems)
+
+
+def test_spin_bounds_hold_on_every_move_and_rapids_carry_the_transitions(excerpt):
+    _, reach = excerpt
+    s = reach.settings
+    transitions = 0
+    for m in reach.moves:
+        w, a = spin_rates(m)
+        assert w <= s.spin_rate * (1 + 1e-6) + 1e-9, (m.kind, m.line, w)
+        assert a <= s.spin_acceleration * 1.05, (m.kind, m.line, a)
+        transitions += m.kind == "rapid" and isinstance(m.frames, SpunFrames) and not m.frames.spin.is_constant
+    assert transitions >= 1
+    moving = [m for m in reach.moves if m.frames is not None]
+    for a, b in zip(moving, moving[1:], strict=False):
+        assert np.abs(a.end_frame - b.start_frame).max() < 1e-9

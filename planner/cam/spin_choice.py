@@ -170,6 +170,36 @@ def _samples(moves, ks, Tb: np.ndarray, step: float) -> tuple[_Samples, dict]:
     return _Samples(X, t, p, R, tl, move, x, tuple(cuts)), offsets
 
 
+def _gap_samples(moves, ks, Tb: np.ndarray, step: float, advance: bool) -> tuple[_Samples, list]:
+    """Samples of the rapids and turns in place of a gap (before a run), in a coordinate that ends at 0 (the run's
+    start): X advances along the rapids when ``advance`` (the spin may change there), else stands (the spin is held).
+    Also each rapid's (move index, X at its start, sample rows)."""
+    parts: list[tuple] = []
+    rapids = []
+    total = sum(float(moves[k].path.length) for k in ks if moves[k].kind == "rapid")
+    X0 = -total if advance else 0.0
+    n = 0
+    for k in ks:
+        m = moves[k]
+        if m.kind == "rapid":
+            L = float(m.path.length)
+            x = np.linspace(0.0, L, max(2, math.ceil(L / step) + 1))
+            p = (m.point + (x / max(L, 1e-300))[:, None] * (m.item.end - m.point)) @ Tb[:3, :3].T + Tb[:3, 3]
+            R = np.matmul(Tb[:3, :3], m.frames.frames(x))
+            X = X0 + (x if advance else 0.0 * x)
+            rapids.append((k, X0, np.arange(n, n + x.size)))
+        else:  # a turn in place: its start and end
+            x = np.array([0.0, m.frames.angle])
+            R = np.matmul(Tb[:3, :3], m.frames.frames(x))
+            p = np.broadcast_to(Tb[:3, :3] @ m.point + Tb[:3, 3], (2, 3))
+            X = np.full(2, X0)
+        parts.append((X, p, R, np.full(x.size, k), x))
+        n += x.size
+        X0 = float(X[-1])
+    X, p, R, move, x = (np.concatenate([c[i] for c in parts]) for i in range(5))
+    return _Samples(X, np.zeros(X.size), p, R, np.zeros(X.size), move, x, ()), rapids
+
+
 def _feed_at(moves, S: _Samples) -> tuple[np.ndarray, np.ndarray]:
     """The planned feed v (n,) and its acceleration a (n,) at the samples (0 on a turn in place)."""
     v, a = np.zeros(S.X.size), np.zeros(S.X.size)
@@ -248,8 +278,8 @@ def _wrap(x):
 
 
 def _figures(arm: _Arm, S: _Samples, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Figures (8, 6) of spin psi (n,) on every branch (see SpinFigures; the sixth: the largest joint speed over a
-    step as a fraction of its limit) and each branch's rank key (8, 3)."""
+    """Figures (8, 7) of spin psi (n,) on every branch (see SpinFigures; then the largest joint speed over a step as
+    a fraction of its limit, of any joint and of wrist 3) and each branch's rank key (8, 3)."""
     q, valid = arm.joints(S.p, S.R, psi[:, None])
     q, valid = q[:, :, 0], valid[:, :, 0]
     _, sing, joint = arm.node_cost(q, valid, psi[:, None])
@@ -262,7 +292,9 @@ def _figures(arm: _Arm, S: _Samples, psi: np.ndarray) -> tuple[np.ndarray, np.nd
     s_min = np.where(valid, sing, np.inf).min(axis=0)
     j_min = np.where(valid, joint, np.inf).min(axis=0)
     top = np.where(both, ratio, 0.0).max(axis=0, initial=0.0)
-    fig = np.stack([s_min, j_min, fast, out, travel, top], axis=1)
+    top6 = np.where(both, np.abs(dq[..., 5]) / arm.vmax[5] / np.maximum(np.diff(S.t), 1e-300)[:, None], 0.0).max(
+        axis=0, initial=0.0)
+    fig = np.stack([s_min, j_min, fast, out, travel, top, top6], axis=1)
     key = np.stack([out, fast, -np.minimum(s_min, SING_SAFE)], axis=1)
     return fig, key
 
@@ -271,17 +303,26 @@ def _best(key: np.ndarray) -> int:
     return int(np.lexsort(key.T[::-1])[0])
 
 
-def _fine(fig: np.ndarray, b: int) -> bool:
-    """Whether branch b is fine at the RMM spin: everything in reach, margins and speeds safe."""
+def _fine(fig: np.ndarray, b: int, wrist3: bool) -> bool:
+    """Whether branch b is fine at the RMM spin: everything in reach, margins and speeds safe. With the tool on the
+    flange axis a spin is wrist 3 alone: reach, the singularity margins and the other joints do not depend on it, so
+    only wrist 3's speed and (where it is limited to a turn) its limits count."""
+    if wrist3:
+        return bool(fig[b, 6] <= SPEED_SAFE and fig[b, 1] >= JOINT_SAFE)
     return bool(fig[b, 3] == 0 and fig[b, 2] == 0 and fig[b, 0] >= SING_SAFE and fig[b, 1] >= JOINT_SAFE
                 and fig[b, 5] <= SPEED_SAFE)
 
 
-def _grid_path(arm: _Arm, S: _Samples, rate: float) -> tuple[np.ndarray, int]:
-    """The grid search: spin (n,) (radians, in [-pi, pi]) and branch of the cheapest path through (sample, spin)."""
+def _grid_path(arm: _Arm, S: _Samples, rate: float, free: int = 0, pin: float = math.nan) -> tuple[np.ndarray, int]:
+    """The grid search: spin (n,) (radians, in [-pi, pi]) and branch of the cheapest path through (sample, spin).
+
+    The first ``free`` steps are in rapids, which are timed for their spin afterwards: no spin-rate or joint-speed
+    cost there. ``pin``: the spin where the arm is at the first sample (the previous run's end), if any."""
     grid = np.linspace(-math.pi, math.pi, GRID + 1)  # within half a turn of the RMM spin: no wind-up from the spin
     q, valid = arm.joints(S.p, S.R, grid)  # (n, 8, G, 6)
     node, _, _ = arm.node_cost(q, valid, np.broadcast_to(grid, valid.shape))
+    if np.isfinite(pin):  # start from the grid value nearest where the arm is
+        node[0] += np.where(np.arange(grid.size) == int(np.abs(grid - pin).argmin()), 0.0, OUT_OF_REACH)[None]
     n = S.X.size
     shifts = np.arange(-MAX_STEP, MAX_STEP + 1)
     G = grid.size
@@ -296,11 +337,12 @@ def _grid_path(arm: _Arm, S: _Samples, rate: float) -> tuple[np.ndarray, int]:
     for i in range(n - 1):  # the graph is a chain over samples: one vectorized relaxation per step
         qp = q[i][:, src]  # (8, 2K+1, G, 6)
         dq = np.nan_to_num(_wrap(q[i + 1][:, None] - qp))  # out of reach: its node cost says so
-        ratio = arm.step_ratio(dq, dt[i])
-        trans = (W_SPEED * np.maximum(0.0, ratio - SPEED_SAFE) ** 2 + W_FAST * (ratio > 1.0)
-                 + W_TRAVEL * (np.abs(dq[..., 3]) + np.abs(dq[..., 5])))
-        spin_rate = allowed / max(dt[i], 1e-9)
-        trans = trans + W_RATE * np.maximum(0.0, spin_rate / max(rate, 1e-9) - 1.0)[None] ** 2
+        trans = W_TRAVEL * (np.abs(dq[..., 3]) + np.abs(dq[..., 5]))
+        if i >= free:
+            ratio = arm.step_ratio(dq, dt[i])
+            trans = trans + W_SPEED * np.maximum(0.0, ratio - SPEED_SAFE) ** 2 + W_FAST * (ratio > 1.0)
+            spin_rate = allowed / max(dt[i], 1e-9)
+            trans = trans + W_RATE * np.maximum(0.0, spin_rate / max(rate, 1e-9) - 1.0)[None] ** 2
         if dX[i] <= 0.0:  # psi is a function of the run's arc length: it stands over a turn in place
             trans = trans + np.where(shifts[:, None] != 0, OUT_OF_REACH, 0.0)[None]
         total = D[:, src] + np.minimum(trans, OUT_OF_REACH) + beyond
@@ -313,6 +355,39 @@ def _grid_path(arm: _Arm, S: _Samples, rate: float) -> tuple[np.ndarray, int]:
     for i in range(n - 2, -1, -1):  # backtrack (integers only)
         g[i] = src[back[i, b, g[i + 1]], g[i + 1]]
     return grid[g], b
+
+
+def _joined(a: _Samples, b: _Samples) -> _Samples:
+    """The samples of a gap followed by those of its run (for the grid search)."""
+    def cat(f: str) -> np.ndarray:
+        return np.concatenate((getattr(a, f), getattr(b, f)))
+
+    return _Samples(cat("X"), cat("t"), cat("p"), cat("R"), cat("tl"), cat("move"), cat("x"), b.cuts)
+
+
+def _gap_curves(moves, rapids: list, path: np.ndarray, start: float, end: float) -> dict:
+    """The spin of each rapid of a gap {move index: SpinCurve}: a C2 cubic B-spline in the rapid's arc length from
+    where the previous one ended (``start`` for the first) to the grid path's value at its end (``end``, the run's
+    start, for the last), near the grid path between (least squares with both ends pinned)."""
+    out = {}
+    a = start
+    for i, (k, _, rows) in enumerate(rapids):
+        L = float(moves[k].path.length)
+        b = end if i == len(rapids) - 1 else float(path[rows[-1]])
+        x = moves[k].path.length * np.linspace(0.0, 1.0, rows.size)
+        y = path[rows]
+        inner = max(0, min(4, rows.size - 2))
+        t = np.concatenate(([0.0] * SPIN_DEGREE, np.linspace(0.0, L, inner + 2), [L] * SPIN_DEGREE))
+        K = t.size - SPIN_DEGREE - 1
+        c = np.linspace(a, b, K)
+        c[:2], c[-2:] = a, b  # at rest at both ends, at the pinned values
+        if K > 4 and L > 0.0:
+            B = BSpline.design_matrix(np.clip(x, 0.0, L), t, SPIN_DEGREE).toarray()
+            fixed = B[:, :2] @ c[:2] + B[:, -2:] @ c[-2:]
+            c[2:-2] = np.linalg.lstsq(B[:, 2:-2], y - fixed, rcond=None)[0]
+        out[k] = SpinCurve(t, c) if L > 0.0 else SpinCurve.constant(b)
+        a = b
+    return out
 
 
 def _knots(end: float) -> np.ndarray:
@@ -391,27 +466,40 @@ def choose_spin(moves, settings) -> SpinChoice:
     ends: list[tuple[float, float]] = []  # per group: (spin at the run's start, at its end)
     runs = spun_runs = 0
     plan_groups = groups(moves)
+    gap_curves: dict[int, SpinCurve] = {}
+    prev = math.nan  # the spin where the arm is (the previous run's end)
+    step = float(settings.reach_step)
     for g in plan_groups:
         ks = [k for k in g.run if moves[k].kind in ("cut", "reorientation", "dwell", "skipped")]
         if not ks:
             ends.append((math.nan, math.nan))
             continue
         runs += 1
-        S, offsets = _samples(moves, ks, Tb, float(settings.reach_step))
+        S, offsets = _samples(moves, ks, Tb, step)
         zero = np.zeros(S.X.size)
         fig0, key0 = _figures(arm, S, zero)
         b0 = _best(key0)
         curve = SpinCurve.constant(0.0, max(float(S.X[-1]), 1e-300))
         fig, b = fig0[b0], b0
-        if S.X.size >= 2 and not _fine(fig0, b0):
-            target, _ = _grid_path(arm, S, rate)
+        gap_ks = [k for k in g.gap if moves[k].kind in ("rapid", "reorientation") and moves[k].profile is not None]
+        moved = np.isfinite(prev) and prev != 0.0
+        target = None
+        if S.X.size >= 2 and (moved or not _fine(fig0, b0, arm.wrist3)):
+            Sg, rapids = _gap_samples(moves, gap_ks, Tb, step, advance=bool(np.isfinite(prev))) if gap_ks else (None,
+                                                                                                                [])
+            both = S if Sg is None else _joined(Sg, S)
+            free = 0 if Sg is None else Sg.X.size
+            path, _ = _grid_path(arm, both, rate, free, prev)
+            target = path[free:]
             if np.any(target):
                 cand = _refine(moves, S, target, rate, acc)
                 fig1, key1 = _figures(arm, S, cand(S.X))
                 b1 = _best(key1)
-                if tuple(key1[b1]) < tuple(key0[b0]):
+                if tuple(key1[b1]) < tuple(key0[b0]) or (moved and tuple(key1[b1]) <= tuple(key0[b0])):
                     curve, fig, b = cand, fig1[b1], b1
-                    spun_runs += 1
+                    spun_runs += int(not curve.is_zero)
+            if Sg is not None and np.isfinite(prev) and prev != float(curve(0.0)[0]):
+                gap_curves.update(_gap_curves(moves, rapids, path[:free], prev, float(curve(0.0)[0])))
         first_cut = next(k for k in ks if moves[k].kind == "cut")
         figures[first_cut] = SpinFigures(int(S.X.size), int(b), fig0[b0, :5].astype(float), fig[:5].astype(float))
         for k in ks:
@@ -422,7 +510,8 @@ def choose_spin(moves, settings) -> SpinChoice:
                 psi_x[k] = SpinCurve(curve.knots - off, curve.coeffs)
         s0, s1 = (float(curve(0.0)[0]), float(curve(S.X[-1])[0]))
         ends.append((s0, s1))
-    out = _apply(moves, plan_groups, psi_x, figures, ends, rate, acc)
+        prev = s1
+    out = _apply(moves, plan_groups, {**psi_x, **gap_curves}, figures, ends, rate, acc)
     return SpinChoice(out, runs, spun_runs, time.perf_counter() - tic)
 
 
@@ -441,7 +530,10 @@ def _apply(moves, plan_groups, psi_x: dict, figures: dict, ends: list, rate: flo
         done = 0.0
         for k in g.gap:
             m = moves[k]
-            if m.kind == "rapid" and rapid_len > 0.0:
+            if k in psi_x:  # the spin the grid search chose through the gap
+                out[k] = _spun_rapid(m, psi_x[k], rate, acc) if m.kind == "rapid" else _spun_move(m, psi_x[k])
+                done += float(m.path.length) if m.kind == "rapid" else 0.0
+            elif m.kind == "rapid" and rapid_len > 0.0:
                 L = float(m.path.length)
                 a = prev + (nxt - prev) * done / rapid_len
                 done += L
@@ -487,9 +579,9 @@ def _spun_rapid(m, curve: SpinCurve, rate: float, acc: float):
     """A rapid with a spin transition, slowed so that the spin keeps its bounds (rate and acceleration in time)."""
     moved = _spun_move(m, curve)
     L = float(m.path.length)
-    x = np.linspace(0.0, L, 65)
-    d1 = float(np.abs(curve(x, 1)).max())
-    d2 = float(np.abs(curve(x, 2)).max())
+    x = np.linspace(0.0, L, 1025)
+    d1 = 1.01 * float(np.abs(curve(x, 1)).max())  # (the largest between the samples: within 1 %)
+    d2 = 1.01 * float(np.abs(curve(x, 2)).max())
     if d1 == 0.0 or m.profile is None:
         return moved
     lim = m.profile.limits
