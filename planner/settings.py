@@ -247,10 +247,10 @@ class PlanSettings:
                          "and wrist travel, within spin_rate and spin_acceleration, otherwise as little as it can)",
                          choices=SPIN_MODES, flag="--spin")
     spin_rate: float = _setting(DEFAULT_SPIN_RATE, "number", "spin reach: largest rate of the spin about the tool axis",
-                                unit="rad/s", lo=0.0, hi=100.0, flag="--spin-rate", typed="deg/s",
+                                unit="rad/s", lo=0.0, hi=20.0 * math.pi, flag="--spin-rate", typed="deg/s",
                                 per_si=180.0 / math.pi)
     spin_acceleration: float = _setting(DEFAULT_SPIN_ACCELERATION, "number", "spin reach: largest acceleration of "
-                                        "the spin about the tool axis", unit="rad/s^2", lo=0.0, hi=1000.0,
+                                        "the spin about the tool axis", unit="rad/s^2", lo=0.0, hi=200.0 * math.pi,
                                         flag="--spin-acceleration", typed="deg/s^2", per_si=180.0 / math.pi)
     cut_output: tuple | None = _setting(None, "output", "digital output on exactly during every cut (spray valve, "
                                         "glue gun, torch): KIND:PIN with standard:0..7, configurable:0..7 or "

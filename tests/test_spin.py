@@ -205,3 +205,12 @@ def test_spin_bounds_hold_on_every_move_and_rapids_carry_the_transitions(excerpt
     moving = [m for m in reach.moves if m.frames is not None]
     for a, b in zip(moving, moving[1:], strict=False):
         assert np.abs(a.end_frame - b.start_frame).max() < 1e-9
+
+
+def test_the_plot_draws_the_spin_and_what_it_bought(excerpt, tmp_path):
+    from planner.plot import plot_job
+
+    _, reach = excerpt
+    out = tmp_path / "spin.png"
+    plot_job(reach, out)
+    assert out.stat().st_size > 50_000
