@@ -123,8 +123,8 @@ def test_reach_meets_the_spin_bounds_and_buys_reach(angled):
     s = reach.settings
     for m in reach.moves:
         w, a = spin_rates(m)
-        assert w <= s.spin_rate * (1 + 1e-6) + 1e-9, (m.kind, w)
-        assert a <= s.spin_acceleration * 1.05, (m.kind, a)
+        assert w <= s.spin_rate * (1 + 1e-9), (m.kind, w)
+        assert a <= s.spin_acceleration * (1 + 1e-9), (m.kind, a)
     sp = reach.summary()["spin"]
     assert sp["reach"]["out_of_reach_samples"] < sp["rmm"]["out_of_reach_samples"]
     assert sp["reach"]["singularity_margin"] > sp["rmm"]["singularity_margin"]
@@ -198,8 +198,8 @@ def test_spin_bounds_hold_on_every_move_and_rapids_carry_the_transitions(excerpt
     transitions = 0
     for m in reach.moves:
         w, a = spin_rates(m)
-        assert w <= s.spin_rate * (1 + 1e-6) + 1e-9, (m.kind, m.line, w)
-        assert a <= s.spin_acceleration * 1.05, (m.kind, m.line, a)
+        assert w <= s.spin_rate * (1 + 1e-9), (m.kind, m.line, w)
+        assert a <= s.spin_acceleration * (1 + 1e-9), (m.kind, m.line, a)
         transitions += m.kind == "rapid" and isinstance(m.frames, SpunFrames) and not m.frames.spin.is_constant
     assert transitions >= 1
     moving = [m for m in reach.moves if m.frames is not None]
@@ -214,3 +214,14 @@ def test_the_plot_draws_the_spin_and_what_it_bought(excerpt, tmp_path):
     out = tmp_path / "spin.png"
     plot_job(reach, out)
     assert out.stat().st_size > 50_000
+
+
+def test_absurdly_small_spin_bounds_hold_and_do_not_stretch_the_job(excerpt):
+    rmm, _ = excerpt
+    s = dict(robot="ur5e", part_frame=(0.25, 0.3, -0.25, 0.0, 0.0, 0.0), tcp=ANGLED)
+    slow = plan("tests/data/nx_clsf_ust_a2_excerpt.cls",
+                PlanSettings(spin="reach", spin_rate=1e-6, spin_acceleration=1e-6, **s))
+    assert slow.duration < 1.01 * rmm.duration  # the spin is held through the rapids, not carried at 1e-6 rad/s
+    for m in slow.moves:
+        w, a = spin_rates(m)
+        assert w <= 1e-6 * (1 + 1e-9) and a <= 1e-6 * (1 + 1e-9), (m.kind, m.line, w, a)

@@ -211,13 +211,13 @@ def _feed_at(moves, S: _Samples) -> tuple[np.ndarray, np.ndarray]:
 
 
 def _phase_points(moves, cuts) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(X, v, a) at the phase boundaries and midpoints of the cuts' time laws (cuts: (move index, X at its start)):
-    where the feed accelerates, the spin bounds are checked besides the samples."""
+    """(X, v, a) at the phase boundaries of the cuts' time laws and 7 points inside each phase (cuts: (move index, X
+    at its start)): where the feed accelerates, the spin bounds are checked besides the samples."""
     out = []
     for k, X0 in cuts:
         prof = moves[k].profile
         tp = prof.t
-        te = np.concatenate((tp, 0.5 * (tp[1:] + tp[:-1])))
+        te = (tp[:-1, None] + np.diff(tp)[:, None] * np.linspace(0.0, 1.0, 9)[None, :]).ravel()
         out.append((X0 + prof.s(te), prof.v(te), prof.a(te)))
     return tuple(np.concatenate([e[i] for e in out]) for i in range(3))  # type: ignore[return-value]
 
@@ -396,31 +396,39 @@ def _knots(end: float) -> np.ndarray:
     return np.concatenate(([0.0] * SPIN_DEGREE, np.linspace(0.0, end, pieces + 1), [end] * SPIN_DEGREE))
 
 
-def _refine(moves, S: _Samples, target: np.ndarray, rate: float, acc: float) -> SpinCurve:
-    """The C2 spin (a clamped cubic B-spline of the run coordinate) nearest the grid path under the spin bounds."""
+def _refine(moves, S: _Samples, target: np.ndarray, rate: float, acc: float, pin: float = math.nan) -> SpinCurve:
+    """The C2 spin (a clamped cubic B-spline of the run coordinate) nearest the grid path under the spin bounds;
+    starting at ``pin`` exactly where that is given (the arm's spin where the rapids before cannot change it)."""
     end = float(S.X[-1])
+    base = float(pin) if np.isfinite(pin) else 0.0
+    rate, acc = BOUND_SHARE * rate, BOUND_SHARE ** 2 * acc  # held at the constraint points: a margin between them
     if end <= 0.0:
-        return SpinCurve.constant(float(target[0]))
+        return SpinCurve.constant(base if np.isfinite(pin) else float(target[0]))
     t = _knots(end)
+    cols = slice(1, None) if np.isfinite(pin) else slice(None)  # pinned: the first coefficient is psi(0)
     B0 = BSpline.design_matrix(S.X, t, SPIN_DEGREE).toarray()
     K = B0.shape[1]
     eye = np.eye(K)
-    B1 = BSpline(t, eye, SPIN_DEGREE).derivative(1)(S.X)  # (n, K): psi' at the samples per coefficient
-    B2 = BSpline(t, eye, SPIN_DEGREE).derivative(2)(S.X)
+    d1 = BSpline(t, eye, SPIN_DEGREE).derivative(1)
+    d2 = BSpline(t, eye, SPIN_DEGREE).derivative(2)
+    B1, B2 = d1(S.X), d2(S.X)  # (n, K): psi' and psi'' at the samples per coefficient
     # the bounds in time at the planned feed: |psi' v| <= rate, |psi'' v^2 + psi' a| <= acc
     v, a = _feed_at(moves, S)
     A1 = B1 * v[:, None]
     A2 = B2 * (v ** 2)[:, None] + B1 * a[:, None]
     if S.cuts:  # the time laws' phase boundaries and midpoints: where the feed accelerates
         Xe, ve, ae = _phase_points(moves, S.cuts)
-        E1 = BSpline(t, eye, SPIN_DEGREE).derivative(1)(Xe)
-        E2 = BSpline(t, eye, SPIN_DEGREE).derivative(2)(Xe)
+        E1, E2 = d1(Xe), d2(Xe)
         A1 = np.vstack((A1, E1 * ve[:, None]))
         A2 = np.vstack((A2, E2 * (ve ** 2)[:, None] + E1 * ae[:, None]))
-    D = np.diff(eye, n=2, axis=0)
+    # the unknowns: the coefficients less the base (derivatives do not see a constant), the first one fixed if pinned
+    B0, A1, A2 = B0[:, cols], A1[:, cols], A2[:, cols]
+    y = target - base
+    D = np.diff(eye, n=2, axis=0)[:, cols]
     smooth = 1e-4
-    lhs = B0.T @ B0 + smooth * D.T @ D + 1e-9 * eye
-    c0 = np.linalg.solve(lhs, B0.T @ target)
+    m = B0.shape[1]
+    lhs = B0.T @ B0 + smooth * D.T @ D + 1e-9 * np.eye(m)
+    c0 = np.linalg.solve(lhs, B0.T @ y)
 
     def scale_into(c):
         r1 = np.abs(A1 @ c).max(initial=0.0) / rate if rate > 0 else math.inf
@@ -431,19 +439,38 @@ def _refine(moves, S: _Samples, target: np.ndarray, rate: float, acc: float) -> 
     n = S.X.size
 
     def f(c):
-        r = B0 @ c - target
+        r = B0 @ c - y
         d = D @ c
         return float(r @ r / n + smooth * d @ d / n)
 
     def grad(c):
-        return 2.0 * (B0.T @ (B0 @ c - target) + smooth * D.T @ (D @ c)) / n
+        return 2.0 * (B0.T @ (B0 @ c - y) + smooth * D.T @ (D @ c)) / n
 
     A = np.vstack((A1, -A1, A2, -A2))
     ub = np.concatenate((np.full(2 * len(A1), rate), np.full(2 * len(A2), acc)))
     cons = [{"type": "ineq", "fun": lambda c: ub - A @ c, "jac": lambda c: -A}] if len(A) else []
     res = minimize(f, start, jac=grad, method="SLSQP", constraints=cons, options={"maxiter": 100, "ftol": 1e-10})
     c = scale_into(res.x) if np.isfinite(res.x).all() else start  # within the bounds to round-off
-    return SpinCurve(t, c)
+    full = np.zeros(K)
+    full[cols] = c
+    return SpinCurve(t, base + full)
+
+
+#: Share of the spin rate bound the refinement asks at its constraint points (its square of the acceleration
+#: bound): the rest covers the spin between them.
+BOUND_SHARE = 0.9
+#: A gap's rapids may be slowed for a spin change to at most this many times their planned time (or 2 s); where
+#: that cannot carry half a turn at ``spin_rate``, the spin is held through the gap and the run starts where the arm is.
+GAP_SLOWDOWN = 4.0
+
+
+def _gap_flexible(moves, gap_ks, rate: float) -> bool:
+    """Whether the rapids of a gap can carry half a turn of spin within :data:`GAP_SLOWDOWN` of their time."""
+    rapid = [k for k in gap_ks if moves[k].kind == "rapid"]
+    if not rapid:
+        return False
+    budget = max(GAP_SLOWDOWN * sum(float(moves[k].profile.duration) for k in rapid), 2.0)
+    return rate * budget >= 1.5 * math.pi  # (the transition's peak rate is 1.5 times its mean)
 
 
 def choose_spin(moves, settings) -> SpinChoice:
@@ -479,27 +506,34 @@ def choose_spin(moves, settings) -> SpinChoice:
         zero = np.zeros(S.X.size)
         fig0, key0 = _figures(arm, S, zero)
         b0 = _best(key0)
-        curve = SpinCurve.constant(0.0, max(float(S.X[-1]), 1e-300))
-        fig, b = fig0[b0], b0
         gap_ks = [k for k in g.gap if moves[k].kind in ("rapid", "reorientation") and moves[k].profile is not None]
-        moved = np.isfinite(prev) and prev != 0.0
-        target = None
+        moved = bool(np.isfinite(prev)) and prev != 0.0
+        flexible = bool(np.isfinite(prev)) and _gap_flexible(moves, gap_ks, rate)
+        held = bool(np.isfinite(prev)) and not flexible  # the rapids cannot carry a spin change: start where it is
+        end = max(float(S.X[-1]), 1e-300)
+        if held and moved:
+            curve = SpinCurve.constant(prev, end)
+            figh, keyh = _figures(arm, S, np.full(S.X.size, prev))
+            bh = _best(keyh)
+            fig, b, key = figh[bh], bh, keyh[bh]
+        else:
+            curve = SpinCurve.constant(0.0, end)
+            fig, b, key = fig0[b0], b0, key0[b0]
         if S.X.size >= 2 and (moved or not _fine(fig0, b0, arm.wrist3)):
-            Sg, rapids = _gap_samples(moves, gap_ks, Tb, step, advance=bool(np.isfinite(prev))) if gap_ks else (None,
-                                                                                                                [])
+            Sg, rapids = _gap_samples(moves, gap_ks, Tb, step, advance=flexible) if gap_ks else (None, [])
             both = S if Sg is None else _joined(Sg, S)
             free = 0 if Sg is None else Sg.X.size
             path, _ = _grid_path(arm, both, rate, free, prev)
             target = path[free:]
-            if np.any(target):
-                cand = _refine(moves, S, target, rate, acc)
+            if np.any(target) or held:
+                cand = _refine(moves, S, target, rate, acc, prev if held else math.nan)
                 fig1, key1 = _figures(arm, S, cand(S.X))
                 b1 = _best(key1)
-                if tuple(key1[b1]) < tuple(key0[b0]) or (moved and tuple(key1[b1]) <= tuple(key0[b0])):
+                if tuple(key1[b1]) < tuple(key) or (moved and tuple(key1[b1]) <= tuple(key)):
                     curve, fig, b = cand, fig1[b1], b1
-                    spun_runs += int(not curve.is_zero)
-            if Sg is not None and np.isfinite(prev) and prev != float(curve(0.0)[0]):
+            if Sg is not None and flexible and prev != float(curve(0.0)[0]):
                 gap_curves.update(_gap_curves(moves, rapids, path[:free], prev, float(curve(0.0)[0])))
+        spun_runs += int(not curve.is_zero)
         first_cut = next(k for k in ks if moves[k].kind == "cut")
         figures[first_cut] = SpinFigures(int(S.X.size), int(b), fig0[b0, :5].astype(float), fig[:5].astype(float))
         for k in ks:
@@ -601,7 +635,7 @@ def spin_rates(m) -> tuple[float, float]:
     if not isinstance(m.frames, SpunFrames) or m.profile is None or m.frames.spin.is_zero:
         return 0.0, 0.0
     T = float(m.profile.duration)
-    t = np.linspace(0.0, T, max(3, math.ceil(T / 2e-3) + 1))
+    t = np.linspace(0.0, T, min(max(3, math.ceil(T / 2e-3) + 1), 100_001))
     x, v, a = m.profile.s(t), m.profile.v(t), m.profile.a(t)
     c = m.frames.spin
     d1, d2 = c(x, 1), c(x, 2)
