@@ -225,3 +225,13 @@ def test_absurdly_small_spin_bounds_hold_and_do_not_stretch_the_job(excerpt):
     for m in slow.moves:
         w, a = spin_rates(m)
         assert w <= 1e-6 * (1 + 1e-9) and a <= 1e-6 * (1 + 1e-9), (m.kind, m.line, w, a)
+
+
+def test_auto_placement_then_the_spin():
+    """part_frame='auto' places the part for the RMM frames first, then the spin is chosen at that frame."""
+    job = plan(EXAMPLE, PlanSettings(robot="ur5e", part_frame="auto", tcp=ANGLED, spin="reach"))
+    assert job.placement is not None and job.settings.part_frame == job.placement.part_frame
+    sp = job.summary()["spin"]
+    assert sp["runs"] == 1 and sp["reach"]["out_of_reach_samples"] == 0
+    assert sp["reach"]["singularity_margin"] >= sp["rmm"]["singularity_margin"]
+    assert not job.problems
