@@ -4,10 +4,11 @@ The tool axis and the TCP path are the CAM system's; the rotation about the axis
 (the passes between two rapids, :func:`planner.cam.configure.groups`: the arm keeps one configuration there) the spin
 psi is chosen in two stages, the first global and coarse, the second continuous:
 
-1. **Rating at the RMM spin.** The run is sampled every ``reach_step`` (at most :data:`MAX_RUN_SAMPLES` samples) at
-   its planned times, and the inverse kinematics of every sample is solved on the eight branches. Where some branch
-   reaches every sample with singularity margin at least :data:`SING_SAFE`, no joint faster than :data:`SPEED_SAFE`
-   of its limit and the non-multiturn joints :data:`JOINT_SAFE` from their limits, the run keeps the RMM spin
+1. **Rating at the RMM spin.** The run is sampled about every ``reach_step`` of arc length (at most
+   :data:`MAX_RUN_SAMPLES` samples; a cut shorter than that by its ends) at its planned times, and the inverse
+   kinematics of every sample is solved on the eight branches. Where some branch reaches every sample with singularity
+   margin at least :data:`SING_SAFE`, no joint faster than :data:`SPEED_SAFE` of its limit and the non-multiturn
+   joints :data:`JOINT_SAFE` from their limits, and the arm comes from the RMM spin, the run keeps the RMM spin
    (psi = 0): a tool spun for nothing is a tool spun.
 2. **Global search on a spin grid** (otherwise): psi on a grid of 15 degrees over [-180, 180] degrees from the RMM
    spin (no more than half a turn: the spin adds no wind-up of its own) at every sample, each branch on its own; a
@@ -16,23 +17,28 @@ psi is chosen in two stages, the first global and coarse, the second continuous:
    :mod:`planner.cam.placement`; joint-limit margin; distance from the RMM spin) and step costs (a joint beyond
    :data:`SPEED_SAFE` of its speed limit over the step, at the planned times; wrist travel |dq4| + |dq6|, against
    wind-up; a spin step faster than ``spin_rate``), steps moving at most :data:`MAX_STEP` grid values. Samples out of
-   reach cost :data:`OUT_OF_REACH`. This is the ladder graph of ROS-Industrial Descartes and the sampled spin of
-   RoboDK, over the whole run at once.
+   reach cost :data:`OUT_OF_REACH`. The rapids before the run are in the same graph, the path starting at the spin the
+   previous run ended with (no rate or joint-speed cost there: the rapids are timed for their spin afterwards). This
+   is the ladder graph of ROS-Industrial Descartes and the sampled spin of RoboDK, over the whole run at once.
 3. **Continuous refinement.** psi becomes a clamped cubic B-spline (C2) of arc length along the run, at most
-   :data:`MAX_COEFFS` coefficients: the least-squares fit to the grid path, smoothed, under the spin bounds at every
-   sample as linear constraints on the coefficients, |psi'(s) v| <= ``spin_rate`` and |psi''(s) v^2 + psi'(s) a| <=
-   ``spin_acceleration`` with the planned feed v and its acceleration a (scipy.optimize, SLSQP; the start is the
-   least-squares fit scaled into the bounds, which is feasible). The result is rated like the RMM spin and kept only
-   where it is better (fewer samples out of reach, fewer too fast, then a larger least singularity margin).
+   :data:`MAX_COEFFS` coefficients: the least-squares fit to the grid path, smoothed, under the spin bounds as linear
+   constraints on the coefficients at every sample and inside every phase of the cuts' time laws, |psi'(s) v| <=
+   ``spin_rate`` and |psi''(s) v^2 + psi'(s) a| <= ``spin_acceleration`` with the planned feed v and its acceleration
+   a (asked with the margin :data:`BOUND_SHARE`; scipy.optimize, SLSQP; the start is the least-squares fit scaled into
+   the bounds, which is feasible). The result is rated like the RMM spin and kept only where it is better (fewer
+   samples out of reach, fewer steps too fast, then a larger least singularity margin).
 
-Where the tool is on the flange axis (the TCP's rotation about its z and its offset along it), a spin is wrist 3 alone
-(q6 + psi): the inverse kinematics is solved once per sample and the grid is a shift of q6. Otherwise (an angled
-nozzle) every grid value is solved.
+Where the tool is on the flange axis (the TCP turned about its z and offset along it only), a spin is wrist 3 alone
+(q6 + psi): reach, the singularity margins and the other joints do not depend on it, so only wrist 3's speed decides
+whether a run is searched, the inverse kinematics is solved once per sample and the grid is a shift of q6. Otherwise
+(an angled nozzle) every grid value is solved.
 
-Between runs, in the rapids, psi goes from the end of one run to the start of the next (a C2 transition in arc
-length), the rapid slowed where the spin bounds need it. A turn in place or a dwell keeps psi. The result is the moves
-with their frames wrapped in :class:`~planner.cam.spin.SpunFrames` (and the start and end frames turned), the first
-cut of every run carrying its :class:`~planner.cam.spin.SpinFigures`.
+Between runs, in the rapids, psi goes from the end of one run to the start of the next (a C2 curve per rapid near the
+grid path, pinned at its ends), the rapid slowed where the spin bounds need it. Where the rapids cannot carry half a
+turn within :data:`GAP_SLOWDOWN` times their time (or 2 s), psi is held through them and the next run starts where
+the arm is. A turn in place or a dwell keeps psi. The result is the moves with their frames wrapped in
+:class:`~planner.cam.spin.SpunFrames` (and the start and end frames turned), the first cut of every run carrying its
+:class:`~planner.cam.spin.SpinFigures`.
 """
 
 from __future__ import annotations
