@@ -10,9 +10,10 @@ spin and the whole planning time.
 Cases (files of ``../shared/data`` next to the repository; a missing file is skipped with a message):
 - the shared NX job at the README's part frame on a UR5e, the tool on the flange axis (the README's case);
 - the same with a nozzle 34 deg off the flange axis (tcp 0,50,120 mm, rx 0.6 rad), where a spin moves every joint;
-- ``examples/nx_first_pass.cls``, the SOLIDWORKS and the NX G-code file at fixed frames with the angled nozzle.
+- ``examples/nx_first_pass.cls``, the SOLIDWORKS and the NX G-code file, and the NX job, at fixed frames where the
+  RMM spin of the angled nozzle leaves poses out of reach.
 
-Run: ``python bench/bench_spin.py`` (the NX job twice per tool: about 15 minutes on 2 cores), or
+Run: ``python bench/bench_spin.py`` (the NX job twice per case: about 25 minutes on 2 cores), or
 ``python bench/bench_spin.py --quick`` (the small cases only).
 """
 
@@ -37,12 +38,14 @@ ANGLED = (0.0, 0.05, 0.12, 0.6, 0.0, 0.0)
 CASES = [
     ("nx_first_pass, angled nozzle", REPO / "examples" / "nx_first_pass.cls", (0.3, 0.2, -0.3, 0, 0, 0), ANGLED, {}),
     ("nx_first_pass, flange axis, README frame", REPO / "examples" / "nx_first_pass.cls", README_FRAME, None, {}),
-    ("solidworks apt, angled nozzle", DATA / "solidworks_cam_apt_boss_3plus2.apt", (0.35, -0.25, 0.05, 0, 0, 0),
+    ("solidworks apt, angled nozzle", DATA / "solidworks_cam_apt_boss_3plus2.apt", (0.3, 0.2, -0.3, 0, 0, 0),
      ANGLED, {}),
     ("nx g-code, angled nozzle", DATA / "nx2022_haas_umc750_5axis_gcode.txt", (0.45, 0.1, -0.05, 0, 0, 0), ANGLED,
      {"machine": "haas-umc-750"}),
     ("NX job, flange axis, README frame", DATA / "nx_clsf_variable_contour_ust_a2.cls", README_FRAME, None, {}),
     ("NX job, angled nozzle, README frame", DATA / "nx_clsf_variable_contour_ust_a2.cls", README_FRAME, ANGLED, {}),
+    ("NX job, angled nozzle, tight frame", DATA / "nx_clsf_variable_contour_ust_a2.cls", (0.25, 0.3, -0.25, 0, 0, 0),
+     ANGLED, {}),
 ]
 
 
