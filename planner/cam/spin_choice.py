@@ -459,7 +459,23 @@ def _refine(moves, S: _Samples, target: np.ndarray, rate: float, acc: float, pin
     c = scale_into(res.x) if np.isfinite(res.x).all() else start  # within the bounds to round-off
     full = np.zeros(K)
     full[cols] = c
-    return SpinCurve(t, base + full)
+    # checked on every cut's time law every 2 ms: what is over the bounds between the constraint points scales down
+    over = _over_bounds(moves, S, SpinCurve(t, base + full), rate / BOUND_SHARE, acc / BOUND_SHARE ** 2)
+    return SpinCurve(t, base + full / max(1.0, over))
+
+
+def _over_bounds(moves, S: _Samples, curve: SpinCurve, rate: float, acc: float) -> float:
+    """The largest ratio of the spin's rate and acceleration in time to their bounds over the run's cuts, at their
+    planned time laws every 2 ms (a spin over the bounds by this factor, less the base, scales back into them)."""
+    top = 0.0
+    for k, X0 in S.cuts:
+        prof = moves[k].profile
+        T = float(prof.duration)
+        tt = np.linspace(0.0, T, min(max(3, math.ceil(T / 2e-3) + 1), 100_001))
+        x, v, a = X0 + prof.s(tt), prof.v(tt), prof.a(tt)
+        d1, d2 = curve(x, 1), curve(x, 2)
+        top = max(top, float(np.abs(d1 * v).max()) / rate, float(np.abs(d2 * v * v + d1 * a).max()) / acc)
+    return top
 
 
 #: Share of the spin rate bound the refinement asks at its constraint points (its square of the acceleration
