@@ -30,7 +30,7 @@ from _common import print_table  # noqa: E402
 ROOT = Path(__file__).resolve().parent.parent
 NX = ROOT.parent / "shared" / "data" / "nx_clsf_variable_contour_ust_a2.cls"
 #: The part frame ``plan(NX, PlanSettings(robot="ur5e", part_frame="auto"))`` printed (every move reachable).
-NX_AUTO_FRAME = "0.6975,0.804226,-0.137689,0,0,-0.022816"
+NX_AUTO_FRAME = "697.5mm,804.226mm,-137.689mm,0,0,-0.022816rad"
 
 RUNNER = """
 import resource, sys

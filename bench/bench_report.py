@@ -36,7 +36,7 @@ from _common import print_table  # noqa: E402
 
 ROOT = Path(__file__).resolve().parent.parent
 NX = ROOT.parent / "shared" / "data" / "nx_clsf_variable_contour_ust_a2.cls"
-NX_AUTO_FRAME = "0.6975,0.804226,-0.137689,0,0,-0.022816"  # as bench_memory.py (every move reachable on a UR5e)
+NX_AUTO_FRAME = "697.5mm,804.226mm,-137.689mm,0,0,-0.022816rad"  # as bench_memory.py (every move reachable on a UR5e)
 
 CHILD = r"""
 import json, resource, sys, time, tracemalloc

@@ -4,8 +4,8 @@
    real service (uvicorn on 127.0.0.1, ``--workers 2``, SQLite in WAL mode, development mode without keys):
    throughput (jobs/s from the first submit to the last job done), p50/p99 submit latency (the 202), p99
    completion time (created -> done, the service's clocks); none lost (every id answered, listed once, done),
-   none duplicated (one start and one saved plan per job). Baseline in the same run: the same 500 plans called
-   directly (``plan`` + ``PlannedJob.save``, as a worker does) in a pool of the same number of processes.
+   none duplicated (one start and one saved plan per job, in the store). Baseline in the same run: the same 500
+   plans called directly (``plan`` + ``PlannedJob.save``, as a worker does) in a pool of the same number of processes.
    Targets on this 2-core machine: p99 submit latency below 50 ms, throughput at least 80 % of the baseline.
 2. One whole NX job (``shared/data/nx_clsf_variable_contour_ust_a2.cls``, 12.9 million poses at 500 Hz) uploaded
    as a file: time to done, peak memory of the service (its process and its worker, VmHWM), storage per job, the
@@ -70,7 +70,7 @@ def _plan_and_save(points: list, folder: str, k: int) -> float:
 
 
 def _nice() -> None:
-    from planner.frontends.service.worker_process import WORKER_NICE
+    from planner.frontends.service.tasks.child import WORKER_NICE
 
     os.nice(WORKER_NICE)
 
@@ -275,9 +275,12 @@ def bench_many(n_jobs: int, n_points: int, clients: int, workers: int, http_clie
                     time.sleep(0.5)  # (the end is the last job's finished_at, not when this poll sees it)
                 listed = all_jobs(c)
                 t_end = max(j["finished_at"] for j in listed)
-            files = {p.parent.name: [] for p in (Path(tmp) / "jobs.sqlite.data" / "jobs").glob("*/plan.*.job")}
-            for p in (Path(tmp) / "jobs.sqlite.data" / "jobs").glob("*/plan.*.job"):
-                files[p.parent.name].append(p.name)
+            import sqlite3
+
+            files: dict[str, list[str]] = {}  # the saved plans, in the store
+            with sqlite3.connect(Path(tmp) / "jobs.sqlite") as db:
+                for job_id, name in db.execute("select job_id, name from job_data where name = 'plan'"):
+                    files.setdefault(job_id, []).append(name)
         finally:
             svc.stop()
     t_service = t_end - t0
@@ -320,8 +323,8 @@ def bench_commits(n: int = 3000) -> None:
     checkpoints inside the commits (its default) against the service's checkpoints in a thread of their own."""
     import uuid
 
+    from planner.frontends.service.inserter import JOBS
     from planner.frontends.service.store import Checkpointer, now, open_store
-    from planner.frontends.service.workers import JOBS
 
     body = json.dumps({"waypoints": curves(1, 100)[0]})
     rows = []

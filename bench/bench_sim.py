@@ -15,9 +15,10 @@ variables) is polled every 0.1 ms by this process for ``--seconds``. Reported pe
   simulators cannot do better than that).
 
 Every simulator has all its interfaces connected meanwhile: besides the RTDE receiver, one client on the primary
-interface (30001) and one on the secondary (30002), read by one thread of this process. A second table gives the
-period of their 10 Hz robot state packages as those clients see them (p50, p99, max; target 100 ms) and the bytes
-per second each simulator sends them.
+interface (30001), one on the secondary (30002) and one on the real-time interface (30003), read by one thread of
+this process. A second table gives the period of their state packages as those clients see them (p50, p99, max;
+targets 100 ms for the 10 Hz robot state packages, 2 ms for the 500 Hz real-time ones) and the bytes per second each
+simulator sends them.
 
 The simulator's control loop runs SCHED_FIFO where the system allows it; this process's threads
 (the poller and ur_rtde's receive threads) too, as ur_rtde sets itself on a real-time kernel
@@ -60,7 +61,8 @@ from sim import SimController  # noqa: E402
 
 PERIOD = 0.002
 REALTIME = True
-STATE_CLIENTS = True  # a primary and a secondary interface client per simulator during the RTDE measurement
+STATE_CLIENTS = True  # a primary, a secondary and a real-time interface client per simulator during the RTDE run
+STATE_PORTS = (30001, 30002, 30003)
 
 
 def _free_hosts(n: int) -> list[str]:
@@ -175,13 +177,13 @@ class StallProbe:
 
 
 class StateReader:
-    """Clients of the primary and secondary interfaces of some simulators, read by one thread: the arrival times
-    (perf_counter) of each client's robot state packages, and the bytes received."""
+    """Clients of the primary, secondary and real-time interfaces of some simulators, read by one thread: the arrival
+    times (perf_counter) of each client's state packages (robot state, real-time), and the bytes received."""
 
     def __init__(self, hosts: list[str]) -> None:
-        self.ports = [port for _ in hosts for port in (30001, 30002)]
+        self.ports = [port for _ in hosts for port in STATE_PORTS]
         self.socks = [socket.create_connection((h, port), timeout=5) for h, port in zip(
-            [h for h in hosts for _ in (0, 1)], self.ports, strict=True)]
+            [h for h in hosts for _ in STATE_PORTS], self.ports, strict=True)]
         self.arrivals: list[list[float]] = [[] for _ in self.socks]
         self.bytes = 0
         self._stop = threading.Event()
@@ -206,7 +208,7 @@ class StateReader:
                 buf += chunk
                 while len(buf) >= 5 and len(buf) >= struct.unpack_from(">i", buf)[0]:
                     size, kind = struct.unpack_from(">iB", buf)
-                    if kind == 16:
+                    if kind == 16 or self.ports[i] == 30003:  # a robot state package; every real-time one
                         self.arrivals[i].append(now)
                     del buf[:size]
 
@@ -261,7 +263,8 @@ def run_sims(n: int, seconds: float) -> dict:
             s.stop()
     out = _stats(series)
     out.update(late=late, cpu=100.0 * float(np.mean(cpu)), stalls=probe.late, state_bytes=sent,
-               primary=reader.periods(30001, w0, w0 + wall), secondary=reader.periods(30002, w0, w0 + wall))
+               primary=reader.periods(30001, w0, w0 + wall), secondary=reader.periods(30002, w0, w0 + wall),
+               realtime=reader.periods(30003, w0, w0 + wall))
     return out
 
 
@@ -335,7 +338,7 @@ def main(argv: list[str] | None = None) -> int:
                     help="leave this process's threads (poller, ur_rtde's receive threads) at normal priority")
     ap.add_argument("--program-only", action="store_true", help="only the program table (no RTDE measurement)")
     ap.add_argument("--no-state-clients", action="store_true",
-                    help="no primary / secondary interface clients during the RTDE measurement (RTDE alone)")
+                    help="no primary / secondary / real-time clients during the RTDE measurement (RTDE alone)")
     args = ap.parse_args(argv)
     if args.program_only:
         print("The simulator's core running the planner's whole-job program (in-process)")
@@ -359,18 +362,20 @@ def main(argv: list[str] | None = None) -> int:
     state_rows = [[f"{n} simulator{'s' if n > 1 else ''}", name, len(p), f"{np.percentile(p, 50):.1f}",
                    f"{np.percentile(p, 99):.1f}", f"{p.max():.1f}", f"{r['state_bytes'] / 1e3:.1f}"]
                   for n, r in results if STATE_CLIENTS
-                  for name, p in (("primary 30001", r["primary"]), ("secondary 30002", r["secondary"]))]
+                  for name, p in (("primary 30001", r["primary"]), ("secondary 30002", r["secondary"]),
+                                  ("real-time 30003", r["realtime"]))]
     print(f"RTDE data packages seen by RTDEReceiveInterface, {args.seconds:g} s per configuration, "
           f"{os.cpu_count()} CPUs, load average {os.getloadavg()[0]:.1f}, client threads "
           f"{'SCHED_FIFO' if REALTIME else 'normal priority'}, "
-          f"{'primary and secondary clients connected' if STATE_CLIENTS else 'RTDE alone'}")
+          f"{'primary, secondary and real-time clients connected' if STATE_CLIENTS else 'RTDE alone'}")
     print_table(["configuration", "period p50 ms", "p99 ms", "max ms", "|p99 - 2| ms", "<= 0.5 ms",
                  "missed (client)", "late ticks (sim)", "machine stalls (periods)", "CPU % per sim",
                  "baseline p99 / p99"], rows)
     if state_rows:
         print()
-        print("Robot state packages of the primary and secondary interfaces (10 Hz) seen by their clients, same runs")
-        print_table(["configuration", "interface", "periods", "p50 ms", "p99 ms", "max ms", "kB/s per sim (both)"],
+        print("State packages of the primary and secondary (10 Hz) and real-time (500 Hz) interfaces seen by their "
+              "clients, same runs")
+        print_table(["configuration", "interface", "periods", "p50 ms", "p99 ms", "max ms", "kB/s per sim (all three)"],
                     state_rows)
     print()
     print("The simulator's core running the planner's whole-job program (in-process)")

@@ -15,21 +15,18 @@ from drivers.base import CancelledError, DriverError
 
 
 def check_job(job, model: str, robot_name: str = "the driver drives") -> None:
-    """DriverError unless ``job`` can run on a ``model`` robot: planned with a robot of that model, no
-    unreachable pose (``job.problems``), start joints chosen. ``robot_name`` words the model mismatch
-    ("the driver drives a ur5e")."""
+    """DriverError unless ``job`` can run on a ``model`` robot: planned with a robot of that model, no move the
+    robot cannot make, start joints chosen (:attr:`planner.job.PlannedJob.not_executable`). ``robot_name`` words the
+    model mismatch ("the driver drives a ur5e")."""
     robot = job.settings.robot
-    if robot is None:
-        raise DriverError("the job was planned without a robot: plan it with robot=... to execute it")
-    from planner.kinematics import get_model
+    if robot is not None:
+        from planner.kinematics import get_model
 
-    if get_model(robot).name != model:
-        raise DriverError(f"the job was planned for {robot}, {robot_name} a {model}")
-    if job.problems:
-        raise DriverError(f"the job has {len(job.problems)} unreachable poses (first: {job.problems[0]}); "
-                          "it is not executed")
-    if job.start_joints is None:
-        raise DriverError("the job has no start joints (no reachable first pose)")
+        if get_model(robot).name != model:
+            raise DriverError(f"the job was planned for {robot}, {robot_name} a {model}")
+    reason = job.not_executable
+    if reason is not None:
+        raise DriverError(reason)
 
 
 def output_mask(io: np.ndarray) -> int:

@@ -15,6 +15,7 @@ if any, with the robot's reason and the job's time, pose and line.
 
 from __future__ import annotations
 
+import dataclasses
 import math
 from dataclasses import dataclass
 
@@ -32,6 +33,10 @@ __all__ = ["ExecutionReport", "IOSwitch", "PathDeviation", "PathDeviationError",
            "distance_to_polyline", "execution_report", "joint_limit_margin", "new_recording", "planned_path"]
 
 
+#: The range of a path tolerance, m (exclusive, inclusive).
+PATH_TOLERANCE_RANGE = (0.0, 1.0)
+
+
 def check_tolerance(tolerance) -> float | None:
     """A path tolerance, m: None, or a finite number > 0 (ValueError naming ``path_tolerance`` otherwise)."""
     if tolerance is None:
@@ -40,9 +45,26 @@ def check_tolerance(tolerance) -> float | None:
         tol = float(tolerance)
     except (TypeError, ValueError):
         raise ValueError(f"path_tolerance must be a distance in m, got {tolerance!r}") from None
-    if not (math.isfinite(tol) and 0 < tol <= 1.0):
+    if not (math.isfinite(tol) and PATH_TOLERANCE_RANGE[0] < tol <= PATH_TOLERANCE_RANGE[1]):
         raise ValueError(f"path_tolerance must be within (0, 1] m, got {tolerance!r}")
     return tol
+
+
+@dataclass(frozen=True)
+class Seam:
+    """Where a job run as several programs (program mode, each under the controller's size limit) went from one to
+    the next: ``program`` (1-based) started ``wait`` s (controller time) after the one before ended at job time
+    ``job_time`` s (the recording's clock), the arm at rest between two moves there; ``line`` the source line of the
+    program's first move."""
+
+    program: int
+    job_time: float
+    wait: float
+    line: int
+
+    def describe(self) -> str:
+        return (f"program {self.program} at t = {self.job_time:.3f} s (line {self.line}): {1e3 * self.wait:.1f} ms "
+                "at rest")
 
 
 class PathDeviationError(DriverError):
@@ -90,7 +112,11 @@ class IOSwitch:
     resolution_mm: length of that recorded step, mm: how far the TCP moved between the last sample that saw the
     old state and the first that saw the new one (the sampling's uncertainty about where the switch happened);
     unresolved_ms: for a switch not seen, when the recording could not have shown it: the time between the
-    recorded samples nearest its station, ms (longer than the planned state lasted there); NaN otherwise.
+    recorded samples nearest its station, ms (longer than the planned state lasted there); NaN otherwise;
+    missed_periods: control periods the streaming loop missed before the planned switch (each delays the rest of
+    the job by one period: the loop never catches up), 0 in program mode; ``period``: the control period, s. The
+    switch's lateness against the plan, ``delay_ms``, is then ``missed_ms`` (those periods) plus ``model_delay_ms``
+    (the rest: the servo's and the I/O path's latency, what the model does not predict).
     """
 
     bit: int
@@ -102,6 +128,23 @@ class IOSwitch:
     actual_t: float = math.nan
     resolution_mm: float = math.nan
     unresolved_ms: float = math.nan
+    missed_periods: int = 0
+    period: float = 0.002
+
+    @property
+    def delay_ms(self) -> float:
+        """Actual switch time minus planned, ms (NaN if not switched)."""
+        return (self.actual_t - self.planned_t) * 1e3
+
+    @property
+    def missed_ms(self) -> float:
+        """The part of :attr:`delay_ms` that the streaming loop's missed periods before the switch account for, ms."""
+        return self.missed_periods * self.period * 1e3
+
+    @property
+    def model_delay_ms(self) -> float:
+        """:attr:`delay_ms` less :attr:`missed_ms`: the servo's and the I/O path's latency, ms."""
+        return self.delay_ms - self.missed_ms
 
     @property
     def switched(self) -> bool:
@@ -155,6 +198,9 @@ class ExecutionReport:
     path_tolerance: float = math.nan
     deviations: tuple = ()
     deviation_count: int = 0
+    programs: int = 0
+    program_bytes: int = 0
+    seams: tuple = ()
 
     @property
     def max_io_distance_mm(self) -> float:
@@ -174,6 +220,12 @@ class ExecutionReport:
                      f"{self.samples} samples recorded")
         if self.loop is not None and self.loop.n:
             lines.append("  " + self.loop.describe())
+        if self.programs > 1:
+            waits = [sm.wait for sm in self.seams]
+            longest = max(self.seams, key=lambda sm: sm.wait) if self.seams else None
+            lines.append(f"  {self.programs} programs of at most {self.program_bytes} bytes (the controller's limit), "
+                         f"run one after the other; {counted(len(self.seams), 'seam')} between moves, the arm at rest: "
+                         f"{sum(waits):.3f} s in all" + (f", the longest {longest.describe()}" if longest else ""))
         if self.samples > 1 and math.isfinite(self.recorded_every):
             how = f"{self.recording}, " if self.recording else ""
             gaps = (f"{counted(self.gaps, 'gap')}: ~{self.missed} samples missed, the longest "
@@ -209,8 +261,13 @@ class ExecutionReport:
                 if e.switched:  # under 0.5 um between the samples around it: the arm stood still (a stop)
                     there = (f"sampled every {e.resolution_mm:.3f} mm of travel there" if e.resolution_mm >= 5e-4
                              else "the TCP at rest there")
+                    late = (f"; {e.delay_ms:+.1f} ms against the plan: {e.missed_ms:.0f} ms of "
+                            f"{counted(e.missed_periods, 'missed control period')} before it, {e.model_delay_ms:+.1f} "
+                            "ms of servo and I/O latency" if self.loop is not None and math.isfinite(e.delay_ms)
+                            else "")
                     lines.append(f"    {bit_name(e.bit)} {state} at s = {e.actual_s:.4f} m "
-                                 f"(planned {e.planned_s:.4f} m, {e.distance_mm:.3f} mm from the station; {there})")
+                                 f"(planned {e.planned_s:.4f} m, {e.distance_mm:.3f} mm from the station; {there}"
+                                 f"{late})")
                 elif e.unresolved:
                     lines.append(f"    {bit_name(e.bit)} {state} planned at s = {e.planned_s:.4f} m: not seen, the "
                                  f"recording's samples there are {e.unresolved_ms:.1f} ms apart")
@@ -244,7 +301,8 @@ def planned_path(job, rate: float | None = None):
 def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=None, recorded_io=None, *, mode: str,
                      failure: DriverError | None = None, planned=None, loop: LoopStats | None = None,
                      recording: str = "", stalls=(), lag_cause: str = "",
-                     fail_on_deviation: bool = False) -> ExecutionReport:
+                     fail_on_deviation: bool = False, programs: int = 0, program_bytes: int = 0,
+                     seams=()) -> ExecutionReport:
     """The report of a run from what was recorded.
 
     Parameters
@@ -266,6 +324,8 @@ def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=Non
         others explains)
     fail_on_deviation : a run whose tracked path left the path tolerance (the recording's) fails with
         :class:`PathDeviationError` at its largest deviation (unless it failed otherwise)
+    programs, program_bytes, seams : a program-mode run in several programs: how many, the limit each kept to
+        (bytes), and the :class:`Seam` between each two
     """
     plan = as_planned(job, planned)
     if isinstance(recorded_times, Recording):
@@ -282,6 +342,11 @@ def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=Non
     rec.finish()
     trace = rec.trace()
     events = _io_events(trace, plan)
+    st = np.sort(np.asarray(list(stalls), dtype=float))
+    period = 1.0 / float(job.settings.rate)
+    if st.size or period != 0.002:  # the missed periods before each switch (planned job time), one entry per period
+        events = [dataclasses.replace(e, missed_periods=int(np.searchsorted(st, e.planned_t, side="right")),
+                                      period=period) for e in events]
     deviations = _deviations(rec, plan, failure, stalls, lag_cause or f"{mode} tracking")
     if deviations and fail_on_deviation and failure is None and rec.tolerance is not None:
         worst = max(deviations, key=lambda dv: dv.error)
@@ -296,7 +361,8 @@ def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=Non
         failure=failure, path_length=plan.length, loop=loop, trace=trace, recorded_every=rec.step, gaps=rec.gaps,
         missed=rec.missed, longest_gap=rec.longest_gap, recording=recording,
         path_tolerance=math.nan if rec.tolerance is None else rec.tolerance, deviations=tuple(deviations),
-        deviation_count=rec.excursion_count)
+        deviation_count=rec.excursion_count, programs=int(programs), program_bytes=int(program_bytes),
+        seams=tuple(seams))
 
 
 #: A deviation within this much job time of a missed control period or of a stop is put down to it, s.
@@ -317,7 +383,7 @@ def _deviations(rec: Recording, plan: PlannedPath, failure, stalls, lag_cause: s
             cause = failure.kind
         elif st.size and ((st >= a) & (st <= ex.t_end)).any():
             n = int(((st >= a) & (st <= ex.t_end)).sum())
-            cause = f"missed control periods (the streaming loop was late {counted(n, 'time')} just before)"
+            cause = f"missed control periods (the streaming loop missed {counted(n, 'period')} just before)"
         else:
             cause = lag_cause
         out.append(PathDeviation(ex.t_start, ex.t_end, ex.error, ex.t, int(line),

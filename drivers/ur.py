@@ -11,6 +11,12 @@ Two modes, one report (:func:`drivers.report.execution_report`):
   trajectory's I/O bits change (RTDE I/O interface, or Modbus with ``io="modbus"``).
 - "program": the job's URScript program (:func:`planner.export.job_program`) sent to the script port
   (30002); the driver watches it run (RTDE runtime state; progress by the planned sample nearest the actual TCP).
+  A program larger than ``max_program_bytes`` (default :data:`planner.export.job_script.MAX_PROGRAM_BYTES`, what a
+  controller is known to take) is sent as consecutive programs under it
+  (:func:`planner.export.job_script.job_program_pieces`), each cut between two moves where the arm is at rest (never
+  in a cut; where the outputs are off unless a run of passes joined at corners needs two programs, then at a
+  corner, the output kept on), each sent once the one before has ended at its last pose; the report says how many
+  and the waits at the seams.
 
 In both modes the actual TCP, joints and digital outputs of every data package are recorded, whole, through a
 recording connection of its own (:class:`drivers.package_log.PackageLog`: a polled reading mixes packages and
@@ -48,9 +54,10 @@ from drivers.jobs import check_job, stop_requested
 from drivers.pacing import Schedule
 from drivers.package_log import PackageLog
 from drivers.plan_window import PlannedPath, PlanWindow
-from drivers.report import ExecutionReport, check_tolerance, execution_report, new_recording
+from drivers.report import ExecutionReport, Seam, check_tolerance, execution_report, new_recording
 from drivers.servo import DEFAULT_GAIN, DEFAULT_LOOKAHEAD, ServoModel, ServoShaper, check_servo
 from drivers.stations import Station, Stations
+from planner.export.job_script import MAX_PROGRAM_BYTES
 from planner.kinematics.ur_outputs import UR_OUTPUTS
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -76,7 +83,7 @@ _READ_EVERY = 0.05
 #: SCHED_FIFO priority of the streaming loop (``realtime``): below a controller simulated on the same machine
 #: (its control loop runs at 10, its RTDE server at 8).
 LOOP_PRIORITY = 5
-#: Missed-period events of a stream remembered (their job times: the causes of path deviations).
+#: Missed periods of a stream remembered (the job time of each: the causes of path deviations and of late switches).
 MAX_STALLS = 10_000
 #: ur_rtde interfaces whose connection dropped: never disconnected or destroyed (see URDriver.close).
 _ABANDONED: list = []
@@ -160,6 +167,9 @@ class URDriver:
     path_tolerance : float, optional
         Path tolerance, m: the report lists every stretch where the tracked TCP was further than this from the
         planned path, with where (job time, source line) and why (servo lag, missed control periods, a stop).
+    max_program_bytes : int or None
+        Program mode: the largest program sent to the controller, bytes (default :data:`MAX_PROGRAM_BYTES`); a
+        longer job is sent as consecutive programs under it. None: one program whatever its size.
     fail_on_deviation : bool
         A run beyond ``path_tolerance`` fails (``report.ok`` False, :class:`drivers.report.PathDeviationError` at
         its largest deviation); otherwise it is only reported.
@@ -181,7 +191,7 @@ class URDriver:
     def __init__(self, host: str, model: str = "ur5e", *, io: str = "rtde", modbus_port: int = 502,
                  lookahead: float = DEFAULT_LOOKAHEAD, gain: float = DEFAULT_GAIN, compensate: bool = True,
                  realtime: bool = True, path_tolerance: float | None = None, fail_on_deviation: bool = False,
-                 overrun_limit: float = 0.2, settle: float = 0.3,
+                 max_program_bytes: int | None = MAX_PROGRAM_BYTES, overrun_limit: float = 0.2, settle: float = 0.3,
                  deceleration: float = 10.0, frequency: float = 500.0, approach_speed: float = 0.5,
                  approach_acceleration: float = 0.5) -> None:
         if not isinstance(host, str) or not host.strip():
@@ -205,7 +215,12 @@ class URDriver:
         if fail_on_deviation and self.path_tolerance is None:
             raise ValueError("fail_on_deviation needs a path_tolerance")
         self.fail_on_deviation = bool(fail_on_deviation)
-        self._stalls: list[float] = []  # job times at which the last stream's loop missed periods
+        if max_program_bytes is not None and not (isinstance(max_program_bytes, int) and max_program_bytes >= 4096):
+            raise ValueError(f"max_program_bytes must be at least 4096 bytes or None, got {max_program_bytes!r}")
+        self.max_program_bytes = max_program_bytes
+        self._seams: list[Seam] = []  # the last program run's seams between its programs
+        self._pieces = 0
+        self._stalls: list[float] = []  # job times at which the last stream's loop missed periods, one per period
         self.overrun_limit = float(overrun_limit)
         self.settle = float(settle)
         self.deceleration = float(deceleration)
@@ -493,10 +508,12 @@ class URDriver:
         self._check_state()
         self._stop.clear()
         self._paused.clear()
+        self._seams, self._pieces = [], 0
         cancel = cancel if cancel is not None else threading.Event()
         planned = PlannedPath(job)  # read once, kept in summary (bounded memory); the run reads it again in windows
         # stream: the targets are produced ahead by a thread of their own while the arm approaches the start
         feed = None
+        pieces = self.program_pieces(job) if mode == "program" else ()
         if mode == "stream":
             shaper = ServoShaper(ServoModel(self.lookahead, self.gain, 1.0 / float(job.settings.rate)),
                                  job.start_joints, compensate=self.compensate)
@@ -511,7 +528,7 @@ class URDriver:
                 if mode == "stream":
                     rec, failure, loop = self._stream(job, planned, mask, progress, cancel, feed)
                 else:
-                    (rec, failure), loop = self._program(job, planned, mask, progress, cancel), None
+                    (rec, failure), loop = self._program(job, planned, mask, progress, cancel, pieces), None
             finally:
                 self._mode = None
                 self._snap = None
@@ -523,9 +540,13 @@ class URDriver:
                      + ("targets shaped by the servo model)" if self.compensate else "planned joints unshaped)"))
         else:
             cause = "the controller's blending of the program's moves (movep)"
+        program = mode == "program"
         return execution_report(job, rec, mode=mode, failure=failure, planned=planned, loop=loop,
                                 recording="every data package", stalls=self._stalls if mode == "stream" else (),
-                                lag_cause=cause, fail_on_deviation=self.fail_on_deviation)
+                                lag_cause=cause, fail_on_deviation=self.fail_on_deviation,
+                                programs=self._pieces if program else 0,
+                                program_bytes=(self.max_program_bytes or 0) if program else 0,
+                                seams=self._seams if program else ())
 
     def _stopped(self, cancel) -> DriverError | None:
         return stop_requested(cancel, self._stop)
@@ -658,10 +679,9 @@ class URDriver:
                         self._take(log, rec, ts0)
                         untaken = 0
                     now = sched.wait()
-                    if sched.missed != missed_seen:
+                    if sched.missed != missed_seen:  # one entry per period missed (each delays the rest by one)
+                        stalls.extend([t_cmd] * min(sched.missed - missed_seen, MAX_STALLS - len(stalls)))
                         missed_seen = sched.missed
-                        if len(stalls) < MAX_STALLS:
-                            stalls.append(t_cmd)
                     if now - last > overrun:
                         raise PeriodOverrunError(f"the control loop missed its period: {1e3 * (now - last):.1f} ms "
                                                  f"between targets (limit {1e3 * overrun:.0f} ms)")
@@ -762,60 +782,103 @@ class URDriver:
         except RuntimeError:
             pass
 
-    def _program(self, job, planned, mask, progress, cancel):
-        from planner.export import job_program
+    def _send_program(self, text: str) -> None:
+        """One program to the secondary interface (30002), whole."""
+        try:
+            with socket.create_connection((self.host, 30002), timeout=2.0) as s:
+                s.sendall(text.encode() if text.endswith("\n") else (text + "\n").encode())
+        except OSError as exc:
+            raise ConnectionLostError(f"cannot send the program to {self.host}:30002: {exc}") from exc
 
+    def _started(self, piece, t_sent: float) -> None:
+        """Wait (at most 5 s of wall time) until the controller runs the program just sent: PLAYING, or (a piece so
+        short that it ended between two readings) stopped again, at the piece's end, with a newer data package."""
+        r = self._need()
+        end = time.monotonic() + 5.0
+        while True:
+            state = r.getRuntimeState()
+            if state == _PLAYING:
+                return
+            f = self._fault()
+            if f is not None:
+                raise f
+            if r.getTimestamp() > t_sent and state not in (_PLAYING, _PAUSED):
+                x = np.asarray(r.getActualTCPPose(), dtype=float)
+                if (np.linalg.norm(x[:3] - piece.end[:3]) < 1e-5 and
+                        np.linalg.norm(piece.end[:3] - piece.start[:3]) > 1e-4):
+                    return
+            if time.monotonic() > end:
+                raise ProgramStoppedError(f"the controller did not start the program ({piece.size} bytes) within "
+                                          "5 s (refused)")
+            time.sleep(0.002)
+
+    def program_pieces(self, job) -> tuple:
+        """The programs program mode sends for ``job`` (:func:`planner.export.job_script.job_program_pieces` under
+        ``max_program_bytes``); DriverError when a pass alone needs a larger program (before the arm moves)."""
+        from planner.export import job_program_pieces
+
+        limit = self.max_program_bytes
+        try:
+            return job_program_pieces(job, max_bytes=limit if limit is not None else 2**62)
+        except ValueError as exc:
+            raise DriverError(f"program mode: {exc}") from None
+
+    def _program(self, job, planned, mask, progress, cancel, pieces):
         r, c = self._need(), self._control()
-        text = job_program(job)
         c.stopScript()  # hand the arm from ur_rtde's control script to the job's program
+        end = time.monotonic() + 1.0  # and see it stopped: a PLAYING read after sending must be the job's program
+        while r.getRuntimeState() == _PLAYING and time.monotonic() < end:
+            time.sleep(0.002)
         rec = new_recording(job, planned, tolerance=self.path_tolerance)
         failure = None
         k = 0
         log = None
         ts0 = None
+        seams = self._seams = []
+        t_ended = 0.0  # controller time at which the last program ended
         try:
             # every data package from here on, through a connection of its own (a stalled loop misses none)
             log = PackageLog(self.host, self.frequency)
-            try:
-                with socket.create_connection((self.host, 30002), timeout=2.0) as s:
-                    s.sendall(text.encode() if text.endswith("\n") else (text + "\n").encode())
-            except OSError as exc:
-                raise ConnectionLostError(f"cannot send the program to {self.host}:30002: {exc}") from exc
-            end = time.monotonic() + 5.0
-            while r.getRuntimeState() != _PLAYING:
-                f = self._fault()
-                if f is not None:
-                    raise f
-                if time.monotonic() > end:
-                    raise ProgramStoppedError("the controller did not start the program within 5 s (refused)")
-                time.sleep(0.005)
-            ts0 = r.getTimestamp()
-            last_read = time.monotonic()
-            while True:
-                err = self._stopped(cancel)
-                if err is not None:
-                    raise err
-                f = self._fault()
-                if f is not None:
-                    raise f
-                state = r.getRuntimeState()
-                if time.monotonic() - last_read > _READ_EVERY:
-                    last_read = time.monotonic()
-                    k = max(k, self._take(log, rec, ts0))
-                    if progress is not None:
-                        progress("execute", k, planned.n)
-                if state not in (_PLAYING, _PAUSED):
-                    break
-                time.sleep(0.002)
-            # the program ended: at the job's end, or stopped from outside; the last packages into the recording
+            for n, piece in enumerate(pieces):
+                t_sent = r.getTimestamp()
+                self._send_program(piece.text)
+                self._started(piece, t_sent)
+                if ts0 is None:
+                    ts0 = r.getTimestamp()
+                else:  # the seam: the arm at rest at the end of the piece before, from its end to this start
+                    seams.append(Seam(n + 1, t_ended - ts0, max(0.0, r.getTimestamp() - t_ended), piece.line))
+                last_read = time.monotonic()
+                while True:
+                    err = self._stopped(cancel)
+                    if err is not None:
+                        raise err
+                    f = self._fault()
+                    if f is not None:
+                        raise f
+                    state = r.getRuntimeState()
+                    if time.monotonic() - last_read > _READ_EVERY:
+                        last_read = time.monotonic()
+                        k = max(k, self._take(log, rec, ts0))
+                        if progress is not None:
+                            progress("execute", k, planned.n)
+                    if state not in (_PLAYING, _PAUSED):
+                        break
+                    time.sleep(0.002)
+                # the program ended: at the piece's end, or stopped from outside
+                t_ended = r.getTimestamp()
+                x = np.asarray(r.getActualTCPPose(), dtype=float)
+                d = float(np.linalg.norm(x[:3] - piece.end[:3]))
+                if d > 1e-3:
+                    time.sleep(0.01)
+                    self._take(log, rec, float(ts0))
+                    k = max(k, rec.last_segment)
+                    where = ("the job's last pose" if n == len(pieces) - 1 else
+                             f"the last pose of program {n + 1} of {len(pieces)}")
+                    raise ProgramStoppedError(self._not_running_reason() + f"; the tool is {1e3 * d:.1f} mm "
+                                              f"from {where}")
             time.sleep(0.01)
-            self._take(log, rec, ts0)
-            x = np.asarray(r.getActualTCPPose(), dtype=float)
-            d = float(np.linalg.norm(x[:3] - planned.last_pose[:3])) if planned.n else 0.0
-            k = max(k, rec.last_segment)
-            if d > 1e-3:
-                raise ProgramStoppedError(self._not_running_reason() + f"; the tool is {1e3 * d:.1f} mm "
-                                          "from the job's last pose")
+            if ts0 is not None:
+                self._take(log, rec, ts0)
             k = planned.n - 1
             if progress is not None:
                 progress("execute", planned.n, planned.n)
@@ -827,6 +890,7 @@ class URDriver:
         finally:
             if log is not None:
                 log.close()
+        self._pieces = len(pieces)
         if isinstance(failure, ConnectionLostError):
             self._lost = True
         if failure is not None:

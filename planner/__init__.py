@@ -12,6 +12,6 @@ from planner.plan import plan
 from planner.settings import PlanSettings
 from planner.trajectory import Chunk, Trajectory
 
-__version__ = "0.1.0"
+__version__ = "0.2.0.dev0"
 
 __all__ = ["Chunk", "NumericalError", "PlanSettings", "PlannedJob", "PlannerError", "Trajectory", "load_job", "plan"]

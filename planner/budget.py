@@ -22,8 +22,9 @@ import numpy as np
 from planner.errors import PlannerError
 from planner.settings import MAX_FEED, MIN_FEED  # the feed range of the settings, also for the file's feeds
 
-#: Coordinates beyond this distance from the part origin (m) are no robot cell: a unit mistake.
-MAX_COORDINATE = 5_000.0
+#: Coordinates beyond this distance from the part origin (m) are no robot cell (a UR reaches 1.3 m, a robot on a
+#: track or gantry tens of metres): a unit mistake, e.g. a CLSF in mm read with --units m.
+MAX_COORDINATE = 100.0
 #: Bytes per pose of the CSV trajectory with joints (for the figure shown to the user).
 CSV_BYTES_PER_POSE = 180
 

@@ -321,6 +321,25 @@ class PlannedJob:
         """Whether the robot can do the whole job (None without a robot)."""
         return None if self.settings.robot is None else not self.problems
 
+    @property
+    def not_executable(self) -> str | None:
+        """Why the job cannot run on a robot, in one line, or None when it can: planned without a robot, moves the
+        robot cannot make (counted in moves, as the summary counts them, with the first), no start joints. The
+        drivers, ``planner run`` and the service refuse a job with a reason before anything moves.
+
+        >>> from planner import PlanSettings, plan
+        >>> print(plan("examples/nx_first_pass.cls", PlanSettings(robot="ur5e")).not_executable.split(" (")[0])
+        the robot cannot make 2 of the job's moves
+        """
+        if self.settings.robot is None:
+            return "the job was planned without a robot: plan it with robot=... (--robot) to execute it"
+        if self.problems:
+            return (f"the robot cannot make {len(self.problems)} of the job's moves (first: {self.problems[0]}); "
+                    "nothing is executed")
+        if self.start_joints is None:
+            return "the job has no start joints (no reachable first pose)"
+        return None
+
     def count(self, kind: str) -> int:
         """Number of moves of a kind ("cut", "rapid", "reorientation", "reconfiguration", "dwell", "skipped")."""
         return sum(1 for m in self.moves if m.kind == kind)
@@ -401,6 +420,8 @@ class PlannedJob:
                                           "singularity_margin": self.placement.singularity_margin,
                                           "joint_margin_deg": math.degrees(self.placement.joint_margin)}
             out["reachable"] = not self.problems
+            out["executable"] = self.not_executable is None
+            out["not_executable"] = self.not_executable
             out["unreachable_passes"] = [p.index for p in self.passes if p.reachable is False]
             out["slowed_passes"] = [p.index for p in self.passes if p.feed_caps]
             out["slowed"] = list(self.slowed)
@@ -479,7 +500,8 @@ class PlannedJob:
                     lines.append(f"    ... {len(self.problems) - max_lines} more")
                 if self.settings.part_frame is None:
                     lines.append("  hint      no part frame given: the part's origin is the robot's base; place "
-                                 "the part with part_frame (--part-frame x,y,z,rx,ry,rz in m, rad)")
+                                 "the part with part_frame (m, rad; on the command line in mm and deg, e.g. "
+                                 "--part-frame 400mm,0,200mm,180deg,0,0, or --part-frame auto)")
         return lines
 
     # -- trajectory, save and load ----------------------------------------------------------------
@@ -499,9 +521,13 @@ class PlannedJob:
         """
         from planner.export.files import write_bytes_atomic
 
-        blob = dump(self, JOB_TYPES)
+        blob = self.to_bytes()
         write_bytes_atomic(FilePath(target), blob)
         return len(blob)
+
+    def to_bytes(self) -> bytes:
+        """The saved job's bytes (what :meth:`save` writes; :func:`load_job` takes them back)."""
+        return dump(self, JOB_TYPES)
 
 
 def load_job(source) -> PlannedJob:
@@ -594,3 +620,34 @@ def _seconds(t: float) -> str:
     if not math.isfinite(t):
         return "-"
     return f"{1e3 * t:.1f} ms" if t < 0.1 else f"{t:.2f} s"
+
+
+@dataclass(frozen=True)
+class FitChunk:
+    """The fits of some cutting passes of a job (made apart: :func:`planner.plan.fit_passes_of`), for their way to
+    the process that plans the job (:func:`fits_to_bytes`)."""
+
+    fits: tuple[PassFit, ...]
+
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job format (:mod:`planner.jobfile`)."""
+        return {"fits": self.fits}
+
+    @classmethod
+    def from_state(cls, state: dict) -> FitChunk:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(tuple(state["fits"]))
+
+
+#: The stored types of a chunk of fits (the job file's own format and types).
+FIT_TYPES = {**JOB_TYPES, "FitChunk": StoredType("FitChunk", FitChunk, {"fits": Seq(Ref("PassFit"))})}
+
+
+def fits_to_bytes(fits) -> bytes:
+    """Fits of passes as bytes (the job file's format: arrays and a JSON manifest, nothing executable on load)."""
+    return dump(FitChunk(tuple(fits)), FIT_TYPES)
+
+
+def fits_from_bytes(data: bytes) -> list[PassFit]:
+    """The fits :func:`fits_to_bytes` wrote (PlannerError, one line, if they are not)."""
+    return list(load(data, FIT_TYPES, "FitChunk", "the fits").fits)

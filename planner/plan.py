@@ -32,7 +32,7 @@ import math
 import os
 import time
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import replace
 
 import numpy as np
@@ -161,7 +161,7 @@ def resolve(settings: PlanSettings, fmt: str, has_axes: bool) -> PlanSettings:
 
 
 def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None, read_options: dict | None = None,
-         progress: Progress | None = None) -> PlannedJob:
+         progress: Progress | None = None, fits: Sequence[PassFit] | None = None) -> PlannedJob:
     """Plan a toolpath file, a :class:`planner.io.Toolpath`, or waypoints: every pass, rapid and turn.
 
     Parameters
@@ -175,6 +175,10 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
         Default ``PlanSettings()``.
     progress : callable (stage, done, total), optional
         Called as the work advances (stages "fit", "moves", "reach").
+    fits : sequence of PassFit, optional
+        The fitted paths of every cutting pass, made apart (a large job fitted in pieces on several machines:
+        :func:`fit_batches`, :func:`fit_passes_of`); the job is then the one this call would plan, export for
+        export. PlannerError if they are not this input's passes.
 
     Returns
     -------
@@ -204,55 +208,20 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
     >>> round(job.duration, 2)   # s: jerk-limited, along the exact arc length
     12.07
     """
-    from planner.io import Toolpath, detect_format, linearize_arcs, read_toolpath
-
     settings = PlanSettings() if settings is None else settings
     _check_plan_arguments(settings, read_options, progress)
     timings: dict[str, float] = {}
     caught: list[str] = []
-    if isinstance(source, str | os.PathLike):
-        if axes is not None or feeds is not None:
-            raise PlannerError("axes and feeds are for waypoint arrays; a file gives its own")
-        tic = time.perf_counter()
-        fmt = detect_format(source)
-        check_read_options(fmt, read_options or {})
-        with warnings.catch_warnings(record=True) as w:
-            warnings.simplefilter("always")
-            toolpath = read_toolpath(source, format=fmt, **(read_options or {}))
-        caught += [str(x.message) for x in w]
-        timings["parse"] = time.perf_counter() - tic
-    else:
-        if read_options:
-            raise PlannerError("read_options are for a file name; the toolpath is already read")
-        if isinstance(source, Toolpath):
-            if axes is not None or feeds is not None:
-                raise PlannerError("axes and feeds are for waypoint arrays; a Toolpath carries its own")
-            toolpath = source
-            fmt = getattr(source, "format", "") or _format_of(source.source)
-        else:
-            toolpath, fmt = waypoints_toolpath(source, axes, feeds), "waypoints"
-    s = resolve(settings, fmt, toolpath.axes is not None)
-    from planner.budget import check_budget
-
-    check_budget(toolpath, s)  # before any fitting or sampling: refuses absurd work in well under a second
-    t_plan = time.perf_counter()
-    assert s.arc_tolerance is not None  # filled in by PlanSettings.checked()
-    tp = linearize_arcs(toolpath, s.arc_tolerance)
-    if s.axes in ("fixed", "path") and tp.axes is not None:
-        tp = replace(tp, axes=None, axis_given=None)  # the file's axes are not used: no reorientations either
-    tic = time.perf_counter()
+    tp, seg, s = _prepared(source, settings, axes, feeds, read_options, timings, caught)
+    t_plan = timings.pop("_start")
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
-        seg = split_passes(tp, corner_deg=s.corner_deg, axis_jump_deg=s.axis_jump_deg)
-        if s.passes is not None:
-            tp = _select_passes(tp, seg, s.passes)
-            seg = split_passes(tp, corner_deg=s.corner_deg, axis_jump_deg=s.axis_jump_deg)
         cuts = seg.passes
-        if not cuts:
-            raise PlannerError(f"{tp.source}: no cutting motion with at least two points")
-        timings["split"] = time.perf_counter() - tic
         tic = time.perf_counter()
-        fits = _fit(tp.source, cuts, s)
+        if fits is None:
+            fits = _fit(tp.source, cuts, s)
+        else:
+            fits = _given_fits(tp.source, cuts, fits)
         fit_time = time.perf_counter() - tic
         timings["fit"] = fit_time
         if progress is not None:
@@ -304,6 +273,107 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
         if progress is not None:
             progress("reach", 1, 1)
     return job
+
+
+def _prepared(source, settings: PlanSettings, axes, feeds, read_options, timings: dict, caught: list):
+    """The input read, the settings resolved for it, and its moves split: (toolpath, segmentation, settings); the
+    planning clock's start in ``timings["_start"]``."""
+    from planner.io import Toolpath, detect_format, linearize_arcs, read_toolpath
+
+    if isinstance(source, str | os.PathLike):
+        if axes is not None or feeds is not None:
+            raise PlannerError("axes and feeds are for waypoint arrays; a file gives its own")
+        tic = time.perf_counter()
+        fmt = detect_format(source)
+        check_read_options(fmt, read_options or {})
+        with warnings.catch_warnings(record=True) as w:
+            warnings.simplefilter("always")
+            toolpath = read_toolpath(source, format=fmt, **(read_options or {}))
+        caught += [str(x.message) for x in w]
+        timings["parse"] = time.perf_counter() - tic
+    else:
+        if read_options:
+            raise PlannerError("read_options are for a file name; the toolpath is already read")
+        if isinstance(source, Toolpath):
+            if axes is not None or feeds is not None:
+                raise PlannerError("axes and feeds are for waypoint arrays; a Toolpath carries its own")
+            toolpath = source
+            fmt = getattr(source, "format", "") or _format_of(source.source)
+        else:
+            toolpath, fmt = waypoints_toolpath(source, axes, feeds), "waypoints"
+    s = resolve(settings, fmt, toolpath.axes is not None)
+    from planner.budget import check_budget
+
+    check_budget(toolpath, s)  # before any fitting or sampling: refuses absurd work in well under a second
+    timings["_start"] = time.perf_counter()
+    assert s.arc_tolerance is not None  # filled in by PlanSettings.checked()
+    tp = linearize_arcs(toolpath, s.arc_tolerance)
+    if s.axes in ("fixed", "path") and tp.axes is not None:
+        tp = replace(tp, axes=None, axis_given=None)  # the file's axes are not used: no reorientations either
+    tic = time.perf_counter()
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        seg = split_passes(tp, corner_deg=s.corner_deg, axis_jump_deg=s.axis_jump_deg)
+        if s.passes is not None:
+            tp = _select_passes(tp, seg, s.passes)
+            seg = split_passes(tp, corner_deg=s.corner_deg, axis_jump_deg=s.axis_jump_deg)
+        if not seg.passes:
+            raise PlannerError(f"{tp.source}: no cutting motion with at least two points")
+    caught += [str(x.message) for x in w]
+    timings["split"] = time.perf_counter() - tic
+    return tp, seg, s
+
+
+def _batch_ranges(cuts, s: PlanSettings) -> list[tuple[int, int]]:
+    """The (start, stop) pass ranges :func:`_fit` fits together: CAM fits in batches of FIT_BATCH_SPANS chords, the
+    others pass by pass."""
+    if s.path != "cam":
+        return [(k, k + 1) for k in range(len(cuts))]
+    out, start, spans = [], 0, 0
+    for k, p in enumerate(cuts):
+        spans += len(p) - 1
+        if spans >= FIT_BATCH_SPANS:
+            out.append((start, k + 1))
+            start, spans = k + 1, 0
+    return out + ([(start, len(cuts))] if start < len(cuts) else [])
+
+
+def fit_batches(source, settings: PlanSettings | None = None, *, read_options: dict | None = None
+                ) -> list[tuple[int, int]]:
+    """The fitting work of a job in independent pieces: the (start, stop) ranges of its cutting passes that the
+    planner fits together, with their number of CAM chords: fitted apart (:func:`fit_passes_of`, e.g. on several
+    machines) and given back to :func:`plan` (``fits=``), they make the same job, export for export."""
+    settings = PlanSettings() if settings is None else settings
+    _check_plan_arguments(settings, read_options, None)
+    tp, seg, s = _prepared(source, settings, None, None, read_options, {}, [])
+    return _batch_ranges(seg.passes, s)
+
+
+def fit_passes_of(source, settings: PlanSettings | None, start: int, stop: int, *,
+                  read_options: dict | None = None) -> list[PassFit]:
+    """The fits of cutting passes ``start`` .. ``stop - 1`` (whole batches of :func:`fit_batches`, one after the
+    other), as :func:`plan` fits them."""
+    settings = PlanSettings() if settings is None else settings
+    _check_plan_arguments(settings, read_options, None)
+    tp, seg, s = _prepared(source, settings, None, None, read_options, {}, [])
+    bounds = {0} | {b for r in _batch_ranges(seg.passes, s) for b in r}
+    if not (0 <= start < stop <= len(seg.passes)) or start not in bounds or stop not in bounds:
+        raise PlannerError(f"{tp.source}: passes {start}..{stop - 1} are not whole fit batches of its "
+                           f"{len(seg.passes)} passes (see fit_batches)")
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")  # (plan() reports them)
+        return _fit(tp.source, seg.passes[start:stop], s)
+
+
+def _given_fits(source: str, cuts, fits: Sequence[PassFit]) -> list[PassFit]:
+    """Fits made apart, checked to be those of ``cuts`` (same passes, same points)."""
+    fits = list(fits)
+    if len(fits) != len(cuts) or not all(isinstance(f, PassFit) for f in fits):
+        raise PlannerError(f"{source}: fits: {len(fits)} given for {len(cuts)} cutting passes")
+    for k, (f, c) in enumerate(zip(fits, cuts, strict=True)):
+        if f.points.shape != c.points.shape or not np.array_equal(f.points, c.points):
+            raise PlannerError(f"{source}: fits: fit {k} is not of pass {k} (other points)")
+    return fits
 
 
 def _select_passes(tp, seg: Segmentation, passes):

@@ -112,6 +112,9 @@ class Setting:
         The unit people type on the command line ("mm", "mm/s", "deg", "Hz"); "" when it is ``unit``.
     per_si : float
         Typed units per SI unit: typed value = SI value * ``per_si`` (1e3 for m -> mm).
+    usual : tuple of float or None
+        "number": the range (SI) real jobs lie in. A value inside ``lo, hi`` but outside this is planned, and the
+        command line warns, naming the likely unit mistake (``--feed 0.05``: 0.05 mm/s, or 0.05 m/s meant?).
     """
 
     name: str
@@ -127,6 +130,7 @@ class Setting:
     flag: str | None = None
     typed: str = ""
     per_si: float = 1.0
+    usual: tuple[float, float] | None = None
 
     @property
     def typed_unit(self) -> str:
@@ -213,11 +217,12 @@ class PlanSettings:
     frame: str = _setting("rmf", "choice", "spin method about the tool axis (methods other than rmf need the axes "
                           "path)", choices=FRAME_METHODS, flag="--frame")
     feed: float = _setting(0.05, "number", "feed where the file gives none", unit="m/s", lo=MIN_FEED, hi=MAX_FEED,
-                           lo_closed=True, flag="--feed", typed="mm/s", per_si=1e3)
+                           lo_closed=True, flag="--feed", typed="mm/s", per_si=1e3, usual=(1e-3, 2.0))
     feed_override: float = _setting(1.0, "number", "factor on every cutting feed (the file's and the feed), like a "
                                     "CNC feed override", lo=0.0, hi=10.0, flag="--feed-override")
     rapid_speed: float = _setting(0.25, "number", "speed of rapid moves between passes", unit="m/s", lo=MIN_FEED,
-                                  hi=MAX_FEED, lo_closed=True, flag="--rapid-speed", typed="mm/s", per_si=1e3)
+                                  hi=MAX_FEED, lo_closed=True, flag="--rapid-speed", typed="mm/s", per_si=1e3,
+                                  usual=(5e-3, 5.0))
     limits: MotionLimits = _setting(DEFAULT_LIMITS, "limits", "limits of the cutting motion: speed, acceleration, "
                                     "jerk of the TCP, angular speed of the tool", unit="m/s, m/s^2, m/s^3, rad/s")
     turn_limits: MotionLimits = _setting(DEFAULT_TURN_LIMITS, "limits", "angular speed, acceleration and jerk of "

@@ -1,4 +1,5 @@
-"""``python -m sim --host 127.0.0.2 --model ur5e [--modbus-port 5020] [--speed 1.0] [--record FILE]``.
+"""``python -m sim --host 127.0.0.2 --model ur5e [--polyscope 5.11.6] [--modbus-port 5020] [--speed 1.0]
+[--record FILE]``.
 
 Runs a simulated UR controller until Ctrl-C (or ``quit``); prints where it serves. Lines typed on stdin
 act on the controller as a person at the cell would (:data:`COMMANDS`): press or release the emergency
@@ -15,6 +16,7 @@ import threading
 import time
 
 from sim.controller import SimController, SimError
+from sim.versions import DEFAULT
 
 COMMANDS = {
     "estop": "press the teach pendant's emergency stop ('estop system': the cell's emergency stop input)",
@@ -63,7 +65,7 @@ def _console(sim: SimController) -> None:
     for line in sys.stdin:
         try:
             out = command(sim, line)
-        except SimError as exc:
+        except (SimError, ValueError) as exc:  # ValueError: e.g. local control on a controller older than 5.6
             out = f"error: {exc}"
         if out:
             print(out, flush=True)
@@ -81,20 +83,23 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--record", default=None, help="write a recording (.npz or .csv) when stopped")
     ap.add_argument("--allow-remote", action="store_true", help="allow a non-loopback --host")
     ap.add_argument("--local-control", action="store_true", help="start in local control mode (the pendant's)")
+    ap.add_argument("--polyscope", default=DEFAULT.text.rsplit(".", 1)[0],
+                    help="the PolyScope 5 version to report and behave as, e.g. 5.4.0 (default 5.11.6): RTDE fields "
+                         "and dashboard commands newer than it are unknown")
     args = ap.parse_args(argv)
     started = time.time()
     try:
         sim = SimController(args.host, args.model, None if args.no_modbus else args.modbus_port, args.speed,
                             args.record, allow_remote=args.allow_remote,
-                            remote_control=not args.local_control).start()
+                            remote_control=not args.local_control, polyscope=args.polyscope).start()
     except (ValueError, SimError) as exc:
         print(f"error: {exc}", file=sys.stderr)
         return 2
     except KeyboardInterrupt:  # Ctrl-C while it starts (the child is stopped at exit)
         return 130
     try:
-        print(f"simulated {sim.model} on {sim.host}: RTDE 30004, dashboard 29999, primary 30001, secondary 30002, "
-              "script 30003"
+        print(f"simulated {sim.model} (PolyScope {sim.version.text}) on {sim.host}: RTDE 30004, dashboard 29999, "
+              "primary 30001, secondary 30002, real-time 30003"
               + (f", Modbus {sim.ports.get('modbus')}" if sim.ports.get("modbus") else "")
               + " (Ctrl-C stops; type 'help' for commands)", flush=True)
         signal.signal(signal.SIGTERM, lambda *_: sim.stop())

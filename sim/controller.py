@@ -26,6 +26,7 @@ import weakref
 from pathlib import Path
 
 from sim.hosts import check_host, check_speed
+from sim.versions import DEFAULT, REMOTE_CONTROL_SINCE, SoftwareVersion, parse_polyscope
 
 _LIVE: weakref.WeakSet = weakref.WeakSet()
 _REPO = Path(__file__).resolve().parents[1]
@@ -62,12 +63,19 @@ class SimController:
         Start in remote control mode (True, what a cell run from a computer uses) or in local control
         mode (False: the pendant is in control; the dashboard's ``is in remote control`` says false and
         it refuses to load or play programs, power on or release the brakes; the script ports refuse
-        programs). See :meth:`set_remote_control`.
+        programs). See :meth:`set_remote_control`. Local control needs PolyScope 5.6 or later.
+    polyscope : str or sim.versions.SoftwareVersion
+        The PolyScope 5 version the controller reports and behaves as: ``"5.11.6"`` (default), ``"5.4.0"``,
+        ``"5.9.4.1234"`` (with its build number). Every interface reports it (dashboard ``PolyscopeVersion``, the
+        primary interface's version message, RTDE ``get_urcontrol_version``), RTDE fields newer than it answer
+        ``NOT_FOUND``, dashboard commands newer than it are not understood, the real-time interface sends that
+        release's package. CB3 (3.x) and PolyScope X (10.x) versions are refused (ValueError).
     """
 
     def __init__(self, host: str = "127.0.0.2", model: str = "ur5e", modbus_port: int | None = 5020,
                  speed: float = 1.0, record=None, *, allow_remote: bool = False,
-                 startup_timeout: float = 20.0, realtime: bool = True, remote_control: bool = True) -> None:
+                 startup_timeout: float = 20.0, realtime: bool = True, remote_control: bool = True,
+                 polyscope: str | SoftwareVersion = DEFAULT) -> None:
         from planner.kinematics import get_model
 
         self.host = check_host(host, allow_remote)
@@ -97,6 +105,9 @@ class SimController:
         if not isinstance(remote_control, bool):
             raise ValueError(f"remote_control must be True or False, got {remote_control!r}")
         self.remote_control = remote_control
+        self.version = parse_polyscope(polyscope)
+        if not remote_control:
+            self._check_local_control()
         self.proc: subprocess.Popen | None = None
         self.ports: dict = {}
         self._lock = threading.Lock()
@@ -118,6 +129,7 @@ class SimController:
             cmd.append("--no-realtime")
         if not self.remote_control:
             cmd.append("--local-control")
+        cmd += ["--polyscope", self.version.text]
         env = dict(os.environ)
         env["PYTHONPATH"] = str(_REPO) + (os.pathsep + env["PYTHONPATH"] if env.get("PYTHONPATH") else "")
         # the child's stderr goes to a file (a pipe nobody reads could fill up and stall the child)
@@ -248,10 +260,16 @@ class SimController:
         self._ask({"cmd": "speed", "speed": speed})
         self.speed = speed
 
+    def _check_local_control(self) -> None:
+        if not self.version.at_least(REMOTE_CONTROL_SINCE):
+            raise ValueError(f"remote_control: PolyScope {self.version.text} has no local control mode (from 5.6.0)")
+
     def set_remote_control(self, on: bool) -> None:
         """Switch between remote (True) and local (False) control, as on the teach pendant."""
         if not isinstance(on, bool):
             raise ValueError(f"on must be True or False, got {on!r}")
+        if not on:
+            self._check_local_control()
         self._ask({"cmd": "remote_control", "on": on})
         self.remote_control = on
 

@@ -24,18 +24,20 @@ pendant's choice) the script ports refuse programs and the dashboard refuses wha
 from __future__ import annotations
 
 import collections
+import math
 import re
 import threading
 
 import numpy as np
 
-from planner.kinematics import forward, forward_matrix, link_frames
+from planner.kinematics import forward, forward_matrix
 from sim.control_script import ControlScript
 from sim.motion import DT, GRAVITY, MotionModel, Segment
 from sim.primary_packages import READ_ONLY_INTERFACE
 from sim.programs import PathMove, ProgramError, head_of, parse_program
 from sim.rtde_fields import Registers
 from sim.urscript import URScriptProgram, compile_line, compile_program
+from sim.versions import DEFAULT, REMOTE_CONTROL_SINCE, SoftwareVersion
 
 ROBOT_POWER_OFF, ROBOT_IDLE, ROBOT_RUNNING = 3, 5, 7
 SAFETY_NORMAL, SAFETY_PROTECTIVE_STOP = 1, 3
@@ -50,6 +52,14 @@ PROGRAM_STOP_DELAY = 0.1
 MODE_NAMES = {3: "POWER_OFF", 5: "IDLE", 7: "RUNNING"}
 SAFETY_NAMES = {1: "NORMAL", 3: "PROTECTIVE_STOP", 6: "SYSTEM_EMERGENCY_STOP", 7: "ROBOT_EMERGENCY_STOP"}
 RUNTIME_NAMES = {1: "STOPPED", 2: "PLAYING", 4: "PAUSED"}
+
+
+def _link3_origin(model, q: np.ndarray) -> np.ndarray:
+    """``link_frames(model, q)[3][:3, 3]`` in closed form (UR's DH: alpha 90, 0, 0 degrees, d2 = d3 = a1 = 0)."""
+    q1, q2, q3 = float(q[0]), float(q[1]), float(q[2])
+    x = model.a2 * math.cos(q2) + model.a3 * math.cos(q2 + q3)  # in link 1's frame
+    y = model.a2 * math.sin(q2) + model.a3 * math.sin(q2 + q3)
+    return np.array([x * math.cos(q1), x * math.sin(q1), model.d1 + y])
 
 
 def _line_of(text: str) -> int:
@@ -69,11 +79,14 @@ class Core:
         The controller's I/O, shared with the Modbus server.
     recorder : sim.recording.Recorder, optional
         Receives every period's state and every safety / program event.
+    version : sim.versions.SoftwareVersion
+        The PolyScope release the controller reports and behaves as (its RTDE fields, dashboard commands).
     """
 
-    def __init__(self, model: str, io, recorder=None) -> None:
+    def __init__(self, model: str, io, recorder=None, version: SoftwareVersion = DEFAULT) -> None:
         self.lock = threading.RLock()
         self.model_name = model
+        self.version = version
         self.motion = MotionModel(model)
         self.registers = Registers()
         self.io = io
@@ -103,6 +116,7 @@ class Core:
         self.watchdog: tuple[str, float] | None = None
         self._history: collections.deque[np.ndarray] = collections.deque(maxlen=1000)
         self._tcp_cache: tuple[int, np.ndarray, np.ndarray] | None = None
+        self._elbow_cache: tuple[int, np.ndarray] | None = None
         self._speed = np.zeros(6)
         self._accel = np.zeros(6)
         self._speed_step = -1
@@ -186,7 +200,13 @@ class Core:
         return self._tcp_matrix()[:3, :3].T @ GRAVITY
 
     def elbow_position(self) -> np.ndarray:
-        return link_frames(self.motion.model, self.motion.q)[3][:3, 3]
+        """The elbow's position (m, base frame) of the current joints (computed on demand, cached per period: the
+        real-time interface sends it every period)."""
+        cache = self._elbow_cache
+        if cache is None or cache[0] != self.steps:
+            cache = (self.steps, _link3_origin(self.motion.model, self.motion.q))
+            self._elbow_cache = cache
+        return cache[1]
 
     def tcp_changed(self) -> None:
         self._tcp_cache = None
@@ -275,8 +295,12 @@ class Core:
         return True
 
     def set_remote_control(self, on: bool) -> None:
-        """The pendant's switch between local and remote control (a running program keeps running)."""
+        """The pendant's switch between local and remote control (a running program keeps running); ValueError on a
+        controller older than PolyScope 5.6, which has no such switch (always remote)."""
         on = bool(on)
+        if not on and not self.version.at_least(REMOTE_CONTROL_SINCE):
+            raise ValueError(f"local control: PolyScope {self.version.text} has no local / remote control switch "
+                             "(from 5.6.0)")
         if on != self.remote_control:
             self.remote_control = on
             self.message(f"Control mode: {'remote' if on else 'local'}", source="Controller", level=3)

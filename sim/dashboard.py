@@ -1,4 +1,4 @@
-"""Dashboard server (TCP 29999): line commands and the controller's reply strings (PolyScope 5.11).
+"""Dashboard server (TCP 29999): line commands and the controller's reply strings (PolyScope 5).
 
 Replies follow Universal Robots' dashboard server documentation for e-Series as the clients check
 them (ur_rtde 1.6.5 src/dashboard_client.cpp compares ``Stopped``, ``Starting program``,
@@ -11,6 +11,9 @@ start programs, power or release the arm, or clear its stops are refused with th
 e-Series dashboard documentation and Universal Robots' ROS driver documentation (remote control is
 needed to power on, release the brakes, load and start programs, and restart after a protective or
 emergency stop), and what URSim answers in local mode.
+
+The controller's version (:attr:`sim.core.Core.version`) is what ``PolyscopeVersion`` and ``version`` answer; a
+command newer than it (`COMMANDS_SINCE`) is not understood, as on a controller of that version.
 """
 
 from __future__ import annotations
@@ -19,18 +22,26 @@ import socket
 
 from sim import core as c
 from sim.listeners import Listeners
-from sim.rtde_server import CONTROLLER_RELEASE, CONTROLLER_VERSION
 
 GREETING = "Connected: Universal Robots Dashboard Server"
 SERIAL_NUMBER = "20235500001"
-VERSION = ".".join(str(v) for v in CONTROLLER_VERSION)
-POLYSCOPE_VERSION = f"URSoftware {VERSION} ({CONTROLLER_RELEASE:%b %d %Y})"
 #: The controller's reply to a command it takes only in remote control mode, while in local control mode.
 LOCAL_REFUSAL = ("Command is not allowed due to safety reasons, please switch robot to Remote Control mode "
                  "and reconnect to port 29999")
 #: Commands refused in local control mode (lower case; ``load`` covers ``load <program>``).
 REMOTE_ONLY = ("load", "load installation", "play", "stop", "pause", "power on", "power off", "brake release",
                "unlock protective stop", "restart safety", "shutdown")
+#: Commands newer than PolyScope 5.0 (lower case) -> the release that brought them; an older controller answers
+#: them as an unknown command. Universal Robots' C++ client library's dashboard command table
+#: (``src/ur/dashboard_client_implementation_g5.cpp``, its e-Series column).
+COMMANDS_SINCE: dict[str, tuple[int, int, int]] = {
+    "restart safety": (5, 1, 0),
+    "safetystatus": (5, 4, 0),
+    "is in remote control": (5, 6, 0),
+    "get serial number": (5, 6, 0),
+    "get robot model": (5, 6, 0),
+    "get operational mode": (5, 6, 0),
+}
 
 
 class DashboardServer(Listeners):
@@ -69,6 +80,8 @@ class DashboardServer(Listeners):
         with core.lock:
             if cmd == "quit":
                 return "Disconnected", True
+            if cmd in COMMANDS_SINCE and not core.version.at_least(COMMANDS_SINCE[cmd]):
+                return f"could not understand: '{text}'", False
             if not core.remote_control and (cmd in REMOTE_ONLY or cmd.startswith("load ")):
                 return LOCAL_REFUSAL, False
             if cmd == "shutdown":
@@ -120,9 +133,9 @@ class DashboardServer(Listeners):
             if cmd == "is in remote control":
                 return ("true" if core.remote_control else "false"), False
             if cmd == "polyscopeversion":
-                return POLYSCOPE_VERSION, False
+                return core.version.polyscope_text, False
             if cmd == "version":
-                return VERSION, False
+                return core.version.text, False
             if cmd == "get serial number":
                 return SERIAL_NUMBER, False
             if cmd == "get robot model":

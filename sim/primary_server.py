@@ -22,7 +22,6 @@ from sim import primary_packages as pp
 from sim.core import ROBOT_POWER_OFF, RUNTIME_PAUSED, RUNTIME_PLAYING
 from sim.listeners import Listeners
 from sim.motion import JOINT_ACCEL_MAX
-from sim.rtde_server import CONTROLLER_RELEASE, CONTROLLER_VERSION
 from sim.script_server import serve_scripts
 from sim.streams import OutputStream
 
@@ -31,7 +30,6 @@ PRIMARY_PORT, SECONDARY_PORT = 30001, 30002
 STATE_PERIOD = 0.1
 #: Seconds a client may send without a pause before the version message and state packages reach it (see serve).
 QUIET = 0.05
-BUILD_DATE = f"{CONTROLLER_RELEASE:%d-%m-%Y}, 12:00:00"
 
 
 def state_sample(core) -> pp.StateSample:
@@ -95,7 +93,7 @@ class PrimaryServer(Listeners):
         # (RST) and can discard the end of its program before it is read
         out = OutputStream(sock, held=True)
         with self.core.lock:
-            out.write(pp.version_message(self.core.time, CONTROLLER_VERSION, BUILD_DATE))
+            out.write(pp.version_message(self.core.time, self.core.version.words, self.core.version.message_build_date))
         with self._lock:
             self.streams[out] = port
         try:

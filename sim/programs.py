@@ -7,6 +7,13 @@ line is a one-line program of its own. ur_rtde 1.6.5 (src/script_client.cpp) sen
 ``# int register offset`` and, for path moves, ``signal_async_progress(i)`` and
 ``movel(p[...],a=..,v=..,r=..)`` / ``movej([...],...)`` / ``movep(...)`` lines after
 ``# inject move path`` (src/rtde_control_interface.cpp, ``PathEntry::toScriptCode``).
+
+Program size: the simulated controller refuses a program larger than :data:`MAX_PROGRAM_BYTES` whole, as a
+program that does not compile (nothing of it runs, the message names its size and the limit). UR documents no
+limit for the script ports; users report CB-Series controllers that ignore programs of 1,000-2,500 moves and one
+that crashed on 18 MB; RoboDK's UR post-processor cut programs into pages of 5,000 lines (about 350 kB). The
+simulator takes 250,000 bytes (ur_rtde 1.6.5's control script, 42 kB and 1175 lines, runs), the limit
+:data:`planner.export.job_script.MAX_PROGRAM_BYTES` keeps the exported programs to.
 """
 
 from __future__ import annotations
@@ -25,6 +32,8 @@ _MOVE = re.compile(
 )
 _PROGRESS = re.compile(r"^\s*signal_async_progress\((\d+)\)\s*$")
 _HEAD = re.compile(r"^(def|sec)\s+([A-Za-z_][A-Za-z_0-9]*)\s*\(\s*\)\s*:\s*$")
+#: The largest program the simulated controller takes on its script ports, bytes (see the module doc).
+MAX_PROGRAM_BYTES = 250_000
 
 
 class ProgramError(ValueError):
@@ -116,7 +125,12 @@ def head_of(text: str) -> str | None:
 
 
 def parse_program(text: str) -> Program:
-    """Recognize a framed program; ur_rtde's control script gets its offsets and injected path."""
+    """Recognize a framed program; ur_rtde's control script gets its offsets and injected path. ProgramError for
+    a program larger than :data:`MAX_PROGRAM_BYTES`."""
+    size = len(text.encode("utf-8", "replace"))
+    if size > MAX_PROGRAM_BYTES:
+        raise ProgramError(f"program too large: {size} bytes, {text.count(chr(10))} lines (this controller takes at "
+                           f"most {MAX_PROGRAM_BYTES} bytes per program); nothing of it runs")
     first = text.split("\n", 1)[0].rstrip()
     head = _HEAD.match(first)
     name = head.group(2) if head else "<line>"

@@ -2,9 +2,10 @@
 
 Names and types follow Universal Robots' RTDE guide (the table in Universal Robots' C++ client library,
 ``src/rtde/data_package.cpp``, and ur_rtde 1.6.5's ``src/robot_state.cpp``): every output and input name
-that table knows is served. Variables the simulator has no physics for (currents, torques, forces, energy,
-encoders, temperatures) are served with constant values, listed in `CONSTANT_OUTPUTS`: zeros for what
-it models nothing of, plausible constants for supply voltages and temperatures.
+that table knows is served, from the PolyScope release that introduced it (`INTRODUCED`): a field newer than the
+controller's version answers ``NOT_FOUND``, as an unknown name does. Variables the simulator has no physics for
+(currents, torques, forces, energy, encoders, temperatures) are served with constant values, listed in
+`CONSTANT_OUTPUTS`: zeros for what it models nothing of, plausible constants for supply voltages and temperatures.
 
 Outputs read a :class:`Snapshot` of the controller taken once per data package; inputs are applied by
 the RTDE server (``sim.rtde_server``) through the controller's register file and I/O state.
@@ -19,7 +20,7 @@ import numpy as np
 from planner.kinematics.ur_outputs import UR_OUTPUTS
 from sim.motion import DT, GRAVITY
 
-N_REGISTERS = 48  # int and double registers 0..47 (24..47 from PolyScope 5.3)
+N_REGISTERS = 48  # int and double registers 0..47 (24..47 from PolyScope 5.3: `INTRODUCED`)
 BIT_REGISTERS = range(64, 128)  # general-purpose bit registers (the guide's X in [64..127])
 _CONFIGURABLE = UR_OUTPUTS["configurable"]
 
@@ -172,15 +173,47 @@ def _input_fields() -> dict[str, str]:
 INPUTS: dict[str, str] = _input_fields()
 
 
-def output_type(name: str) -> str:
-    """The RTDE type of output ``name``, or ``NOT_FOUND``."""
+#: The PolyScope 5 release that introduced a field (outputs and inputs alike); a field not listed is in every 5.x.
+#: Sources (sim/PROTOCOLS.md): UR's RTDE guide's "introduced in" column as Universal Robots' C++ client library's tests
+#: held it (the e-Series column of ``EXHAUSTIVE_OUTPUTS_WITH_COMPATIBILITY``, commit 9443dd13 of 2024, "based on" the
+#: guide) and its later commits adding fields; ur_rtde 1.6.5's version checks (``rtde_receive_interface.cpp``).
+INTRODUCED: dict[str, tuple[int, int, int]] = {
+    "safety_status": (5, 4, 0),  # client library tests
+    "payload": (5, 5, 1),  # client library tests; ur_rtde (5.5.1)
+    "payload_cog": (5, 5, 1),
+    "tcp_offset": (5, 5, 1),  # client library pull request 110 and its compatibility table
+    "ft_raw_wrench": (5, 9, 0),  # client library tests; ur_rtde
+    "payload_inertia": (5, 11, 0),  # ur_rtde (the guide gives none)
+    "collision_detection_ratio": (5, 15, 0),  # client library tests
+    "time_scale_source": (5, 17, 0),  # client library tests
+    "actual_current_as_torque": (5, 23, 0),  # ur_rtde
+    "target_gravity": (5, 26, 0),  # client library pull request 420
+    "target_base_acceleration": (5, 26, 0),
+    "control_step": (5, 26, 0),  # client library pull request 529
+    "target_base_wrench": (5, 26, 0),  # client library pull request 539
+    # the upper registers (int and double 24..47, bits 64..127): client library tests; ur_rtde (5.3)
+    **{f"{d}_{k}_register_{i}": (5, 3, 0) for d in ("input", "output") for k in ("int", "double")
+       for i in range(24, N_REGISTERS)},
+    **{f"{d}_bit_register_{i}": (5, 3, 0) for d in ("input", "output") for i in BIT_REGISTERS},
+}
+
+
+def available(name: str, version=None) -> bool:
+    """Whether a controller of ``version`` (a :class:`sim.versions.SoftwareVersion`; None: any) has field ``name``
+    (``name`` must be a known field: `OUTPUTS` or `INPUTS`)."""
+    return version is None or version.at_least(INTRODUCED.get(name, (5, 0, 0)))
+
+
+def output_type(name: str, version=None) -> str:
+    """The RTDE type of output ``name`` on a controller of ``version`` (None: the newest), or ``NOT_FOUND``."""
     entry = OUTPUTS.get(name)
-    return entry[0] if entry else "NOT_FOUND"
+    return entry[0] if entry and available(name, version) else "NOT_FOUND"
 
 
-def input_type(name: str) -> str:
-    """The RTDE type of input ``name``, or ``NOT_FOUND``."""
-    return INPUTS.get(name, "NOT_FOUND")
+def input_type(name: str, version=None) -> str:
+    """The RTDE type of input ``name`` on a controller of ``version`` (None: the newest), or ``NOT_FOUND``."""
+    t = INPUTS.get(name)
+    return t if t is not None and available(name, version) else "NOT_FOUND"
 
 
 class Registers:

@@ -1,8 +1,12 @@
-"""RTDE wire format (protocol version 2): package header, field types, packing of data packages.
+"""RTDE wire format (protocol versions 1 and 2): package header, field types, packing of data packages.
 
 A package is ``>HB`` (uint16 size including the 3-byte header, uint8 type) then its payload, big-endian,
 IEEE doubles. The package types and field types below are those of Universal Robots' RTDE guide as
-ur_rtde 1.6.5 (src/rtde.cpp, include/ur_rtde/rtde.h) sends and parses them.
+ur_rtde 1.6.5 (src/rtde.cpp, include/ur_rtde/rtde.h) sends and parses them. What differs between the protocol
+versions (`PROTOCOL_VERSIONS`), as UR's C++ client library reads and writes them (``src/rtde/``): in version 1
+the output setup request has no frequency (outputs come every control period) and its answer, like every output
+data package, no recipe id; a text message is ``uint8 level`` then the text, and goes from the controller to
+the client only.
 """
 
 from __future__ import annotations
@@ -28,7 +32,10 @@ PACKAGE_TYPES = frozenset(
      START, PAUSE}
 )
 
-# text message levels (protocol version 2)
+#: The protocol versions the controller speaks; a connection speaks version 1 until the client asks for another.
+PROTOCOL_VERSIONS = (1, 2)
+
+# text message levels
 EXCEPTION, ERROR, WARNING, INFO = 0, 1, 2, 3
 
 #: Field type name -> struct code (big-endian, without the leading '>').
@@ -53,9 +60,12 @@ def package(kind: int, payload: bytes = b"") -> bytes:
     return HEADER.pack(HEADER_SIZE + len(payload), kind) + payload
 
 
-def text_message(message: str, source: str = "RTDE", level: int = ERROR) -> bytes:
-    """An 'M' package: uint8 length + message, uint8 length + source, uint8 warning level."""
+def text_message(message: str, source: str = "RTDE", level: int = ERROR, protocol: int = 2) -> bytes:
+    """An 'M' package: protocol version 2: uint8 length + message, uint8 length + source, uint8 warning level;
+    version 1: uint8 level + message (no source)."""
     m = message.encode("utf-8", "replace")[:255]
+    if protocol == 1:
+        return package(TEXT_MESSAGE, bytes([level]) + m)
     s = source.encode("utf-8", "replace")[:255]
     return package(TEXT_MESSAGE, bytes([len(m)]) + m + bytes([len(s)]) + s + bytes([level]))
 

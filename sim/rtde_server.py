@@ -6,6 +6,17 @@ another connection owns (recipe id 0 then); recipe ids count 1, 2, 3 ... per con
 packages ('U') are accepted before 'S' (RTDEIOInterface never starts). Output packages go out at the
 recipe's frequency, on the controller's absolute 500 Hz schedule, only while the connection is started.
 
+The controller's version (:attr:`sim.core.Core.version`) is what ``get_urcontrol_version`` answers, and it decides
+which fields exist: a field newer than it answers ``NOT_FOUND`` in an output or input recipe (recipe id 0), as an
+unknown name does (:func:`sim.rtde_fields.output_type`, :func:`sim.rtde_fields.input_type`).
+
+Protocol versions (the RTDE guide's, as UR's C++ client library speaks them): a connection speaks version 1
+until the client asks for version 2 ('V'); a version other than 1 or 2, or a change of version once a recipe is set
+up or the synchronization started, is refused (0) and the connection keeps its version. In version 1 an output
+setup carries no frequency (outputs every control period, 500 Hz) and its answer no recipe id, the connection has
+one output recipe (a new setup replaces it), output data packages carry no recipe id, text messages are ``uint8
+level`` + text, and a text message from the client is answered with an error (version 1's go to the client only).
+
 Malformed input, answered as a controller does without disturbing other clients: a package shorter
 than its header or larger than its stream allows closes that connection; an unknown package type, a
 data package for an unknown recipe or one shorter than its recipe gets an error text message ('M')
@@ -14,7 +25,6 @@ and is ignored; a data package longer than its recipe is applied (its recipe's f
 
 from __future__ import annotations
 
-import datetime
 import os
 import socket
 import struct
@@ -26,9 +36,6 @@ from sim.hosts import set_realtime_priority
 from sim.rtde_fields import INPUTS, OUTPUTS, Snapshot, input_type, output_type
 from sim.streams import OutputStream
 
-CONTROLLER_VERSION = (5, 11, 6, 108949)
-#: Release date of that PolyScope version (the dashboard's and the version message's build date).
-CONTROLLER_RELEASE = datetime.date(2021, 7, 27)
 MAX_FREQUENCY = 500.0
 
 
@@ -39,11 +46,17 @@ class Connection(OutputStream):
         super().__init__(sock)
         self.server = server
         self.addr = addr
-        self.outputs: list[tuple[rp.Recipe, list, struct.Struct, float]] = []  # recipe, getters, layout, phase
+        # recipe, getters, layout (with the recipe id byte in protocol version 2), the id as packed, phase
+        self.outputs: list[tuple[rp.Recipe, list, struct.Struct, tuple, float]] = []
         self.inputs: dict[int, rp.Recipe] = {}
         self.next_output_id = 1
         self.next_input_id = 1
         self.started = False
+        self.protocol = 1  # RTDE protocol version; 2 once the client asked for it
+
+    def text(self, message: str, level: int = rp.ERROR, source: str = "RTDE") -> None:
+        """Send a text message in the connection's protocol version."""
+        self.write(rp.text_message(message, source, level, self.protocol))
 
     # ---- input -------------------------------------------------------------------------------
     def serve(self) -> None:
@@ -63,7 +76,7 @@ class Connection(OutputStream):
                 while len(buf) >= rp.HEADER_SIZE:
                     size, kind = rp.HEADER.unpack_from(buf)
                     if size < rp.HEADER_SIZE:
-                        self.write(rp.text_message(f"malformed package: size {size} < header size 3", level=0))
+                        self.text(f"malformed package: size {size} < header size 3", level=rp.EXCEPTION)
                         return
                     if len(buf) < size:
                         break
@@ -76,10 +89,15 @@ class Connection(OutputStream):
     def handle(self, kind: int, payload: bytes) -> None:
         """Answer one package."""
         if kind == rp.REQUEST_PROTOCOL_VERSION:
-            ok = len(payload) == 2 and struct.unpack(">H", payload)[0] in (1, 2)
+            version = struct.unpack(">H", payload)[0] if len(payload) == 2 else 0
+            # a recipe's layout depends on the version: no change once one is set up or the synchronization started
+            ok = version in rp.PROTOCOL_VERSIONS and (version == self.protocol or not (
+                self.outputs or self.inputs or self.started))
+            if ok:
+                self.protocol = version
             self.write(rp.package(kind, bytes([1 if ok else 0])))
         elif kind == rp.GET_URCONTROL_VERSION:
-            self.write(rp.package(kind, struct.pack(">IIII", *CONTROLLER_VERSION)))
+            self.write(rp.package(kind, struct.pack(">IIII", *self.server.core.version.words)))
         elif kind == rp.SETUP_OUTPUTS:
             self._setup_outputs(payload)
         elif kind == rp.SETUP_INPUTS:
@@ -93,36 +111,46 @@ class Connection(OutputStream):
         elif kind == rp.DATA_PACKAGE:
             self._data(payload)
         elif kind == rp.TEXT_MESSAGE:
-            pass  # clients may log to the controller
+            if self.protocol == 1:  # version 1's text messages go from the controller to the client only
+                self.text("a text message from the client needs RTDE protocol version 2")
+            # version 2: clients may log to the controller
         else:
-            self.write(rp.text_message(f"unknown package type {kind}", level=rp.ERROR))
+            self.text(f"unknown package type {kind}")
 
     @staticmethod
     def _names(text: bytes) -> tuple[str, ...]:
         return tuple(n.strip() for n in text.decode("ascii", "replace").split(",") if n.strip())
 
     def _setup_outputs(self, payload: bytes) -> None:
-        if len(payload) < 8:
+        if self.protocol == 1:  # names only; outputs every control period; one recipe, answered without its id
+            freq, names = MAX_FREQUENCY, self._names(payload)
+        elif len(payload) < 8:
             self.write(rp.package(rp.SETUP_OUTPUTS, bytes([0])))
             return
-        (freq,) = struct.unpack_from(">d", payload)
-        names = self._names(payload[8:])
-        types = tuple(output_type(n) for n in names)
+        else:
+            (freq,) = struct.unpack_from(">d", payload)
+            names = self._names(payload[8:])
+        types = tuple(output_type(n, self.server.core.version) for n in names)
         ok = bool(names) and all(t != "NOT_FOUND" for t in types) and 0.0 < freq
         rid = self.next_output_id if ok else 0
         if ok:
             self.next_output_id += 1
             recipe = rp.Recipe(rid, names, types, min(freq, MAX_FREQUENCY))
-            self.outputs.append((recipe, [OUTPUTS[n][1] for n in names], struct.Struct(">B" + recipe.struct.format[1:]),
-                                 0.0))
-        self.write(rp.package(rp.SETUP_OUTPUTS, bytes([rid]) + ",".join(types).encode()))
+            getters = [OUTPUTS[n][1] for n in names]
+            if self.protocol == 1:
+                with self.server.core.lock:  # not while the control loop sends this connection's packages
+                    self.outputs[:] = [(recipe, getters, recipe.struct, (), 0.0)]
+            else:
+                self.outputs.append((recipe, getters, struct.Struct(">B" + recipe.struct.format[1:]), (rid,), 0.0))
+        answer = ",".join(types).encode()
+        self.write(rp.package(rp.SETUP_OUTPUTS, answer if self.protocol == 1 else bytes([rid]) + answer))
 
     def _setup_inputs(self, payload: bytes) -> None:
         names = self._names(payload)
         with self.server.owner_lock:
             types = []
             for n in names:
-                t = input_type(n)
+                t = input_type(n, self.server.core.version)
                 owner = self.server.owners.get(n)
                 if t != "NOT_FOUND" and owner is not None and owner is not self:
                     t = "IN_USE"
@@ -138,24 +166,21 @@ class Connection(OutputStream):
 
     def _data(self, payload: bytes) -> None:
         if not payload:
-            self.write(rp.text_message("data package without recipe id", level=rp.ERROR))
+            self.text("data package without recipe id")
             return
         rid = payload[0]
         recipe = self.inputs.get(rid)
         if recipe is None:
-            self.write(rp.text_message(f"data package for unknown input recipe id {rid}", level=rp.ERROR))
+            self.text(f"data package for unknown input recipe id {rid}")
             return
         layout = recipe.struct
         body = payload[1:]
         if len(body) < layout.size:
-            self.write(rp.text_message(
-                f"data package for input recipe {rid} has {len(body)} bytes, the recipe needs {layout.size}",
-                level=rp.ERROR))
+            self.text(f"data package for input recipe {rid} has {len(body)} bytes, the recipe needs {layout.size}")
             return
         if len(body) > layout.size:
-            self.write(rp.text_message(
-                f"data package for input recipe {rid} has {len(body)} bytes, the recipe needs {layout.size}; "
-                "extra bytes ignored", level=rp.WARNING))
+            self.text(f"data package for input recipe {rid} has {len(body)} bytes, the recipe needs {layout.size}; "
+                      "extra bytes ignored", level=rp.WARNING)
         values = rp.unflatten(recipe.types, layout.unpack_from(body))
         self.server.apply_inputs(dict(zip(recipe.names, values, strict=True)))
 
@@ -264,19 +289,19 @@ class RTDEServer:
             if not conn.started or conn.closed:
                 continue
             for text, source, level in msgs:
-                conn.write(rp.text_message(text, source, level))
-            for k, (recipe, getters, layout, phase) in enumerate(conn.outputs):
+                conn.text(text, level, source)
+            for k, (recipe, getters, layout, head, phase) in enumerate(conn.outputs):
                 phase += ticks * recipe.frequency / MAX_FREQUENCY
                 if phase >= 1.0 - 1e-9:
                     phase = min(phase - 1.0, 1.0)
                     if snap is None:
                         snap = Snapshot(core)
                     vals = rp.flatten(recipe.types, [g(snap) for g in getters])
-                    body = layout.pack(recipe.recipe_id, *vals)
+                    body = layout.pack(*head, *vals)
                     conn.write(rp.package(rp.DATA_PACKAGE, body))
                     sent += 1
-                conn.outputs[k] = (recipe, getters, layout, phase)
+                conn.outputs[k] = (recipe, getters, layout, head, phase)
         return sent
 
 
-__all__ = ["RTDEServer", "Connection", "INPUTS", "CONTROLLER_VERSION", "CONTROLLER_RELEASE"]
+__all__ = ["RTDEServer", "Connection", "INPUTS"]

@@ -4,19 +4,16 @@ Each connection's byte stream is cut into programs (:class:`sim.programs.Program
 replaces the running one (:meth:`sim.core.Core.load_program`), which runs ur_rtde's control script and refuses
 anything it cannot run whole, and every program in local control mode. A one-line program that is one of
 `PRIMARY_COMMANDS` (what UR's C++ client library sends to power the arm on, release its brakes, unlock a protective
-stop or stop the program) is carried out instead, and refused in local control mode. :class:`ScriptServer` serves
-port 30003 (the real-time port, whose state stream is not sent); :mod:`sim.primary_server` serves 30001 and 30002.
+stop or stop the program) is carried out instead, and refused in local control mode. :mod:`sim.primary_server` serves
+30001 and 30002, :mod:`sim.realtime_server` 30003, each beside its state stream.
 """
 
 from __future__ import annotations
 
 import socket
 
-from sim.listeners import Listeners
 from sim.primary_packages import READ_ONLY_INTERFACE, WARNING
 from sim.programs import ProgramFramer
-
-SCRIPT_PORTS = (30003,)
 
 
 def _unlock(core) -> None:
@@ -70,15 +67,3 @@ def serve_scripts(core, sock: socket.socket, on_quiet=None, quiet: float = 0.05)
             with core.lock:
                 take_script(core, text, port)
 
-
-class ScriptServer(Listeners):
-    """The script-only client ports of one simulated controller (30003)."""
-
-    name = "script"
-
-    def __init__(self, core, host: str, ports=SCRIPT_PORTS) -> None:
-        super().__init__(host, ports)
-        self.core = core
-
-    def serve(self, sock: socket.socket) -> None:
-        serve_scripts(self.core, sock)

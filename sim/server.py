@@ -1,15 +1,15 @@
 """The simulated controller's process: every listener and the 500 Hz control loop.
 
-Run by :class:`sim.SimController` as ``python -m sim.server --host H --model M ...`` in a child
+Run by :class:`sim.SimController` as ``python -m sim.server --host H --model M --polyscope 5.11.6 ...`` in a child
 process of its own (ur_rtde's constructors hold the GIL while they connect, so a server inside the
 client's process would deadlock). The child
 
 * binds RTDE 30004, dashboard 29999, the primary and secondary interfaces 30001 and 30002 (their 10 Hz state
-  stream, :mod:`sim.primary_server`), the script port 30003 and (if asked) Modbus on ``host`` only, then prints
-  one line ``READY {json}`` on stdout;
+  stream, :mod:`sim.primary_server`), the real-time interface 30003 (its 500 Hz state stream,
+  :mod:`sim.realtime_server`) and (if asked) Modbus on ``host`` only, then prints one line ``READY {json}`` on stdout;
 * runs the control loop on an absolute schedule: tick k is due at ``start + k * 2 ms`` of wall time
   (no drift); each tick advances ``speed`` control periods of simulated time (fractions carried over)
-  and sends the data packages due;
+  and sends the RTDE data packages due and one real-time state package;
 * reads JSON commands, one per line, on stdin (``{"cmd": "state"}``, ``{"cmd": "set_digital_in",
   "mask": m, "value": v}``, ``{"cmd": "emergency_stop", "pressed": true, "kind": "robot"}``,
   ``{"cmd": "remote_control", "on": false}``, ``{"cmd": "speed", "speed": 100}``, ``{"cmd": "stop"}``)
@@ -34,8 +34,9 @@ from sim.dashboard import DashboardServer
 from sim.hosts import check_host, check_speed, set_realtime_priority
 from sim.motion import DT
 from sim.primary_server import PrimaryServer
+from sim.realtime_server import RealtimeServer
 from sim.rtde_server import RTDEServer
-from sim.script_server import ScriptServer
+from sim.versions import DEFAULT, parse_polyscope
 
 
 class Loop:
@@ -43,9 +44,10 @@ class Loop:
 
     realtime = True
 
-    def __init__(self, core: Core, rtde: RTDEServer, speed: float) -> None:
+    def __init__(self, core: Core, rtde: RTDEServer, speed: float, realtime: RealtimeServer | None = None) -> None:
         self.core = core
         self.rtde = rtde
+        self.realtime_server = realtime
         self.speed = speed
         self.stop = threading.Event()
         self.late = 0  # ticks skipped because the loop fell more than one period behind
@@ -60,7 +62,7 @@ class Loop:
         self.max_batch = int(4 * speed) if speed > 1 else 1 << 30
 
     def run(self) -> None:
-        core, rtde = self.core, self.rtde
+        core, rtde, realtime = self.core, self.rtde, self.realtime_server
         if self.realtime:
             set_realtime_priority(10)
         period = DT
@@ -99,6 +101,8 @@ class Loop:
                         core.tick()
                     done = n * w // wall
                     core.packages_sent += rtde.publish(1)
+                    if realtime is not None:
+                        realtime.publish()  # the same state as these RTDE packages
             core.execution_time_ms = (time.perf_counter() - start) * 1e3
             for conn in list(rtde.conns):
                 conn.flush()
@@ -167,10 +171,12 @@ def main(argv: list[str] | None = None) -> int:
     ap.add_argument("--allow-remote", action="store_true")
     ap.add_argument("--no-realtime", action="store_true", help="no SCHED_FIFO priorities")
     ap.add_argument("--local-control", action="store_true", help="start in local control mode")
+    ap.add_argument("--polyscope", default=DEFAULT.text, help="the PolyScope 5 version reported (default 5.11.6)")
     args = ap.parse_args(argv)
     host = check_host(args.host, args.allow_remote)
     try:
         check_speed(args.speed)
+        version = parse_polyscope(args.polyscope)
     except ValueError as exc:
         raise SystemExit(f"--{exc}") from None
     sys.setswitchinterval(0.0002)  # bound the GIL hand-over latency seen by the control loop
@@ -189,12 +195,16 @@ def main(argv: list[str] | None = None) -> int:
         from sim.recording import Recorder
 
         recorder = Recorder(args.record)
-    core = Core(args.model, io, recorder)
-    core.remote_control = not args.local_control
+    core = Core(args.model, io, recorder, version)
+    if args.local_control:
+        try:
+            core.set_remote_control(False)
+        except ValueError as exc:
+            raise SystemExit(f"--{exc}") from None
     rtde = RTDEServer(core, host)
     dash = DashboardServer(core, host)
     primary = PrimaryServer(core, host)
-    script = ScriptServer(core, host)
+    realtime = RealtimeServer(core, host)
     modbus = None
     if args.modbus_port is not None:
         from sim.modbus import ModbusServerThread  # pymodbus: a dependency; asked for Modbus, fail loudly without
@@ -210,14 +220,15 @@ def main(argv: list[str] | None = None) -> int:
     # collection over it would stall the 500 Hz loop for milliseconds
     gc.collect()
     gc.freeze()
-    loop = Loop(core, rtde, args.speed)
+    loop = Loop(core, rtde, args.speed, realtime)
     stop = threading.Event()
     signal.signal(signal.SIGTERM, lambda *_: stop.set())
     signal.signal(signal.SIGINT, lambda *_: stop.set())
-    for srv in (rtde, dash, primary, script):
+    for srv in (rtde, dash, primary, realtime):
         srv.start()
     loop.thread.start()
-    ports = {"rtde": 30004, "dashboard": 29999, "primary": 30001, "secondary": 30002, "script": [30001, 30002, 30003],
+    ports = {"rtde": 30004, "dashboard": 29999, "primary": 30001, "secondary": 30002, "realtime": 30003,
+             "script": [30001, 30002, 30003],
              "modbus": modbus.port if modbus else None}
     print("READY " + json.dumps({"host": host, "pid": os.getpid(), "ports": ports}), flush=True)
     # replies to the parent's commands only after READY (the parent reads READY first)
@@ -227,7 +238,7 @@ def main(argv: list[str] | None = None) -> int:
     finally:
         loop.stop.set()
         loop.thread.join(2.0)
-        for srv in (rtde, dash, primary, script):
+        for srv in (rtde, dash, primary, realtime):
             srv.close()
         if modbus is not None:
             modbus.stop()

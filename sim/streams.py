@@ -35,6 +35,11 @@ class OutputStream:
             if not self.held:
                 self._flush_locked()
 
+    @property
+    def backlog(self) -> int:
+        """Bytes written but not yet taken by the socket."""
+        return len(self._out)
+
     def flush(self) -> None:
         """Send what is queued, as far as the socket takes it without blocking."""
         with self._lock:

@@ -12,7 +12,9 @@ calls
   single move last t seconds (speed and acceleration scaled down);
 * ``servoj(q, a, v, t=0.002, lookahead_time=0.1, gain=300)`` (blocks for t), ``stopj(a)``, ``stopl(a)``;
 * ``sleep(t)``, ``sync()``, ``textmsg(...)``, ``set_tcp(pose)``,
-  ``set_standard_digital_out(n, b)``, ``set_configurable_digital_out(n, b)``, ``set_tool_digital_out(n, b)``.
+  ``set_standard_digital_out(n, b)``, ``set_configurable_digital_out(n, b)``, ``set_tool_digital_out(n, b)``;
+  the deprecated ``set_digital_out(n, b)`` (n 0-7 standard, 8-9 tool outputs 0-1) and the CB controllers' statement
+  ``digital_out[n] = b`` that python-urx sends for it.
 
 Anything else (another statement, an unknown function or argument, an undefined variable, a value of
 the wrong kind or range) is a compile error naming its line, and the program is refused before the
@@ -47,7 +49,10 @@ _SIGNATURES = {
     "sync": ((), {}),
     "set_tcp": (("pose",), {}),
     **{k.script_setter: (("n", "b"), {}) for k in UR_OUTPUTS.values()},
+    "set_digital_out": (("n", "b"), {}),
 }
+#: The deprecated set_digital_out's numbering: outputs 0-7 standard, 8-9 the tool's.
+_LEGACY_OUTPUTS = 10
 #: The output setters: (first bit in the 18-bit word, pins), from the UR output table.
 _OUTPUT_BASE = {k.script_setter: (k.bit_offset, k.pins) for k in UR_OUTPUTS.values()}
 
@@ -142,6 +147,11 @@ def _statement(text: str, line: int, names: set[str]) -> Statement:
         _check_expr(node.value, names, line)
         names.add(target.id)
         return Statement(line, "assign", target.id, expr=node.value)
+    if (isinstance(node, ast.Assign) and isinstance(target, ast.Subscript) and isinstance(target.value, ast.Name)
+            and target.value.id == "digital_out"):  # digital_out[n] = b: set_digital_out(n, b)
+        _check_expr(target.slice, names, line)
+        _check_expr(node.value, names, line)
+        return Statement(line, "call", "set_digital_out", kwargs={"n": target.slice, "b": node.value})
     call = node.value if isinstance(node, ast.Expr) else None
     if not (isinstance(call, ast.Call) and isinstance(call.func, ast.Name)):
         raise _err(line, f"unsupported statement {text!r}")
@@ -296,6 +306,14 @@ class URScriptProgram:
             b = self._value(st, "b")
             bit = 1 << (base + int(n))
             self.core.io.set_digital_out(bit, bit if b else 0)
+            return False
+        if st.name == "set_digital_out":
+            n = self._number(st, "n", 0, _LEGACY_OUTPUTS - 1)
+            if int(n) != n:
+                raise ProgramError(f"line {st.line}: set_digital_out() output number must be an integer, got {n}")
+            tool = UR_OUTPUTS["tool"]
+            bit = 1 << int(n) if n < 8 else 1 << (tool.bit_offset + int(n) - 8)
+            self.core.io.set_digital_out(bit, bit if self._value(st, "b") else 0)
             return False
         if st.name == "set_tcp":
             m.tcp, _ = self._six(st, "pose")

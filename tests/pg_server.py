@@ -97,6 +97,19 @@ class PostgresServer:
         atexit.register(self.stop)
         return self
 
+    def pause(self) -> None:
+        """Stop the server (fast shutdown: clients are disconnected), keeping its data and port."""
+        assert self.folder is not None
+        self._run("pg_ctl", "-D", str(self.folder / "data"), "-m", "fast", "-w", "stop", timeout=60)
+
+    def resume(self) -> None:
+        """Start a paused server again on the same port."""
+        assert self.folder is not None
+        options = (f"-c listen_addresses=127.0.0.1 -p {self.port} -c unix_socket_directories={self.folder} "
+                   "-c fsync=off -c synchronous_commit=off -c full_page_writes=off -c max_connections=200")
+        self._run("pg_ctl", "-D", str(self.folder / "data"), "-l", str(self.folder / "server.log"), "-o", options,
+                  "-w", "-t", "60", "start", timeout=90)
+
     def url(self, database: str = "postgres") -> str:
         return f"postgresql+psycopg://{self.user}@127.0.0.1:{self.port}/{database}"
 

@@ -56,11 +56,11 @@ def test_real_jobs_and_a_hundred_million_pose_job_pass():
     s = resolve(PlanSettings(), "apt", True)
     b = check_budget(_nx(), s)
     assert b.poses == pytest.approx(b.seconds * 500.0) and 0 < b.poses < 1e6 and b.points == len(_nx())
-    # 10^8 poses: 2e5 s at 500 Hz, a 200 m path at 1 mm/s
-    p = np.array([[0.0, 0.0, 0.0], [200.0, 0.0, 0.0]])
-    tp = Toolpath(p, None, None, np.array([np.nan, 1e-3]), np.zeros(2, bool), np.array([1, 2]), source="long.csv")
+    # 10^8 poses: 2e5 s at 500 Hz, a 100 m path (a track robot's, within MAX_COORDINATE) at 0.5 mm/s
+    p = np.array([[-50.0, 0.0, 0.0], [50.0, 0.0, 0.0]])
+    tp = Toolpath(p, None, None, np.array([np.nan, 0.5e-3]), np.zeros(2, bool), np.array([1, 2]), source="long.csv")
     b = check_budget(tp, resolve(PlanSettings(path="cam"), "csv", False))
-    assert b.poses == pytest.approx(1e8) and estimate(tp, resolve(PlanSettings(), "csv", False)).length == 200.0
+    assert b.poses == pytest.approx(1e8) and estimate(tp, resolve(PlanSettings(), "csv", False)).length == 100.0
 
 
 @pytest.mark.parametrize("field", ["max_poses", "max_points"])

@@ -11,6 +11,7 @@ import pytest
 from planner import PlanSettings, plan
 from planner.cam.placement import Placement, job_samples, place_part
 from planner.errors import PlannerError
+from planner.frontends.cli.options import parse_pose
 from planner.kinematics import get_model
 from tests.cam_excerpts import NX
 
@@ -59,7 +60,7 @@ def test_auto_places_the_part_where_every_pose_is_reachable_with_margin(drill):
     # printed so it can be reused: the line names the option, and planning with it gives the same job
     line = next(x for x in job.describe() if x.strip().startswith("placed"))
     assert f"--part-frame {p.option}" in line and "singularity margin" in line and "joint-limit margin" in line
-    again = plan(drill, PlanSettings(path="cam", robot="ur5e", part_frame=tuple(float(v) for v in p.option.split(","))))
+    again = plan(drill, PlanSettings(path="cam", robot="ur5e", part_frame=parse_pose(p.option)))
     assert again.reachable and np.allclose(again.settings.part_frame, frame, atol=1e-6)
     s = job.summary()["part_frame_auto"]
     assert s["option"] == p.option and s["singularity_margin"] == p.singularity_margin

@@ -85,7 +85,7 @@ def test_cli_plan_csv_trajectory(tmp_path):
         (["plan", "missing.apt"], "missing.apt"),
         (["plan", "EXAMPLE", "--pass", "7"], "passes: nx_first_pass.cls has passes 0..0, not 7"),
         (["plan", "EXAMPLE", "--pass", "x"], "--pass x: must be pass numbers K[,K...], 'longest' or 'all'"),
-        (["plan", "EXAMPLE", "--part-frame", "1,2,3"], "--part-frame 1,2,3: must be six numbers"),
+        (["plan", "EXAMPLE", "--part-frame", "1,2,3"], "--part-frame 1,2,3: must be six values"),
         (["plan", "EXAMPLE", "-o", "x.docx"], "unknown output type"),
         (["plan", "EXAMPLE", "-o", "x.script"], "needs the reachability check: give --robot MODEL"),
         (["plan", "EXAMPLE", "--feed", "nan"], "--feed nan: must be at least 0.001 mm/s"),

@@ -113,9 +113,22 @@ def test_settings_in_si_from_user_units():
     (["--cut-output", "standard:8"], "planner: error: --cut-output standard:8: standard outputs have pins 0..7"),
     (["--cut-output", "valve:1"], "planner: error: --cut-output valve:1: unknown output kind 'valve'"),
     (["--pass", "-1"], "planner: error: --pass -1: pass numbers start at 0"),
-    (["--part-frame", "0,0,0,0,0,1e308"], "planner: error: --part-frame 0,0,0,0,0,1e308: the rotation vector"),
+    (["--part-frame", "0,0,0,0,0,1e308rad"], "planner: error: --part-frame 0,0,0,0,0,1e308rad: the rotation vector"),
     (["--part-frame", "0,0,0,0,nan,0"], "planner: error: --part-frame 0,0,0,0,nan,0: ry (number 5) must be finite"),
-    (["--tcp", "0,0,6e3,0,0,0"], "planner: error: --tcp 0,0,6e3,0,0,0: z = 6000 m is beyond any robot cell"),
+    (["--tcp", "0,0,6e3m,0,0,0"], "planner: error: --tcp 0,0,6e3m,0,0,0: z = 6e3m is beyond any robot cell"),
+    (["--part-frame", "400m,0,0,0,0,0"], "planner: error: --part-frame 400m,0,0,0,0,0: x = 400m is beyond any robot "
+                                          "cell (at most 100 m); did you mean 400mm?"),
+    # issue 27: poses are typed in mm and deg; a bare number (m and rad before 0.2) is refused, never reinterpreted
+    (["--part-frame", "0.4,0.9965,-0.1,0,0,0"], "planner: error: --part-frame 0.4,0.9965,-0.1,0,0,0: x = 0.4 has no "
+     "unit: a bare number meant m before 0.2, and --part-frame is typed in mm now; write 0.4m for what it meant "
+     "(400mm), or the value in mm with its unit"),
+    (["--tcp", "0,0,0.2m,0,0,3.1416"], "planner: error: --tcp 0,0,0.2m,0,0,3.1416: rz = 3.1416 has no unit: a bare "
+     "number meant rad before 0.2, and --tcp is typed in deg now; write 3.1416rad for what it meant (180.0004deg), "
+     "or the value in deg with its unit"),
+    (["--part-frame", "400ft,0,0,0,0,0"], "planner: error: --part-frame 400ft,0,0,0,0,0: x = 400ft: unknown unit "
+     "'ft' (a length takes mm, cm, m, in)"),
+    (["--part-frame", "400mm,0,0,90mm,0,0"], "planner: error: --part-frame 400mm,0,0,90mm,0,0: rx = 90mm: unknown "
+     "unit 'mm' (an angle takes deg, rad)"),
     (["--machine", "bogus"], "planner: error: --machine bogus: unknown machine (known: haas-umc-750)"),
 ])
 def test_other_options_refused_in_one_line(argv, message):
@@ -141,5 +154,5 @@ def test_part_frame_auto():
     assert settings_from_args(p.parse_args([MISSING, "--part-frame", "auto", "--robot", "ur5e"])).part_frame == "auto"
     with pytest.raises(PlannerError, match="places the part for a robot"):
         settings_from_args(p.parse_args([MISSING, "--part-frame", "auto"]))
-    with pytest.raises(PlannerError, match="^--tcp auto: must be six numbers"):
+    with pytest.raises(PlannerError, match="^--tcp auto: must be six values"):
         settings_from_args(p.parse_args([MISSING, "--tcp", "auto"]))

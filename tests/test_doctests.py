@@ -14,6 +14,7 @@ MODULES = [
     "planner.curves.spline",   # fit_ph_spline
     "planner.frames.path",     # frame_field
     "planner.export.verb",     # export
+    "planner.job",             # PlannedJob.not_executable
     "drivers.execute",         # execute_job on a simulated controller
 ]
 

@@ -9,7 +9,7 @@ from planner import PlanSettings, plan
 from planner.frontends.cli.run import main
 
 DEMO = "examples/nx_first_pass.cls"
-PART = "0.4,0.9965,-0.1,0,0,0"
+PART = "400mm,996.5mm,-100mm,0,0,0"
 
 
 def test_planner_run_sim_program_mode_prints_the_report(capsys):
@@ -61,3 +61,21 @@ def test_planner_run_sim_that_cannot_start_is_one_line(capsys):
     assert len(lines) == 1 and lines[0].startswith("planner run: error: cannot start a simulated controller on "
                                                    f"{host}"), err
     assert "Traceback" not in err
+
+
+def test_planner_run_refuses_a_job_the_robot_cannot_make_before_starting_a_controller(capsys, monkeypatch):
+    """No part frame: the part's origin at the robot's base, both moves out of reach (issue 27: a simulator was
+    started and the run failed with exit 1 and "2 unreachable poses" where the summary counted moves). Exit 2, the
+    reason in the summary's unit, and no controller started (``start_sim`` is never reached: it raises here)."""
+    import planner.frontends.cli.run as run
+
+    def no_controller(*a, **k):
+        raise AssertionError("a controller was started for a job that cannot run")
+
+    monkeypatch.setattr(run, "start_sim", no_controller)
+    assert main(["run", DEMO, "--robot", "ur5e", "--sim"]) == 2
+    out, err = capsys.readouterr()
+    assert "ur5e: 2 moves with problems" in out and "simulated" not in out
+    assert err.startswith("planner run: error: the robot cannot make 2 of the job's moves (first: nx_first_pass.cls "
+                          "rapid at line 14: pose has no inverse kinematics solution") and err.count("\n") == 1
+    assert err.endswith("; nothing is executed\n")

@@ -313,3 +313,28 @@ def test_the_switch_lines_say_how_finely_the_recording_placed_them(job):
     rep = execution_report(job, c.times[keep], c.poses[keep], c.joints[keep], c.io[keep], mode="replay",
                            recording="every data package")
     assert "; 1 gap: ~10 samples missed" in "\n".join(rep.describe())
+
+
+def test_a_switchs_lateness_is_split_into_missed_periods_and_the_rest(job):
+    """A stream whose loop missed 3 periods between the two switches: the whole rest of the run is 3 periods late
+    (the loop never catches up); the report puts the second switch's 6 ms down to the missed periods and leaves
+    the rest (here the samples' own resolution, under a period) as servo and I/O latency."""
+    from drivers.pacing import LoopStats
+
+    c = job.trajectory().collect()
+    on, off = (int(k) for k in np.flatnonzero(np.diff(c.io)) + 1)
+    stall = (on + off) // 2
+    # the arm holds its pose for 3 periods at the stall, then runs on: every later sample 3 periods later
+    poses = np.concatenate((c.poses[:stall], np.repeat(c.poses[stall - 1:stall], 3, axis=0), c.poses[stall:]))
+    q = np.concatenate((c.joints[:stall], np.repeat(c.joints[stall - 1:stall], 3, axis=0), c.joints[stall:]))
+    io = np.concatenate((c.io[:stall], np.repeat(c.io[stall - 1:stall], 3), c.io[stall:]))
+    t = np.arange(len(io)) / 500.0
+    loop = LoopStats(0.002, len(io), 500.0, 0.002, 0.002, 0.008, 3)
+    rep = execution_report(job, t, poses, q, io, mode="stream", loop=loop, stalls=[c.times[stall]] * 3)
+    first, second = rep.io_events
+    assert (first.missed_periods, second.missed_periods) == (0, 3)
+    assert abs(first.delay_ms) < 2.0 and first.model_delay_ms == first.delay_ms
+    assert second.delay_ms == pytest.approx(6.0, abs=2.0) and second.missed_ms == pytest.approx(6.0)
+    assert abs(second.model_delay_ms) < 2.0
+    text = "\n".join(rep.describe())
+    assert "6 ms of 3 missed control periods before it" in text and "ms of servo and I/O latency" in text

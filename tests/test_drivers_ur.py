@@ -410,13 +410,12 @@ def test_program_mode_cancel_stops_the_program_and_the_arm(make_sim, demo_job):
 def test_whole_nx_job_excerpt_program_in_fast_forward(make_sim, tmp_path):
     """The first 300 lines of the shared NX job (7 passes, 7 rapids, 470 s) as the job's program at 20x: every
     pass and rapid followed within the program's tolerance, no protective stop, every output switch made."""
-    from planner.frontends.cli.main import DEMO_PART_FRAME
+    from planner.frontends.cli.main import DEMO_PART
     from tests.cam_excerpts import NX
 
     f = tmp_path / "ust_a2_head.cls"
     f.write_text(NX.head(300))
-    part = tuple(float(x) for x in DEMO_PART_FRAME.split(","))
-    job = plan(f, PlanSettings(path="cam", tolerance=1e-5, part_frame=part, robot="ur5e", feed=0.05,
+    job = plan(f, PlanSettings(path="cam", tolerance=1e-5, part_frame=DEMO_PART, robot="ur5e", feed=0.05,
                                cut_output=("standard", 0)))
     assert len(job.passes) == 7 and job.count("rapid") == 7
     sim = make_sim(speed=20.0)

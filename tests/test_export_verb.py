@@ -10,7 +10,18 @@ from pathlib import Path
 import pytest
 
 from planner import PlannerError, PlanSettings, load_job, plan
-from planner.export import FORMATS, export, file_name, format_of, plot_title, stream, write
+from planner.export import (
+    FORMATS,
+    MAX_PROGRAM_BYTES,
+    export,
+    file_name,
+    format_of,
+    job_program,
+    job_program_pieces,
+    plot_title,
+    stream,
+    write,
+)
 from planner.frontends.cli.main import DEMO_PART_FRAME, EXAMPLE_CLS, example_path
 from planner.frontends.cli.main import main as cli_main
 
@@ -130,3 +141,85 @@ def test_file_name_of_a_download():
     assert file_name("<waypoints>", "json") == "<waypoints>.json"
     assert file_name("", "json") == "job.json"
     assert Path(file_name("a.b.nc", "script")).suffix == ".script"
+
+
+def test_a_program_larger_than_a_controller_takes_is_refused_naming_the_limit(demo_job, tmp_path):
+    whole = export(demo_job, "script")  # the demo pass: one program well under the limit
+    assert len(whole) < MAX_PROGRAM_BYTES
+    size = len(whole)
+    with pytest.raises(PlannerError) as caught:
+        write(demo_job, tmp_path / "job.script", max_program_bytes=size - 1)
+    text = str(caught.value)
+    assert text.startswith(f"not writing job.script: the program is {size} bytes (")
+    assert f"over the {size - 1} bytes a UR controller is known to take in one program" in text
+    assert "planner run --mode program" in text and "--max-program-bytes" in text and "\n" not in text
+    assert os.listdir(tmp_path) == []  # nothing written
+    with pytest.raises(PlannerError, match=r"^not writing nx_first_pass\.script: the program is \d+ bytes"):
+        stream(demo_job, "script", max_program_bytes=4096)  # refused before a first byte, as the service downloads
+    assert export(demo_job, "script", max_program_bytes=size) == whole  # at the limit: written
+    assert export(demo_job, "script", max_program_bytes=None) == whole  # no limit
+    with pytest.raises(PlannerError, match=r"^max_program_bytes must be a number of bytes > 0 or None, got -1"):
+        export(demo_job, "script", max_program_bytes=-1)
+    # the command line: --max-program-bytes N, 0 for none
+    out = tmp_path / "cli.script"
+    assert cli_main(["plan", str(DEMO), *DEMO_OPTIONS, "-o", str(out), "--max-program-bytes", "4096"]) == 2
+    assert not out.exists()
+    assert cli_main(["plan", str(DEMO), *DEMO_OPTIONS, "-o", str(out), "--max-program-bytes", "0"]) == 0
+    assert out.read_bytes().count(b"movep(") == whole.count(b"movep(")
+
+
+def test_program_pieces_under_a_limit(demo_job):
+    whole = job_program(demo_job)
+    (one,) = job_program_pieces(demo_job)  # under the limit: the program itself, in one piece
+    assert one.text == whole and one.size == len(whole.encode())
+    # one pass alone needs more than a small limit: refused naming the pass, its lines, the size and the limit
+    with pytest.raises(PlannerError, match=r"pass 0 \(lines \d+-\d+\) alone needs a program of \d+ bytes, over the "
+                                           r"limit of 8000 bytes per program"):
+        job_program_pieces(demo_job, max_bytes=8000)
+    with pytest.raises(PlannerError, match=r"max_bytes must be at least 4096 bytes, got 100"):
+        job_program_pieces(demo_job, max_bytes=100)
+
+
+def test_passes_joined_at_a_corner_are_cut_at_the_corner_only_when_they_need_two_programs(tmp_path):
+    """Two passes joined at a 90-degree corner (the cut output on through it): one program under the limit; over
+    it, two programs cut at the corner, where the arm is at rest; the output stays on through the seam (the second
+    program sets it on again first). Run piece after piece by the simulated controller's core."""
+    import numpy as np
+
+    from sim.core import Core
+    from sim.io_state import IOState
+
+    t = np.linspace(0.0, 1.0, 200)
+    a = np.c_[0.1 * t, 0.005 * np.sin(6 * np.pi * t), 0 * t]
+    b = np.c_[0.1 + 0.005 * np.sin(6 * np.pi * t[1:]), -0.1 * t[1:], 0 * t[1:]]
+    src = tmp_path / "corner.csv"
+    src.write_text("x,y,z\n" + "\n".join(f"{x * 1e3:.4f},{y * 1e3:.4f},{z * 1e3:.4f}" for x, y, z in np.vstack((a, b))))
+    job = plan(src, PlanSettings(path="cam", feed=0.02, robot="ur5e", part_frame=(0.4, -0.1, 0.2, 0, 0, 0),
+                                 cut_output=("standard", 0)))
+    assert [m.kind for m in job.moves] == ["cut", "cut"]
+    whole = job_program(job)
+    (one,) = job_program_pieces(job, max_bytes=len(whole))
+    assert one.text == whole
+    first, second = job_program_pieces(job, max_bytes=len(whole) - 1)
+    assert (first.passes, second.passes) == ((0,), (1,)) and max(first.size, second.size) < len(whole)
+    assert first.text.count("set_standard_digital_out(0, True)") == 1 and "(0, False)" not in first.text
+    assert second.text.count("set_standard_digital_out(0, True)") == 1  # set on again, first
+    assert second.text.count("set_standard_digital_out(0, False)") == 1
+    core = Core("ur5e", IOState())
+    core.motion.q = np.array(job.start_joints, dtype=float)
+    assert core.load_program(first.text)
+    while core.program is not None:
+        core.tick()
+    assert np.abs(core.motion.qd).max() < 1e-12 and core.io.digital_out & 1  # at rest on the corner, the output on
+    np.testing.assert_allclose(core.tcp_pose()[:3], second.start[:3], atol=1e-6)
+    assert core.load_program(second.text)
+    bits = [core.io.digital_out & 1]
+    while core.program is not None:
+        core.tick()
+        bits.append(core.io.digital_out & 1)
+    assert np.count_nonzero(np.diff(bits)) == 1 and bits[-1] == 0  # on through the second pass, off at its end
+    assert core.safety_mode == 1
+    # one pass alone over the limit: a seam in it would stop the tool in the cut: refused, naming the pass
+    with pytest.raises(PlannerError, match=r"corner\.csv: pass 0 \(lines 2-201\) alone needs a program of \d+ bytes, "
+                                           r"over the limit of 30000 bytes per program"):
+        job_program_pieces(job, max_bytes=30000)

@@ -13,8 +13,9 @@ few examples through a subprocess, where stderr is the real one):
 
 Inputs: the bundled examples (examples/), the heads of the verbatim excerpts of the shared CAM files
 (tests/data: NX CLSF, SolidWorks APT, NX G-code for a Haas UMC-750), a Sinumerik 840D program (.mpf) and JSON
-waypoints built from the example CSV; mutations: truncation, byte flips, NaN/inf/1e308/1e-300/huge fields,
-coordinates scaled by 1e-6..1e6, duplicated, deleted and swapped lines.
+waypoints built from the example CSV; mutations: truncation, byte flips, NaN/inf/1e308/1e-300/huge fields (digit
+strings of thousands of characters), coordinates scaled by 1e-9..1e9, unit switches (APT ``UNITS/``, G20/G21/G70)
+inserted anywhere, duplicated, deleted and swapped lines (issue 27: each ran past a minute or gave a traceback).
 
 Fits and plans (issue 24): waypoints that turn back on themselves (exact and near reversals, cusps, antiparallel
 steps, runs along a line) through ``fit_ph_spline`` C1 and C2 with both member rules, and ``planner fit`` once in a
@@ -122,9 +123,13 @@ SEEDS = {
 }
 
 NASTY = ["nan", "NaN", "inf", "-inf", "1e308", "-1e308", "1e-300", "-1e-300", "0", "-0", "0.0", "1e999", "9" * 400,
+         "9" * 5000, "1" + "0" * 4400 + ".5",
          "", "-", ".", "1e3", "1E-3", "0x1F", "1_000", "\u0661\u0662", "12.5.3", "+-1", "1,5", '"5"', "null",
          "true", "[]", "{}"]
 #: Number tokens (a coordinate, a feed, an axis component) the field and scale mutations act on.
+#: Unit switches inserted anywhere (a pass read partly in mm and partly in m or inch must be refused, not planned).
+UNIT_SWITCHES = [b"UNITS/M\n", b"UNITS/INCH\n", b"UNITS/MM\n", b"UNITS/CM\n", b"G20\n", b"G21\n", b"G70\n",
+                 b"N5 G20 G1 X1.5\n"]
 NUMBER = re.compile(rb"[-+]?(?:\d+\.\d*|\.\d+|\d+)(?:[eE][-+]?\d+)?")
 
 fraction = st.floats(min_value=0.0, max_value=1.0, allow_nan=False)
@@ -132,7 +137,9 @@ mutation = st.one_of(
     st.tuples(st.just("truncate"), fraction),
     st.tuples(st.just("flip"), fraction, st.integers(0, 255)),
     st.tuples(st.just("field"), fraction, st.integers(0, 12), st.sampled_from(NASTY)),
-    st.tuples(st.just("scale"), fraction, fraction, st.sampled_from([1e-6, 1e-3, -1.0, 10.0, 1e3, 1e6])),
+    st.tuples(st.just("scale"), fraction, fraction,
+              st.sampled_from([1e-9, 1e-6, 1e-3, -1.0, 10.0, 1e3, 1e6, 1e9])),
+    st.tuples(st.just("insert"), fraction, st.sampled_from(UNIT_SWITCHES)),
     st.tuples(st.just("duplicate"), fraction, st.integers(1, 40)),
     st.tuples(st.just("delete"), fraction, st.integers(1, 40)),
     st.tuples(st.just("swap"), fraction, fraction),
@@ -164,6 +171,8 @@ def mutate(data: bytes, ops) -> bytes:
             data = b"".join(lines[:at + 1] + lines[at:at + op[2]] + lines[at + 1:])
         elif op[0] == "delete":
             data = b"".join(lines[:at] + lines[at + op[2]:])
+        elif op[0] == "insert":
+            data = b"".join(lines[:at] + [op[2]] + lines[at:])
         elif op[0] == "swap":
             j = min(int(op[2] * len(lines)), len(lines) - 1)
             lines[at], lines[j] = lines[j], lines[at]
@@ -340,7 +349,7 @@ def _fuzz_one(fmt: str, ops, opts, suffix: str, existing: bool = False) -> tuple
                 continue
             argv += [f"{flag}={value}"]
         if suffix == ".script":
-            argv += ["--robot", "ur5e", "--part-frame", "0.4,0.9965,-0.1,0,0,0"]
+            argv += ["--robot", "ur5e", "--part-frame", "400mm,996.5mm,-100mm,0,0,0"]
         try:
             rc, stdout, stderr = run_in_process(argv)
             check_contract(src, argv, out, rc, stdout, stderr, existing)

@@ -10,6 +10,7 @@ from drivers.sim import SimDriver
 from planner import PlanSettings, plan
 from planner.errors import PlannerError
 from planner.export.plot import _execution_view, _path_lines, digest, plot_job
+from planner.wording import pose_option
 
 DEMO = "examples/nx_first_pass.cls"
 PART = (0.4, 0.9965, -0.1, 0.0, 0.0, 0.0)
@@ -109,7 +110,7 @@ def test_planner_run_plot_writes_the_run(tmp_path, capsys):
     from planner.frontends.cli.run import main
 
     out = tmp_path / "run.png"
-    rc = main(["run", DEMO, "--robot", "ur5e", "--part-frame", ",".join(map(str, PART)), "--cut-output",
+    rc = main(["run", DEMO, "--robot", "ur5e", "--part-frame", pose_option(PART), "--cut-output",
                "standard:0", "--sim", "--mode", "program", "--sim-speed", "20", "--plot", str(out)])
     text = capsys.readouterr().out
     assert rc == 0, text

@@ -257,6 +257,15 @@ def test_refusals_name_the_problem(server, op, demo_job):
     r = op.post(f"/v1/jobs/{slow}/executions", json={"robot": "sim"})
     assert r.status_code == 409 and r.json()["detail"].startswith(f"job {slow} is ")
     op.delete(f"/v1/jobs/{slow}")
+    # a job its robot cannot make (issue 27: the README's example without a part frame): done, marked not
+    # executable with the reason counted in moves, and its execution refused with that reason, nothing started
+    r = op.post("/v1/jobs", json={"waypoints": [[0, 0, 0], [0.1, 0.05, 0], [0.2, 0, 0]], "settings": {"robot": "ur5e"}})
+    far = wait_state(op, r.json()["id"])
+    assert far["state"] == "done" and far["summary"]["executable"] is False
+    assert far["summary"]["not_executable"].startswith("the robot cannot make ")
+    r = op.post(f"/v1/jobs/{far['id']}/executions", json={"robot": "sim"})
+    assert r.status_code == 409
+    assert r.json()["detail"] == f"job {far['id']} cannot run on its robot: {far['summary']['not_executable']}"
     assert op.get("/v1/executions/0123").status_code == 404
     assert not any(_busy(op).values())  # nothing refused was started
 
@@ -423,6 +432,11 @@ def test_sigterm_during_a_streamed_execution_stops_the_arm_and_the_restart_shows
     ('{"a": {"host": "10.0.0.2", "model": "ur5e"}, "b": {"host": "10.0.0.2", "model": "ur5e"}}',
      "robot 'b': host 10.0.0.2 is robot 'a''s already (one name per controller)"),
     ('{"cell": ', "PLANNER_ROBOTS: not JSON"),
+    ('{"cell": {"sim": true, "lookahead": 0.5}}', "robot 'cell': lookahead must be at most 0.2, got 0.5"),
+    ('{"cell": {"sim": true, "gain": 50}}', "robot 'cell': gain must be at least 100"),
+    ('{"cell": {"sim": true, "path_tolerance_mm": 0}}', "robot 'cell': path_tolerance_mm must be > 0"),
+    ('{"cell": {"sim": true, "fail_on_deviation": true}}', "robot 'cell': fail_on_deviation needs path_tolerance_mm"),
+    ('{"cell": {"sim": true, "max_program_bytes": 100}}', "robot 'cell': max_program_bytes must be at least 4096"),
 ])
 def test_robot_configuration_refusals_name_the_robot_and_field(text, message):
     from planner.errors import PlannerError
@@ -442,6 +456,44 @@ def test_robots_from_a_file_and_the_default(tmp_path):
     cfg = ServiceConfig.from_env({"PLANNER_ROBOTS": str(f)})
     assert cfg.robots == (RobotConfig("cell", "10.0.0.2", "ur10e", "modbus", 5020),)
     assert cfg.robot("cell").simulated is False and cfg.robot("sim") is None
+
+
+def test_a_robots_servo_and_deviation_settings_reach_the_driver(tmp_path):
+    """PLANNER_ROBOTS' driver options (the ranges and defaults of planner run's) are what the execution process
+    gives the driver: a tolerance below program mode's blending fails the run on deviation."""
+    from drivers.servo import DEFAULT_GAIN, DEFAULT_LOOKAHEAD
+    from planner import PlanSettings, plan
+    from planner.export import MAX_PROGRAM_BYTES
+    from planner.frontends.service.config import ServiceConfig
+    from planner.frontends.service.tasks.functions import ExecuteSpec, execute_job
+
+    cfg = ServiceConfig.from_env({"PLANNER_ROBOTS": json.dumps({
+        "strict": {"sim": True, "sim_speed": 10, "path_tolerance_mm": 0.0001, "fail_on_deviation": True,
+                   "lookahead": 0.1, "gain": 300, "compensate": False},
+        "small": {"sim": True, "sim_speed": 10, "max_program_bytes": 8192},
+        "plain": {"sim": True, "sim_speed": 10}})})
+    strict, plain, small = cfg.robot("strict"), cfg.robot("plain"), cfg.robot("small")
+    assert plain.driver_options() == {"approach_speed": 0.5, "approach_acceleration": 0.5,
+                                      "lookahead": DEFAULT_LOOKAHEAD, "gain": DEFAULT_GAIN, "compensate": True,
+                                      "path_tolerance": None, "fail_on_deviation": False,
+                                      "max_program_bytes": MAX_PROGRAM_BYTES}
+    assert strict.driver_options() == {**plain.driver_options(), "lookahead": 0.1, "gain": 300.0, "compensate": False,
+                                       "path_tolerance": pytest.approx(1e-7), "fail_on_deviation": True}
+    assert small.driver_options() == {**plain.driver_options(), "max_program_bytes": 8192}
+    t = np.linspace(0.0, 1.0, 9)
+    bead = np.c_[0.2 * t, 0.03 * np.sin(2 * np.pi * t), np.zeros_like(t)]
+    job = plan(bead, PlanSettings(feed=0.02, robot="ur5e", part_frame=(0.4, -0.1, 0.2, 0, 0, 0)))
+    for robot, ok in ((plain, True), (strict, False), (small, None)):
+        fields = {"name": robot.name, "host": robot.host, "model": robot.model, "io": robot.io,
+                  "modbus_port": robot.modbus_port, "sim_speed": robot.sim_speed, "driver": robot.driver_options()}
+        end = execute_job(ExecuteSpec("x", job.to_bytes(), "program", fields), lambda p: None, threading.Event())
+        if ok is None:  # the robot's program size limit: the bead's one pass needs a larger program, refused
+            assert end.state == "failed" and "over the limit of 8192 bytes per program" in (end.error or ""), end
+            continue
+        figures = json.loads(end.values["report"])
+        assert figures["ok"] is ok, figures
+        if not ok:  # the run made to fail on the robot's tolerance (0.1 um, below program mode's blending)
+            assert "beyond the path tolerance 0.000 mm" in str(figures), figures
 
 
 def test_serve_refuses_a_bad_robots_option_with_its_message(tmp_path):

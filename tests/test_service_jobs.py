@@ -12,17 +12,29 @@ import pytest
 
 from planner.frontends.cli.main import DEMO_PART_FRAME, build_parser
 from planner.frontends.cli.main import main as cli_main
-from planner.frontends.cli.options import settings_from_args
+from planner.frontends.cli.options import parse_pose, settings_from_args
+from tests import pg_server, redis_server
+from tests.celery_cluster import CeleryService, fresh_broker, fresh_database
 from tests.test_service_server import ServiceProcess, wait_state, wait_until
+
+postgres, redis = pg_server.postgres, redis_server.redis  # fixtures (the celery backend's servers)
 
 ROOT = Path(__file__).resolve().parents[1]
 EXAMPLES = ROOT / "examples"
 DATA = ROOT / "tests" / "data"
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    s = ServiceProcess(tmp_path_factory.mktemp("jobs"), workers=1, env={"PLANNER_MAX_WAYPOINTS": "30000"}).start()
+@pytest.fixture(scope="module", params=["local", "celery"])
+def server(request, tmp_path_factory):
+    """The service on each backend: local worker processes (SQLite), and an API replica with a ``planner worker``
+    (Celery on Redis, PostgreSQL)."""
+    env = {"PLANNER_MAX_WAYPOINTS": "30000"}
+    if request.param == "local":
+        s = ServiceProcess(tmp_path_factory.mktemp("jobs"), workers=1, env=env).start()
+    else:
+        pg, redis = request.getfixturevalue("postgres"), request.getfixturevalue("redis")
+        s = CeleryService(tmp_path_factory.mktemp("jobs-celery"), db=fresh_database(pg), broker=fresh_broker(redis),
+                          workers=1, env=env).start()
     yield s
     assert s.stop() == 0, s.log.read_text()
 
@@ -149,7 +161,7 @@ def test_part_frame_auto_is_placed_and_returned_for_reuse(client):
     auto = view["summary"]["part_frame_auto"]
     frame = auto["part_frame"]
     assert len(frame) == 6 and frame[3] == 0 and frame[4] == 0  # a turn about the base z only
-    assert np.allclose([float(v) for v in auto["option"].split(",")], frame, atol=1e-6)
+    assert np.allclose(parse_pose(auto["option"]), frame, atol=1e-6)
     assert auto["singularity_margin"] > 0 and auto["joint_margin_deg"] > 0
     bad = client.post("/v1/jobs", json={"waypoints": [[0, 0, 0], [0.1, 0, 0]], "settings": {"part_frame": "autox"}})
     assert bad.status_code == 422 and "part_frame" in bad.text
@@ -251,8 +263,10 @@ def test_a_request_path_never_reaches_the_file_system(server, client):
     view = wait_state(client, r.json()["id"])
     assert view["state"] == "done" and view["input"]["name"] == "escaped.csv"
     assert not outside.exists()
-    stored = list((server.folder / "jobs.sqlite.data" / "jobs" / view["id"] / "input").iterdir())
-    assert [p.name for p in stored] == ["escaped.csv"]
+    assert not any(p.name == "escaped.csv" for p in server.folder.rglob("*"))  # the input is in the database
+    stored = server.sql("select name, data from job_data where job_id = :id", id=view["id"])
+    assert sorted(name for name, _ in stored) == ["input", "plan"]
+    assert dict(stored)["input"] == b"0,0,0\n10,0,0\n20,5,0\n"
     assert client.get("/v1/jobs/..%2F..%2Fetc").status_code == 404
     assert client.get("/v1/jobs/" + "0" * 32).status_code == 404
 
@@ -342,8 +356,8 @@ def test_a_picture_target_that_is_not_a_regular_file_is_one_line_and_a_link_is_w
     r = client.post("/v1/jobs", json={"waypoints": [[0, 0, 0], [0.1, 0.05, 0], [0.2, 0, 0.01]]})
     view = wait_state(client, r.json()["id"])
     assert view["state"] == "done", view["error"]
-    folder = server.folder / "jobs.sqlite.data" / "jobs" / view["id"]
-    target = folder / f"plot.{view['attempts']}.png"
+    folder = server.data / "plots"
+    target = folder / f"{view['id']}.{view['attempts']}.png"
     os.mkfifo(target)
     r = client.get(f"/v1/jobs/{view['id']}/plot.png")
     assert r.status_code == 500, r.text

@@ -15,6 +15,7 @@ from sqlalchemy import inspect, select, text
 from sqlalchemy.exc import IntegrityError
 
 from planner.frontends.service.store import Execution, Job, migrate, now, open_store
+from planner.wording import pose_option
 from tests import pg_server
 from tests.test_service_server import ServiceProcess, wait_state
 
@@ -39,9 +40,9 @@ def test_migrations_and_the_one_active_execution_per_robot_index(pg_url):
         assert engine.dialect.name == "postgresql"
         migrate(engine)  # again: nothing to do
         with engine.connect() as conn:
-            assert conn.execute(text("SELECT version_num FROM alembic_version")).scalar() == "0002"
+            assert conn.execute(text("SELECT version_num FROM alembic_version")).scalar() == "0003"
         names = set(inspect(engine).get_table_names())
-        assert {"jobs", "api_keys", "executions"} <= names
+        assert {"jobs", "api_keys", "executions", "job_data", "workers"} <= names
         with sessions() as s:
             s.add_all([_execution("a", "running"), _execution("b", "starting"), _execution("a", "done"),
                        _execution("a", "failed")])
@@ -112,7 +113,7 @@ def test_the_service_on_postgresql(postgres, tmp_path):
             from planner.frontends.cli.main import main as cli_main
 
             out = tmp_path / "cli.csv"
-            assert cli_main(["plan", str(CLSF), "--robot", "ur5e", "--part-frame", ",".join(map(str, PART)),
+            assert cli_main(["plan", str(CLSF), "--robot", "ur5e", "--part-frame", pose_option(PART),
                              "--cut-output", "standard:0", "--feed-override", "4", "-o", str(out)]) == 0
             assert ca.get(f"/v1/jobs/{job['id']}/trajectory?format=csv").content == out.read_bytes()
             # an execution stored in PostgreSQL, one per robot

@@ -27,7 +27,13 @@ def gone(pid: int) -> bool:
 
 
 def saved_files(folder: Path, job_id: str) -> list[str]:
-    return sorted(p.name for p in (folder / "jobs.sqlite.data" / "jobs" / job_id).glob("plan.*.job"))
+    """The saved plans of a job in the store (the attempt that completed it, by name), and that no plan lies in the
+    service's folder."""
+    assert not list(folder.rglob("*.job"))
+    with sqlite3.connect(folder / "jobs.sqlite") as conn:
+        return [name for (name,) in conn.execute(
+            "select jobs.job_file from jobs join job_data on job_data.job_id = jobs.id and job_data.name = 'plan' "
+            "where jobs.id = ?", (job_id,))]
 
 
 def test_kill_and_restart_loses_nothing_and_runs_nothing_twice(tmp_path):

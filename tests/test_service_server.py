@@ -28,6 +28,7 @@ class ServiceProcess:
         self.folder = Path(folder)
         self.folder.mkdir(parents=True, exist_ok=True)
         self.db = f"sqlite:///{self.folder / 'jobs.sqlite'}"
+        self.data = self.folder / "jobs.sqlite.data"  # the service's folder (PLANNER_DATA's default)
         self.workers = workers
         self.host = host
         self.env = {**os.environ, "PLANNER_DB": self.db, "PYTHONUNBUFFERED": "1", **(env or {})}
@@ -117,6 +118,17 @@ class ServiceProcess:
         if self.proc.stdout:
             self.proc.stdout.close()
         return code
+
+    def sql(self, query: str, **params) -> list[tuple]:
+        """Rows of an SQL query on this service's database (SQLite or PostgreSQL)."""
+        from sqlalchemy import create_engine, text
+
+        engine = create_engine(self.db)
+        try:
+            with engine.connect() as conn:
+                return [tuple(r) for r in conn.execute(text(query), params)]
+        finally:
+            engine.dispose()
 
     def keys(self, *args: str) -> str:
         """``planner keys ...`` on this service's database (run in this process); its standard output."""

@@ -8,7 +8,7 @@ import pytest
 from planner import PlanSettings, plan
 from planner.frontends.cli.main import EXAMPLE_CLS, example_path
 from planner.frontends.service.schemas import ExecutionView, JobLinks, JobSummary, JobView
-from planner.frontends.service.worker_process import plain
+from planner.frontends.service.tasks.functions import plain
 
 DEMO = example_path(EXAMPLE_CLS)
 

@@ -197,6 +197,11 @@ def test_a_refusal_keeps_its_field_through_pickle():
     ({"PLANNER_ROBOTS": '{"c": {"sim": true, "approach_speed": 9}}'}, {},
      "robot 'c': approach_speed must be at most 3.14, got 9"),
     ({"PLANNER_ROBOTS": '{"c": {"sim": true, "modbus_port": "502"}}'}, {}, "robot 'c': modbus_port: input should be"),
+    ({"PLANNER_QUEUE": "rq"}, {}, "PLANNER_QUEUE must be 'local' or 'celery', got 'rq'"),
+    ({"PLANNER_QUEUE": "celery"}, {}, "PLANNER_BROKER (the broker's URL, redis://HOST:PORT/0) is needed with "
+                                      "PLANNER_QUEUE=celery"),
+    ({"PLANNER_QUEUE": "celery", "PLANNER_BROKER": "amqp://127.0.0.1"}, {},
+     "PLANNER_BROKER must be a redis:// (or rediss://) URL, got 'amqp://127.0.0.1'"),
 ])
 def test_service_configuration_refusals_name_the_variable_and_field(env, overrides, message):
     with pytest.raises(PlannerError) as err:

@@ -1,9 +1,10 @@
 """A fault campaign: clients killed (SIGKILL) at random points of each protocol, then a fresh ur_rtde client must
 work on the same simulator: its control script starts, a moveJ reaches its target, an output switches.
 
-105 cases: 15 random kill times for each of 7 clients (ur_rtde during asynchronous moves, during synchronous and
+120 cases: 15 random kill times for each of 8 clients (ur_rtde during asynchronous moves, during synchronous and
 asynchronous paths, during a 500 Hz servo stream, ur_rtde's IO interface, a program upload cut off, an RTDE handshake
-cut off, a primary interface client sending commands and half lines). The kill times are drawn from a fixed seed per
+cut off, a primary interface client sending commands and half lines, real-time interface clients reading part of a
+package and sending half programs beside one that never reads). The kill times are drawn from a fixed seed per
 client (a failure names its case and time, and repeats)."""
 
 from __future__ import annotations
@@ -105,6 +106,16 @@ for k in range(100000):
     s.recv(65536)
     time.sleep(0.01)
     s.sendall(b"1)\\nend\\n")
+""",
+    "realtime": """
+import socket, sys, time
+idle = socket.create_connection((sys.argv[1], 30003))  # never read, as ur_rtde's script connection
+for k in range(100000):
+    s = socket.create_connection((sys.argv[1], 30003))
+    s.recv(700)  # part of a state package
+    s.sendall(b"def rt_" + str(k).encode() + b"():\\n  textmsg(")  # the rest never comes on this connection
+    time.sleep(0.01)
+    idle.sendall(b"textmsg(" + str(k).encode() + b")\\n")
 """,
 }
 

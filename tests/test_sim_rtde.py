@@ -137,9 +137,81 @@ def test_raw_protocol_answers_and_malformed_packages(shared_sim):
         watcher.disconnect()
 
 
+def test_protocol_version_1_until_the_client_asks_for_2(shared_sim):
+    """RTDE's protocol versions as the guide and UR's C++ client library lay them out: a connection that asks for no
+    version speaks version 1 (an output setup without frequency, answered and sent without recipe id, at the control
+    rate; text messages of level + text; a client's text message refused), and the version cannot change once a
+    recipe is set up."""
+    raw = RawRTDE(shared_sim.host)
+    try:
+        raw.send("v")
+        kind, payload = raw.recv()
+        assert kind == "v" and struct.unpack(">IIII", payload)[:2] == (5, 11)  # in both versions
+        raw.send("O", b"timestamp,actual_q")
+        assert raw.recv() == ("O", b"DOUBLE,VECTOR6D")  # no recipe id
+        raw.send("I", b"input_int_register_30")
+        assert raw.recv() == ("I", b"\x01INT32")  # inputs keep their id in version 1
+        raw.send("V", struct.pack(">H", 2))
+        assert raw.recv() == ("V", b"\x00")  # a recipe is set up: no change of version
+        raw.send("O", b"timestamp,actual_q,bogus")  # a second setup replaces the one output recipe
+        assert raw.recv() == ("O", b"DOUBLE,VECTOR6D,NOT_FOUND")
+        raw.send("O", b"actual_q,timestamp")
+        assert raw.recv() == ("O", b"VECTOR6D,DOUBLE")
+        raw.send("S")
+        assert raw.recv() == ("S", b"\x01")
+        stamps = []
+        while len(stamps) < 200:
+            kind, payload = raw.recv(skip_data=False)
+            if kind == "U":
+                assert len(payload) == 56  # 6 + 1 doubles, no recipe id
+                q = struct.unpack_from(">6d", payload)
+                np.testing.assert_allclose(q, HOME, atol=1e-12)
+                stamps.append(struct.unpack_from(">d", payload, 48)[0])
+        steps = np.round(np.diff(stamps) / 0.002)
+        assert (steps >= 1).all() and np.count_nonzero(steps == 1) >= 0.95 * steps.size  # every control period
+        raw.send("U", b"\x01" + struct.pack(">i", 41))  # input data packages carry their recipe id
+        assert sim_fixtures.eventually(lambda: shared_sim.state()["in_int"][30] == 41)
+        raw.send("M", b"\x05hello\x04test\x03")
+        kind, payload = raw.recv()
+        assert kind == "M" and payload[0] == 1  # version 1: level ERROR, then the text
+        assert payload[1:].decode() == "a text message from the client needs RTDE protocol version 2"
+        raw.send("P")
+        while (kind := raw.recv()[0]) != "P":
+            pass
+    finally:
+        raw.close()
+    # version 2 asked before any setup: the recipe id in the answers and the data packages, text messages with source
+    raw = RawRTDE(shared_sim.host)
+    try:
+        for version, answer in ((3, b"\x00"), (0, b"\x00"), (1, b"\x01"), (2, b"\x01")):
+            raw.send("V", struct.pack(">H", version))
+            assert raw.recv() == ("V", answer)
+        raw.send("V", b"\x02")  # a short request: refused
+        assert raw.recv() == ("V", b"\x00")
+        raw.send("O", struct.pack(">d", 100.0) + b"timestamp")
+        assert raw.recv() == ("O", b"\x01DOUBLE")
+        raw.send("V", struct.pack(">H", 1))
+        assert raw.recv() == ("V", b"\x00")
+        raw.send("V", struct.pack(">H", 2))  # the version it speaks: accepted
+        assert raw.recv() == ("V", b"\x01")
+        raw.send("M", b"\x05hello\x04test\x03")  # taken silently
+        raw.send("X")
+        kind, payload = raw.recv()
+        assert kind == "M" and raw.text(payload) == "unknown package type 88"
+        assert payload[-1] == 1 and payload[1 + payload[0] :][1:-1] == b"RTDE"
+        raw.send("S")
+        assert raw.recv() == ("S", b"\x01")
+        kind, payload = raw.recv(skip_data=False)
+        assert kind == "U" and len(payload) == 9 and payload[0] == 1
+    finally:
+        raw.close()
+
+
 def test_data_before_start_and_pause(shared_sim):
     raw = RawRTDE(shared_sim.host)
     try:
+        raw.send("V", struct.pack(">H", 2))
+        assert raw.recv() == ("V", b"\x01")
         raw.send("I", b"input_double_register_41,")
         assert raw.recv() == ("I", b"\x01DOUBLE")
         raw.send("U", b"\x01" + struct.pack(">d", 1.25))  # no 'S' (as RTDEIOInterface)
@@ -198,8 +270,10 @@ def test_client_vanishing_mid_stream_leaves_the_controller_serving(make_sim):
     sim = make_sim()
     # a raw client that subscribes at 500 Hz and never reads, then one killed mid servo stream
     raw = RawRTDE(sim.host)
+    raw.send("V", struct.pack(">H", 2))
+    assert raw.recv() == ("V", b"\x01")
     raw.send("O", struct.pack(">d", 500.0) + b"timestamp,actual_q,actual_TCP_pose,target_q,")
-    raw.recv()
+    assert raw.recv()[1][:1] == b"\x01"
     raw.send("S")
     script = textwrap.dedent(f"""
         import math, rtde_control

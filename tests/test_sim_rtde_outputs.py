@@ -1,8 +1,9 @@
 """Every RTDE output and input of UR's RTDE guide, as UR's own clients ask for them, on raw sockets.
 
 The name and type table below is the RTDE guide's (as Universal Robots' C++ client library lists it in
-``src/rtde/data_package.cpp``): a recipe holding any of them must be accepted with these types, and the values
-must be the controller's where the simulator has them. UR's RTDE Python client (``record.py``) is not published on
+``src/rtde/data_package.cpp``): a recipe holding any of them must be accepted with these types by a controller of a
+release that has them (`GUIDE_SINCE`), refused with ``NOT_FOUND`` by an older one, and the values must be the
+controller's where the simulator has them. UR's RTDE Python client (``record.py``) is not published on
 the package registries, so its handshake and recording are checked here at the byte level: protocol version 2,
 controller version, an output recipe at the asked frequency, start, data packages, pause.
 """
@@ -64,6 +65,26 @@ for _i in range(64, 128):
 for _w in ("0_to_31", "32_to_63"):
     GUIDE_OUTPUTS[f"input_bit_registers{_w}"] = GUIDE_OUTPUTS[f"output_bit_registers{_w}"] = "UINT32"
 
+# the PolyScope 5 release that introduced each field newer than 5.0.0 (UR's RTDE guide's "introduced in" column as
+# UR's C++ client library's tests and the commits adding fields record it; ur_rtde 1.6.5's version checks)
+GUIDE_SINCE = {"safety_status": (5, 4, 0), "payload": (5, 5, 1), "payload_cog": (5, 5, 1), "tcp_offset": (5, 5, 1),
+               "ft_raw_wrench": (5, 9, 0), "payload_inertia": (5, 11, 0), "collision_detection_ratio": (5, 15, 0),
+               "time_scale_source": (5, 17, 0), "actual_current_as_torque": (5, 23, 0),
+               "target_gravity": (5, 26, 0), "target_base_acceleration": (5, 26, 0), "control_step": (5, 26, 0),
+               "target_base_wrench": (5, 26, 0)}
+for _i in range(24, 48):
+    for _io in ("input", "output"):
+        GUIDE_SINCE[f"{_io}_int_register_{_i}"] = GUIDE_SINCE[f"{_io}_double_register_{_i}"] = (5, 3, 0)
+for _i in range(64, 128):
+    GUIDE_SINCE[f"input_bit_register_{_i}"] = GUIDE_SINCE[f"output_bit_register_{_i}"] = (5, 3, 0)
+#: The release that has every field.
+NEWEST = "5.26.0"
+
+
+def _newer(names, release: tuple[int, int, int]) -> list[str]:
+    """The names of ``names`` a controller of ``release`` does not have yet."""
+    return [n for n in names if GUIDE_SINCE.get(n, (5, 0, 0)) > release]
+
 # the guide's binary layout of each type (big-endian)
 LAYOUT = {"BOOL": "?", "UINT8": "B", "UINT32": "I", "UINT64": "Q", "INT32": "i", "DOUBLE": "d", "VECTOR3D": "3d",
           "VECTOR6D": "6d", "VECTOR6INT32": "6i", "VECTOR6UINT32": "6I"}
@@ -120,20 +141,44 @@ def _packages(raw: RawRTDE, n: int) -> list[tuple[int, bytes]]:
     return out
 
 
-def test_every_output_and_input_of_the_guide_is_served_with_its_type(make_sim):
-    sim = make_sim()
+@pytest.mark.parametrize("polyscope", [NEWEST, "5.11.6", "5.4.0", "5.0.0"])
+def test_every_output_and_input_of_the_guide_is_served_with_its_type_from_its_release(make_sim, polyscope):
+    """A controller of each release serves the guide's fields of that release with their types; a recipe naming a
+    newer one is refused (recipe id 0) with NOT_FOUND at exactly those names, as for an unknown name."""
+    release = tuple(int(x) for x in polyscope.split("."))
+    sim = make_sim(polyscope=polyscope)
     raw = RawRTDE(sim.host)
     try:
-        assert _handshake(raw)[:2] == (5, 11)
-        names = sorted(GUIDE_OUTPUTS)
+        assert _handshake(raw)[:3] == release
+        newer_out, newer_in = _newer(GUIDE_OUTPUTS, release), _newer(GUIDE_INPUTS, release)
+        if polyscope == NEWEST:
+            assert newer_out == newer_in == []
+        if polyscope == "5.11.6":  # the default: these seven came after 5.11
+            assert sorted(newer_out) == ["actual_current_as_torque", "collision_detection_ratio", "control_step",
+                                         "target_base_acceleration", "target_base_wrench", "target_gravity",
+                                         "time_scale_source"]
+        if polyscope == "5.0.0":  # the upper registers (5.3) too
+            assert "output_double_register_47" in newer_out and "input_bit_register_64" in newer_in
+        for chunk in _chunks(newer_out, 1900) if newer_out else []:
+            rid, types = _setup_outputs(raw, ["timestamp", *chunk, "actual_q"], 125.0)
+            assert rid == 0
+            assert types == ["DOUBLE"] + ["NOT_FOUND"] * len(chunk) + ["VECTOR6D"]
+        for chunk in _chunks(newer_in, 1900) if newer_in else []:
+            raw.send("I", ",".join(["speed_slider_mask", *chunk]).encode())
+            kind, payload = raw.recv()
+            assert kind == "I" and payload[0] == 0
+            assert payload[1:].decode().split(",") == ["UINT32"] + ["NOT_FOUND"] * len(chunk)
+        served_out = {n: t for n, t in GUIDE_OUTPUTS.items() if n not in newer_out}
+        served_in = {n: t for n, t in GUIDE_INPUTS.items() if n not in newer_in}
+        names = sorted(served_out)
         recipes = []
         for chunk in _chunks(names):
             rid, types = _setup_outputs(raw, chunk, 125.0)
             assert "NOT_FOUND" not in types, [n for n, t in zip(chunk, types, strict=True) if t == "NOT_FOUND"]
             assert types == [GUIDE_OUTPUTS[n] for n in chunk]
-            assert rid == len(recipes) + 1
+            assert rid == len(recipes) + 1  # a refused recipe takes no id
             recipes.append((rid, chunk, types))
-        for chunk in _chunks(sorted(GUIDE_INPUTS)):
+        for chunk in _chunks(sorted(served_in)):
             raw.send("I", ",".join(chunk).encode())
             kind, payload = raw.recv()
             assert kind == "I" and payload[0] > 0
@@ -146,8 +191,8 @@ def test_every_output_and_input_of_the_guide_is_served_with_its_type(make_sim):
             _, chunk, types = recipes[rid - 1]
             seen[rid] = dict(zip(chunk, _decode(types, body), strict=True))
         values = {k: v for d in seen.values() for k, v in d.items()}
-        assert set(values) == set(GUIDE_OUTPUTS)
-        for name, t in GUIDE_OUTPUTS.items():  # finite numbers everywhere
+        assert set(values) == set(served_out)
+        for name, t in served_out.items():  # finite numbers everywhere
             v = values[name]
             assert np.isfinite(np.asarray(v, dtype=float)).all(), (name, t, v)
     finally:
@@ -167,7 +212,7 @@ NEW_OUTPUTS = ["timestamp", "control_step", "tcp_offset", "actual_configurable_d
 
 
 def test_the_outputs_new_to_the_simulator_carry_the_controllers_values(make_sim):
-    sim = make_sim()
+    sim = make_sim(polyscope=NEWEST)
     tcp = [0.01, -0.02, 0.15, 0.0, 0.0, 0.3]
     pose = ", ".join(map(str, tcp))
     _send_program(sim.host, f"def tool():\n  set_tcp(p[{pose}])\n  set_configurable_digital_out(3, True)\nend\n")
@@ -201,7 +246,7 @@ def test_the_outputs_new_to_the_simulator_carry_the_controllers_values(make_sim)
 
 
 def test_tcp_acceleration_is_the_change_of_the_tcp_speed(make_sim):
-    sim = make_sim()
+    sim = make_sim(polyscope=NEWEST)
     raw = RawRTDE(sim.host)
     try:
         _handshake(raw)

@@ -45,7 +45,7 @@ def _run(sim, text: str, timeout: float = 60.0) -> None:
 def exported(tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("export") / "one.script"
     subprocess.run([sys.executable, "-m", "planner.frontends.cli", "plan", "examples/nx_first_pass.cls", "--pass", "longest",
-                    "--robot", "ur5e", "--part-frame", "0.4,0.9965,-0.1,0,0,0", "-o", str(out)],
+                    "--robot", "ur5e", "--part-frame", "400mm,996.5mm,-100mm,0,0,0", "-o", str(out)],
                    cwd=REPO, check=True, capture_output=True, timeout=600)
     return out
 
@@ -129,3 +129,18 @@ def test_unreachable_move_in_a_program_is_a_protective_stop(make_sim):
     time.sleep(0.3)
     st = sim.state()
     assert st["safety_mode"] == "PROTECTIVE_STOP" and st["runtime_state"] == "STOPPED"
+
+
+def test_the_deprecated_output_setters_python_urx_sends(make_sim):
+    """set_digital_out(n, b) and the CB controllers' digital_out[n] = b (python-urx's set_digital_out): outputs 0-7
+    standard, 8-9 the tool's; a number beyond 9 stops the program with an error naming its line."""
+    sim = make_sim()
+    _run(sim, "def job():\n  digital_out[3] = True\n  set_digital_out(9, True)\n  digital_out[8]=True\n"
+              "  set_digital_out(3, False)\n  set_digital_out(5, True)\nend\n")
+    assert sim.state()["digital_out"] == (1 << 5) | (1 << 16) | (1 << 17)
+    _send(sim.host, "digital_out[0] = True\n")  # one line, as python-urx sends it
+    assert sim_fixtures.eventually(lambda: sim.state()["digital_out"] & 1)
+    _send(sim.host, "def job():\n  set_digital_out(10, True)\nend\n")
+    assert sim_fixtures.eventually(lambda: any("line 2" in m[2] and "set_digital_out" in m[2]
+                                               for m in sim.state()["log"])), sim.state()["log"]
+    assert not sim.state()["digital_out"] & (1 << 10)

@@ -41,6 +41,7 @@ from planner.errors import PlannerError
 from planner.kinematics import get_model, inverse_batch
 from planner.motion import poses_at_length, tool_orientation
 from planner.rotations import matrix_to_rotvec
+from planner.wording import pose_option
 
 #: Poses of the job rated per candidate, at most (plus the extremes along x, y, z).
 SAMPLES = 400
@@ -98,8 +99,8 @@ class Placement:
 
     @property
     def option(self) -> str:
-        """The frame as the CLI's ``--part-frame`` value (um and urad resolution)."""
-        return _option(self.part_frame)
+        """The frame as the CLI's ``--part-frame`` value (mm and deg to 4 decimals)."""
+        return pose_option(self.part_frame)
 
     def describe(self) -> str:
         """One line for a person."""
@@ -266,7 +267,7 @@ def place_part(moves, robot: str, tcp=None, *, source: str = "the job") -> Place
     if score <= 0.0:
         raise PlannerError(
             f"{source}: part_frame='auto' found no placement where the {robot} reaches every pose on one arm "
-            f"configuration: the best (--part-frame {_option(rater.frame(*z))}) leaves {-100 * score:.1f} % of "
+            f"configuration: the best (--part-frame {pose_option(rater.frame(*z))}) leaves {-100 * score:.1f} % of "
             f"{len(pos)} sampled poses out of reach or within {BASE_CLEARANCE:g} m of the base axis; the job spans "
             f"{rater.size[0]:.3f} x {rater.size[1]:.3f} x {rater.size[2]:.3f} m and the {robot} reaches about "
             f"{reach:.2f} m from its shoulder (give --part-frame yourself, a smaller job or another robot)")
@@ -275,5 +276,3 @@ def place_part(moves, robot: str, tcp=None, *, source: str = "the job") -> Place
                      int(b[0]), len(pos), rater.ratings, time.perf_counter() - tic)
 
 
-def _option(frame) -> str:
-    return ",".join(f"{v:.6g}" if abs(v) >= 1e-9 else "0" for v in np.round(frame, 6))

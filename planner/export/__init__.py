@@ -16,7 +16,14 @@ from planner.export.files import (
     write_bytes_atomic,
 )
 from planner.export.header import ExportError, generator, trajectory_parameters
-from planner.export.job_script import ProgramMove, job_program, plan_job_program
+from planner.export.job_script import (
+    MAX_PROGRAM_BYTES,
+    ProgramMove,
+    ProgramPiece,
+    job_program,
+    job_program_pieces,
+    plan_job_program,
+)
 from planner.export.movep import MovePPlan, plan_movep
 from planner.export.tables import JSON_FORMAT, csv_text, json_text, write_csv, write_json
 from planner.export.urscript import write_script
@@ -25,10 +32,12 @@ from planner.export.verb import FORMATS, export, file_name, format_of, plot_titl
 __all__ = [
     "FORMATS",
     "JSON_FORMAT",
+    "MAX_PROGRAM_BYTES",
     "ExportError",
     "MovePPlan",
     "OutputTarget",
     "ProgramMove",
+    "ProgramPiece",
     "atomic_binary",
     "atomic_text",
     "check_output",
@@ -38,6 +47,7 @@ __all__ = [
     "format_of",
     "generator",
     "job_program",
+    "job_program_pieces",
     "json_text",
     "output_target",
     "plan_job_program",

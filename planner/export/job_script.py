@@ -185,44 +185,54 @@ def _noted_events(job) -> list:
     return sorted(tp.events_of(*NOTED_EVENTS), key=lambda e: e.line) if hasattr(tp, "events_of") else []
 
 
-def job_program(
-    job,
-    moves: tuple[ProgramMove, ...] | None = None,
-    *,
-    tolerance: float | None = None,
-    angle_tolerance: float = math.radians(1.0),
-    approach_speed: float = 0.25,
-    approach_acceleration: float = 0.5,
-    parameters: Mapping | None = None,
-    name: str = "planner_job",
-    progress=None,
-) -> str:
-    """A URScript program that runs a whole CAM job (see the module doc).
+#: Largest program, in bytes, that the program writers send to a controller's script ports or write to a file by
+#: default. UR documents no size limit for a program sent to ports 30001-30003 (the URScript manual, "Connecting to
+#: URControl", only asks that the client reads before closing), nor for interpreter mode (PolyScope 5.10+, port
+#: 30020: "there exists an upper limit" on the interpreted statements, no figure; UR's own example clears the
+#: interpreter after every 500 statements). Users report CB-Series controllers that do not react to programs of
+#: 1,000 moves (a UR10 through ur_modern_driver, about 100 kB) or of more than about 2,500 moves (a UR5 streamed by
+#: the Robots plug-in), and a UR5 that crashed on 200,000 lines (18 MB); RoboDK's UR post-processor split programs
+#: into pages of 5,000 lines (about 350 kB of its short lines). ur_rtde 1.6.5's control script, which every e-Series
+#: controller takes, is 42 kB. The choice for the e-Series controller simulated here: 250,000 bytes (about 1,450 of
+#: this writer's movep lines), under RoboDK's page and enough for the longest pass of the shared NX job (207 kB,
+#: 1,220 movep targets), which no seam can cut without stopping the tool in the cut. For a CB-Series controller,
+#: 100,000 (``--max-program-bytes``). The simulated controller (sim.programs) refuses larger programs.
+MAX_PROGRAM_BYTES = 250_000
 
-    Parameters
+
+@dataclass(frozen=True)
+class ProgramPiece:
+    """One program of a job sent in pieces (:func:`job_program_pieces`).
+
+    Attributes
     ----------
-    job : PlannedJob
-        Planned with a robot, every move reachable (``job.problems`` empty).
-    moves : tuple of ProgramMove, optional
-        From :func:`plan_job_program` (default: planned here with ``tolerance`` and ``angle_tolerance``).
-    tolerance, angle_tolerance : float, optional
-        See :func:`plan_job_program`.
-    approach_speed, approach_acceleration : float
-        movej to the job's first pose, rad/s and rad/s^2.
-    parameters : mapping, optional
-        Extra header entries (e.g. the input file name).
-    name : str
-        Program name.
-
-    Raises
-    ------
-    ExportError
-        Without a robot, or when the job reports a move the robot cannot make (the message names
-        the pass and source line).
+    text : str
+        The program (``def name_k(): ... end``), at most the limit in bytes (UTF-8).
+    first_move, last_move : int
+        Indices of its first and last move in the job's program moves (:func:`plan_job_program`), inclusive.
+    start, end : ndarray (6,)
+        TCP poses (base frame) where the piece starts (the previous piece's end, the arm at rest there) and ends.
+    passes : tuple of int
+        The pass numbers of its cuts, in order.
+    line : int
+        Source line of its first move.
     """
-    name = check_name(name)
-    va = positive(approach_speed, "approach_speed")
-    aa = positive(approach_acceleration, "approach_acceleration")
+
+    text: str
+    first_move: int
+    last_move: int
+    start: np.ndarray
+    end: np.ndarray
+    passes: tuple[int, ...]
+    line: int
+
+    @property
+    def size(self) -> int:
+        """Bytes of the program text (UTF-8)."""
+        return len(self.text.encode("utf-8"))
+
+
+def _checked_job(job) -> None:
     s = job.settings
     if s.robot is None:
         raise ExportError("a whole-job URScript program needs the robot (start joints, reachability): plan it "
@@ -230,10 +240,15 @@ def job_program(
     if job.problems:
         more = f" (and {len(job.problems) - 1} more moves with problems)" if len(job.problems) > 1 else ""
         raise ExportError(f"the robot cannot make the job: {job.problems[0]}{more}")
-    if moves is None:
-        moves = plan_job_program(job, tolerance=tolerance, angle_tolerance=angle_tolerance, progress=progress)
-    if not moves:
-        raise ExportError(f"{job.source}: the job has no motion")
+
+
+def _program_parts(job, moves, *, tolerance, angle_tolerance, approach_speed, approach_acceleration, parameters,
+                   progress) -> tuple[list[str], list[list[str]], list[str], np.ndarray]:
+    """(head lines after ``def``, the body lines of each move (comments of the CAM records before it first), the
+    lines after the last move, the start joints)."""
+    va = positive(approach_speed, "approach_speed")
+    aa = positive(approach_acceleration, "approach_acceleration")
+    s = job.settings
     q0 = _start_joints(job)
     a = s.limits.acceleration
     plans = [m.plan for m in moves if m.plan is not None]
@@ -252,9 +267,8 @@ def job_program(
         raise ExportError("parameters: key 'program' is reserved (set by the exporter)")
     params = trajectory_parameters(job.trajectory(), {**dict(parameters or {}), "program": stats})
     tcp_pose = matrix_to_pose(as_transform(s.tcp, "tcp"))
-    lines = [f"def {name}():"]
-    lines += header("whole-job movep/movel", params, [])
-    lines += [
+    head = header("whole-job movep/movel", params, [])
+    head += [
         "  # movej/movel/movep semantics: UR Script Manual (e-Series), not covered by shared/UR-PROTOCOLS.md.",
         "  # Passes: movep within tolerance of the planned path, ending with r = 0 where the CAM system stops.",
         "  # Rapids and turns in place: movel (straight, orientation about one axis); t = planned time where",
@@ -266,7 +280,10 @@ def job_program(
     ]
     events = _noted_events(job)
     e_next = 0
+    body: list[list[str]] = []
     for i, m in enumerate(moves):
+        lines: list[str] = []
+        body.append(lines)
         while e_next < len(events) and events[e_next].line < m.motion_line:
             ev = events[e_next]
             lines.append(comment(f"line {ev.line}: {ev.text or ev.kind}"[:200]))
@@ -308,7 +325,186 @@ def job_program(
                                  f"{m.duration:.3f} s"))
             lines.append(f"  movel({pose(m.target)}, a={num(a)}, v={num(s.limits.speed)}, t={num(m.duration)}, "
                          f"r={num(0.0)})")
-    lines += [comment(f"line {ev.line}: {ev.text or ev.kind}"[:200]) for ev in events[e_next:]]
-    lines += ["end", ""]
+    tail = [comment(f"line {ev.line}: {ev.text or ev.kind}"[:200]) for ev in events[e_next:]]
+    return head, body, tail, q0
+
+
+def job_program(
+    job,
+    moves: tuple[ProgramMove, ...] | None = None,
+    *,
+    tolerance: float | None = None,
+    angle_tolerance: float = math.radians(1.0),
+    approach_speed: float = 0.25,
+    approach_acceleration: float = 0.5,
+    parameters: Mapping | None = None,
+    name: str = "planner_job",
+    progress=None,
+) -> str:
+    """A URScript program that runs a whole CAM job (see the module doc), whatever its size (a controller may not
+    take a program above :data:`MAX_PROGRAM_BYTES`: :func:`job_program_pieces` cuts it into programs that it does).
+
+    Parameters
+    ----------
+    job : PlannedJob
+        Planned with a robot, every move reachable (``job.problems`` empty).
+    moves : tuple of ProgramMove, optional
+        From :func:`plan_job_program` (default: planned here with ``tolerance`` and ``angle_tolerance``).
+    tolerance, angle_tolerance : float, optional
+        See :func:`plan_job_program`.
+    approach_speed, approach_acceleration : float
+        movej to the job's first pose, rad/s and rad/s^2.
+    parameters : mapping, optional
+        Extra header entries (e.g. the input file name).
+    name : str
+        Program name.
+
+    Raises
+    ------
+    ExportError
+        Without a robot, or when the job reports a move the robot cannot make (the message names
+        the pass and source line).
+    """
+    name = check_name(name)
+    _checked_job(job)
+    if moves is None:
+        moves = plan_job_program(job, tolerance=tolerance, angle_tolerance=angle_tolerance, progress=progress)
+    if not moves:
+        raise ExportError(f"{job.source}: the job has no motion")
+    head, body, tail, _ = _program_parts(job, moves, tolerance=tolerance, angle_tolerance=angle_tolerance,
+                                         approach_speed=approach_speed, approach_acceleration=approach_acceleration,
+                                         parameters=parameters, progress=progress)
+    lines = [f"def {name}():", *head]
+    for part in body:
+        lines += part
+    lines += [*tail, "end", ""]
     return "\n".join(lines)
 
+
+def _size(lines: list[str]) -> int:
+    """UTF-8 bytes of ``lines`` joined, each with its line break."""
+    return sum(len(x.encode("utf-8")) + 1 for x in lines)
+
+
+def job_program_pieces(
+    job,
+    moves: tuple[ProgramMove, ...] | None = None,
+    *,
+    max_bytes: int = MAX_PROGRAM_BYTES,
+    tolerance: float | None = None,
+    angle_tolerance: float = math.radians(1.0),
+    approach_speed: float = 0.25,
+    approach_acceleration: float = 0.5,
+    parameters: Mapping | None = None,
+    name: str = "planner_job",
+    progress=None,
+) -> tuple[ProgramPiece, ...]:
+    """The job's program (:func:`job_program`, the same statements in the same order) cut into programs of at most
+    ``max_bytes`` bytes each, to be run one after the other, each started once the one before has ended.
+
+    Every move of the job ends with the arm at rest (passes, rapids and turns end with r = 0: passes end where the
+    CAM system stops, at rapids, corners and axis jumps), so a seam between two programs is a wait at rest, never a
+    stop in a cut; a seam is placed between moves only, preferably where the cut output is off: between two passes
+    joined at a corner only when that run of passes needs more than one program (the output stays on through the
+    seam; the next piece sets it on again first, in case the controller switched it off at the program's end). The
+    first piece holds the whole header and the joint move onto the start; each later one a header naming the piece,
+    its moves and passes, and ``set_tcp``, and continues from where the one before ended. Consecutive moves are
+    packed greedily, so a job whose whole program fits is one piece, identical to :func:`job_program`'s text.
+
+    Raises
+    ------
+    ExportError
+        As :func:`job_program`; and when one pass alone needs a program larger than ``max_bytes`` (a seam in a cut
+        would stop the tool there), naming the pass, its lines, the size and the limit.
+    """
+    name = check_name(name)
+    max_bytes = int(max_bytes)
+    if max_bytes < 4096:
+        raise ExportError(f"max_bytes must be at least 4096 bytes, got {max_bytes}")
+    _checked_job(job)
+    if moves is None:
+        moves = plan_job_program(job, tolerance=tolerance, angle_tolerance=angle_tolerance, progress=progress)
+    if not moves:
+        raise ExportError(f"{job.source}: the job has no motion")
+    head, body, tail, _ = _program_parts(job, moves, tolerance=tolerance, angle_tolerance=angle_tolerance,
+                                         approach_speed=approach_speed, approach_acceleration=approach_acceleration,
+                                         parameters=parameters, progress=progress)
+    s_out = job.settings.cut_output
+    whole = _size([f"def {name}():", *head, *tail, "end"]) + sum(_size(b) for b in body)
+    if whole <= max_bytes:
+        text = "\n".join([f"def {name}():", *head, *(x for b in body for x in b), *tail, "end", ""])
+        passes = tuple(m.pass_index for m in moves if m.kind == "cut")
+        return (ProgramPiece(text, 0, len(moves) - 1, moves[0].start, moves[-1].target, passes, moves[0].first_line),)
+    # units: runs of moves a seam cuts only when they need more than one program (passes joined at corners)
+    units: list[tuple[int, int]] = []
+    for i, m in enumerate(moves):
+        if units and m.kind == "cut" and moves[i - 1].kind == "cut":
+            units[-1] = (units[-1][0], i)
+        else:
+            units.append((i, i))
+    restate = "" if s_out is None else output_switch(s_out[0], s_out[1], True)
+    later_head = 400 + len(name) + len(restate)  # the header of a later piece (comments, set_tcp, the output), generous
+    groups: list[list[int]] = [[]]
+    used = _size([f"def {name}():", *head, "end"])
+    tail_size = _size(tail)
+    last = len(moves) - 1
+
+    def room(b: int) -> int:
+        return max_bytes - (tail_size if b == last else 0)
+
+    def refuse(a: int, b: int, need: int):
+        first, final = moves[a], moves[b]
+        what = (f"pass {first.pass_index}" if a == b else f"passes {first.pass_index}-{final.pass_index} "
+                "(joined at corners)") if first.kind == "cut" else f"the {first.kind}"
+        return ExportError(f"{job.source}: {what} (lines {first.first_line}-{final.last_line}) alone needs a program "
+                           f"of {need} bytes, over the limit of {max_bytes} bytes per program; plan it with a larger "
+                           "tolerance (fewer movep targets), or stream it")
+
+    for a, b in units:
+        need = sum(_size(body[k]) for k in range(a, b + 1))
+        if used + need > room(b) and groups[-1]:
+            groups.append([])
+            used = later_head + _size(["end"])
+        if used + need <= room(b):
+            groups[-1] += list(range(a, b + 1))
+            used += need
+            continue
+        # a run of passes joined at corners that needs more than one program: cut at its corners, where the arm is
+        # at rest (each pass ends with r = 0); the cut output stays on through the seam
+        for k in range(a, b + 1):
+            need = _size(body[k])
+            if used + need > room(k) and groups[-1]:
+                groups.append([])
+                used = later_head + _size(["end"])
+            if used + need > room(k):
+                raise refuse(k, k, used + need)
+            groups[-1].append(k)
+            used += need
+    tcp_line = head[-1]  # set_tcp(...)
+    pieces = []
+    for k, g in enumerate(groups):
+        a, b = g[0], g[-1]
+        passes = tuple(moves[i].pass_index for i in range(a, b + 1) if moves[i].kind == "cut")
+        piece_name = f"{name}_{k + 1}" if len(name) < 56 else f"{name[:55]}_{k + 1}"
+        if k == 0:
+            lines = [f"def {piece_name}():", *head]
+        else:
+            span = f"passes {passes[0]}-{passes[-1]}" if passes else "no pass"
+            lines = [f"def {piece_name}():",
+                     comment(f"piece {k + 1} of {len(groups)} of the whole-job program of {job.source}: program moves "
+                             f"{a}-{b} ({span}), lines {moves[a].first_line}-{moves[b].last_line}"),
+                     comment(f"continues where piece {k} ended, the arm at rest there (each piece at most "
+                             f"{max_bytes} bytes)"),
+                     tcp_line]
+            if restate and moves[a].kind == "cut" and moves[a - 1].kind == "cut":  # within passes joined at a corner
+                lines += [comment("the cut output stays on from the piece before (passes joined at a corner)"),
+                          restate]
+        for i in range(a, b + 1):
+            lines += body[i]
+        if k == len(groups) - 1:
+            lines += tail
+        lines += ["end", ""]
+        text = "\n".join(lines)
+        assert len(text.encode("utf-8")) <= max_bytes, (k, len(text))
+        pieces.append(ProgramPiece(text, a, b, moves[a].start, moves[b].target, passes, moves[a].first_line))
+    return tuple(pieces)

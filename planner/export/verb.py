@@ -4,7 +4,11 @@ both take them from (``planner plan -o/--plot``, ``planner run --plot``, the ser
 Formats (:data:`FORMATS`, by a file's suffix in :data:`SUFFIXES`):
 
 - ``csv``, ``json``: the trajectory table (:mod:`planner.export.tables`), streamed one move at a time;
-- ``script``: the job's URScript program (:func:`planner.export.job_script.job_program`; needs a robot);
+- ``script``: the job's URScript program (:func:`planner.export.job_script.job_program`; needs a robot), refused
+  when larger than ``max_program_bytes`` (default :data:`~planner.export.job_script.MAX_PROGRAM_BYTES`, the size a
+  controller's script ports are known to take; None: any size). A program a controller cannot take is not written:
+  the one-line refusal names its size, the limit and the ways to run the job (``planner run --mode program`` sends
+  it in pieces under the limit, one after the other; fewer passes with ``--pass``; stream mode);
 - ``png``, ``svg``, ``pdf``: the picture of the job (:func:`planner.export.plot.plot_job`) titled by
   :func:`plot_title` (with ``execution=``, the run drawn over it);
 - ``job``: the saved plan (:meth:`planner.PlannedJob.save`).
@@ -35,7 +39,7 @@ from pathlib import Path
 
 from planner.errors import PlannerError
 from planner.export.files import as_path, atomic_binary, output_target, write_bytes_atomic
-from planner.export.job_script import job_program
+from planner.export.job_script import MAX_PROGRAM_BYTES, job_program
 from planner.export.plot import plot_job
 from planner.export.tables import csv_text, json_text
 from planner.export.urscript import write_script
@@ -99,7 +103,7 @@ def plot_title(job, name: str, execution=None) -> str:
 
 
 def stream(job, fmt: str, *, parameters: Mapping | None = None, progress=None, execution=None,
-           name: str | None = None) -> Iterator[bytes]:
+           name: str | None = None, max_program_bytes: int | None = MAX_PROGRAM_BYTES) -> Iterator[bytes]:
     """The bytes of ``job`` in format ``fmt``, in pieces (one move at a time for ``csv`` and ``json``: bounded
     memory whatever the job's length; the others whole).
 
@@ -112,12 +116,13 @@ def stream(job, fmt: str, *, parameters: Mapping | None = None, progress=None, e
     fmt = _checked_format(fmt)
     shown = input_name(job, parameters)
     name = file_name(shown, fmt) if name is None else name
-    pieces = _pieces(job, fmt, parameters, progress, execution, shown, name)
+    pieces = _pieces(job, fmt, parameters, progress, execution, shown, name, max_program_bytes)
     first = next(pieces, b"")
     return itertools.chain((first,), pieces)
 
 
-def export(job, fmt: str, *, parameters: Mapping | None = None, progress=None, execution=None) -> bytes:
+def export(job, fmt: str, *, parameters: Mapping | None = None, progress=None, execution=None,
+           max_program_bytes: int | None = MAX_PROGRAM_BYTES) -> bytes:
     """The bytes of ``job`` in format ``fmt`` (one of :data:`FORMATS`) at once: what :func:`write` writes to a file
     of that type, and the service sends. See :func:`stream` for a large trajectory.
 
@@ -135,16 +140,18 @@ def export(job, fmt: str, *, parameters: Mapping | None = None, progress=None, e
     >>> export(job, "script").decode().count("movep(")   # the URScript program: movep along the pass
     176
     """
-    return b"".join(stream(job, fmt, parameters=parameters, progress=progress, execution=execution))
+    return b"".join(stream(job, fmt, parameters=parameters, progress=progress, execution=execution,
+                           max_program_bytes=max_program_bytes))
 
 
-def _pieces(job, fmt: str, parameters, progress, execution, shown: str, name: str) -> Iterator[bytes]:
+def _pieces(job, fmt: str, parameters, progress, execution, shown: str, name: str,
+            max_program_bytes: int | None) -> Iterator[bytes]:
     if fmt in ("csv", "json"):
         writer = csv_text if fmt == "csv" else json_text
         for piece in writer(job.trajectory(), parameters=parameters, progress=progress):
             yield piece.encode("utf-8")
     elif fmt == "script":
-        yield _program(job, parameters, progress, name).encode("utf-8")
+        yield _program(job, parameters, progress, name, max_program_bytes).encode("utf-8")
     elif fmt in PLOTS:
         buf = io.BytesIO()
         plot_job(job, buf, title=plot_title(job, shown, execution), execution=execution, image_format=fmt)
@@ -156,14 +163,25 @@ def _pieces(job, fmt: str, parameters, progress, execution, shown: str, name: st
             yield target.read_bytes()
 
 
-def _program(job, parameters, progress, name: str) -> str:
+def _program(job, parameters, progress, name: str, max_program_bytes: int | None) -> str:
+    if max_program_bytes is not None and not (isinstance(max_program_bytes, int) and max_program_bytes > 0):
+        raise PlannerError(f"max_program_bytes must be a number of bytes > 0 or None, got {max_program_bytes!r}")
     try:
-        return job_program(job, parameters=parameters, progress=progress)
+        text = job_program(job, parameters=parameters, progress=progress)
     except PlannerError as exc:
         raise PlannerError(f"not writing {name}: {exc}") from None
+    size = len(text.encode("utf-8"))
+    if max_program_bytes is not None and size > max_program_bytes:
+        raise PlannerError(
+            f"not writing {name}: the program is {size} bytes ({text.count(chr(10))} lines), over the "
+            f"{max_program_bytes} bytes a UR controller is known to take in one program (the limit): run the job "
+            "with `planner run --mode program` (sent in pieces under the limit), export fewer passes (--pass), stream "
+            "it, or raise the limit for a controller known to take more (--max-program-bytes)")
+    return text
 
 
-def write(job, target, *, parameters: Mapping | None = None, progress=None, execution=None) -> str:
+def write(job, target, *, parameters: Mapping | None = None, progress=None, execution=None,
+          max_program_bytes: int | None = MAX_PROGRAM_BYTES) -> str:
     """Write ``job`` to the file ``target`` in the format of its suffix (:data:`SUFFIXES`), atomically (the bytes
     :func:`export` gives); what was written, for a person (``"31250 poses, with joints"``, ``"212 movep"``,
     ``"speeds from all 31250 poses, joints from 1 in 2"``, ``"1204 bytes"``)."""
@@ -173,7 +191,7 @@ def write(job, target, *, parameters: Mapping | None = None, progress=None, exec
     if fmt == "job":
         return f"{job.save(path)} bytes"
     if fmt == "script":
-        text = _program(job, parameters, progress, path.name)
+        text = _program(job, parameters, progress, path.name, max_program_bytes)
         write_script(text, path)
         counts = {cmd: text.count(f"\n  {cmd}(") for cmd in ("movep", "movel", "movej")}
         return ", ".join(f"{n} {cmd}" for cmd, n in counts.items() if n)

@@ -273,6 +273,11 @@ class PathCollector:
             self.rapid_idx.append(k)
         return k
 
+    def cutting(self) -> bool:
+        """True inside a pass: a feed move has been added since the last rapid (a unit switch here is refused)."""
+        n = len(self.lines)
+        return n >= 2 and not (len(self.rapid_idx) and self.rapid_idx[-1] == n - 1)
+
     # ------------------------------------------------------------------ finishing
     def finish(
         self,

@@ -330,7 +330,12 @@ class _Reader:
         word = body.split(",")[0].strip().upper()
         if word not in _UNIT_WORDS:
             self.fail(line, f"field 1 of {major}", f"unknown unit {word!r} (expected MM or INCH)", 1)
-        self.units, self.scale = unit_scale(_UNIT_WORDS[word])
+        units = _UNIT_WORDS[word]
+        if units != self.units and self.out.cutting():
+            self.fail(line, major, f"switches the units from {self.units} to {units} in the middle of a pass (a "
+                      f"{unit_scale(units)[1] / self.scale:g}x jump in scale): state the units before the first "
+                      f"motion or between passes", 1)  # fmt: skip
+        self.units, self.scale = unit_scale(units)
         self.out.units_seen.append(self.units)
         self.out.event("units", line, self.units, math.nan, f"{major}/{body.strip()}")
 

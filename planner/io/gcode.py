@@ -73,6 +73,8 @@ from planner.io.toolpath import Arc, Event, Toolpath, linearize_arcs, vec3
 
 _TOKEN = re.compile(r"([A-Z])([^A-Z]*)")
 _NUMBER = re.compile(r"[-+]?(?:\d+\.?\d*|\.\d+)\Z")
+#: longest number word read (sign, digits, point, spaces): posts write at most ~20 (a 400-digit word reads as inf)
+_MAX_DIGITS = 40
 _BLOCK = re.compile(r"(?:[A-Z][-+]?(?:\d+\.?\d*|\.\d+))+\Z")
 _EXPONENT = re.compile(r"([A-Za-z])\s*[-+]?(?:\d+\.?\d*|\.\d+)[eE][-+]?\d+")
 _OPER = re.compile(r"^\s*OPER\s*:\s*(.*?)\s*$", re.IGNORECASE)
@@ -168,6 +170,8 @@ class _Reader:
                 self.fail(line, letter, "has no value")
             if not _NUMBER.match(value):
                 self.fail(line, letter, f"{value!r} is not a number")
+            if len(value) > _MAX_DIGITS:
+                self.fail(line, letter, f"a number of {len(value)} characters ({value[:12]}...)")
             out.append((letter, float(value), value))
         return out
 
@@ -255,6 +259,9 @@ class _Reader:
         raws: dict[str, str] = {}
         rot_words = self.rot_words
         for letter, raw in _TOKEN.findall(code):
+            if len(raw) > _MAX_DIGITS:
+                self.fail(line, letter, f"a number of {len(raw)} characters ({raw[:12]}...): not a coordinate, feed "
+                          f"or code a post-processor writes")  # fmt: skip
             if letter in "XYZ" or letter in rot_words or letter in "ABC":
                 if letter in axes:
                     self.fail(line, letter, "appears twice in the block")
@@ -312,7 +319,11 @@ class _Reader:
         elif g in (17.0, 18.0, 19.0):
             self.plane = int(g)
         elif g in (20.0, 21.0):
-            self.units, self.scale = unit_scale("inch" if g == 20.0 else "mm")
+            units = "inch" if g == 20.0 else "mm"
+            if units != self.units and out.cutting():
+                self.fail(line, "G", f"G{raw} switches the units from {self.units} to {units} in the middle of a "
+                          f"pass: state the units before the first motion or between passes")  # fmt: skip
+            self.units, self.scale = unit_scale(units)
             out.units_seen.append(self.units)
             out.event("units", line, self.units, math.nan, text.strip())
         elif g in (90.0, 91.0):

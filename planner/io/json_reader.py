@@ -58,7 +58,7 @@ _TOP = {"units", "feed_units", "points", "axes", "feeds", "rapid", "x", "y", "z"
 
 def _locate(text: str, path: list) -> int:
     """Character offset in ``text`` of the JSON value at ``path`` (keys and indices), best effort."""
-    scan = make_scanner(json.JSONDecoder())  # type: ignore[arg-type]  # typeshed: make_scanner(context) is a class
+    scan = make_scanner(json.JSONDecoder(parse_int=_integer))  # type: ignore[arg-type]  # typeshed: a class
     ws = " \t\n\r"
     pos = 0
     while pos < len(text) and text[pos] in ws:
@@ -120,9 +120,17 @@ class _Json:
         if isinstance(value, bool) or not isinstance(value, int | float):
             self.fail(path, f"{value!r} is not a number")
         v = float(value)
+        if math.isinf(v):  # Infinity, or digits beyond a double's range (1e400, an integer of 5000 digits)
+            self.fail(path, "an infinite number (or one too large to be a coordinate or feed)")
         if not math.isfinite(v):
             self.fail(path, f"{value!r} is not a finite number")
         return v
+
+
+def _integer(text: str) -> int | float:
+    """A JSON integer: an int, or beyond a double's range the float it reads as (inf, refused by its place), never
+    Python's ``ValueError`` for integers of more than 4300 digits."""
+    return int(text) if len(text) < 300 else float(text)
 
 
 class _DuplicateKey(Exception):
@@ -204,7 +212,7 @@ def read_json(
             raise opts.ReaderArgumentTypeError("src", f"src must be a text stream: it gave a {type(text).__name__}")
         text = check_text_start(text[:SNIFF_CHARS], name) + text[SNIFF_CHARS:]
     try:
-        doc = json.loads(text, object_pairs_hook=_unique_keys)
+        doc = json.loads(text, object_pairs_hook=_unique_keys, parse_int=_integer)
     except json.JSONDecodeError as exc:
         raise InputFileError(name, exc.lineno, f"column {exc.colno}", f"invalid JSON: {exc.msg}") from None
     except _DuplicateKey as exc:
@@ -243,7 +251,7 @@ def read_json(
 
 def _element_lines(text: str, array_path: list, count: int) -> list[int]:
     """1-based line of each of the first ``count`` elements of the JSON array at ``array_path``."""
-    scan = make_scanner(json.JSONDecoder())  # type: ignore[arg-type]  # typeshed: make_scanner(context) is a class
+    scan = make_scanner(json.JSONDecoder(parse_int=_integer))  # type: ignore[arg-type]  # typeshed: a class
     newlines = [m.start() for m in re.finditer("\n", text)]
     pos = _locate(text, array_path) + 1  # just inside "["
     starts = []

@@ -13,21 +13,26 @@ from pathlib import Path
 
 import numpy as np
 
+from planner import __version__
 from planner.errors import NumericalError, PlannerError
+from planner.export.job_script import MAX_PROGRAM_BYTES
 from planner.frontends.cli.options import (
     Parser,
     Progress,
     add_plan_options,
     settings_from_args,
+    unusual_values,
 )
-from planner.wording import counted
+from planner.wording import counted, pose_option
 
 #: The bundled example the demo runs on (first pass of a real Siemens NX toolpath).
 EXAMPLE_NAME = "nx_first_pass.csv"
 #: The same pass as NX wrote it (CLSF excerpt with MSYS and modal tool axes).
 EXAMPLE_CLS = "nx_first_pass.cls"
 #: Where the demo places the NX part frame in the UR5e base frame (m, rad): the pass in front of the robot.
-DEMO_PART_FRAME = "0.4,0.9965,-0.1,0,0,0"
+#: The demo's part frame (m, rad) and as typed on the command line (mm, deg)
+DEMO_PART = (0.4, 0.9965, -0.1, 0.0, 0.0, 0.0)
+DEMO_PART_FRAME = pose_option(DEMO_PART)  # "400mm,996.5mm,-100mm,0,0,0"
 
 
 def example_path(name: str = EXAMPLE_NAME) -> Path:
@@ -129,6 +134,8 @@ def cmd_plan(args: argparse.Namespace):
 
         check_plot_target(args.plot, path_in)
     options = {k: v for k, v in (("units", args.units), ("machine", args.machine)) if v}
+    for line in unusual_values(args):
+        print(f"  warning   {line}")
     print(f"{path_in.name}: planning ...", flush=True)
     bar = Progress(args.progress or sys.stderr.isatty())
     try:
@@ -145,7 +152,7 @@ def cmd_plan(args: argparse.Namespace):
         print(f"  wrote     {args.plot} ({write(job, args.plot, parameters={'input': path_in.name})})")
     if out is not None:
         try:
-            print(f"  wrote     {out} ({export(job, out, {'input': path_in.name}, bar)})")
+            print(f"  wrote     {out} ({export(job, out, {'input': path_in.name}, bar, args.max_program_bytes)})")
         finally:
             bar.close()
     return job
@@ -162,7 +169,7 @@ def warning_lines(warnings: tuple, limit: int = 10) -> list[str]:
     return out
 
 
-def export(job, out: Path, parameters: dict, progress=None) -> str:
+def export(job, out: Path, parameters: dict, progress=None, max_program_bytes: int | None = MAX_PROGRAM_BYTES) -> str:
     """Write a job to ``out`` by its suffix (.csv / .json trajectory, .script program, .job saved plan) with the
     export verb (:func:`planner.export.write`); what was written, for a person."""
     from planner.export import write
@@ -173,7 +180,7 @@ def export(job, out: Path, parameters: dict, progress=None) -> str:
     if suffix in (".csv", ".json") and job.settings.robot is not None and job.problems:
         print(f"  warning   {job.settings.robot}: {counted(len(job.problems), 'move')} with problems; joints without "
               "an inverse kinematics solution are left empty", flush=True)
-    return write(job, out, parameters=parameters, progress=progress)
+    return write(job, out, parameters=parameters, progress=progress, max_program_bytes=max_program_bytes)
 
 
 def cmd_demo(args: argparse.Namespace) -> None:
@@ -205,6 +212,7 @@ def cmd_demo(args: argparse.Namespace) -> None:
 
 def build_parser() -> argparse.ArgumentParser:
     ap = Parser(prog="planner", description="Robot tool-path planning with PH curves.")
+    ap.add_argument("--version", action="version", version=f"planner {__version__} (ph-toolpath-planner)")
     sub = ap.add_subparsers(dest="command", required=True)
     f = sub.add_parser("fit", help="fit PH spline paths through a waypoint file and report their figures")
     f.add_argument("input", help="waypoint file: CSV, JSON, APT/CL data or G-code")

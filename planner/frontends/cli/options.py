@@ -11,44 +11,81 @@ from __future__ import annotations
 
 import argparse
 import math
+import re
 import sys
 from dataclasses import dataclass
 from typing import Any
 
-import numpy as np
-
+from drivers.servo import GAIN_RANGE, LOOKAHEAD_RANGE
 from planner.errors import PlannerError
+from planner.export.job_script import MAX_PROGRAM_BYTES
 from planner.settings import OUTPUT_KINDS, SETTING, SETTINGS, PlanSettings, Setting, blame
+from planner.wording import quantity
 
 #: Largest rotation vector of --part-frame / --tcp, rad (any angle is reachable below 2 pi; beyond this it is a
 #: typing mistake, and beyond ~1e16 rad no angle is left in the float at all).
 MAX_ROTVEC = 100.0
 
 
+#: Units a --part-frame / --tcp value may carry: per SI unit (m, rad). The command line types poses in mm and deg.
+LENGTH_UNITS = {"mm": 1e3, "cm": 1e2, "m": 1.0, "in": 1.0 / 0.0254}
+ANGLE_UNITS = {"deg": 180.0 / math.pi, "rad": 1.0}
+POSE_USAGE = "six values x,y,z,rx,ry,rz, each with its unit (400mm or 0.4m, 90deg or 1.5708rad; 0 needs none)"
+_QUANTITY = re.compile(r"\s*([-+]?(?:\d+\.?\d*|\.\d+)(?:[eE][-+]?\d+)?|[-+]?(?:inf|nan))\s*([a-zA-Z]*)\s*\Z",
+                       re.IGNORECASE)
+
+
 def _pose(s: Setting, text: str):
     """``--part-frame`` / ``--tcp`` text -> 6 floats (m, rad) or one of the setting's words ("auto": placed for
-    the robot by the planner), or PlannerError naming the option."""
+    the robot by the planner), or PlannerError naming the option.
+
+    Each value carries its unit (``400mm``, ``0.4m``, ``90deg``, ``1.5708rad``); a bare 0 is 0 in any unit. A bare
+    number otherwise is refused: these options took metres and radians before 0.2 (they are typed in mm and deg
+    now, like every other length and angle of the command line), so an old command line must not change meaning.
+    """
     name = s.flag
     if text.strip().lower() in s.choices:
         return text.strip().lower()
-    try:
-        v = [float(x) for x in text.split(",")]
-    except ValueError:
-        raise PlannerError(f"{name} {text}: must be six numbers x,y,z,rx,ry,rz (m, rad)") from None
-    if len(v) != 6:
-        raise PlannerError(f"{name} {text}: must be six numbers x,y,z,rx,ry,rz (m, rad), got {len(v)}")
+    parts = text.split(",")
+    if len(parts) != 6:
+        raise PlannerError(f"{name} {text}: must be {POSE_USAGE}, got {len(parts)} values", field=s.name, value=text)
     from planner.budget import MAX_COORDINATE
 
-    for i, (x, what) in enumerate(zip(v, ("x", "y", "z", "rx", "ry", "rz"), strict=True)):
-        if not np.isfinite(x):
-            raise PlannerError(f"{name} {text}: {what} (number {i + 1}) must be finite")
-        if i < 3 and abs(x) > MAX_COORDINATE:
-            raise PlannerError(f"{name} {text}: {what} = {x:g} m is beyond any robot cell (at most "
-                               f"{MAX_COORDINATE:g} m; the pose is in metres)")
+    v = []
+    for i, (part, what) in enumerate(zip(parts, ("x", "y", "z", "rx", "ry", "rz"), strict=True)):
+        units, kind = (LENGTH_UNITS, "mm") if i < 3 else (ANGLE_UNITS, "deg")
+        m = _QUANTITY.match(part)
+        if m is None:
+            raise PlannerError(f"{name} {text}: {what} = {part.strip()!r} is not a number with a unit (must be "
+                               f"{POSE_USAGE})", field=s.name, value=text)  # fmt: skip
+        x, unit = float(m.group(1)), m.group(2).lower()
+        if not math.isfinite(x):
+            raise PlannerError(f"{name} {text}: {what} (number {i + 1}) must be finite", field=s.name, value=text)
+        if unit == "" and x != 0.0:
+            si, typed = ("m", x * 1e3) if i < 3 else ("rad", math.degrees(x))
+            raise PlannerError(f"{name} {text}: {what} = {part.strip()} has no unit: a bare number meant {si} before "
+                               f"0.2, and {name} is typed in {kind} now; write {m.group(1)}{si} for what it meant "
+                               f"({quantity(typed, kind)}), or the value in {kind} with its unit",
+                               field=s.name, value=text)  # fmt: skip
+        if unit and unit not in units:
+            raise PlannerError(f"{name} {text}: {what} = {part.strip()}: unknown unit {unit!r} ("
+                               f"{'a length' if i < 3 else 'an angle'} takes {', '.join(units)})",
+                               field=s.name, value=text)  # fmt: skip
+        v.append(x / units[unit] if unit else 0.0)
+        if i < 3 and abs(v[-1]) > MAX_COORDINATE:
+            hint = (f"; did you mean {m.group(1)}mm?" if unit == "m" and abs(x) / 1e3 <= MAX_COORDINATE else "")
+            raise PlannerError(f"{name} {text}: {what} = {part.strip()} is beyond any robot cell (at most "
+                               f"{MAX_COORDINATE:g} m){hint}", field=s.name, value=text)  # fmt: skip
     if math.hypot(*v[3:]) > MAX_ROTVEC:
-        raise PlannerError(f"{name} {text}: the rotation vector rx,ry,rz is longer than {MAX_ROTVEC:g} rad "
-                           "(it is in radians: an angle of at most pi is enough)")
+        raise PlannerError(f"{name} {text}: the rotation vector rx,ry,rz is longer than {math.degrees(MAX_ROTVEC):.0f} "
+                           "deg (an angle of at most 180 deg is enough)", field=s.name, value=text)
     return tuple(v)
+
+
+def parse_pose(text: str, name: str = "part_frame"):
+    """A ``--part-frame`` (or, with ``name="tcp"``, ``--tcp``) value as typed -> 6 floats (m, rad) or its word
+    ("auto"); the inverse of :func:`planner.wording.pose_option`. PlannerError naming the option."""
+    return _pose(SETTING[name], text)
 
 
 def _output(s: Setting, text: str):
@@ -125,8 +162,8 @@ def _numeric_options() -> tuple[NumericOption, ...]:
     return (
         *(NumericOption.of(s) for s in PLAN_SETTINGS if s.kind == "number"),
         # planner run's own (planner.frontends.cli.run): URDriver's servoJ ranges, the simulator's speed, a TCP port
-        NumericOption("--lookahead", "lookahead", "s", 0.03, 0.2, lo_closed=True),
-        NumericOption("--gain", "gain", "", 100.0, 2000.0, lo_closed=True),
+        NumericOption("--lookahead", "lookahead", "s", *LOOKAHEAD_RANGE, lo_closed=True),
+        NumericOption("--gain", "gain", "", *GAIN_RANGE, lo_closed=True),
         NumericOption("--sim-speed", "sim_speed", "", 0.0, None),
         NumericOption("--modbus-port", "modbus_port", "", 1.0, 65535.0, lo_closed=True),
     )
@@ -138,6 +175,33 @@ def check_numeric_options(args: argparse.Namespace) -> None:
     for opt in _numeric_options():
         if hasattr(args, opt.dest):
             opt.check(getattr(args, opt.dest))
+
+
+#: The likely mistake behind a typed value below / above its usual range: (unit meant, typed units per that unit).
+_LIKELY_UNIT = {"mm/s": (("m/s", 1e3), ("mm/min", 1.0 / 60.0))}
+
+
+def unusual_values(args: argparse.Namespace) -> list[str]:
+    """A line for each option whose value is valid but outside the range real jobs lie in (``Setting.usual``),
+    naming the likely unit mistake: ``--feed 0.05 mm/s is below the usual 1 to 2000 mm/s: did you type m/s ...``."""
+    lines = []
+    for s in PLAN_SETTINGS:
+        value = getattr(args, s.name, None)
+        if s.usual is None or value is None:
+            continue
+        lo, hi = (x * s.per_si for x in s.usual)
+        x = float(value)
+        if lo <= x <= hi:
+            continue
+        text = getattr(value, "text", None) or f"{x:g}"
+        line = f"{s.flag} {text} {s.typed_unit} is {'below' if x < lo else 'above'} the usual {lo:g} to {hi:g} " \
+               f"{s.typed_unit}"
+        likely = _LIKELY_UNIT.get(s.typed_unit)
+        if likely is not None:
+            meant, factor = likely[0 if x < lo else 1]
+            line += f": did you mean {text} {meant} ({x * factor:g} {s.typed_unit})?"
+        lines.append(line)
+    return lines
 
 
 def settings_from_args(args: argparse.Namespace) -> PlanSettings:
@@ -247,7 +311,7 @@ _ARGUMENT = {
     "number": _number_argument,
     "choice": lambda s: {"choices": list(s.choices), "default": s.default, "help": f"{s.doc} (default {s.default})"},
     "robot": lambda s: {"default": "none", "help": f"{s.doc} (default none)"},
-    "pose": lambda s: {"help": f"{s.doc} ({s.unit})"},
+    "pose": lambda s: {"help": f"{s.doc}: {POSE_USAGE}"},
     "output": lambda s: {"help": s.doc},
     "passes": lambda s: {"help": f"{s.doc}: K[,K...], longest or all (default all)"},
 }
@@ -256,12 +320,29 @@ _ARGUMENT = {
 def _reader_and_output_options(p: argparse.ArgumentParser, outputs: bool) -> None:
     p.add_argument("--units", choices=["mm", "m", "inch"], help="units of a CSV/JSON file (default mm)")
     p.add_argument("--machine", help="machine kinematics for 5-axis G-code (e.g. haas-umc-750)")
+    p.add_argument("--max-program-bytes", type=_program_bytes, default=MAX_PROGRAM_BYTES, metavar="N",
+                   help="largest URScript program a controller takes, bytes (default "
+                        f"{MAX_PROGRAM_BYTES}; UR documents none; 100000 for a CB-Series controller; 0: no limit): a "
+                        "larger .script is refused; planner run --mode program sends pieces of at most this size")
     if outputs:
         p.add_argument("--progress", action="store_true", help="show progress bars even when not on a terminal")
         p.add_argument("-o", "--output", help="write the job: .csv / .json trajectory, .script URScript program "
                        "(movep along the passes within --tolerance, movel between), .job saved plan")
         p.add_argument("--plot", help="write a picture (.png, .svg, .pdf): paths and tool axes, frames, speed, "
                        "joints, fit")
+
+
+def _program_bytes(text: str) -> int | None:
+    """``--max-program-bytes``' value: a whole number of bytes, 0 (no limit: None) or at least 4096."""
+    try:
+        n = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"must be a whole number of bytes, got {text!r}") from None
+    if n == 0:
+        return None
+    if not 4096 <= n <= 10**9:
+        raise argparse.ArgumentTypeError(f"must be 0 (no limit) or within 4096..1000000000 bytes, got {text!r}")
+    return n
 
 
 class Parser(argparse.ArgumentParser):

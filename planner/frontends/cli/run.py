@@ -107,6 +107,11 @@ def cmd_run(args: argparse.Namespace) -> int:
     finally:
         bars.close()
     print(f"planned {args.input}: {job.duration:.2f} s, {counted(len(job.passes), 'pass')}", flush=True)
+    if job.not_executable is not None:  # refused before a controller is started or a robot is reached
+        for line in job.describe():
+            print(line)
+        print(f"planner run: error: {job.not_executable}", file=sys.stderr)
+        return 2
     sim = None
     try:
         if args.sim:
@@ -126,7 +131,7 @@ def cmd_run(args: argparse.Namespace) -> int:
             report = execute_job(job, host, mode=args.mode, io=args.io, modbus_port=modbus_port, progress=bars,
                                  lookahead=args.lookahead, gain=args.gain, compensate=args.compensate,
                                  path_tolerance=None if args.path_tolerance is None else args.path_tolerance * 1e-3,
-                                 fail_on_deviation=args.fail_on_deviation)
+                                 fail_on_deviation=args.fail_on_deviation, max_program_bytes=args.max_program_bytes)
         except DriverError as exc:  # refused before the run (not ready, no connection): the robot's reason
             print(f"planner run: robot error ({exc.kind}): {exc}", file=sys.stderr)
             return 1

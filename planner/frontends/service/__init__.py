@@ -10,7 +10,8 @@ the routes share, as ``Annotated`` dependencies: the service, the caller, the ca
 (the request and the typed response models, with their unit convention). Beside them: :mod:`.submit` (a job's
 input checked and stored), :mod:`.fast_submit` (the measured fast path of a JSON submit), :mod:`.body_limit`,
 :mod:`.errors` (422 naming the field), :mod:`.config` (settings from the environment), :mod:`.store` (tables,
-engine, migrations), :mod:`.auth` (API keys and roles), :mod:`.workers` (the pool of planning processes),
-:mod:`.execution_runs` (runs on robots), :mod:`.plots` (the drawing process), :mod:`.cli` (``planner serve`` and
+engine, migrations), :mod:`.auth` (API keys and roles), :mod:`.tasks` (the task layer: planning and executions
+on robots, one life cycle, run by the local backend's worker processes or by Celery workers), :mod:`.inserter` (new
+jobs in group commits), :mod:`.plots` (the drawing process), :mod:`.cli` (``planner serve``, ``planner worker`` and
 ``planner keys``).
 """

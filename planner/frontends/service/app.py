@@ -4,7 +4,8 @@
 The lifespan opens (and migrates) the store, re-queues jobs a previous run left running, and starts the worker pool;
 ``planner serve`` runs the app under uvicorn.
 
-Errors: a user's mistake (bad JSON, a bad setting, a file the reader refuses) is 422 with ``detail`` a list of
+Errors: the database unreachable (restarted, the network) is 503 with the reason and ``Retry-After``, until it
+answers again; a user's mistake (bad JSON, a bad setting, a file the reader refuses) is 422 with ``detail`` a list of
 ``{"loc": [...], "msg": ...}`` naming the field (and, for a file, the reader's message with its line); a job of
 another key is 404 exactly like a job that does not exist; an export of a job that is not done is 409.
 """
@@ -22,6 +23,7 @@ from fastapi import FastAPI, Request
 from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import JSONResponse
 from sqlalchemy import select
+from sqlalchemy.exc import InterfaceError, OperationalError
 
 from planner.errors import PlannerError
 from planner.frontends.service.body_limit import BodyLimit
@@ -72,6 +74,11 @@ def create_app(cfg: ServiceConfig | None = None, *, fast_submit: bool = True) ->
     async def _planner_error(request: Request, exc: PlannerError):
         return JSONResponse({"detail": [{"loc": [], "msg": str(exc), "type": "planner_error"}]}, status_code=422)
 
+    @app.exception_handler(OperationalError)
+    @app.exception_handler(InterfaceError)
+    async def _store_unreachable(request: Request, exc: Exception):
+        return JSONResponse({"detail": store_unreachable(exc)}, status_code=503, headers={"Retry-After": "2"})
+
     app.include_router(service_routes.router)
     app.include_router(api_router, prefix=API)
 
@@ -92,6 +99,13 @@ def create_app(cfg: ServiceConfig | None = None, *, fast_submit: bool = True) ->
 
     add_docs(app)
     return app
+
+
+def store_unreachable(exc: Exception) -> str:
+    """The one-line reason of a 503 while the database does not answer."""
+    orig = getattr(exc, "orig", None) or exc
+    first = next((line.strip() for line in str(orig).splitlines() if line.strip()), type(orig).__name__)
+    return f"the job store (database) does not answer; try again shortly ({first[:200]})"
 
 
 def _warm(svc: Service) -> None:

@@ -1,5 +1,5 @@
-"""``planner serve`` and ``planner keys``: :func:`add_subcommands` adds them to the CLI's parser
-(``python -m planner.frontends.service serve|keys ...`` runs them alone).
+"""``planner serve``, ``planner worker`` and ``planner keys``: :func:`add_subcommands` adds them to the CLI's parser
+(``python -m planner.frontends.service serve|worker|keys ...`` runs them alone).
 
 ``serve`` prints ``planner serve: listening on http://HOST:PORT`` once its socket is bound (``--port 0`` picks a
 free port), then serves until SIGINT/SIGTERM, stopping its worker processes.
@@ -30,6 +30,15 @@ def add_subcommands(sub) -> None:
                         "{\"sim\": true} (default PLANNER_ROBOTS, else one simulated robot named sim)")
     s.add_argument("--log-level", default="warning", help="uvicorn log level (default warning)")
     s.set_defaults(func=cmd_serve)
+    w = sub.add_parser("worker", help="run a Celery worker of the service's tasks (PLANNER_QUEUE=celery: planning "
+                                      "and executions on this machine for every API replica)")
+    w.add_argument("--concurrency", type=int, default=None,
+                   help="tasks at once, each in a worker process of its own (default PLANNER_WORKERS, 2)")
+    w.add_argument("--queues", default="plan,execute",
+                   help="the queues served: plan, execute or both (default plan,execute)")
+    w.add_argument("--db", default=None, help="database URL (default PLANNER_DB)")
+    w.add_argument("--log-level", default="warning", help="Celery's log level (default warning)")
+    w.set_defaults(func=cmd_worker)
     k = sub.add_parser("keys", help="create, list and revoke the service's API keys")
     k.add_argument("--db", default=None, help=f"database URL (default PLANNER_DB or {DEFAULT_DB})")
     ks = k.add_subparsers(dest="keys_command", required=True)
@@ -73,14 +82,23 @@ def cmd_serve(args: argparse.Namespace) -> None:
     sock.set_inheritable(True)
     host, port = sock.getsockname()[:2]
     mode = "; development mode: no API keys" if cfg.dev_no_auth else ""
-    print(f"planner serve: listening on http://{host}:{port} ({cfg.workers} workers; db {cfg.db_url}{mode})",
-          flush=True)
+    workers = f"{cfg.workers} workers" if cfg.queue == "local" else f"tasks to celery workers through {cfg.broker}"
+    print(f"planner serve: listening on http://{host}:{port} ({workers}; db {cfg.db_url}{mode})", flush=True)
     config = uvicorn.Config(create_app(cfg), log_level=args.log_level, timeout_graceful_shutdown=5)
     signal.signal(signal.SIGTERM, _stopped)  # uvicorn re-raises the signal after its graceful shutdown
     try:
         uvicorn.Server(config).run(sockets=[sock])
     except KeyboardInterrupt:  # uvicorn re-raises SIGINT after its graceful shutdown
         pass
+
+
+def cmd_worker(args: argparse.Namespace) -> None:
+    from planner.frontends.service.tasks.celery_backend import run_worker
+
+    cfg = ServiceConfig.from_env(db_url=args.db, workers=args.concurrency)
+    print(f"planner worker: {cfg.workers} tasks at once on queues {args.queues}; broker {cfg.broker}; db "
+          f"{cfg.db_url}", flush=True)
+    run_worker(cfg, cfg.workers, args.queues, args.log_level)
 
 
 def _stopped(signum, frame) -> None:
@@ -126,7 +144,7 @@ def cmd_keys_revoke(args: argparse.Namespace) -> None:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m planner.frontends.service serve|keys ...`` (the same as ``planner serve|keys``)."""
+    """``python -m planner.frontends.service serve|worker|keys ...`` (the same as ``planner serve|worker|keys``)."""
     ap = argparse.ArgumentParser(prog="planner")
     add_subcommands(ap.add_subparsers(dest="command", required=True))
     args = ap.parse_args(argv)

@@ -18,7 +18,10 @@ from typing import Annotated, Any, Literal
 from pydantic import BaseModel, ConfigDict, Field, ValidationError, field_validator, model_validator
 from pydantic_core import PydanticCustomError
 
+from drivers.report import PATH_TOLERANCE_RANGE
+from drivers.servo import DEFAULT_GAIN, DEFAULT_LOOKAHEAD, GAIN_RANGE, LOOKAHEAD_RANGE
 from planner.errors import PlannerError
+from planner.export.job_script import MAX_PROGRAM_BYTES
 
 #: Key roles: planner (submit and read its own jobs) and operator (may also execute on robots).
 ROLES = ("planner", "operator")
@@ -47,6 +50,14 @@ class RobotConfig:
         Simulated seconds per second of a simulated controller in program mode (streaming runs in real time).
     approach_speed, approach_acceleration : float
         The joint move onto the job's start before a run, rad/s and rad/s^2 (the driver's defaults 0.5, 0.5).
+    lookahead, gain, compensate : float, float, bool
+        Stream mode's servoJ settings and target shaping (:class:`drivers.ur.URDriver`'s, same defaults and ranges).
+    path_tolerance : float or None
+        m: the report lists where the tracked TCP left the planned path by more; None: no tolerance.
+    fail_on_deviation : bool
+        A run beyond ``path_tolerance`` fails.
+    max_program_bytes : int or None
+        Program mode: the largest program sent to the controller (a longer job goes in pieces); None: no limit.
     """
 
     name: str
@@ -57,10 +68,23 @@ class RobotConfig:
     sim_speed: float = 1.0
     approach_speed: float = 0.5
     approach_acceleration: float = 0.5
+    lookahead: float = DEFAULT_LOOKAHEAD
+    gain: float = DEFAULT_GAIN
+    compensate: bool = True
+    path_tolerance: float | None = None
+    fail_on_deviation: bool = False
+    max_program_bytes: int | None = MAX_PROGRAM_BYTES
 
     @property
     def simulated(self) -> bool:
         return self.host is None
+
+    def driver_options(self) -> dict[str, Any]:
+        """The options of :func:`drivers.execute.execute_job` (:class:`drivers.ur.URDriver`) this robot sets."""
+        return {"approach_speed": self.approach_speed, "approach_acceleration": self.approach_acceleration,
+                "lookahead": self.lookahead, "gain": self.gain, "compensate": self.compensate,
+                "path_tolerance": self.path_tolerance, "fail_on_deviation": self.fail_on_deviation,
+                "max_program_bytes": self.max_program_bytes}
 
 
 #: The default robots: one simulated controller, "sim", of the job's model.
@@ -105,6 +129,20 @@ class RobotSpec(BaseModel):
     sim_speed: float | None = Field(None, gt=0, le=100, description="simulated seconds per second (default 1)")
     approach_speed: float = Field(0.5, gt=0, le=3.14, description="joint move onto the start, rad/s")
     approach_acceleration: float = Field(0.5, gt=0, le=40.0, description="joint move onto the start, rad/s^2")
+    # the driver's servo and deviation options (planner run --lookahead, --gain, --no-compensation, --path-tolerance,
+    # --fail-on-deviation, --max-program-bytes), with the driver's ranges
+    lookahead: float = Field(DEFAULT_LOOKAHEAD, ge=LOOKAHEAD_RANGE[0], le=LOOKAHEAD_RANGE[1],
+                             description="stream mode: servoJ lookahead time, s")
+    gain: float = Field(DEFAULT_GAIN, ge=GAIN_RANGE[0], le=GAIN_RANGE[1], description="stream mode: servoJ gain")
+    compensate: bool = Field(True, description="stream mode: targets shaped by the servo model (false: the planned "
+                                               "joints unshaped)")
+    path_tolerance_mm: float | None = Field(None, gt=1e3 * PATH_TOLERANCE_RANGE[0],
+                                            le=1e3 * PATH_TOLERANCE_RANGE[1],
+                                            description="the report lists where the tracked TCP left the planned "
+                                                        "path by more, mm")
+    fail_on_deviation: bool = Field(False, description="a run beyond path_tolerance_mm fails")
+    max_program_bytes: int | None = Field(MAX_PROGRAM_BYTES, ge=4096, description="program mode: the largest "
+                                          "program sent (a longer job goes in pieces); null: no limit")
 
     @field_validator("host")
     @classmethod
@@ -136,13 +174,17 @@ class RobotSpec(BaseModel):
             raise _refused("model is needed for a real controller (ur3e, ur5e, ...)")
         if self.host is not None and self.sim_speed is not None:
             raise _refused("sim_speed applies to simulated robots only")
+        if self.fail_on_deviation and self.path_tolerance_mm is None:
+            raise _refused("fail_on_deviation needs path_tolerance_mm")
         return self
 
     def robot(self, name: str) -> RobotConfig:
         """The :class:`RobotConfig` of this robot under ``name``."""
         return RobotConfig(name, self.host, self.model, self.io, self.modbus_port,
                            1.0 if self.sim_speed is None else float(self.sim_speed), float(self.approach_speed),
-                           float(self.approach_acceleration))
+                           float(self.approach_acceleration), float(self.lookahead), float(self.gain),
+                           self.compensate, None if self.path_tolerance_mm is None else 1e-3 * self.path_tolerance_mm,
+                           self.fail_on_deviation, self.max_program_bytes)
 
 
 def robots_from_json(text: str, where: str = "PLANNER_ROBOTS") -> tuple[RobotConfig, ...]:
@@ -219,6 +261,11 @@ class ServiceConfig(BaseModel):
         ``PLANNER_MAX_ATTEMPTS``).
     robots : tuple of RobotConfig
         The robots jobs may be executed on (``PLANNER_ROBOTS``; default: one simulated robot named "sim").
+    queue : "local" or "celery"
+        The task backend (``PLANNER_QUEUE``): "local" (the default) plans and executes in worker processes of the
+        service itself; "celery" sends every task to ``planner worker`` processes on any machine through the broker.
+    broker : str or None
+        The Celery broker's URL, ``redis://HOST:PORT/DB`` (``PLANNER_BROKER``; needed with ``queue="celery"``).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)
@@ -233,6 +280,16 @@ class ServiceConfig(BaseModel):
         3600.0, json_schema_extra=_env("PLANNER_JOB_TIMEOUT"))
     max_attempts: int = Field(2, ge=1, json_schema_extra=_env("PLANNER_MAX_ATTEMPTS"))
     robots: tuple[RobotConfig, ...] = Field(DEFAULT_ROBOTS, json_schema_extra=_env("PLANNER_ROBOTS"))
+    queue: Literal["local", "celery"] = Field("local", json_schema_extra=_env("PLANNER_QUEUE"))
+    broker: str | None = Field(None, json_schema_extra=_env("PLANNER_BROKER"))
+
+    @model_validator(mode="after")
+    def _backend(self) -> ServiceConfig:
+        if self.queue == "celery" and not self.broker:
+            raise _refused("PLANNER_BROKER (the broker's URL, redis://HOST:PORT/0) is needed with PLANNER_QUEUE=celery")
+        if self.broker and not re.match(r"^rediss?://", self.broker):
+            raise _refused(f"PLANNER_BROKER must be a redis:// (or rediss://) URL, got {self.broker!r}")
+        return self
 
     def robot(self, name: str) -> RobotConfig | None:
         """The configured robot of that name, or None."""
@@ -248,7 +305,8 @@ class ServiceConfig(BaseModel):
     def from_env(cls, env: dict | None = None, **overrides) -> ServiceConfig:
         """The configuration from ``PLANNER_DB``, ``PLANNER_DATA``, ``PLANNER_WORKERS``, ``PLANNER_DEV_NO_AUTH``,
         ``PLANNER_MAX_REQUEST_BYTES``, ``PLANNER_MAX_WAYPOINTS``, ``PLANNER_JOB_TIMEOUT``, ``PLANNER_MAX_ATTEMPTS``,
-        ``PLANNER_ROBOTS`` (unset or empty: the default); ``overrides`` (by field name, None: not given) win.
+        ``PLANNER_ROBOTS``, ``PLANNER_QUEUE``, ``PLANNER_BROKER`` (unset or empty: the default); ``overrides`` (by
+        field name, None: not given) win.
         PlannerError naming the variable (or the field of an override) for a refused value."""
         env = dict(os.environ if env is None else env)
         names = cls.env_names()

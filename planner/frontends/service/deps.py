@@ -1,6 +1,6 @@
 """What the routes share, as FastAPI dependencies (``Annotated`` types a route takes as parameters): the service
-(:data:`ServiceDep`: configuration, store, worker pool, metrics, executions), the caller (:data:`Caller`) and the
-caller's own job of the path (:data:`OwnJob`, 404 for another key's).
+(:data:`ServiceDep`: configuration, store, task backend, metrics), the caller (:data:`Caller`) and the caller's own
+job of the path (:data:`OwnJob`, 404 for another key's).
 """
 
 from __future__ import annotations
@@ -13,11 +13,12 @@ from sqlalchemy import select
 
 from planner.frontends.service.auth import DEV_PRINCIPAL, Principal, authenticate
 from planner.frontends.service.config import ServiceConfig
-from planner.frontends.service.execution_runs import Executions
+from planner.frontends.service.inserter import Inserter
 from planner.frontends.service.metrics import Metrics
 from planner.frontends.service.plots import Plotter
-from planner.frontends.service.store import Checkpointer, Job, open_store
-from planner.frontends.service.workers import Inserter, WorkerPool, recover
+from planner.frontends.service.store import Checkpointer, Job, JobData, import_legacy_files, open_store
+from planner.frontends.service.tasks.lifecycle import JOB, Kind, Outcome
+from planner.frontends.service.tasks.transitions import Transitions
 
 #: The prefix of every versioned route.
 API = "/v1"
@@ -26,7 +27,7 @@ JOB_ID = re.compile(r"^[0-9a-f]{32}$")
 
 
 class Service:
-    """What the routes share: configuration, store, pool, metrics."""
+    """What the routes share: configuration, store, task backend, metrics."""
 
     def __init__(self, cfg: ServiceConfig):
         self.cfg = cfg
@@ -34,29 +35,56 @@ class Service:
         self.engine, self.sessions = open_store(cfg.db_url, background_checkpoints=bg)
         self.checkpointer = Checkpointer(self.engine) if bg else None
         self.metrics = Metrics()
-        self.pool = WorkerPool(self.sessions, cfg, self.metrics)
-        self.inserter = Inserter(self.pool)
+        self.store = Transitions(self.engine)
+        self.backend = make_backend(cfg, self.store, self.finished)
+        self.inserter = Inserter(self.store, self.backend.submitted)
         self.plotter = Plotter()
-        self.executions = Executions(self.sessions, cfg, self.pool.write_lock, self.metrics)
+
+    def finished(self, kind: Kind, outcome: Outcome, seconds: float) -> None:
+        """A task's end was stored by this process: counted."""
+        if kind is JOB:
+            self.metrics.count_finished(outcome.state, outcome.planning_s)
+        else:
+            self.metrics.count_execution(outcome.state, seconds, outcome.error_kind)
 
     def start(self) -> dict:
-        self.cfg.data_dir.mkdir(parents=True, exist_ok=True)
-        (self.cfg.data_dir / "jobs").mkdir(exist_ok=True)
-        recovered = recover(self.sessions, self.cfg)
-        recovered["executions_failed"] = self.executions.recover()
-        self.pool.start()
+        (self.cfg.data_dir / "plots").mkdir(parents=True, exist_ok=True)  # this replica's cache of pictures
+        imported = import_legacy_files(self.engine, self.cfg.data_dir)  # the files of jobs stored by 0.1
+        recovered = self.backend.start()
+        recovered["legacy_files_imported"] = imported
+        for _ in range(recovered.get("executions_failed", 0)):
+            self.metrics.count_execution("failed", None, "interrupted")
         self.plotter.start()
         if self.checkpointer is not None:
             self.checkpointer.start()
         return recovered
 
     def stop(self) -> None:
-        self.executions.shutdown()
         self.plotter.stop()
-        self.pool.stop()
+        self.inserter.close()
+        self.backend.stop()
         if self.checkpointer is not None:
             self.checkpointer.stop()
         self.engine.dispose()
+
+    def plan_bytes(self, job: Job) -> bytes:
+        """The saved plan of a done job (from the store: any replica serves any job's exports)."""
+        with self.engine.connect() as conn:
+            data = conn.scalar(select(JobData.data).where(JobData.job_id == job.id, JobData.name == "plan"))
+        if data is None:
+            raise HTTPException(500, f"job {job.id} is done but its plan is not in the store")
+        return bytes(data)
+
+
+def make_backend(cfg: ServiceConfig, store: Transitions, finished):
+    """The task backend of ``cfg.queue``: local worker processes (the default) or Celery workers."""
+    if cfg.queue == "celery":
+        from planner.frontends.service.tasks.celery_backend import CeleryBackend
+
+        return CeleryBackend(store, cfg, finished)
+    from planner.frontends.service.tasks.local import LocalBackend
+
+    return LocalBackend(store, cfg, finished)
 
 
 def service(request: Request) -> Service:

@@ -8,6 +8,7 @@ from __future__ import annotations
 import json
 
 from fastapi import HTTPException
+from sqlalchemy.exc import InterfaceError, OperationalError
 
 from planner.frontends.service.deps import API, Service, caller
 from planner.frontends.service.submit import accept_json
@@ -44,7 +45,7 @@ class FastSubmit:
             who = caller(svc, None if key is None else key.decode("latin-1"),
                          headers.get(b"authorization", b"").decode("latin-1"))
             job_id = await accept_json(svc, who, body)
-        except HTTPException:
+        except (HTTPException, OperationalError, InterfaceError):  # (the database away: the route answers 503)
             return await self.app(scope, _replay(body, receive), send)
         content, location = created(job_id)
         answer = json.dumps(content, ensure_ascii=False, allow_nan=False, separators=(",", ":")).encode()

@@ -71,13 +71,15 @@ class Metrics:
             self.execution_time.observe(seconds)
 
     def text(self, by_state: dict[str, int], workers_alive: int, workers_busy: int,
-             executions: dict[str, int] | None = None, running: dict[str, int] | None = None) -> str:
+             executions: dict[str, int] | None = None, running: dict[str, int] | None = None,
+             queue_depth: int | None = None) -> str:
         """The exposition text; ``by_state`` counts the stored jobs and ``executions`` the stored executions by state
-        (every state present, zeros included), ``running`` the active executions of each configured robot."""
+        (every state present, zeros included), ``running`` the active executions of each configured robot,
+        ``queue_depth`` the planning tasks waiting in the queue (default: the queued jobs)."""
         lines = ["# HELP planner_jobs Jobs in the store by state.", "# TYPE planner_jobs gauge"]
         lines += [f'planner_jobs{{state="{s}"}} {n}' for s, n in by_state.items()]
-        lines += ["# HELP planner_queue_depth Jobs waiting for a worker.", "# TYPE planner_queue_depth gauge",
-                  f"planner_queue_depth {by_state.get('queued', 0)}",
+        lines += ["# HELP planner_queue_depth Planning tasks waiting for a worker.", "# TYPE planner_queue_depth gauge",
+                  f"planner_queue_depth {by_state.get('queued', 0) if queue_depth is None else queue_depth}",
                   "# HELP planner_workers Planning worker processes alive.", "# TYPE planner_workers gauge",
                   f"planner_workers {workers_alive}",
                   "# HELP planner_workers_busy Planning worker processes running a job.",

@@ -1,8 +1,8 @@
 """Plots drawn in a process of their own, never in the service process (matplotlib is slow to import, holds a
 global lock and would stall the event loop's threads): :class:`Plotter` keeps one spawned process
 (``concurrent.futures.ProcessPoolExecutor``, started on the first picture asked for) that loads a saved job and
-writes the picture ``planner plan --plot`` draws, atomically, beside the saved job. Requests for a picture being
-drawn share its future.
+writes the picture ``planner plan --plot`` draws, atomically, into the service's cache folder. Requests for a
+picture being drawn share its future.
 
 Kept free of web and database imports (the drawing process imports only the planner).
 """
@@ -19,9 +19,9 @@ from concurrent.futures.process import BrokenProcessPool
 def _start(parent_pid: int) -> None:
     """In the drawing process: die with the service, yield to requests, and import matplotlib now (not on the
     first picture)."""
-    from planner.frontends.service.worker_process import WORKER_NICE, _die_with_parent, name_process
+    from planner.frontends.service.tasks.child import WORKER_NICE, die_with_parent, name_process
 
-    _die_with_parent(parent_pid)
+    die_with_parent(parent_pid)
     name_process("planner-plot")
     try:
         os.nice(WORKER_NICE)
@@ -35,13 +35,13 @@ def _start(parent_pid: int) -> None:
     import planner.export.plot  # noqa: F401
 
 
-def draw(job_path: str, input_name: str, target: str) -> int:
-    """The CLI's plot of the saved job at ``job_path`` (the export verb's, same title) written atomically to
+def draw(plan: bytes, input_name: str, target: str) -> int:
+    """The CLI's plot of the saved job ``plan`` (its bytes; the export verb's, same title) written atomically to
     ``target``; its bytes."""
     from planner.export import write
     from planner.job import load_job
 
-    job = load_job(job_path)
+    job = load_job(plan)
     write(job, target, parameters={"input": input_name})
     return os.stat(target).st_size
 
@@ -70,8 +70,9 @@ class Plotter:
         if pool is not None:
             pool.shutdown(wait=True, cancel_futures=True)
 
-    def draw(self, job_path: str, input_name: str, target: str) -> Future:
-        """Draw the picture of the saved job into ``target`` (unless it is being drawn already)."""
+    def draw(self, plan: bytes, input_name: str, target: str) -> Future:
+        """Draw the picture of the saved job (``plan``: its bytes) into ``target`` (unless it is being drawn
+        already)."""
         with self._lock:
             running = self._inflight.get(target)
             if running is not None:
@@ -79,11 +80,11 @@ class Plotter:
             if self._pool is None:
                 raise RuntimeError("the plotter is stopped")
             try:
-                future = self._pool.submit(draw, job_path, input_name, target)
+                future = self._pool.submit(draw, plan, input_name, target)
             except BrokenProcessPool:  # the drawing process died (e.g. killed for memory): a new one
                 self._pool.shutdown(wait=False)
                 self._pool = self._new_pool()
-                future = self._pool.submit(draw, job_path, input_name, target)
+                future = self._pool.submit(draw, plan, input_name, target)
             self._inflight[target] = future
         future.add_done_callback(lambda _f: self._forget(target))
         return future

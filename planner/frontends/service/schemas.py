@@ -223,6 +223,10 @@ class JobSummary(Closed):
     robot: str | None = None
     part_frame_auto: PartFrameAuto | None = None
     reachable: bool | None = None
+    executable: bool | None = Field(None, description="with a robot: whether the job can run on it (nothing moves "
+                                    "otherwise; executions of it are refused with not_executable)")
+    not_executable: str | None = Field(None, description="why it cannot run, in one line (the moves the robot cannot "
+                                       "make, counted in moves, with the first); null when it can")
     unreachable_passes: list[int] | None = None
     slowed_passes: list[int] | None = None
     slowed: list[str] | None = None

@@ -1,8 +1,15 @@
 """The job store: tables (SQLAlchemy 2), the engine (SQLite in WAL mode by default) and Alembic migrations.
 
-What a job keeps is small: its input (waypoints as JSON text, or the uploaded file under the service's data
-folder), its settings, the saved :class:`planner.PlannedJob` (a file ``plan.<attempt>.job`` in the job's folder,
-kilobytes to a few megabytes) and its summary. Exports are never stored: they are streamed from the saved job.
+What a job keeps: its input (waypoints as JSON text in its row, or the uploaded file's bytes in :class:`JobData`),
+its settings, its summary and the saved :class:`planner.PlannedJob` (:class:`JobData` "plan": kilobytes to a few
+megabytes, 4.2 MB for the whole NX job), all in the database: every API replica and worker reads them there, and a
+plan is stored in the same transaction that marks its job done. Exports are never stored: they are streamed from the
+saved plan.
+
+Jobs and executions are tasks of one life cycle (:mod:`.tasks.lifecycle`) and share its columns: state, stage,
+done, total, attempts, holder (the worker process running it, ``host:pid``), heartbeat_at (its holder's last sign
+of life: an execution's lease on its robot expires :data:`.tasks.transitions.LEASE_S` after it), created_at,
+started_at, finished_at, error_kind, error, note.
 """
 
 from __future__ import annotations
@@ -15,6 +22,7 @@ from sqlalchemy import (
     Float,
     Index,
     Integer,
+    LargeBinary,
     String,
     Text,
     create_engine,
@@ -26,14 +34,8 @@ from sqlalchemy.orm import DeclarativeBase, Mapped, mapped_column, sessionmaker
 
 from planner.frontends.service.config import ROLES  # noqa: F401  (re-exported: the roles a key row may hold)
 
-#: Job states.
-STATES = ("queued", "running", "done", "failed", "cancelled")
-#: States a job never leaves.
-FINAL_STATES = ("done", "failed", "cancelled")
-#: Execution states: starting (process, controller, approach), running, stopping (a stop was asked), and the ends.
-EXECUTION_STATES = ("starting", "running", "stopping", "done", "failed", "cancelled")
-#: States in which an execution holds its robot (at most one per robot: a partial unique index).
-ACTIVE_EXECUTION_STATES = ("starting", "running", "stopping")
+#: An execution holds its robot in these states (:data:`.tasks.lifecycle.EXECUTION`'s active states): at most one
+#: per robot, a partial unique index.
 _ACTIVE = text("state IN ('starting', 'running', 'stopping')")
 #: The owner of jobs in development mode (PLANNER_DEV_NO_AUTH=1).
 DEV_OWNER = "dev"
@@ -85,6 +87,8 @@ class Job(Base):
     error_kind: Mapped[str | None] = mapped_column(String(16), nullable=True)  # input, internal, limit, interrupted
     error: Mapped[str | None] = mapped_column(Text, nullable=True)
     note: Mapped[str | None] = mapped_column(Text, nullable=True)  # e.g. "re-run after a restart of the service"
+    holder: Mapped[str | None] = mapped_column(String(64), nullable=True)  # worker process running it, host:pid
+    heartbeat_at: Mapped[float | None] = mapped_column(Float, nullable=True)
 
     __table_args__ = (Index("ix_jobs_owner_seq", "owner", "seq"), Index("ix_jobs_state_seq", "state", "seq"))
 
@@ -113,10 +117,37 @@ class Execution(Base):
     error_pose: Mapped[str | None] = mapped_column(Text, nullable=True)  # JSON p[x, y, z, rx, ry, rz], m, rad
     error_line: Mapped[int | None] = mapped_column(Integer, nullable=True)  # source line being carried out
     note: Mapped[str | None] = mapped_column(Text, nullable=True)
+    attempts: Mapped[int] = mapped_column(Integer, default=0)  # 0 until a worker takes it, then 1 (never re-run)
+    holder: Mapped[str | None] = mapped_column(String(64), nullable=True)  # worker process running it, host:pid
+    heartbeat_at: Mapped[float | None] = mapped_column(Float, nullable=True)  # its lease on the robot: + LEASE_S
 
     __table_args__ = (Index("ix_executions_owner_seq", "owner", "seq"),
                       Index("ux_executions_robot_active", "robot", unique=True, sqlite_where=_ACTIVE,
                             postgresql_where=_ACTIVE))
+
+
+class JobData(Base):
+    """A job's bytes: "input" (an uploaded file, under its sanitized name) and "plan" (the saved plan of the attempt
+    that completed it)."""
+
+    __tablename__ = "job_data"
+    job_id: Mapped[str] = mapped_column(String(32), primary_key=True)
+    name: Mapped[str] = mapped_column(String(16), primary_key=True)  # "input" or "plan"
+    data: Mapped[bytes] = mapped_column(LargeBinary)
+    bytes: Mapped[int] = mapped_column(Integer)
+    created_at: Mapped[float] = mapped_column(Float)
+
+
+class Worker(Base):
+    """A ``planner worker`` process (celery backend): its heartbeats say it is alive."""
+
+    __tablename__ = "workers"
+    id: Mapped[str] = mapped_column(String(64), primary_key=True)  # host:pid
+    queues: Mapped[str] = mapped_column(String(200))
+    concurrency: Mapped[int] = mapped_column(Integer)
+    started_at: Mapped[float] = mapped_column(Float)
+    heartbeat_at: Mapped[float] = mapped_column(Float)
+    busy: Mapped[int] = mapped_column(Integer, default=0)
 
 
 def make_engine(url: str, *, background_checkpoints: bool = False) -> Engine:
@@ -189,6 +220,34 @@ def open_store(url: str, *, background_checkpoints: bool = False) -> tuple[Engin
     engine = make_engine(url, background_checkpoints=background_checkpoints)
     migrate(engine)
     return engine, sessionmaker(engine, expire_on_commit=False)
+
+
+def import_legacy_files(engine: Engine, data_dir: Path) -> int:
+    """Jobs stored before their bytes moved into the database (0.1 kept an uploaded input under
+    ``<data>/jobs/<id>/input/<name>`` and the plan as ``<data>/jobs/<id>/plan.<attempt>.job``): their files copied into
+    :class:`JobData` once (the files are left where they are). The number of files imported."""
+    from sqlalchemy import insert, select
+
+    folder = data_dir / "jobs"
+    if not folder.is_dir():
+        return 0
+    n = 0
+    with engine.begin() as conn:
+        have = {(j, name) for j, name in conn.execute(select(JobData.job_id, JobData.name))}
+        rows = conn.execute(select(Job.id, Job.input_kind, Job.input_name, Job.job_file)).all()
+        for job_id, kind, input_name, job_file in rows:
+            wanted = []
+            if kind == "file" and (job_id, "input") not in have:
+                wanted.append(("input", folder / job_id / "input" / input_name))
+            if job_file and (job_id, "plan") not in have:
+                wanted.append(("plan", folder / job_id / job_file))
+            for name, path in wanted:
+                if path.is_file():
+                    data = path.read_bytes()
+                    conn.execute(insert(JobData).values(job_id=job_id, name=name, data=data, bytes=len(data),
+                                                        created_at=now()))
+                    n += 1
+    return n
 
 
 def now() -> float:

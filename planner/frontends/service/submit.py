@@ -9,7 +9,9 @@ import functools
 import json
 import re
 import shutil
+import tempfile
 import uuid
+from pathlib import Path
 from typing import Any
 
 from fastapi import HTTPException, Request
@@ -23,7 +25,6 @@ from planner.frontends.service.deps import Service
 from planner.frontends.service.errors import Unprocessable, _validation_detail
 from planner.frontends.service.schemas import ReadOptions, SettingsModel, WaypointJob
 from planner.frontends.service.store import now
-from planner.frontends.service.workers import job_dir, remove_job_files
 
 
 def _safe_name(filename: str | None) -> str:
@@ -48,7 +49,7 @@ async def accept_json(svc: Service, who: Principal, body: bytes) -> str:
         job_id, row = _waypoint_row(svc, who, req, body)
     else:
         job_id, row = await run_in_threadpool(_waypoint_row, svc, who, req, body)
-    await svc.inserter.store(row)
+    await svc.inserter.store_job(row)
     svc.metrics.count_submitted()
     return job_id
 
@@ -120,16 +121,8 @@ async def accept_file(svc: Service, who: Principal, request: Request) -> str:
         settings_model = _form_json(form.get("settings"), SettingsModel, "settings")
         options = _form_json(form.get("read_options"), ReadOptions, "read_options")
         job_id = uuid.uuid4().hex
-        try:
-            row = await run_in_threadpool(_create_file_job, svc, who, job_id, upload, settings_model, options)
-        except BaseException:
-            remove_job_files(svc.cfg, job_id)
-            raise
-        try:
-            await svc.inserter.store(row)  # handed over: committed even if the client goes away meanwhile
-        except Exception:  # the commit failed: no job refers to the files
-            remove_job_files(svc.cfg, job_id)
-            raise
+        row, data = await run_in_threadpool(_create_file_job, svc, who, job_id, upload, settings_model, options)
+        await svc.inserter.store_job(row, data)  # handed over: committed even if the client goes away meanwhile
         svc.metrics.count_submitted()  # as accept_json counts a JSON job: once stored
         return job_id
     finally:
@@ -148,33 +141,31 @@ def _form_json(value, model, field: str):
 
 
 def _create_file_job(svc: Service, who: Principal, job_id: str, upload: UploadFile, settings_model: SettingsModel,
-                     options: ReadOptions) -> dict:
-    """The upload saved in the job's folder and read as the planner will read it: the job's row (422 naming the field
-    or the file's line if it is bad)."""
-    from planner.export.files import atomic_binary
+                     options: ReadOptions) -> tuple[dict, bytes]:
+    """The upload read as the planner will read it (from a temporary folder): the job's row and the file's bytes
+    (stored in the database: any worker plans it) (422 naming the field or the file's line if it is bad)."""
     from planner.io import detect_format, read_toolpath
     from planner.io.options import ReaderArgumentError
 
     name = _safe_name(upload.filename)
-    folder = job_dir(svc.cfg, job_id) / "input"
-    folder.mkdir(parents=True)
-    path = folder / name
-    with atomic_binary(path) as f:
-        upload.file.seek(0)
-        shutil.copyfileobj(upload.file, f, 1 << 20)
-        size = f.tell()
-    read_options = options.as_dict()
-    try:
-        fmt = detect_format(path)
-        toolpath = read_toolpath(path, format=fmt, **read_options)
-    except ReaderArgumentError as exc:  # an option this reader does not take, an unknown machine, ...
-        raise Unprocessable(["body", "read_options", exc.argument], f"{name}: {exc}") from None
-    except PlannerError as exc:
-        raise Unprocessable(["body", "file"], str(exc)) from None
-    except TypeError as exc:  # an option this reader does not take
-        raise Unprocessable(["body", "read_options"], f"{name}: {exc}") from None
-    except UnicodeError as exc:
-        raise Unprocessable(["body", "file"], f"{name}: not a text file ({exc})") from None
+    with tempfile.TemporaryDirectory(prefix="planner-upload-") as folder:
+        path = Path(folder) / name
+        with open(path, "wb") as f:
+            upload.file.seek(0)
+            shutil.copyfileobj(upload.file, f, 1 << 20)
+        data = path.read_bytes()
+        read_options = options.as_dict()
+        try:
+            fmt = detect_format(path)
+            toolpath = read_toolpath(path, format=fmt, **read_options)
+        except ReaderArgumentError as exc:  # an option this reader does not take, an unknown machine, ...
+            raise Unprocessable(["body", "read_options", exc.argument], f"{name}: {exc}") from None
+        except PlannerError as exc:
+            raise Unprocessable(["body", "file"], str(exc)) from None
+        except TypeError as exc:  # an option this reader does not take
+            raise Unprocessable(["body", "read_options"], f"{name}: {exc}") from None
+        except UnicodeError as exc:
+            raise Unprocessable(["body", "file"], f"{name}: not a text file ({exc})") from None
     settings = _checked_settings(settings_model, fmt, toolpath.axes is not None, ["body", "settings"])
-    return _row(job_id, who, input_kind="file", input_name=name, input_format=fmt, input_bytes=size, input_json=None,
-                settings=settings, read_options=json.dumps(read_options))
+    return _row(job_id, who, input_kind="file", input_name=name, input_format=fmt, input_bytes=len(data),
+                input_json=None, settings=settings, read_options=json.dumps(read_options)), data

@@ -3,12 +3,14 @@
 a time; ``GET /v1/executions/{id}`` shows its state, progress and the execution report's figures (or the failure's
 reason, job time, pose and source line); ``DELETE /v1/executions/{id}`` stops it (the arm stopped within a
 second); ``GET /v1/robots`` lists the configured robots. Only keys of the ``operator`` role may execute or stop.
-The runs themselves: :mod:`planner.frontends.service.execution_runs`.
+The runs themselves: the task layer (:mod:`planner.frontends.service.tasks`), on whichever backend.
 """
 
 from __future__ import annotations
 
 import json
+import time
+import uuid
 from typing import Annotated
 
 from fastapi import APIRouter, HTTPException, Query
@@ -18,7 +20,6 @@ from sqlalchemy import select
 from planner.frontends.service.auth import Principal
 from planner.frontends.service.deps import API, JOB_ID, Caller, Service, ServiceDep, own_job
 from planner.frontends.service.errors import Unprocessable
-from planner.frontends.service.execution_runs import STOP_GRACE, RobotBusy
 from planner.frontends.service.schemas import (
     ExecutionCreated,
     ExecutionList,
@@ -26,7 +27,10 @@ from planner.frontends.service.schemas import (
     ExecutionView,
     RobotList,
 )
-from planner.frontends.service.store import ACTIVE_EXECUTION_STATES, Execution
+from planner.frontends.service.store import Execution, now
+from planner.frontends.service.tasks.lifecycle import EXECUTION
+from planner.frontends.service.tasks.runner import STOP_GRACE
+from planner.frontends.service.tasks.transitions import RobotBusy
 
 router = APIRouter(tags=["executions"])
 
@@ -63,12 +67,11 @@ def own_execution(svc: Service, who: Principal, execution_id: str) -> Execution:
 
 @router.post("/jobs/{job_id}/executions", status_code=202, response_model=ExecutionCreated,
              responses={403: {"description": "not an operator key"}, 404: {"description": "no such job of this key"},
-                        409: {"description": "job not done, planned without a robot, or the robot is busy"},
+                        409: {"description": "job not done, planned without a robot, not executable on "
+                                                    "its robot (summary.not_executable), or the robot is busy"},
                         422: {"description": "unknown robot, or a robot of another model"}})
 def create_execution(svc: ServiceDep, job_id: str, body: ExecutionRequest, who: Caller) -> JSONResponse:
     """Run a done job on a configured robot (by name), in "stream" (servoJ) or "program" (URScript) mode."""
-    from planner.frontends.service.workers import job_dir
-
     require_operator(who)
     job = own_job(svc, who, job_id)
     robot = svc.cfg.robot(body.robot)
@@ -85,9 +88,14 @@ def create_execution(svc: ServiceDep, job_id: str, body: ExecutionRequest, who: 
     if robot.model is not None and robot.model != model:
         raise Unprocessable(["body", "robot"], f"robot {robot.name!r} is a {robot.model}; job {job_id} is planned "
                                                f"for a {model}")
+    reason = json.loads(job.summary).get("not_executable") if job.summary else None
+    if reason:  # refused before a controller is started or a robot is reached (PlannedJob.not_executable)
+        raise HTTPException(409, f"job {job_id} cannot run on its robot: {reason}")
+    execution_id = uuid.uuid4().hex
     try:
-        execution_id = svc.executions.create(who.key_id, job.id, str(job_dir(svc.cfg, job.id) / job.job_file), robot,
-                                             body.mode)
+        svc.backend.start_execution(dict(id=execution_id, job_id=job.id, owner=who.key_id, robot=robot.name,
+                                         mode=body.mode, state="starting", created_at=now(), stage="starting", done=0,
+                                         total=0))
     except RobotBusy:
         raise HTTPException(409, f"robot {robot.name!r} is busy with another execution; one execution per robot "
                                  "at a time") from None
@@ -127,10 +135,12 @@ def stop_execution(svc: ServiceDep, execution_id: str, who: Caller) -> dict:
 
     require_operator(who)
     row = own_execution(svc, who, execution_id)
-    if row.state not in ACTIVE_EXECUTION_STATES:
+    if row.state not in EXECUTION.active:
         raise HTTPException(409, f"execution {execution_id} is {row.state}; only a running one can be stopped")
-    if svc.executions.stop(row.id):
-        svc.executions.wait(row.id, STOP_GRACE + 5.0)
+    if svc.backend.stop_execution(row.id):  # wherever it runs: its runner reads the stop in the store
+        deadline = time.monotonic() + STOP_GRACE + 5.0
+        while svc.store.state(EXECUTION, row.id) in EXECUTION.active and time.monotonic() < deadline:
+            time.sleep(0.05)
     return execution_view(own_execution(svc, who, execution_id))
 
 
@@ -139,4 +149,4 @@ def list_robots(svc: ServiceDep, who: Caller) -> dict:
     """The robots jobs can be executed on: name, model (null: a simulated robot of the job's model), simulated,
     busy."""
     return {"robots": [{"name": r.name, "model": r.model, "simulated": r.simulated, "mode_default": "stream",
-                        "busy": svc.executions.busy(r.name)} for r in svc.cfg.robots]}
+                        "busy": svc.store.robot_busy(r.name)} for r in svc.cfg.robots]}

@@ -1,6 +1,6 @@
 """A done job's exports (``/v1/jobs/{id}/...``): the trajectory (CSV, JSON) and the URScript program streamed from
 the saved job by the export verb (:mod:`planner.export.verb`: the bytes ``planner plan -o`` writes), and the plot
-(drawn once by the same verb in the drawing process, then kept beside the saved job)."""
+(drawn once by the same verb in the drawing process, then kept in this replica's cache folder)."""
 
 from __future__ import annotations
 
@@ -14,7 +14,6 @@ from planner.errors import PlannerError
 from planner.frontends.service.deps import OwnJob, Service, ServiceDep
 from planner.frontends.service.errors import Unprocessable
 from planner.frontends.service.store import Job
-from planner.frontends.service.workers import job_dir
 
 router = APIRouter(prefix="/jobs", tags=["exports"])
 _NOT_YOURS: dict[int | str, dict[str, Any]] = {404: {"description": "no such job of this key"},
@@ -44,15 +43,16 @@ def trajectory(svc: ServiceDep, row: OwnJob,
 @router.get("/{job_id}/plot.png", response_class=FileResponse,
             responses={200: {"content": {"image/png": {}}}, **_NOT_YOURS})
 async def plot(svc: ServiceDep, row: OwnJob) -> FileResponse:
-    """The picture ``planner plan --plot x.png`` draws (drawn once, in the drawing process, then kept beside the
-    saved job)."""
+    """The picture ``planner plan --plot x.png`` draws (drawn once, in the drawing process, then kept in this
+    replica's cache folder)."""
     if row.state != "done" or not row.job_file:
         raise HTTPException(409, f"job {row.id} is {row.state}; exports exist once it is done")
-    folder = job_dir(svc.cfg, row.id)
-    target = folder / f"plot.{row.attempts}.png"
+    folder = svc.cfg.data_dir / "plots"  # this replica's cache of pictures drawn from the stored plans
+    target = folder / f"{row.id}.{row.attempts}.png"
     if not target.is_file():  # (through a symbolic link: a regular file; anything else is refused by the draw)
+        plan = svc.plan_bytes(row)
         try:
-            await asyncio.wrap_future(svc.plotter.draw(str(folder / row.job_file), row.input_name, str(target)))
+            await asyncio.wrap_future(svc.plotter.draw(plan, row.input_name, str(target)))
         except PlannerError as exc:  # the service's own folder holds something it must not replace
             raise HTTPException(500, f"job {row.id}: the picture cannot be stored: {exc}") from None
     return FileResponse(target, media_type="image/png")
@@ -63,4 +63,4 @@ def _load_done(svc: Service, row: Job):
 
     if row.state != "done" or not row.job_file:
         raise HTTPException(409, f"job {row.id} is {row.state}; exports exist once it is done")
-    return load_job(job_dir(svc.cfg, row.id) / row.job_file)
+    return load_job(svc.plan_bytes(row))

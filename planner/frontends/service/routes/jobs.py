@@ -113,7 +113,10 @@ def get_job(svc: ServiceDep, job: OwnJob) -> dict:
                responses={404: {"description": "no such job of this key"}, 409: {"description": "job has ended"}})
 def cancel_job(svc: ServiceDep, who: Caller, job: OwnJob) -> dict:
     """Cancel a queued or running job (a running job's worker is stopped within a second)."""
-    if svc.pool.cancel(job.id) is None:
+    before = svc.backend.cancel_job(job.id)
+    if before is not None:
+        svc.metrics.count_finished("cancelled")
+    if before is None:
         job = own_job(svc, who, job.id)
         raise HTTPException(409, f"job {job.id} is {job.state}; only queued or running jobs can be cancelled")
     return job_view(svc, own_job(svc, who, job.id))

@@ -1,0 +1,141 @@
+"""Benchmark: the whole NX job of ``../shared/data`` in program mode, as programs a controller takes (issue 29).
+
+The job (every pass, a UR5e at the demo's part frame, the cut output standard 0; the CAM tolerance 0.01 mm) is
+planned, its whole-job program made once in one piece and once cut into pieces of at most
+``planner.export.MAX_PROGRAM_BYTES`` (:func:`planner.export.job_program_pieces`), and the pieces run one after the
+other by the simulated controller's core in this process (the interpreter and motion model of ``SimController``,
+without sockets; each piece loaded in the period after the one before ended, as fast as the core goes). The
+baseline in the same run: the whole program, which the core refuses as a controller would (too large).
+
+Printed: the program's size whole and in pieces (count, largest, smallest), the time to make them; then the run:
+its duration against the planned one, the largest distance of the TCP (every 10th control period, 20 ms) from the
+planned path over the whole job and within 1 s of job time around the seams, the joint speed and the output bits at
+every seam (the arm must be at rest, the outputs off), the switches made against the planned ones.
+
+Run: ``python bench/bench_programs.py [--gotos N]`` (N: the job's first N GOTO records only; default the whole
+file: about 30 min of CPU on this machine).
+"""
+
+from __future__ import annotations
+
+import argparse
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+sys.path.insert(0, str(ROOT))
+
+from _common import print_table  # noqa: E402
+
+NX = ROOT.parent / "shared" / "data" / "nx_clsf_variable_contour_ust_a2.cls"
+EVERY = 10  # control periods between the checked TCP samples
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
+    ap.add_argument("--gotos", type=int, default=0, help="only the file's first N GOTO records (0: the whole job)")
+    args = ap.parse_args()
+    if not NX.is_file():
+        sys.exit(f"{NX} is not there (the shared data beside the repository)")
+    from drivers.geometry import PolylineIndex
+    from planner import PlanSettings, plan
+    from planner.export import MAX_PROGRAM_BYTES, job_program, job_program_pieces, plan_job_program
+    from planner.frontends.cli.main import DEMO_PART_FRAME
+    from planner.kinematics import forward
+    from sim.core import Core
+    from sim.io_state import IOState
+
+    src = NX
+    if args.gotos:
+        from tests.test_whole_job_program import first_gotos
+
+        src = Path("/tmp") / f"bench_programs_{args.gotos}.cls"
+        src.write_text(first_gotos(NX.read_text(), args.gotos))
+    part = tuple(float(x) for x in DEMO_PART_FRAME.split(","))
+    t0 = time.perf_counter()
+    job = plan(src, PlanSettings(path="cam", part_frame=part, robot="ur5e", cut_output=("standard", 0)))
+    t_plan = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    moves = plan_job_program(job)
+    t_moves = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    whole = job_program(job, moves)
+    t_whole = time.perf_counter() - t0
+    t0 = time.perf_counter()
+    pieces = job_program_pieces(job, moves)
+    t_pieces = time.perf_counter() - t0
+    sizes = [p.size for p in pieces]
+    print(f"{src.name}: {len(job.passes)} passes, planned {job.duration:.1f} s ({t_plan:.0f} s to plan, "
+          f"{t_moves:.0f} s for the movep targets)\n")
+    print_table(["program", "programs", "bytes (largest)", "bytes (smallest)", "bytes in all", "limit", "make s"], [
+        ["whole (baseline)", 1, len(whole.encode()), len(whole.encode()), len(whole.encode()), "-", f"{t_whole:.1f}"],
+        ["pieces", len(pieces), max(sizes), min(sizes), sum(sizes), MAX_PROGRAM_BYTES, f"{t_pieces:.1f}"],
+    ])
+
+    # the planned path, every 10th sample (a chord of at most 10 samples: under 1 um from the path on bends of 1 mm
+    # radius at the job's feed), and its output switches: read a move at a time (the whole path at 500 Hz would not
+    # fit in this machine's memory with its search tree)
+    keep, n_switch, last_io, duration = [], 0, None, 0.0
+    for c in job.trajectory().chunks(joints=False):
+        if not len(c):
+            continue
+        keep.append(c.poses[::10, :3])
+        keep.append(c.poses[-1:, :3])
+        io = np.asarray(c.io)
+        n_switch += int(np.count_nonzero(np.diff(io))) + int(last_io is not None and io[0] != last_io)
+        last_io = io[-1]
+        duration = float(c.times[-1])
+    pp = np.concatenate(keep)
+    core = Core("ur5e", IOState())
+    core.motion.q = np.array(job.start_joints, dtype=float)
+    refused = not core.load_program(whole)
+    qs, ts, switches, seams = [], [], [], []
+    out = core.io.digital_out
+    stopped = "no"
+    t0 = time.perf_counter()
+    for n, piece in enumerate(pieces):
+        if n:
+            seams.append((core.time, float(np.abs(core.motion.qd).max()), core.io.digital_out))
+        if not core.load_program(piece.text):  # a stop in the piece before: reported with where it was
+            prev = pieces[n - 1]
+            stopped = (f"program {n} of {len(pieces)} (passes {prev.passes[0]}-{prev.passes[-1]}, from line "
+                       f"{prev.line}) at t = {core.time:.1f} s: "
+                       + "; ".join(m[2] for m in core.log if m[1] == "Safety")[:200])
+            break
+        while core.program is not None:
+            core.tick()
+            if core.steps % EVERY == 0:
+                qs.append(core.motion.q)
+                ts.append(core.time)
+            if core.io.digital_out != out:
+                out = core.io.digital_out
+                switches.append(out)
+    t_run = time.perf_counter() - t0
+    tcp = forward("ur5e", np.array(qs))[:, :3]
+    d, _ = PolylineIndex(pp).distance(tcp)
+    t = np.array(ts)
+    near = np.zeros(t.size, dtype=bool)
+    for ts_seam, _, _ in seams:
+        near |= np.abs(t - ts_seam) <= 1.0
+    print()
+    print_table(["run in the core", "value"], [
+        ["whole program refused (too large)", refused],
+        ["duration s (planned)", f"{core.time:.1f} ({duration:.1f})"],
+        ["largest path error mm (tolerance 0.01)", f"{1e3 * d.max():.4f}"],
+        ["largest path error within 1 s of a seam mm", f"{1e3 * d[near].max():.4f}" if near.any() else "-"],
+        ["seams", len(seams)],
+        ["largest joint speed at a seam rad/s", f"{max((s[1] for s in seams), default=0.0):.2e}"],
+        ["output bits at the seams", sorted({s[2] for s in seams})],
+        ["switches made (planned)", f"{len(switches)} ({n_switch})"],
+        ["protective stops", sum(1 for m in core.log if m[1] == "Safety")],
+        ["run stopped", stopped],
+        ["core wall time s", f"{t_run:.0f}"],
+    ])
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,308 @@
+"""Benchmark: the service's two task backends in the same run (issue 26) — local worker processes (the embedded
+default: ``planner serve --workers W``, SQLite) against Celery (``planner worker --concurrency W`` on Redis, job
+state and plans in PostgreSQL; Redis and PostgreSQL started by this script on loopback from Debian's packages).
+
+1. Throughput and latency: N jobs of 100 waypoints (smooth random 3-D curves, seeded; the curves of
+   bench_service.py) submitted as JSON by 20 concurrent clients, with 1, 2 and 4 worker processes: jobs/s from the
+   first submit to the last job done, p50/p99 submit latency (the 202), p50/p99 completion latency (created -> done,
+   the store's clocks), and none lost (every job done) or duplicated (one attempt and one stored plan each). The
+   celery rows also with two API replicas behind the clients (half of the clients on each).
+2. Per-task overhead of the broker: jobs of 3 waypoints submitted one at a time, each waited for: the median time
+   from the job's row stored to its start in a worker (started_at - created_at) on each backend, and the median
+   submit-to-done round trip.
+3. The whole NX job split: its fits made in pieces by 2 processes (sent back as bytes, as between machines) and the
+   job planned with them, against one process.
+4. The plan in the store: the whole NX job's saved plan (``shared/data/nx_clsf_variable_contour_ust_a2.cls``, the file
+   of bench_cam.py) written to and read from the ``job_data`` table, SQLite and PostgreSQL: size and times.
+
+Run: ``python bench/bench_scale.py [--jobs 1000] [--workers 1,2,4] [--quick]`` (``--quick``: 200 jobs, 1 and 2
+workers, no NX plan; a few minutes). Both backends run on this machine's cores: a ratio near 1 says the broker costs
+little per task; more workers than cores add nothing here.
+"""
+
+from __future__ import annotations
+
+import argparse
+import os
+import subprocess
+import sys
+import tempfile
+import time
+from pathlib import Path
+
+import numpy as np
+
+ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(ROOT))
+sys.path.insert(0, str(Path(__file__).resolve().parent))
+
+import httpx  # noqa: E402
+from _common import print_table  # noqa: E402
+from bench_service import all_jobs, curves, run_clients_async  # noqa: E402
+
+NX_FILE = ROOT.parent / "shared" / "data" / "nx_clsf_variable_contour_ust_a2.cls"
+CLIENTS = 20
+
+
+class Proc:
+    """A ``planner serve`` or ``planner worker`` subprocess."""
+
+    def __init__(self, args: list[str], env: dict, folder: Path, name: str):
+        self.log = open(folder / f"{name}.log", "ab")  # noqa: SIM115
+        self.proc = subprocess.Popen([sys.executable, "-m", "planner.frontends.service", *args], cwd=folder, env=env,
+                                     stdout=subprocess.PIPE if args[0] == "serve" else self.log, stderr=self.log)
+        self.url = ""
+        if args[0] == "serve":
+            assert self.proc.stdout is not None
+            line = self.proc.stdout.readline().decode()
+            if "listening on " not in line:
+                raise SystemExit(f"the service did not start: {line!r}")
+            self.url = line.split("listening on ")[1].split()[0]
+
+    def wait_workers(self, n: int, timeout: float = 90.0) -> None:
+        deadline = time.monotonic() + timeout
+        while True:
+            try:
+                if httpx.get(self.url + "/healthz", timeout=5).json()["workers"] == n:
+                    return
+            except (httpx.TransportError, KeyError, ValueError):
+                pass
+            if time.monotonic() > deadline:
+                raise SystemExit(f"{n} workers not alive after {timeout} s")
+            time.sleep(0.1)
+
+    def stop(self) -> None:
+        self.proc.terminate()
+        try:
+            self.proc.wait(60)
+        except subprocess.TimeoutExpired:
+            self.proc.kill()
+            self.proc.wait(10)
+        self.log.close()
+
+
+def cluster(backend: str, workers: int, folder: Path, pg, redis,
+            replicas: int = 1) -> tuple[list[Proc], list[Proc], str]:
+    """API replicas and workers of ``backend``, healthy, and their database's URL."""
+    env = {**{k: v for k, v in os.environ.items() if not k.startswith("PLANNER_")}, "PLANNER_DEV_NO_AUTH": "1",
+           "PLANNER_MAX_REQUEST_BYTES": str(64 << 20)}
+    if backend == "local":
+        env["PLANNER_DB"] = f"sqlite:///{folder / 'jobs.sqlite'}"
+        api = Proc(["serve", "--port", "0", "--workers", str(workers)], env, folder, "api")
+        api.wait_workers(workers)
+        return [api], [], env["PLANNER_DB"]
+    from planner.frontends.service.store import open_store
+
+    db = pg.create_database()
+    open_store(db)[0].dispose()  # migrated once, before the processes start
+    env.update(PLANNER_QUEUE="celery", PLANNER_BROKER=redis.url.rsplit("/", 1)[0] + f"/{1 + hash(folder) % 15}",
+               PLANNER_DB=db, PLANNER_DATA=str(folder / "data"))
+    subprocess.run(["redis-cli", "-u", env["PLANNER_BROKER"], "FLUSHDB"], capture_output=True, check=False)
+    pool = [Proc(["worker", "--concurrency", str(workers)], env, folder, "worker")]
+    apis = [Proc(["serve", "--port", "0"], env, folder, f"api{i}") for i in range(replicas)]
+    for a in apis:
+        a.wait_workers(workers)
+    return apis, pool, db
+
+
+def throughput(backend: str, workers: int, jobs: list, pg, redis, replicas: int = 1) -> dict:
+    with tempfile.TemporaryDirectory() as tmp:
+        apis, pool, db = cluster(backend, workers, Path(tmp), pg, redis, replicas)
+        try:
+            share = [jobs[i::len(apis)] for i in range(len(apis))]
+            import concurrent.futures as cf
+
+            with cf.ThreadPoolExecutor(len(apis)) as ex:
+                runs = list(ex.map(lambda a_j: run_clients_async(a_j[0].url, a_j[1], CLIENTS // len(apis)),
+                                   zip(apis, share, strict=True)))
+            lat = [x for r in runs for x in r[0]]
+            ids = [x for r in runs for x in r[1]]
+            t0 = min(r[2] for r in runs)
+            with httpx.Client(base_url=apis[0].url, timeout=60) as c:
+                deadline = time.monotonic() + 600
+                while True:
+                    counts = {line.split('"')[1]: int(line.rsplit(" ", 1)[1]) for line in c.get("/metrics").text
+                              .splitlines() if line.startswith("planner_jobs{")}
+                    if counts["queued"] + counts["running"] == 0 or time.monotonic() > deadline:
+                        break
+                    time.sleep(0.25)
+                listed = all_jobs(c)
+                plans = plan_rows(db)
+        finally:
+            for p in apis + pool:
+                p.stop()
+    done = [j for j in listed if j["state"] == "done"]
+    t_end = max(j["finished_at"] for j in done)
+    completion = np.array([j["finished_at"] - j["created_at"] for j in done])
+    lost = len(jobs) - len(done) + len(set(ids) - {j["id"] for j in listed})
+    duplicated = sum(j["attempts"] != 1 for j in listed) + (len(listed) - len({j["id"] for j in listed})) + \
+        (len(done) - plans)
+    lat_ms = np.array(lat) * 1e3
+    return {"rate": len(jobs) / (t_end - t0), "p50s": np.percentile(lat_ms, 50), "p99s": np.percentile(lat_ms, 99),
+            "p50c": np.percentile(completion, 50), "p99c": np.percentile(completion, 99), "lost": lost,
+            "dup": duplicated}
+
+
+def plan_rows(db: str) -> int:
+    """Stored plans (one per done job)."""
+    from sqlalchemy import create_engine, text
+
+    engine = create_engine(db)
+    try:
+        with engine.connect() as conn:
+            return int(conn.scalar(text("select count(*) from job_data where name = 'plan'")))
+    finally:
+        engine.dispose()
+
+
+def overhead(backend: str, pg, redis, n: int = 40) -> tuple[float, float]:
+    """Median (row stored -> started in a worker, submit -> done seen) of tiny jobs one at a time, ms."""
+    with tempfile.TemporaryDirectory() as tmp:
+        apis, pool, _ = cluster(backend, 1, Path(tmp), pg, redis)
+        try:
+            waits, trips = [], []
+            with httpx.Client(base_url=apis[0].url, timeout=60) as c:
+                for i in range(n):
+                    tic = time.perf_counter()
+                    job_id = c.post("/v1/jobs", json={"waypoints": [[0, 0, 0], [0.1, 0.01 * i, 0], [0.2, 0, 0]]}
+                                    ).json()["id"]
+                    while (v := c.get(f"/v1/jobs/{job_id}").json())["state"] not in ("done", "failed"):
+                        time.sleep(0.002)
+                    trips.append(time.perf_counter() - tic)
+                    waits.append(v["started_at"] - v["created_at"])
+        finally:
+            for p in apis + pool:
+                p.stop()
+    return 1e3 * float(np.median(waits[5:])), 1e3 * float(np.median(trips[5:]))
+
+
+def _fit_piece(start: int, stop: int) -> tuple[bytes, float]:
+    import importlib
+
+    from planner.job import fits_to_bytes
+
+    tic = time.perf_counter()
+    fits = importlib.import_module("planner.plan").fit_passes_of(NX_FILE, None, start, stop)
+    return fits_to_bytes(fits), time.perf_counter() - tic
+
+
+def nx_split(workers: int = 2) -> tuple[list[list[str]], bytes]:
+    """The whole NX job planned in one process against its fits made in pieces by ``workers`` processes (the pieces'
+    fits sent back as bytes, as between machines) and the job planned with them; rows for the table, and the plan."""
+    import concurrent.futures as cf
+    import importlib
+
+    from planner import plan
+    from planner.job import fits_from_bytes
+
+    P = importlib.import_module("planner.plan")
+    tic = time.perf_counter()
+    whole = plan(NX_FILE)
+    t_one = time.perf_counter() - tic
+    fit_one = whole.timings["fit"]
+    tic = time.perf_counter()
+    batches = P.fit_batches(NX_FILE)
+    t_batches = time.perf_counter() - tic
+    per = -(-len(batches) // workers)
+    pieces = [(batches[k][0], batches[min(k + per, len(batches)) - 1][1]) for k in range(0, len(batches), per)]
+    with cf.ProcessPoolExecutor(workers) as pool:
+        list(pool.map(abs, range(workers)))  # the processes started (as warm workers are)
+        tic = time.perf_counter()
+        got = list(pool.map(_fit_piece, *zip(*pieces, strict=True)))
+        t_fit = time.perf_counter() - tic
+    tic = time.perf_counter()
+    fits = [f for data, _ in got for f in fits_from_bytes(data)]
+    plan(NX_FILE, fits=fits)
+    t_join = time.perf_counter() - tic
+    sent = sum(len(d) for d, _ in got)
+    rows = [["one process", f"{t_one:.1f}", f"{fit_one:.1f}", "", "", "1.00"],
+            [f"fits in {len(pieces)} pieces on {workers} processes + plan with them",
+             f"{t_batches + t_fit + t_join:.1f}",
+             f"{t_fit:.1f} (pieces {', '.join(f'{t:.1f}' for _, t in got)})", f"{t_batches:.1f}",
+             f"{sent / 2**20:.1f}", f"{t_one / (t_batches + t_fit + t_join):.2f}"]]
+    return rows, whole.to_bytes()
+
+
+def plan_storage(pg, blob: bytes) -> list[list[str]]:
+    """The whole NX job's saved plan written to and read from job_data (SQLite, PostgreSQL): rows for the table."""
+    from sqlalchemy import delete, insert, select
+
+    from planner.frontends.service.store import JobData, now, open_store
+
+    rows = []
+    with tempfile.TemporaryDirectory() as tmp:
+        for name, url in (("SQLite (WAL)", f"sqlite:///{tmp}/j.sqlite"), ("PostgreSQL", pg.create_database())):
+            engine, _ = open_store(url)
+            w, r = [], []
+            for _ in range(5):
+                tic = time.perf_counter()
+                with engine.begin() as conn:
+                    conn.execute(delete(JobData).where(JobData.job_id == "nx"))
+                    conn.execute(insert(JobData).values(job_id="nx", name="plan", data=blob, bytes=len(blob),
+                                                        created_at=now()))
+                w.append(time.perf_counter() - tic)
+                tic = time.perf_counter()
+                with engine.connect() as conn:
+                    got = conn.scalar(select(JobData.data).where(JobData.job_id == "nx"))
+                r.append(time.perf_counter() - tic)
+                assert bytes(got) == blob
+            engine.dispose()
+            rows.append([name, f"{len(blob) / 2**20:.2f}", f"{1e3 * min(w):.1f}", f"{1e3 * min(r):.1f}"])
+    return rows
+
+
+def main() -> None:
+    ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
+    ap.add_argument("--jobs", type=int, default=1000)
+    ap.add_argument("--workers", default="1,2,4")
+    ap.add_argument("--quick", action="store_true", help="200 jobs, 1 and 2 workers, no NX plan")
+    args = ap.parse_args()
+    n_jobs, counts = (200, [1, 2]) if args.quick else (args.jobs, [int(x) for x in args.workers.split(",")])
+    import signal
+
+    from tests.pg_server import PostgresServer
+    from tests.redis_server import RedisServer
+
+    signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # the servers stopped on a kill too
+    pg, redis = PostgresServer().start(), RedisServer(appendonly=False).start()
+    try:
+        jobs = curves(n_jobs, 100)
+        print(f"{n_jobs} jobs x 100 waypoints, {CLIENTS} concurrent clients, {os.cpu_count()} cores, load average "
+              f"{os.getloadavg()[0]:.1f}\n")
+        rows, rate = [], {}
+        for w in counts:
+            for backend, replicas in (("local", 1), ("celery", 1), ("celery", 2)):
+                if replicas == 2 and w != 2:
+                    continue
+                r = throughput(backend, w, jobs, pg, redis, replicas)
+                rate[(backend, w, replicas)] = r["rate"]
+                ratio = r["rate"] / rate[("local", w, 1)]
+                rows.append([f"{backend}{'' if replicas == 1 else ', 2 API replicas'}", w, f"{r['rate']:.1f}",
+                             f"{ratio:.2f}", f"{r['p50s']:.1f}", f"{r['p99s']:.1f}", f"{r['p50c']:.2f}",
+                             f"{r['p99c']:.2f}", r["lost"], r["dup"]])
+                print_table(["backend", "workers", "jobs/s", "x local", "p50 submit ms", "p99 submit ms",
+                             "p50 completion s", "p99 completion s", "lost", "duplicated"], rows[-1:])
+        print()
+        print_table(["backend", "workers", "jobs/s", "x local", "p50 submit ms", "p99 submit ms", "p50 completion s",
+                     "p99 completion s", "lost", "duplicated"], rows)
+        if ("celery", 2, 1) in rate:
+            print(f"\ntarget: celery with 2 workers >= 0.9 x local with 2 processes: "
+                  f"{rate[('celery', 2, 1)] / rate[('local', 2, 1)]:.2f}")
+        print("\nper-task overhead (tiny jobs one at a time, medians):")
+        ov = {b: overhead(b, pg, redis) for b in ("local", "celery")}
+        print_table(["backend", "stored -> started ms", "submit -> done seen ms"],
+                    [[b, f"{a:.1f}", f"{t:.1f}"] for b, (a, t) in ov.items()])
+        if not args.quick and NX_FILE.exists():
+            rows, blob = nx_split()
+            print(f"\nthe whole NX job ({NX_FILE.name}) split: its fits in pieces on other processes, then planned "
+                  "with them (the exports byte for byte the same: tests/test_plan_split.py)")
+            print_table(["", "wall s", "fitting s", "parse + split for the pieces s", "fits sent MiB", "x one"], rows)
+            print(f"\nthe whole NX job's plan in the store ({NX_FILE.name}):")
+            print_table(["database", "plan MiB", "write ms", "read ms"], plan_storage(pg, blob))
+    finally:
+        redis.stop()
+        pg.stop()
+
+
+if __name__ == "__main__":
+    main()

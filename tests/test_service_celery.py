@@ -1,0 +1,255 @@
+"""The celery backend under faults, on real servers started for the session (PostgreSQL, Redis) and real
+``planner worker`` processes: a worker SIGKILLed mid-plan (the job completes once) and mid-execution (the execution
+reported interrupted, the robot's lease freed, never run again), Redis restarted mid-run (no job lost), PostgreSQL
+restarted (503 with the reason meanwhile, then recovered), two API replicas (executions of one robot never overlap,
+a job cancelled through the other replica stops in another process within a second, /metrics counts the
+cluster)."""
+
+from __future__ import annotations
+
+import concurrent.futures
+import json
+import os
+import time
+from pathlib import Path
+
+import numpy as np
+
+from planner.frontends.service.tasks.transitions import LEASE_S
+from tests import pg_server, redis_server
+from tests.celery_cluster import CeleryService, fresh_broker, fresh_database, wait_for
+from tests.sim_fixtures import start_sim
+from tests.test_service_server import wait_state
+
+postgres, redis = pg_server.postgres, redis_server.redis  # fixtures
+
+DEMO = Path(__file__).resolve().parents[1] / "examples" / "nx_first_pass.cls"
+PART = [0.4, 0.9965, -0.1, 0.0, 0.0, 0.0]
+SETTINGS = {"robot": "ur5e", "part_frame": PART, "cut_output": ["standard", 0], "feed_override": 4.0}
+FAST = {"approach_speed": 2.0, "approach_acceleration": 3.0}
+ENDED = ("done", "failed", "cancelled")
+SMALL = {"waypoints": [[0, 0, 0], [0.1, 0.03, 0], [0.2, 0, 0.01]]}
+
+
+def spiral(n: int = 15_000) -> dict:
+    t = np.linspace(0, 200 * np.pi, n)  # a few seconds of planning
+    return {"waypoints": np.c_[0.1 * np.cos(t) + 1e-4 * t, 0.1 * np.sin(t), 2e-4 * t].round(7).tolist()}
+
+
+def small(i: int) -> dict:
+    rng = np.random.default_rng(i)
+    return {"waypoints": np.cumsum(rng.uniform(0.01, 0.05, (8, 3)), axis=0).round(6).tolist()}
+
+
+def holder_pid(server: CeleryService, table: str, task_id: str) -> int:
+    (holder,), = server.sql(f"select holder from {table} where id = :id", id=task_id)
+    return int(holder.rsplit(":", 1)[1])
+
+
+def wait_execution(client, execution_id: str, states=ENDED, timeout: float = 120.0) -> dict:
+    deadline = time.monotonic() + timeout
+    while True:
+        view = client.get(f"/v1/executions/{execution_id}").json()
+        if view["state"] in states:
+            return view
+        if time.monotonic() > deadline:
+            raise AssertionError(f"execution {execution_id} still {view['state']} after {timeout} s: {view}")
+        time.sleep(0.05)
+
+
+def metric(text: str, name: str) -> float:
+    for line in text.splitlines():
+        if line.startswith(name + " "):
+            return float(line.split()[-1])
+    raise AssertionError(f"{name} not in /metrics")
+
+
+def test_a_worker_killed_mid_plan_the_job_completes_once(postgres, redis, tmp_path):
+    s = CeleryService(tmp_path, db=fresh_database(postgres), broker=fresh_broker(redis), workers=2).start()
+    try:
+        with s.client() as c:
+            big = c.post("/v1/jobs", json=spiral()).json()["id"]
+            wait_state(c, big, states=("running",), timeout=60)
+            others = [c.post("/v1/jobs", json=small(i)).json()["id"] for i in range(6)]
+            victim = next(w for w in s.pool if w.proc.pid == holder_pid(s, "jobs", big))
+            time.sleep(0.5)
+            victim.kill()
+            tic = time.monotonic()
+            view = wait_state(c, big, timeout=LEASE_S + 90)
+            took = time.monotonic() - tic
+            views = [wait_state(c, j, timeout=60) for j in others]
+            assert view["state"] == "done" and view["attempts"] == 2, view
+            assert "worker stopping to answer" in view["note"]
+            assert took > LEASE_S - 1  # re-queued once its heartbeats had stopped, not earlier
+            assert all(v["state"] == "done" and v["attempts"] == 1 for v in views)
+            # a second delivery of its message (as the broker gives back an unacknowledged one): nothing runs again
+            from planner.frontends.service.config import ServiceConfig
+            from planner.frontends.service.tasks.celery_backend import make_celery
+
+            app = make_celery(ServiceConfig.from_env({"PLANNER_QUEUE": "celery", "PLANNER_BROKER": s.broker}))
+            app.send_task("planner.plan_job", args=[big])
+            time.sleep(2.0)
+            again = c.get(f"/v1/jobs/{big}").json()
+            assert (again["state"], again["attempts"], again["finished_at"]) == ("done", 2, view["finished_at"])
+            assert s.sql("select count(*) from job_data where job_id = :id and name = 'plan'", id=big) == [(1,)]
+            m = c.get("/metrics").text
+            assert 'planner_jobs{state="done"} 7' in m
+    finally:
+        assert s.stop() == 0, s.log.read_text()
+
+
+def test_a_worker_killed_mid_execution_is_interrupted_frees_the_robot_and_never_runs_again(postgres, redis, tmp_path):
+    cell = start_sim(model="ur5e")
+    try:
+        robots = json.dumps({"cell": {"host": cell.host, "model": "ur5e", **FAST}})
+        s = CeleryService(tmp_path, db=fresh_database(postgres), broker=fresh_broker(redis), workers=1,
+                          env={"PLANNER_ROBOTS": robots}).start()
+        try:
+            with s.client() as c:
+                with open(DEMO, "rb") as f:
+                    r = c.post("/v1/jobs", files={"file": ("nx_first_pass.cls", f)},
+                               data={"settings": json.dumps(SETTINGS)})
+                job = wait_state(c, r.json()["id"])
+                assert job["state"] == "done", job["error"]
+                eid = c.post(f"/v1/jobs/{job['id']}/executions", json={"robot": "cell", "mode": "stream"}).json()["id"]
+                assert wait_execution(c, eid, states=("running",) + ENDED, timeout=60)["state"] == "running"
+                assert len(s.children("planner-exec")) == 1
+                s.pool[0].kill()
+                view = wait_execution(c, eid, timeout=LEASE_S + 30)
+                assert view["state"] == "failed" and view["error"]["kind"] == "interrupted", view
+                assert "not started again" in view["error"]["reason"]
+                assert c.get("/v1/robots").json()["robots"][0]["busy"] is False  # the lease freed
+                s.pool[0].start()
+                wait_for(lambda: c.get("/healthz").json()["workers"] == 1, 60, "a worker again")
+                from planner.frontends.service.config import ServiceConfig
+                from planner.frontends.service.tasks.celery_backend import make_celery
+
+                app = make_celery(ServiceConfig.from_env({"PLANNER_QUEUE": "celery", "PLANNER_BROKER": s.broker}))
+                app.send_task("planner.execute_job", args=[eid])  # delivered again: never run again on the robot
+                time.sleep(2.0)
+                assert c.get(f"/v1/executions/{eid}").json()["state"] == "failed"
+                assert s.sql("select attempts from executions where id = :id", id=eid) == [(1,)]
+                again = c.post(f"/v1/jobs/{job['id']}/executions", json={"robot": "cell", "mode": "program"})
+                assert again.status_code == 202, again.text
+                done = wait_execution(c, again.json()["id"])
+                assert done["state"] == "done" and done["report"]["ok"], done
+        finally:
+            assert s.stop() == 0, s.log.read_text()
+    finally:
+        cell.stop()
+
+
+def test_redis_restarted_mid_run_loses_no_job(postgres, tmp_path):
+    broker = redis_server.RedisServer().start()  # its own: restarted here
+    try:
+        s = CeleryService(tmp_path, db=fresh_database(postgres), broker=broker.url, workers=1).start()
+        try:
+            with s.client() as c:
+                before = [c.post("/v1/jobs", json=small(i)).json()["id"] for i in range(20)]
+                broker.shutdown()
+                during = [c.post("/v1/jobs", json=small(100 + i)) for i in range(5)]  # stored; sent later
+                assert all(r.status_code == 202 for r in during), [r.text for r in during]
+                time.sleep(1.0)
+                broker.start()
+                after = [c.post("/v1/jobs", json=small(200 + i)).json()["id"] for i in range(5)]
+                ids = before + [r.json()["id"] for r in during] + after
+                views = [wait_state(c, j, timeout=120) for j in ids]
+            assert all(v["state"] == "done" for v in views), [(v["state"], v["error"]) for v in views]
+            assert s.sql("select count(*), count(distinct job_id) from job_data where name = 'plan'") == [(30, 30)]
+            assert max(v["attempts"] for v in views) <= 2
+        finally:
+            assert s.stop() == 0, s.log.read_text()
+    finally:
+        broker.stop()
+
+
+def test_postgresql_restarted_the_api_answers_503_with_the_reason_and_recovers(redis, tmp_path):
+    pg = pg_server.PostgresServer().start()  # its own: restarted here
+    try:
+        s = CeleryService(tmp_path, db=fresh_database(pg), broker=fresh_broker(redis), workers=1).start()
+        try:
+            with s.client() as c:
+                first = c.post("/v1/jobs", json=small(1)).json()["id"]
+                assert wait_state(c, first)["state"] == "done"
+                pg.pause()
+                r = c.get(f"/v1/jobs/{first}")
+                assert r.status_code == 503 and "the job store (database) does not answer" in r.json()["detail"]
+                assert "\n" not in r.json()["detail"] and r.headers["retry-after"]
+                r = c.post("/v1/jobs", json=small(2))
+                assert r.status_code == 503, r.text
+                pg.resume()
+                wait_for(lambda: c.get(f"/v1/jobs/{first}").status_code == 200, 30, "the API answers again")
+                second = c.post("/v1/jobs", json=small(3))
+                assert second.status_code == 202, second.text
+                assert wait_state(c, second.json()["id"], timeout=90)["state"] == "done"
+        finally:
+            assert s.stop() == 0, s.log.read_text()
+    finally:
+        pg.stop()
+
+
+def test_two_replicas_one_robot_never_two_executions_and_a_cancel_reaches_another_process(postgres, redis, tmp_path):
+    robots = json.dumps({"sim": {"sim": True, "sim_speed": 10, **FAST}})
+    db, broker = fresh_database(postgres), fresh_broker(redis)
+    a = CeleryService(tmp_path / "a", db=db, broker=broker, workers=2, env={"PLANNER_ROBOTS": robots}).start()
+    b = CeleryService(tmp_path / "b", db=db, broker=broker, workers=2, own_workers=False,
+                      env={"PLANNER_ROBOTS": robots}).start()
+    try:
+        with a.client() as ca, b.client() as cb:
+            with open(DEMO, "rb") as f:
+                r = ca.post("/v1/jobs", files={"file": ("nx_first_pass.cls", f)},
+                            data={"settings": json.dumps(SETTINGS)})
+            job = wait_state(cb, r.json()["id"])  # planned by a worker, read through the other replica
+            assert job["state"] == "done", job["error"]
+            assert cb.get(f"/v1/jobs/{job['id']}/trajectory?format=script").status_code == 200
+            body = {"robot": "sim", "mode": "program"}
+            for _ in range(3):  # both replicas at once, several times: one execution holds the robot at a time
+                with concurrent.futures.ThreadPoolExecutor(8) as ex:
+                    answers = list(ex.map(lambda cl: cl.post(f"/v1/jobs/{job['id']}/executions", json=body),
+                                          [ca, cb] * 4))
+                accepted = [x for x in answers if x.status_code == 202]
+                assert len(accepted) == 1 and all(x.status_code == 409 for x in answers if x.status_code != 202)
+                assert wait_execution(cb, accepted[0].json()["id"])["state"] == "done"
+            spans = sorted((v["started_at"], v["finished_at"]) for v in ca.get("/v1/executions").json()["executions"])
+            assert len(spans) == 3 and all(s1[1] <= s2[0] for s1, s2 in zip(spans, spans[1:], strict=False))
+            # a job planning in a worker process, cancelled through the other replica: stopped within a second
+            big = ca.post("/v1/jobs", json=spiral(20_000)).json()["id"]
+            wait_state(cb, big, states=("running",), timeout=60)
+            pid = holder_pid(a, "jobs", big)
+            worker = next(w for w in a.pool if w.proc.pid == pid)
+            child = worker.children("planner-work")
+            time.sleep(0.5)
+            tic = time.monotonic()
+            assert cb.delete(f"/v1/jobs/{big}").json()["state"] == "cancelled"
+            wait_for(lambda: all(not Path(f"/proc/{p}").exists() or Path(f"/proc/{p}/stat").read_text().split()[2]
+                                 in "ZX" for p in child), 1.0, "the planning process in the worker stopped")
+            stopped_in = time.monotonic() - tic
+            print(f"cancel reached the worker process in {1e3 * stopped_in:.0f} ms")
+            assert ca.get(f"/v1/jobs/{big}").json()["state"] == "cancelled"
+            # the figures are the cluster's, whichever replica is asked
+            ids = [ca.post("/v1/jobs", json=small(i)).json()["id"] for i in range(4)]
+            for j in ids:
+                wait_state(cb, j)
+            ma, mb = ca.get("/metrics").text, cb.get("/metrics").text
+            for m in (ma, mb):
+                assert 'planner_jobs{state="done"} 5' in m and 'planner_jobs{state="cancelled"} 1' in m
+                assert 'planner_executions{state="done"} 3' in m
+                assert metric(m, "planner_workers") == 2 and metric(m, "planner_queue_depth") == 0
+    finally:
+        assert b.stop() == 0, b.log.read_text()
+        assert a.stop() == 0, a.log.read_text()
+
+
+def test_planner_worker_refuses_bad_options(tmp_path):
+    import subprocess
+    import sys
+
+    env = {k: v for k, v in os.environ.items() if not k.startswith("PLANNER_")}
+    r = subprocess.run([sys.executable, "-m", "planner.frontends.service", "worker"], env=env, capture_output=True,
+                       text=True, timeout=60)
+    assert r.returncode == 2 and "planner worker needs PLANNER_QUEUE=celery" in r.stderr
+    env.update(PLANNER_QUEUE="celery", PLANNER_BROKER="redis://127.0.0.1:1/0", PLANNER_DB=f"sqlite:///{tmp_path}/j")
+    r = subprocess.run([sys.executable, "-m", "planner.frontends.service", "worker", "--queues", "plan,cook"], env=env,
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 2 and "--queues: cook; the queues are plan and execute" in r.stderr
+
