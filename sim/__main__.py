@@ -98,7 +98,7 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:  # Ctrl-C while it starts (the child is stopped at exit)
         return 130
     try:
-        print(f"simulated {sim.model} (PolyScope {sim.version.text}) on {sim.host}: RTDE 30004, dashboard 29999, "
+        print(f"simulated {sim.model} on {sim.host} (PolyScope {sim.version.text}): RTDE 30004, dashboard 29999, "
               "primary 30001, secondary 30002, real-time 30003"
               + (f", Modbus {sim.ports.get('modbus')}" if sim.ports.get("modbus") else "")
               + " (Ctrl-C stops; type 'help' for commands)", flush=True)

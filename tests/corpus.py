@@ -91,7 +91,7 @@ def _settings(case: dict):
 
 def _data_rows_sha256(text: str, comment: str) -> str:
     """SHA-256 of an export's lines that are not its comment header (the header names the version)."""
-    rows = [line for line in text.splitlines() if not line.startswith(comment)]
+    rows = [line for line in text.splitlines() if not line.lstrip().startswith(comment)]  # URScript: indented
     return hashlib.sha256("\n".join(rows).encode()).hexdigest()
 
 

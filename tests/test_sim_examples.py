@@ -16,6 +16,7 @@ import signal
 import subprocess
 import sys
 import tarfile
+import threading
 import time
 from pathlib import Path
 
@@ -61,15 +62,26 @@ def _run(examples: Path, name: str, host: str, tmp_path: Path, args=(), interrup
     script.write_text(text)
     proc = subprocess.Popen([sys.executable, str(script), *args], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
                             text=True, cwd=tmp_path)
+    lines: list[str] = []
+    reader = threading.Thread(target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True)
+    reader.start()
     try:
         if interrupt_after is not None:
+            # interrupted once it has begun its loop (its first line printed): a SIGINT during its imports or its
+            # connection (seconds on a loaded machine) is lost in ur_rtde's C++ code, and the example runs on
+            deadline = time.monotonic() + timeout
+            while not lines and proc.poll() is None and time.monotonic() < deadline:
+                time.sleep(0.05)
             time.sleep(interrupt_after)
             proc.send_signal(signal.SIGINT)
-        out, _ = proc.communicate(timeout=timeout)
+        proc.wait(timeout=timeout)
     except subprocess.TimeoutExpired:
         proc.kill()
-        out, _ = proc.communicate()
-        pytest.fail(f"{name} did not finish within {timeout} s:\n{out[-2000:]}")
+        proc.wait()
+        reader.join(5.0)
+        pytest.fail(f"{name} did not finish within {timeout} s:\n{''.join(lines)[-2000:]}")
+    reader.join(10.0)
+    out = "".join(lines)
     assert proc.returncode == 0, f"{name} failed ({proc.returncode}):\n{out[-2000:]}"
     return out
 

@@ -242,6 +242,18 @@ def _checked_job(job) -> None:
         raise ExportError(f"the robot cannot make the job: {job.problems[0]}{more}")
 
 
+def _program_moves(job, moves: tuple[ProgramMove, ...] | None, tolerance, angle_tolerance,
+                   progress) -> tuple[ProgramMove, ...]:
+    """The moves of the job's program (``moves`` as given, or planned now), after the job's checks; ExportError for
+    a job without motion."""
+    _checked_job(job)
+    if moves is None:
+        moves = plan_job_program(job, tolerance=tolerance, angle_tolerance=angle_tolerance, progress=progress)
+    if not moves:
+        raise ExportError(f"{job.source}: the job has no motion")
+    return moves
+
+
 def _program_parts(job, moves, *, tolerance, angle_tolerance, approach_speed, approach_acceleration, parameters,
                    progress) -> tuple[list[str], list[list[str]], list[str], np.ndarray]:
     """(head lines after ``def``, the body lines of each move (comments of the CAM records before it first), the
@@ -366,11 +378,7 @@ def job_program(
         the pass and source line).
     """
     name = check_name(name)
-    _checked_job(job)
-    if moves is None:
-        moves = plan_job_program(job, tolerance=tolerance, angle_tolerance=angle_tolerance, progress=progress)
-    if not moves:
-        raise ExportError(f"{job.source}: the job has no motion")
+    moves = _program_moves(job, moves, tolerance, angle_tolerance, progress)
     head, body, tail, _ = _program_parts(job, moves, tolerance=tolerance, angle_tolerance=angle_tolerance,
                                          approach_speed=approach_speed, approach_acceleration=approach_acceleration,
                                          parameters=parameters, progress=progress)
@@ -421,11 +429,7 @@ def job_program_pieces(
     max_bytes = int(max_bytes)
     if max_bytes < 4096:
         raise ExportError(f"max_bytes must be at least 4096 bytes, got {max_bytes}")
-    _checked_job(job)
-    if moves is None:
-        moves = plan_job_program(job, tolerance=tolerance, angle_tolerance=angle_tolerance, progress=progress)
-    if not moves:
-        raise ExportError(f"{job.source}: the job has no motion")
+    moves = _program_moves(job, moves, tolerance, angle_tolerance, progress)
     head, body, tail, _ = _program_parts(job, moves, tolerance=tolerance, angle_tolerance=angle_tolerance,
                                          approach_speed=approach_speed, approach_acceleration=approach_acceleration,
                                          parameters=parameters, progress=progress)
