@@ -49,7 +49,6 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 from scipy.interpolate import BSpline
-from scipy.optimize import minimize
 
 from planner.cam.configure import groups
 from planner.cam.spin import SPIN_DEGREE, SpinCurve, SpinFigures, SpunFrames, spun
@@ -77,6 +76,8 @@ SPEED_SAFE = 0.8
 W_SING, W_JOINT, W_SPEED, W_FAST, W_TRAVEL, W_RATE, W_RMM = 1.0, 1.0, 10.0, 20.0, 0.01, 5.0, 0.01
 #: Cost of a sample out of reach on a branch.
 OUT_OF_REACH = 1e6
+#: Steps of the grid search whose step costs are computed at once (about 50 kB each).
+BLOCK = 256
 
 
 def spin_is_wrist3(tcp) -> bool:
@@ -283,6 +284,51 @@ def _wrap(x):
     return (np.asarray(x) + math.pi) % (2.0 * math.pi) - math.pi
 
 
+def _step_costs(arm: _Arm, q: np.ndarray, valid: np.ndarray, S: _Samples, free: int, rate: float, gstep: float,
+                shifts: np.ndarray) -> np.ndarray:
+    """Cost (n - 1, 8, 2K+1, G) of every step of the grid search from grid value g - shifts[k] (clipped to the grid)
+    at sample i to g at sample i + 1 on each branch, for joints q (n, 8, G, 6) and their validity (n, 8, G) (a node out
+    of reach: its node cost says so): wrist travel, and after the first ``free`` steps (rapids) a joint beyond
+    SPEED_SAFE of its limit and a spin faster than ``rate`` (spin change |shift| gstep over the step's time); a shift
+    over a turn in place (the run's coordinate stands) is out of reach. Computed :data:`BLOCK` steps at a time, joint
+    by joint and shift by shift on views of the joints (no copies of the (n, 8, 2K+1, G, 6) differences)."""
+    n, nb, G = valid.shape
+    K = int(np.abs(shifts).max())
+    qj = np.moveaxis(np.where(valid[..., None], q, 0.0), -1, 0)  # (6, n, 8, G)
+    qp = np.concatenate((np.repeat(qj[..., :1], K, axis=-1), qj, np.repeat(qj[..., -1:], K, axis=-1)), axis=-1)
+    vp = np.concatenate((np.repeat(valid[..., :1], K, axis=-1), valid, np.repeat(valid[..., -1:], K, axis=-1)), axis=-1)
+    out = np.empty((n - 1, nb, shifts.size, G))
+    dX, dt = np.diff(S.X), np.diff(S.t)
+    inv_v = 1.0 / arm.vmax
+    two_pi = 2.0 * math.pi
+    for i0 in range(0, n - 1, BLOCK):
+        i1 = min(n - 1, i0 + BLOCK)
+        timed = np.arange(i0, i1) >= free
+        h = dt[i0:i1, None, None]
+        for k, sh in enumerate(shifts):
+            travel = np.zeros((i1 - i0, nb, G))
+            top = np.zeros((i1 - i0, nb, G))
+            for j in range(6):  # |dq_j| wrapped (the joints lie in one turn, (-pi, pi])
+                d = np.abs(qj[j, i0 + 1:i1 + 1] - qp[j, i0:i1, :, K - sh:K - sh + G])
+                np.minimum(d, two_pi - d, out=d)
+                if j in (3, 5):
+                    travel += d
+                np.maximum(top, d * inv_v[j], out=top)
+            both = valid[i0 + 1:i1 + 1] & vp[i0:i1, :, K - sh:K - sh + G]  # a step from or to a node out of reach
+            travel *= both  # costs nothing more than its node
+            top *= both
+            cost = W_TRAVEL * travel
+            if timed.any():
+                ratio = np.where(h > 0.0, top / np.where(h > 0.0, h, 1.0), np.where(top > 1e-9, np.inf, 0.0))
+                speed = W_SPEED * np.maximum(0.0, ratio - SPEED_SAFE) ** 2 + W_FAST * (ratio > 1.0)
+                spin = W_RATE * np.maximum(0.0, abs(sh) * gstep / np.maximum(h, 1e-9) / max(rate, 1e-9) - 1.0) ** 2
+                cost += np.where(timed[:, None, None], speed + spin, 0.0)
+            if sh != 0:  # psi is a function of the run's arc length: it stands over a turn in place
+                cost += np.where((dX[i0:i1] <= 0.0)[:, None, None], OUT_OF_REACH, 0.0)
+            out[i0:i1, :, k] = np.minimum(cost, OUT_OF_REACH)
+    return out
+
+
 def _figures(arm: _Arm, S: _Samples, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Figures (8, 7) of spin psi (n,) on every branch (see SpinFigures; then the largest joint speed over a step as
     a fraction of its limit, of any joint and of wrist 3) and each branch's rank key (8, 3)."""
@@ -333,28 +379,19 @@ def _grid_path(arm: _Arm, S: _Samples, rate: float, free: int = 0, pin: float = 
     shifts = np.arange(-MAX_STEP, MAX_STEP + 1)
     G = grid.size
     pred = np.arange(G)[None, :] - shifts[:, None]  # (2K+1, G): the predecessor of g by each shift
-    beyond = np.where((pred < 0) | (pred >= G), OUT_OF_REACH, 0.0)[None]  # no predecessor past the grid's ends
     src = np.clip(pred, 0, G - 1)
-    gstep = float(grid[1] - grid[0])
-    dX, dt = np.diff(S.X), np.diff(S.t)
-    allowed = np.abs(shifts)[:, None] * gstep  # spin change of each shift (2K+1, 1)
+    trans = _step_costs(arm, q, valid, S, free, rate, float(grid[1] - grid[0]), shifts)  # (n - 1, 8, 2K+1, G)
+    trans += np.where((pred < 0) | (pred >= G), OUT_OF_REACH, 0.0)  # no predecessor past the grid's ends
     D = node[0].copy()  # (8, G)
     back = np.empty((n - 1, 8, G), dtype=np.int8)
-    for i in range(n - 1):  # the graph is a chain over samples: one vectorized relaxation per step
-        qp = q[i][:, src]  # (8, 2K+1, G, 6)
-        dq = np.nan_to_num(_wrap(q[i + 1][:, None] - qp))  # out of reach: its node cost says so
-        trans = W_TRAVEL * (np.abs(dq[..., 3]) + np.abs(dq[..., 5]))
-        if i >= free:
-            ratio = arm.step_ratio(dq, dt[i])
-            trans = trans + W_SPEED * np.maximum(0.0, ratio - SPEED_SAFE) ** 2 + W_FAST * (ratio > 1.0)
-            spin_rate = allowed / max(dt[i], 1e-9)
-            trans = trans + W_RATE * np.maximum(0.0, spin_rate / max(rate, 1e-9) - 1.0)[None] ** 2
-        if dX[i] <= 0.0:  # psi is a function of the run's arc length: it stands over a turn in place
-            trans = trans + np.where(shifts[:, None] != 0, OUT_OF_REACH, 0.0)[None]
-        total = D[:, src] + np.minimum(trans, OUT_OF_REACH) + beyond
+    rows = np.arange(8)[:, None]
+    cols = np.arange(G)[None, :]
+    for i in range(n - 1):  # the graph is a chain over samples: the min-plus step of the dynamic programming
+        total = D[:, src]
+        total += trans[i]
         j = total.argmin(axis=1)  # (8, G)
         back[i] = j
-        D = np.take_along_axis(total, j[:, None], axis=1)[:, 0] + node[i + 1]
+        D = total[rows, j, cols] + node[i + 1]
     b = int(D.min(axis=1).argmin())
     g = np.empty(n, dtype=np.int64)
     g[-1] = int(D[b].argmin())
@@ -441,27 +478,65 @@ def _refine(moves, S: _Samples, target: np.ndarray, rate: float, acc: float, pin
         r2 = np.abs(A2 @ c).max(initial=0.0) / acc if acc > 0 else math.inf
         return c / max(1.0, r1, r2) if np.isfinite(max(r1, r2)) else np.zeros_like(c)
 
-    start = scale_into(c0)
-    n = S.X.size
-
-    def f(c):
-        r = B0 @ c - y
-        d = D @ c
-        return float(r @ r / n + smooth * d @ d / n)
-
-    def grad(c):
-        return 2.0 * (B0.T @ (B0 @ c - y) + smooth * D.T @ (D @ c)) / n
-
-    A = np.vstack((A1, -A1, A2, -A2))
-    ub = np.concatenate((np.full(2 * len(A1), rate), np.full(2 * len(A2), acc)))
-    cons = [{"type": "ineq", "fun": lambda c: ub - A @ c, "jac": lambda c: -A}] if len(A) else []
-    res = minimize(f, start, jac=grad, method="SLSQP", constraints=cons, options={"maxiter": 100, "ftol": 1e-10})
-    c = scale_into(res.x) if np.isfinite(res.x).all() else start  # within the bounds to round-off
+    if rate > 0.0 and acc > 0.0:  # the bounds as rows of |M c| <= 1 (rate rows, then acceleration rows)
+        M = np.vstack((A1 / rate, A2 / acc))
+        c = c0 if np.abs(M @ c0).max(initial=0.0) <= 1.0 else scale_into(_bounded_fit(lhs, B0.T @ y, M, scale_into(c0)))
+    else:  # no spin change allowed
+        c = np.zeros_like(c0)
     full = np.zeros(K)
     full[cols] = c
     # checked on every cut's time law every 2 ms: what is over the bounds between the constraint points scales down
     over = _over_bounds(moves, S, SpinCurve(t, base + full), rate / BOUND_SHARE, acc / BOUND_SHARE ** 2)
     return SpinCurve(t, base + full / max(1.0, over))
+
+
+#: Steps of the active-set method of the spin's bounded fit at most (each adds or drops one bound; about twice the
+#: bounds active at the optimum are needed, and every step stays within all the bounds).
+FIT_STEPS = 400
+
+
+def _bounded_fit(H: np.ndarray, g: np.ndarray, M: np.ndarray, x: np.ndarray) -> np.ndarray:
+    """Coefficients c (m,) minimizing 1/2 c^T H c - g^T c (H (m, m) positive definite) subject to |M c| <= 1 for every
+    row of M (r, m), from x (m,) within those bounds.
+
+    The primal active-set method for convex quadratic programs (Nocedal and Wright, Numerical Optimization, 2nd ed.,
+    algorithm 16.3): each step solves the equality-constrained problem on the working set (its KKT system, m + |W|
+    unknowns) and moves to its solution or to the first bound in the way, which joins the set; at a solution of the
+    working set a bound with a negative multiplier leaves it; the optimum is where none does. H is exact, so the steps
+    are a few dozen for the bounds active at the optimum, whatever the rows (thousands); every iterate is within the
+    bounds, and the last one is returned if the steps run out."""
+    m = x.size
+    G = np.vstack((M, -M))  # G c <= 1
+    work: list[int] = []
+    tol = 1e-12
+    for _ in range(FIT_STEPS):
+        k = len(work)
+        Gw = G[work]
+        K = np.zeros((m + k, m + k))
+        K[:m, :m], K[:m, m:], K[m:, :m] = H, Gw.T, Gw
+        rhs = np.concatenate((g - H @ x, np.zeros(k)))  # (16.39): the step p and the multipliers at x + p
+        try:
+            sol = np.linalg.solve(K, rhs)
+        except np.linalg.LinAlgError:
+            sol = np.linalg.lstsq(K, rhs, rcond=None)[0]
+        p, lam = sol[:m], sol[m:]
+        if np.abs(p).max() <= 1e-12 * max(1.0, np.abs(x).max()):
+            if k == 0 or lam.min() >= -tol:
+                break  # the KKT conditions hold: the optimum
+            work.pop(int(lam.argmin()))  # the bound that holds the solution back leaves the set
+            continue
+        Gp = G @ p
+        slack = 1.0 - G @ x
+        ahead = Gp > tol * np.abs(p).max()
+        ahead[work] = False
+        ratios = np.where(ahead, np.maximum(slack, 0.0) / np.where(ahead, Gp, 1.0), np.inf)
+        j = int(ratios.argmin())
+        if ratios[j] >= 1.0:
+            x = x + p
+        else:
+            x = x + ratios[j] * p
+            work.append(j)
+    return x
 
 
 def _over_bounds(moves, S: _Samples, curve: SpinCurve, rate: float, acc: float) -> float:
