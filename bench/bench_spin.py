@@ -13,8 +13,14 @@ Cases (files of ``../shared/data`` next to the repository; a missing file is ski
 - ``examples/nx_first_pass.cls``, the SOLIDWORKS and the NX G-code file, and the NX job, at fixed frames where the
   RMM spin of the angled nozzle leaves poses out of reach.
 
-Run: ``python bench/bench_spin.py`` (the NX job twice per case: about 25 minutes on 2 cores), or
-``python bench/bench_spin.py --quick`` (the small cases only).
+The README's case on the command line (main's convention: a part frame's lengths with their unit)::
+
+    planner plan ../shared/data/nx_clsf_variable_contour_ust_a2.cls --robot ur5e \
+        --part-frame 400mm,996.5mm,-100mm,0,0,0 --spin reach
+
+Run: ``python bench/bench_spin.py`` (the NX job twice per case: about 25 minutes on 2 idle cores), or
+``python bench/bench_spin.py --quick`` (the small cases only). "choose s" is the time to choose the spin, "share" its
+part of the whole planning time of that plan ("plan s", wall clock: compare shares within one run).
 """
 
 from __future__ import annotations
@@ -49,12 +55,6 @@ CASES = [
 ]
 
 
-def _lowest(job) -> float:
-    factors = [w.factor for p in job.passes for w in p.feed_caps]
-    factors += [w.factor for m in job.moves for w in getattr(m, "_windows", ())]
-    return min(factors, default=1.0)
-
-
 def _row(name: str, spin: str, job, seconds: float) -> list:
     s = job.summary()
     sp = s.get("spin")
@@ -66,7 +66,8 @@ def _row(name: str, spin: str, job, seconds: float) -> list:
     lowest = min((float(x.split("lowered to ")[1].split(" %")[0]) for x in job.slowed), default=100.0)
     return [name, spin, len(job.problems), len(job.slowed), f"{lowest:.1f} %", len(s["reconfigurations"]),
             f"{job.duration:.1f}", sing, out, f"{math.degrees(w):.1f}", f"{math.degrees(a):.0f}",
-            f"{job.timings.get('spin', 0.0):.2f}", f"{seconds:.1f}"]
+            f"{job.timings.get('spin', 0.0):.2f}", f"{seconds:.1f}",
+            f"{100.0 * job.timings.get('spin', 0.0) / seconds:.1f} %" if spin == "reach" else "-"]
 
 
 def main(argv: list[str]) -> None:
@@ -91,7 +92,7 @@ def main(argv: list[str]) -> None:
         rows[-2][8] = str(sp["rmm"]["out_of_reach_samples"])
         print(f"{name}: done", flush=True)
     print_table(["case", "spin", "problems", "slowed", "lowest feed", "reconfig.", "job s", "sing. margin",
-                 "out of reach", "spin deg/s", "spin deg/s^2", "choose s", "plan s"], rows)
+                 "out of reach", "spin deg/s", "spin deg/s^2", "choose s", "plan s", "share"], rows)
 
 
 if __name__ == "__main__":

@@ -19,14 +19,19 @@ psi is chosen in two stages, the first global and coarse, the second continuous:
    wind-up; a spin step faster than ``spin_rate``), steps moving at most :data:`MAX_STEP` grid values. Samples out of
    reach cost :data:`OUT_OF_REACH`. The rapids before the run are in the same graph, the path starting at the spin the
    previous run ended with (no rate or joint-speed cost there: the rapids are timed for their spin afterwards). This
-   is the ladder graph of ROS-Industrial Descartes and the sampled spin of RoboDK, over the whole run at once.
+   is the ladder graph of ROS-Industrial Descartes and the sampled spin of RoboDK, over the whole run at once. The
+   graph holds every :data:`COARSE`-th sample of the run where the margins are flat and every sample where a node's
+   cost changes by more than :data:`FLAT` over a step (and every sample of the rapids, the ends of every move); the
+   step costs are computed for blocks of samples at once, the dynamic programming is one min-plus step per sample.
 3. **Continuous refinement.** psi becomes a clamped cubic B-spline (C2) of arc length along the run, at most
    :data:`MAX_COEFFS` coefficients: the least-squares fit to the grid path, smoothed, under the spin bounds as linear
    constraints on the coefficients at every sample and inside every phase of the cuts' time laws, |psi'(s) v| <=
    ``spin_rate`` and |psi''(s) v^2 + psi'(s) a| <= ``spin_acceleration`` with the planned feed v and its acceleration
-   a (asked with the margin :data:`BOUND_SHARE`; scipy.optimize, SLSQP; the start is the least-squares fit scaled into
-   the bounds, which is feasible). The result is rated like the RMM spin and kept only where it is better (fewer
-   samples out of reach, fewer steps too fast, then a larger least singularity margin).
+   a (asked with the margin :data:`BOUND_SHARE`): a convex quadratic program in at most :data:`MAX_COEFFS` unknowns
+   and thousands of bounds, solved exactly by the primal active-set method (Nocedal and Wright, Numerical
+   Optimization, algorithm 16.3) from the least-squares fit scaled into the bounds, which is feasible. The result is
+   rated like the RMM spin and kept only where it is better (fewer samples out of reach, fewer steps too fast, then a
+   larger least singularity margin).
 
 Where the tool is on the flange axis (the TCP turned about its z and offset along it only), a spin is wrist 3 alone
 (q6 + psi): reach, the singularity margins and the other joints do not depend on it, so only wrist 3's speed decides
@@ -55,7 +60,6 @@ from planner.cam.spin import SPIN_DEGREE, SpinCurve, SpinFigures, SpunFrames, sp
 from planner.kinematics import get_model, inverse_batch
 from planner.kinematics.poses import as_transform
 from planner.motion import MotionLimits, plan_feed
-from planner.rotations import matrix_to_rotvec
 
 #: Steps of the spin grid over [-pi, pi] from the RMM spin (15 deg apart, both ends included).
 GRID = 24
@@ -78,6 +82,11 @@ W_SING, W_JOINT, W_SPEED, W_FAST, W_TRAVEL, W_RATE, W_RMM = 1.0, 1.0, 10.0, 20.0
 OUT_OF_REACH = 1e6
 #: Steps of the grid search whose step costs are computed at once (about 50 kB each).
 BLOCK = 256
+#: The grid search starts from every COARSE-th sample of a run (reach_step apart), ...
+COARSE = 4
+#: ... and takes every sample of a step over which a node's cost (capped at 2) changes by more than FLAT (a
+#: singularity margin crossing about 0.78 SING_SAFE, a sample leaving reach).
+FLAT = 0.05
 
 
 def spin_is_wrist3(tcp) -> bool:
@@ -245,13 +254,12 @@ class _Arm:
         psi = np.broadcast_to(psi, (p.shape[0],) + np.shape(psi)[-1:])
         n, G = psi.shape
         if self.wrist3:
-            sol = inverse_batch(self.robot, np.hstack((p, matrix_to_rotvec(R))), tcp=self.tcp)
+            sol = inverse_batch(self.robot, _transforms(p, R), tcp=self.tcp)
             q = np.repeat(sol.q[:, :, None, :], G, axis=2)
             q[..., 5] = _wrap(q[..., 5] + psi[:, None, :])
             return q, np.repeat(sol.valid[:, :, None], G, axis=2)
         F = spun(np.repeat(R[:, None], G, axis=1), psi)
-        poses = np.hstack((np.repeat(p, G, axis=0), matrix_to_rotvec(F.reshape(-1, 3, 3))))
-        sol = inverse_batch(self.robot, poses, tcp=self.tcp)
+        sol = inverse_batch(self.robot, _transforms(np.repeat(p, G, axis=0), F.reshape(-1, 3, 3)), tcp=self.tcp)
         return (np.swapaxes(sol.q.reshape(n, G, 8, 6), 1, 2), np.swapaxes(sol.valid.reshape(n, G, 8), 1, 2))
 
     def node_cost(self, q: np.ndarray, valid: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray,
@@ -280,25 +288,33 @@ class _Arm:
         return np.where(dt > 0.0, top / np.where(dt > 0.0, dt, 1.0), np.where(top > 1e-9, np.inf, 0.0))
 
 
+def _transforms(p: np.ndarray, R: np.ndarray) -> np.ndarray:
+    """Homogeneous transforms (n, 4, 4) of positions p (n, 3) and rotations R (n, 3, 3)."""
+    T = np.zeros((p.shape[0], 4, 4))
+    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, p, 1.0
+    return T
+
+
 def _wrap(x):
     return (np.asarray(x) + math.pi) % (2.0 * math.pi) - math.pi
 
 
-def _step_costs(arm: _Arm, q: np.ndarray, valid: np.ndarray, S: _Samples, free: int, rate: float, gstep: float,
-                shifts: np.ndarray) -> np.ndarray:
+def _step_costs(arm: _Arm, q: np.ndarray, valid: np.ndarray, X: np.ndarray, t: np.ndarray, free: int, rate: float,
+                gstep: float, shifts: np.ndarray) -> np.ndarray:
     """Cost (n - 1, 8, 2K+1, G) of every step of the grid search from grid value g - shifts[k] (clipped to the grid)
     at sample i to g at sample i + 1 on each branch, for joints q (n, 8, G, 6) and their validity (n, 8, G) (a node out
-    of reach: its node cost says so): wrist travel, and after the first ``free`` steps (rapids) a joint beyond
-    SPEED_SAFE of its limit and a spin faster than ``rate`` (spin change |shift| gstep over the step's time); a shift
-    over a turn in place (the run's coordinate stands) is out of reach. Computed :data:`BLOCK` steps at a time, joint
-    by joint and shift by shift on views of the joints (no copies of the (n, 8, 2K+1, G, 6) differences)."""
+    of reach: its node cost says so) at run coordinates X (n,) and times t (n,): wrist travel, and after the first
+    ``free`` steps (rapids) a joint beyond SPEED_SAFE of its limit and a spin faster than ``rate`` (spin change
+    |shift| gstep over the step's time); a shift over a turn in place (the run's coordinate stands) is out of reach.
+    Computed :data:`BLOCK` steps at a time, joint by joint and shift by shift on views of the joints (no copies of the
+    (n, 8, 2K+1, G, 6) differences)."""
     n, nb, G = valid.shape
     K = int(np.abs(shifts).max())
     qj = np.moveaxis(np.where(valid[..., None], q, 0.0), -1, 0)  # (6, n, 8, G)
     qp = np.concatenate((np.repeat(qj[..., :1], K, axis=-1), qj, np.repeat(qj[..., -1:], K, axis=-1)), axis=-1)
     vp = np.concatenate((np.repeat(valid[..., :1], K, axis=-1), valid, np.repeat(valid[..., -1:], K, axis=-1)), axis=-1)
     out = np.empty((n - 1, nb, shifts.size, G))
-    dX, dt = np.diff(S.X), np.diff(S.t)
+    dX, dt = np.diff(X), np.diff(t)
     inv_v = 1.0 / arm.vmax
     two_pi = 2.0 * math.pi
     for i0 in range(0, n - 1, BLOCK):
@@ -365,22 +381,61 @@ def _fine(fig: np.ndarray, b: int, wrist3: bool) -> bool:
                 and fig[b, 5] <= SPEED_SAFE)
 
 
+def _coarse(S: _Samples, free: int) -> np.ndarray:
+    """The samples the grid search starts from (bool (n,)): every :data:`COARSE`-th sample of the run, and every
+    sample of the rapids before it (the first ``free``), at the ends of every move and turn in place."""
+    n = S.X.size
+    keep = np.zeros(n, dtype=bool)
+    keep[free::COARSE] = True
+    keep[:free + 1] = True
+    keep[-1] = True
+    edge = (np.diff(S.X) <= 0.0) | (S.move[1:] != S.move[:-1])  # a turn in place, the start of another move
+    keep[:-1] |= edge
+    keep[1:] |= edge
+    return keep
+
+
+def _inside(n: int, idx: np.ndarray, steps: np.ndarray) -> np.ndarray:
+    """The samples (bool (n,)) strictly inside the steps idx[j]..idx[j + 1] of the sorted indices idx for which
+    ``steps`` (bool (len(idx) - 1,)) holds."""
+    d = np.zeros(n + 1, dtype=np.int64)
+    np.add.at(d, idx[:-1][steps] + 1, 1)
+    np.add.at(d, idx[1:][steps], -1)
+    return np.cumsum(d[:n]) > 0
+
+
 def _grid_path(arm: _Arm, S: _Samples, rate: float, free: int = 0, pin: float = math.nan) -> tuple[np.ndarray, int]:
     """The grid search: spin (n,) (radians, in [-pi, pi]) and branch of the cheapest path through (sample, spin).
 
     The first ``free`` steps are in rapids, which are timed for their spin afterwards: no spin-rate or joint-speed
-    cost there. ``pin``: the spin where the arm is at the first sample (the previous run's end), if any."""
+    cost there. ``pin``: the spin where the arm is at the first sample (the previous run's end), if any.
+
+    The search runs on the samples where the margins change (:func:`_coarse` samples, then every sample of a step
+    over which some node's cost changes by more than :data:`FLAT`: the margins are flat elsewhere, and the spin's
+    B-spline is no finer than its knots); the path between them is linear in the sample index."""
     grid = np.linspace(-math.pi, math.pi, GRID + 1)  # within half a turn of the RMM spin: no wind-up from the spin
-    q, valid = arm.joints(S.p, S.R, grid)  # (n, 8, G, 6)
+    gstep = float(grid[1] - grid[0])
+    n_all = S.X.size
+    idx = np.flatnonzero(_coarse(S, free))
+    q, valid = arm.joints(S.p[idx], S.R[idx], grid)  # (m, 8, G, 6)
     node, _, _ = arm.node_cost(q, valid, np.broadcast_to(grid, valid.shape))
+    jump = np.abs(np.diff(np.minimum(node, 2.0), axis=0)).max(axis=(1, 2)) > FLAT
+    more = np.flatnonzero(_inside(n_all, idx, jump))
+    if more.size:  # where the margins are not flat: every sample
+        q2, valid2 = arm.joints(S.p[more], S.R[more], grid)
+        node2, _, _ = arm.node_cost(q2, valid2, np.broadcast_to(grid, valid2.shape))
+        order = np.argsort(np.concatenate((idx, more)), kind="stable")
+        idx = np.concatenate((idx, more))[order]
+        q, valid, node = (np.concatenate(pair)[order] for pair in ((q, q2), (valid, valid2), (node, node2)))
+    free = int(np.searchsorted(idx, free))  # the steps in the rapids (all their samples are searched)
     if np.isfinite(pin):  # start from the grid value nearest where the arm is
         node[0] += np.where(np.arange(grid.size) == int(np.abs(grid - pin).argmin()), 0.0, OUT_OF_REACH)[None]
-    n = S.X.size
+    n = idx.size
     shifts = np.arange(-MAX_STEP, MAX_STEP + 1)
     G = grid.size
     pred = np.arange(G)[None, :] - shifts[:, None]  # (2K+1, G): the predecessor of g by each shift
     src = np.clip(pred, 0, G - 1)
-    trans = _step_costs(arm, q, valid, S, free, rate, float(grid[1] - grid[0]), shifts)  # (n - 1, 8, 2K+1, G)
+    trans = _step_costs(arm, q, valid, S.X[idx], S.t[idx], free, rate, gstep, shifts)  # (n - 1, 8, 2K+1, G)
     trans += np.where((pred < 0) | (pred >= G), OUT_OF_REACH, 0.0)  # no predecessor past the grid's ends
     D = node[0].copy()  # (8, G)
     back = np.empty((n - 1, 8, G), dtype=np.int8)
@@ -397,7 +452,7 @@ def _grid_path(arm: _Arm, S: _Samples, rate: float, free: int = 0, pin: float = 
     g[-1] = int(D[b].argmin())
     for i in range(n - 2, -1, -1):  # backtrack (integers only)
         g[i] = src[back[i, b, g[i + 1]], g[i + 1]]
-    return grid[g], b
+    return np.interp(np.arange(n_all), idx, grid[g]), b
 
 
 def _joined(a: _Samples, b: _Samples) -> _Samples:
@@ -542,15 +597,19 @@ def _bounded_fit(H: np.ndarray, g: np.ndarray, M: np.ndarray, x: np.ndarray) -> 
 def _over_bounds(moves, S: _Samples, curve: SpinCurve, rate: float, acc: float) -> float:
     """The largest ratio of the spin's rate and acceleration in time to their bounds over the run's cuts, at their
     planned time laws every 2 ms (a spin over the bounds by this factor, less the base, scales back into them)."""
-    top = 0.0
+    if not S.cuts or curve.is_constant:
+        return 0.0
+    parts = []
     for k, X0 in S.cuts:
         prof = moves[k].profile
         T = float(prof.duration)
         tt = np.linspace(0.0, T, min(max(3, math.ceil(T / 2e-3) + 1), 100_001))
-        x, v, a = X0 + prof.s(tt), prof.v(tt), prof.a(tt)
-        d1, d2 = curve(x, 1), curve(x, 2)
-        top = max(top, float(np.abs(d1 * v).max()) / rate, float(np.abs(d2 * v * v + d1 * a).max()) / acc)
-    return top
+        parts.append((X0 + prof.s(tt), prof.v(tt), prof.a(tt)))
+    x, v, a = (np.concatenate([p[i] for p in parts]) for i in range(3))
+    spline = BSpline(curve.knots, curve.coeffs, SPIN_DEGREE, extrapolate=False)
+    x = np.clip(x, curve.knots[0], curve.knots[-1])
+    d1, d2 = spline(x, 1), spline(x, 2)
+    return max(float(np.abs(d1 * v).max()) / rate, float(np.abs(d2 * v * v + d1 * a).max()) / acc)
 
 
 #: Share of the spin rate bound the refinement asks at its constraint points (its square of the acceleration
