@@ -595,19 +595,41 @@ def _bounded_fit(H: np.ndarray, g: np.ndarray, M: np.ndarray, x: np.ndarray) -> 
 
 
 def _over_bounds(moves, S: _Samples, curve: SpinCurve, rate: float, acc: float) -> float:
-    """The largest ratio of the spin's rate and acceleration in time to their bounds over the run's cuts, at their
-    planned time laws every 2 ms (a spin over the bounds by this factor, less the base, scales back into them)."""
+    """The largest ratio of the spin's rate and acceleration in time to their bounds over the run's cuts at their
+    planned time laws (a spin over the bounds by this factor, less the base, scales back into them).
+
+    Exact over the phases at constant feed v, where the rate is v |psi'(s)| (psi' quadratic between knots: its largest
+    size at the phase's ends, the knots and the zeros of psi'' inside) and the acceleration v^2 |psi''(s)| (linear
+    between knots); every 2 ms (the controller's period) over the phases where the feed changes."""
     if not S.cuts or curve.is_constant:
         return 0.0
-    parts = []
+    kn = curve.knots
+    spline = BSpline(kn, curve.coeffs, SPIN_DEGREE, extrapolate=False)
+    inner = np.unique(kn)
+    d2 = spline(inner, 2)
+    cross = d2[:-1] * d2[1:] < 0.0  # psi'' changes sign inside a knot interval: an extreme of psi' there
+    w = d2[:-1][cross] / (d2[:-1][cross] - d2[1:][cross])
+    vertices = inner[:-1][cross] + w * np.diff(inner)[cross]
+    special = np.sort(np.concatenate((inner, vertices)))
+    xs, vs, as_ = [], [], []
     for k, X0 in S.cuts:
         prof = moves[k].profile
-        T = float(prof.duration)
-        tt = np.linspace(0.0, T, min(max(3, math.ceil(T / 2e-3) + 1), 100_001))
-        parts.append((X0 + prof.s(tt), prof.v(tt), prof.a(tt)))
-    x, v, a = (np.concatenate([p[i] for p in parts]) for i in range(3))
-    spline = BSpline(curve.knots, curve.coeffs, SPIN_DEGREE, extrapolate=False)
-    x = np.clip(x, curve.knots[0], curve.knots[-1])
+        dur = np.diff(prof.t)
+        cruise = (prof.j == 0.0) & (prof.a0 == 0.0)
+        for p in np.flatnonzero(cruise & (dur > 0.0)):  # at constant feed: the ends, knots and extremes of psi'
+            xa, xb = X0 + prof.s0[p], X0 + prof.s0[p] + prof.v0[p] * dur[p]
+            x = np.concatenate(([xa, xb], special[(special > xa) & (special < xb)]))
+            xs.append(x)
+            vs.append(np.full(x.size, prof.v0[p]))
+            as_.append(np.zeros(x.size))
+        for p in np.flatnonzero(~cruise & (dur > 0.0)):  # where the feed changes: every 2 ms
+            tt = np.linspace(prof.t[p], prof.t[p + 1], min(max(2, math.ceil(dur[p] / 2e-3) + 1), 100_001))
+            xs.append(X0 + prof.s(tt))
+            vs.append(prof.v(tt))
+            as_.append(prof.a(tt))
+    if not xs:
+        return 0.0
+    x, v, a = np.clip(np.concatenate(xs), kn[0], kn[-1]), np.concatenate(vs), np.concatenate(as_)
     d1, d2 = spline(x, 1), spline(x, 2)
     return max(float(np.abs(d1 * v).max()) / rate, float(np.abs(d2 * v * v + d1 * a).max()) / acc)
 
