@@ -20,6 +20,7 @@ from planner.cam.axes import AxisField
 from planner.cam.fidelity import PassFit
 from planner.cam.moves import Reconfiguration, TurningFrames
 from planner.cam.passes import CutPass, Dwell, RapidMove, Reorientation, Segmentation, Skipped
+from planner.cam.spin import SpunFrames
 from planner.errors import PlannerError
 from planner.frames.tool_field import PathToolField
 from planner.io.toolpath import Toolpath
@@ -268,7 +269,7 @@ class PlannedJob:
     def to_state(self) -> dict:
         """The fields as data, for the saved-job file (:mod:`planner.jobfile`); the settings as their JSON
         object (:meth:`PlanSettings.to_dict`)."""
-        return {"source": self.source, "settings": self.settings.to_dict(), "toolpath": self.toolpath,
+        return {"source": self.source, "settings": self.settings.record(), "toolpath": self.toolpath,
                 "segmentation": self.segmentation, "moves": self.moves, "passes": self.passes,
                 "timings": self.timings, "problems": self.problems, "slowed": self.slowed,
                 "start_joints": self.start_joints, "start_note": self.start_note, "warnings": self.warnings,
@@ -428,6 +429,10 @@ class PlannedJob:
             out["reconfigured_passes"] = [r.pass_index for r in self.reconfigurations]
             if self.start_note:
                 out["start"] = self.start_note
+            if self.settings.spin == "reach":
+                from planner.cam.spin_choice import spin_summary
+
+                out["spin"] = spin_summary(self.moves)
         return out
 
     def _path_line(self, s: dict) -> str:
@@ -469,6 +474,8 @@ class PlannedJob:
         if self.settings.robot is not None:
             if self.placement is not None:
                 lines.append(f"  placed    {self.placement.describe()}")
+            if s.get("spin"):
+                lines.append(_spin_line(s["spin"], self.timings.get("spin", math.nan)))
             if self.slowed:
                 n = len(self.slowed)
                 lines.append(f"  slowed    feed lowered for the joint speed limits on {n} stretch{'es' * (n > 1)}")
@@ -543,8 +550,11 @@ def _check_move(s: dict) -> None:
     moving = kind in ("cut", "rapid")
     need(not moving or (s["path"] is not None and frames is not None and s["profile"] is not None),
          f"a {kind} move needs its path, frames and profile")
-    need(kind != "cut" or isinstance(frames, AxisField | PathToolField), "a cut's frames are a field along it")
-    need(kind not in ("rapid", "reorientation") or isinstance(frames, TurningFrames), f"a {kind}'s frames turn")
+    base = frames.base if isinstance(frames, SpunFrames) else frames
+    need(kind != "cut" or isinstance(base, AxisField | PathToolField), "a cut's frames are a field along it")
+    need(kind not in ("rapid", "reorientation") or isinstance(base, TurningFrames), f"a {kind}'s frames turn")
+    need(not isinstance(frames, SpunFrames) or kind != "cut" or isinstance(base, AxisField),
+         "a spin turns a cut about given tool axes")
     need(kind != "reconfiguration" or s["profile"] is not None, "a reconfiguration needs its profile")
     need(kind != "reconfiguration" or s["profile"].length == 1.0, "a reconfiguration's profile runs over [0, 1]")
     need(not moving or s["frames"].path is s["path"], f"a {kind}'s frames must be on its path")
@@ -577,7 +587,8 @@ JOB_TYPES = {**{t.name: t for t in (
         "kind": Str(tuple(MOVE_ITEMS)),
         "item": Ref("CutPass", "RapidMove", "Reorientation", "Reconfiguration", "Dwell", "Skipped"),
         "path": Opt(Ref("PHSpline")),
-        "frames": Opt(Ref("AxisField", "TurningFrames", "PathToolField")), "profile": Opt(Ref("FeedProfile")),
+        "frames": Opt(Ref("AxisField", "TurningFrames", "PathToolField", "SpunFrames")),
+        "profile": Opt(Ref("FeedProfile")),
         "start_frame": FRAME, "end_frame": FRAME, "point": VEC3, "pass_index": Int(-1), "fit": Opt(Ref("PassFit"))},
         check=_check_move),
     StoredType("PassReport", PassReport, {
@@ -588,6 +599,20 @@ JOB_TYPES = {**{t.name: t for t in (
         "reachable": Opt(Bool()), "reach_message": Str(), "feed_caps": Seq(Ref("CapWindow")),
         "max_twist_deg": NAN, "max_waypoint_error": NAN}),
 )}, **CORE_TYPES}
+
+
+def _spin_line(sp: dict, seconds: float) -> str:
+    """The summary's spin figures for a person (spin="reach"), each against the RMM spin on the same samples."""
+    a, b = sp["rmm"], sp["reach"]
+    only = "; the passes reachable only with this spin" if sp["reachable_only_by_spin"] else ""
+    return (f"  spin      reach (axisymmetric tool): {sp['spun_runs']} of {counted(sp['runs'], 'run')} spun, up to "
+            f"{sp['max_spin_deg']:.3g} deg from the RMM spin, at most {sp['max_spin_rate_deg_s']:.3g} deg/s and "
+            f"{sp['max_spin_acceleration_deg_s2']:.3g} deg/s^2; against the RMM spin on {sp['samples']} samples: "
+            f"singularity margin {b['singularity_margin']:.3f} (RMM {a['singularity_margin']:.3f}), joint-limit margin "
+            f"{b['joint_margin_deg']:.1f} deg (RMM {a['joint_margin_deg']:.1f}), steps too fast {b['too_fast_steps']} "
+            f"(RMM {a['too_fast_steps']}), out of reach {b['out_of_reach_samples']} (RMM "
+            f"{a['out_of_reach_samples']}), wrist travel {b['wrist_travel_deg']:.0f} deg (RMM "
+            f"{a['wrist_travel_deg']:.0f}){only}; chosen in {_seconds(seconds)}")
 
 
 def _seconds(t: float) -> str:

@@ -16,7 +16,9 @@ A list of waypoints is a toolpath with one pass; a single pass is a job with one
    field of the chosen method (:func:`planner.frames.frame_field`), with its twist against the exact RMF;
 6. the jerk-limited time law of every move along the exact arc length (cuts at the input's feeds, rapids at
    rapid speed, turns at the turning speed), starting and ending at rest;
-7. with a robot: inverse kinematics along every move, problems named by pass and source line, the feed
+7. with ``spin="reach"``: the spin about the tool axis chosen for the arm along every run of passes
+   (:mod:`planner.cam.spin_choice`);
+8. with a robot: inverse kinematics along every move, problems named by pass and source line, the feed
    lowered locally where a joint would be too fast, and the arm configuration of every run of passes,
    changed by a joint move in a rapid where needed (:mod:`planner.cam.reach`, :mod:`planner.cam.configure`).
 
@@ -151,6 +153,10 @@ def resolve(settings: PlanSettings, fmt: str, has_axes: bool) -> PlanSettings:
         raise PlannerError(f"frame={s.frame!r} sets the spin about the path tangent and needs the tool normal to the "
                            f"path (axes='path'); with tool axes ({axes}) the spin about them is the exact "
                            "rotation-minimizing motion: frame='rmf'", field="frame", value=s.frame)
+    if s.spin == "reach" and axes == "path":
+        raise PlannerError("spin='reach' turns the tool about the tool axes of the input (axes file, approach or "
+                           "fixed); with the tool normal to the path (axes='path') the spin is the frame method's",
+                           field="spin", value=s.spin)
     if s.frame == "juttler" and path != "interpolate":
         raise PlannerError("frame='juttler' needs a G1 PH cubic spline through the points (path='interpolate'); "
                            "a CAM polyline fit is a PH quintic spline", field="frame", value=s.frame)
@@ -246,6 +252,14 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
         if progress is not None:
             progress("place", n_cuts, n_cuts)
         s = replace(s, part_frame=placement.part_frame)
+    if s.spin == "reach":  # the spin about the tool axis chosen for the arm, at the part frame (given or placed)
+        from planner.cam.spin_choice import choose_spin
+
+        if progress is not None:
+            progress("spin", 0, 1)
+        choice = choose_spin(moves, s)
+        moves = choice.moves
+        timings["spin"] = choice.seconds
     job = PlannedJob(tp.source, s, tp, seg, tuple(moves), tuple(reports), timings, warnings=tuple(caught),
                      placement=placement)
     if s.robot is not None:

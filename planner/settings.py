@@ -35,6 +35,7 @@ about the axes, so only ``"rmf"`` applies there.
 from __future__ import annotations
 
 import contextlib
+import math
 from collections.abc import Iterator
 from dataclasses import dataclass, field, fields, replace
 from typing import Any
@@ -67,6 +68,12 @@ DEFAULT_LIMITS = MotionLimits(speed=0.25, acceleration=0.5, jerk=5.0, angular_sp
 DEFAULT_TURN_LIMITS = MotionLimits(speed=1.0, acceleration=2.0, jerk=20.0)
 #: Default limits of every joint in a change of arm configuration (UR's movej defaults v = 1.05, a = 1.4).
 DEFAULT_JOINT_LIMITS = MotionLimits(speed=1.05, acceleration=1.4, jerk=14.0)
+
+#: Spin modes about the tool axis (see ``PlanSettings.spin``).
+SPIN_MODES = ("rmm", "reach")
+#: Default bounds of the spin chosen for the arm (``spin="reach"``): 90 deg/s and 360 deg/s^2.
+DEFAULT_SPIN_RATE = math.pi / 2.0
+DEFAULT_SPIN_ACCELERATION = 2.0 * math.pi
 
 #: Kinds of setting (what :meth:`Setting.check` does, and how a front end types the value).
 SETTING_KINDS = ("number", "choice", "limits", "robot", "pose", "output", "passes")
@@ -239,6 +246,17 @@ class PlanSettings:
                                  lo=0.0, hi=1.0)
     reach_step: float = _setting(2e-3, "number", "with a robot: spacing of the reachability check along each move "
                                  "(the CAM points are always checked)", unit="m", lo=0.0, hi=1.0)
+    spin: str = _setting("rmm", "choice", "spin about the tool axis: rmm (the exact rotation-minimizing spin; for a "
+                         "tool that is not symmetric) or reach (an axisymmetric tool: with a robot, the spin along "
+                         "each run of passes chosen for the arm's singularity and joint-limit margins, joint speeds "
+                         "and wrist travel, within spin_rate and spin_acceleration, otherwise as little as it can)",
+                         choices=SPIN_MODES, flag="--spin")
+    spin_rate: float = _setting(DEFAULT_SPIN_RATE, "number", "spin reach: largest rate of the spin about the tool axis",
+                                unit="rad/s", lo=0.0, hi=20.0 * math.pi, flag="--spin-rate", typed="deg/s",
+                                per_si=180.0 / math.pi)
+    spin_acceleration: float = _setting(DEFAULT_SPIN_ACCELERATION, "number", "spin reach: largest acceleration of "
+                                        "the spin about the tool axis", unit="rad/s^2", lo=0.0, hi=200.0 * math.pi,
+                                        flag="--spin-acceleration", typed="deg/s^2", per_si=180.0 / math.pi)
     cut_output: tuple | None = _setting(None, "output", "digital output on exactly during every cut (spray valve, "
                                         "glue gun, torch): KIND:PIN with standard:0..7, configurable:0..7 or "
                                         "tool:0..1", optional=True, flag="--cut-output")
@@ -259,12 +277,16 @@ class PlanSettings:
         if values["part_frame"] == "auto" and values["robot"] is None:
             raise PlannerError("part_frame='auto' places the part for a robot: set robot (e.g. robot='ur5e')",
                                field="part_frame", value="auto")
+        if values["spin"] == "reach" and values["robot"] is None:
+            raise PlannerError("spin='reach' chooses the spin about the tool axis for a robot's arm: set robot "
+                               "(e.g. robot='ur5e')", field="spin", value="reach")
         if values["arc_tolerance"] is None:
             values["arc_tolerance"] = values["tolerance"] / 10.0
         return replace(self, **values)
 
     def to_dict(self) -> dict:
-        """The settings as plain JSON values (limits as dicts), for job files, exports and REST."""
+        """The settings as plain JSON values (limits as dicts), for job files, exports and REST (every field; see
+        :meth:`record` for what the files write)."""
         out = {}
         for f in fields(self):
             v = getattr(self, f.name)
@@ -273,6 +295,16 @@ class PlanSettings:
             elif isinstance(v, tuple):
                 v = list(v)
             out[f.name] = v
+        return out
+
+    def record(self) -> dict:
+        """:meth:`to_dict` as a job's files and exports write it: the spin settings left out while all three are at
+        their defaults (the RMM spin), so that such a job's saved file and exports are byte for byte those of the
+        planner before the setting existed (:meth:`from_dict` fills them in)."""
+        out = self.to_dict()
+        if all(out[k] == SETTING[k].default for k in _SPIN_FIELDS):
+            for k in _SPIN_FIELDS:
+                del out[k]
         return out
 
     @classmethod
@@ -304,6 +336,8 @@ SETTINGS: tuple[Setting, ...] = tuple(replace(f.metadata["setting"], name=f.name
                                       for f in fields(PlanSettings))
 #: The declarations by field name.
 SETTING: dict[str, Setting] = {s.name: s for s in SETTINGS}
+#: The settings of the spin about the tool axis (left out of :meth:`PlanSettings.to_dict` at their defaults).
+_SPIN_FIELDS = ("spin", "spin_rate", "spin_acceleration")
 
 
 def _attributes_doc() -> str:

@@ -265,3 +265,28 @@ def test_wrap_angle_interval():
 def test_bad_input_names_the_place(call, message):
     with pytest.raises(PlannerError, match=message):
         call()
+
+
+def test_inverse_batch_takes_transforms_and_refuses_bad_ones():
+    """Tool transforms (n, 4, 4) give the branches of their poses (the rotation vectors' round trip only differs by
+    round-off); a transform that is not finite, not orthonormal or a reflection is refused naming its row."""
+    rng = np.random.default_rng(11)
+    tcp = (0.0, 0.05, 0.12, 0.6, 0.0, 0.0)
+    q = rng.uniform(-3.0, 3.0, (300, 6))
+    T = forward_matrix("ur5e", q, tcp=tcp)
+    poses = np.array([matrix_to_pose(t) for t in T])
+    a, b = inverse_batch("ur5e", poses, tcp=tcp), inverse_batch("ur5e", T, tcp=tcp)
+    assert np.array_equal(a.valid, b.valid) and a.valid.any(axis=1).all()
+    assert np.nanmax(np.abs(a.q - b.q)) < 1e-9
+    back = forward_matrix("ur5e", b.q[b.valid], tcp=tcp)
+    assert np.abs(back - np.repeat(T, b.valid.sum(axis=1), axis=0)).max() < 1e-9
+    for bad, what in ((T * 1.01, "orthonormal"), (T.copy(), "finite"), (T.copy(), "proper")):
+        if what == "finite":
+            bad[7, 1, 2] = np.nan
+        if what == "proper":
+            bad[7, :3, 0] *= -1.0
+        with pytest.raises(PlannerError) as e:
+            inverse_batch("ur5e", bad, tcp=tcp)
+        assert what in str(e.value) and ("pose[7]" in str(e.value) or what == "orthonormal")
+    with pytest.raises(PlannerError, match=r"\(n, 4, 4\)"):
+        inverse_batch("ur5e", np.zeros((3, 3, 3)))

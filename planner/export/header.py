@@ -53,7 +53,7 @@ def trajectory_parameters(trajectory, parameters: Mapping | None = None, max_pro
     out: dict = {
         "generator": generator(),
         "source": job.source,
-        "settings": job.settings.to_dict(),
+        "settings": job.settings.record(),
         "passes": len(job.passes),
         "rapids": job.count("rapid"),
         "reorientations": job.count("reorientation"),

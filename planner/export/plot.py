@@ -437,6 +437,8 @@ def _frames_note(job) -> str | None:
     """Why the job has no tool frames' figure (the path panel takes its place and says so), or None."""
     if job.settings.axes == "path":
         return "exact RMF about the tangent: no twist" if job.settings.frame == "rmf" else None
+    if _spin_figures(job) is not None:
+        return None
     if all(max(abs(p.slerp_spin_deg), abs(p.spin_deg), abs(p.max_axis_departure_deg)) < 1e-9 for p in job.passes):
         return "tool axis constant along every pass: no spin"
     return None
@@ -446,6 +448,9 @@ def _frames_panel(ax, job, s: dict) -> None:
     """The tool frames' figure for the chosen options (see the module doc; a job with :func:`_frames_note` has
     none)."""
     idx = np.array([p.index for p in job.passes])
+    if _spin_figures(job) is not None:
+        _spin_panel(ax, job, s["spin"])
+        return
     if job.settings.axes == "path":
         offset = 0.0
         for m in job.moves:
@@ -470,6 +475,37 @@ def _frames_panel(ax, job, s: dict) -> None:
     ax.set_ylabel("[deg]")
     ax.set_title("tool axes: spin about them and distance from their great circles")
     ax.legend(fontsize=8)
+    ax.grid(alpha=0.3)
+
+
+def _spin_figures(job) -> dict | None:
+    """The summary's spin figures of a job planned with ``spin="reach"`` and a robot (None otherwise)."""
+    if job.settings.spin != "reach" or job.settings.robot is None:
+        return None
+    from planner.cam.spin_choice import spin_summary
+
+    return spin_summary(job.moves)
+
+
+def _spin_panel(ax, job, sp: dict) -> None:
+    """spin="reach": the chosen spin from the RMM spin along the cuts, and what it bought against the RMM spin."""
+    from planner.cam.spin import SpunFrames
+
+    offset = 0.0
+    for m in job.moves:
+        if m.kind != "cut":
+            continue
+        L = float(m.path.length)
+        if isinstance(m.frames, SpunFrames):
+            x = np.linspace(0.0, L, 65)
+            ax.plot(1e3 * (offset + x), np.degrees(m.frames.spin(x)), lw=0.9, color="tab:purple")
+        offset += L
+    a, b = sp["rmm"], sp["reach"]
+    ax.set_xlabel("arc length along the cuts [mm]")
+    ax.set_ylabel("spin from the RMM spin [deg]")
+    ax.set_title(f"spin reach: {sp['spun_runs']}/{sp['runs']} runs spun, at most {sp['max_spin_rate_deg_s']:.3g} "
+                 f"deg/s\nsingularity margin {b['singularity_margin']:.3f} (RMM {a['singularity_margin']:.3f}), out "
+                 f"of reach {b['out_of_reach_samples']} (RMM {a['out_of_reach_samples']}) samples", fontsize=10)
     ax.grid(alpha=0.3)
 
 

@@ -48,7 +48,7 @@ need not be finite), ``->T``: a reference to a T, ``{T}``: T's state inline, ``[
         start_joints f8(6)?, start_note str, warnings [str], placement ->Placement?
     PlannedMove: kind "cut"|"rapid"|"reorientation"|"reconfiguration"|"dwell"|"skipped",
         item ->CutPass|RapidMove|Reorientation|Reconfiguration|Dwell|Skipped, path ->PHSpline?,
-        frames ->AxisField|TurningFrames|PathToolField?, profile ->FeedProfile?, start_frame f8(3,3),
+        frames ->AxisField|TurningFrames|PathToolField|SpunFrames?, profile ->FeedProfile?, start_frame f8(3,3),
         end_frame f8(3,3), point f8(3), pass_index int>=-1, fit ->PassFit?
     PassReport: index int>=0, operation str, first_line int>=-1, last_line int>=-1, points int>=0,
         length float|nan, max_deviation float|nan, max_axis_error_deg float|nan,
@@ -81,6 +81,9 @@ need not be finite), ``->T``: a reference to a T, ``{T}``: T's state inline, ``[
     SpinTable (inline): pieces f8(n), bases f8(n,3), base_quaternions f8(n,4), panels f8(n), panel_piece i8(n),
         spin_start f8(n), coeffs f8(n,n)
     AxisField: path ->PHSpline, axes f8(n,3), start f8(3,3), motion {SpinTable}?
+    SpinCurve (inline): knots f8(n), coeffs f8(n)
+    SpinFigures (inline): samples int>=0, branch int 0..7, rmm f8(5)+nan, reach f8(5)+nan
+    SpunFrames: base ->AxisField|TurningFrames, spin {SpinCurve}, figures {SpinFigures}?
     PathRMFAngles: panels i8(n), cum f8(n), offsets i8(n), q f8(n,n), sig f8(n,n)
     GRMFrame (inline): a f8(5), b f8(5), weight str, objective float|nan, constraint_residual float|nan,
         max_twist_deg float|nan, start_angle float, seconds float|nan

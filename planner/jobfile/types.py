@@ -16,6 +16,7 @@ from planner.cam.fidelity import PassFit
 from planner.cam.moves import Reconfiguration, TurningFrames
 from planner.cam.passes import CutPass, Dwell, RapidMove, Reorientation, Segmentation, Skipped
 from planner.cam.placement import Placement
+from planner.cam.spin import SpunFrames
 from planner.curves.spline import PHSpline
 from planner.errors import PlannerError
 from planner.frames.juttler import R2_WEIGHTS
@@ -115,6 +116,15 @@ def _spin_table(s) -> None:
          f"{k} panels: sizes disagree")
     increasing(s["panels"], "panels")
     indices(s["panel_piece"], p, "panel_piece")
+
+
+def _spin_curve(s) -> None:
+    k = s["coeffs"].shape[0]
+    need(k >= 4 and s["knots"].shape[0] == k + 4, f"a cubic spin of {k} coefficients needs {k + 4} knots (and >= 4)")
+    increasing(s["knots"], "knots", strict=False)
+    need(s["knots"][-1] > s["knots"][0], "the spin's knots must span an interval")
+    need(np.all(s["knots"][:4] == s["knots"][0]) and np.all(s["knots"][-4:] == s["knots"][-1]),
+         "the spin's knots must be clamped (4 equal at each end)")
 
 
 def _rmf_angles(s) -> None:
@@ -227,6 +237,12 @@ CORE_TYPES = {t.name: t for t in (
     StoredType("AxisField", AxisField, {
         "path": Ref("PHSpline"), "axes": Arr("f8", (N, 3)), "start": FRAME, "motion": Opt(Inline("SpinTable"))},
         check=_axis_field),
+    StoredType("SpinCurve", None, {"knots": Arr("f8", (N,)), "coeffs": Arr("f8", (N,))}, check=_spin_curve),
+    StoredType("SpinFigures", None, {
+        "samples": COUNT, "branch": Int(0, 7), "rmm": Arr("f8", (5,), finite=False),
+        "reach": Arr("f8", (5,), finite=False)}),
+    StoredType("SpunFrames", SpunFrames, {
+        "base": Ref("AxisField", "TurningFrames"), "spin": Inline("SpinCurve"), "figures": Opt(Inline("SpinFigures"))}),
     StoredType("PathRMFAngles", PathRMFAngles, {
         "panels": Arr("i8", (N,)), "cum": Arr("f8", (N,)), "offsets": Arr("i8", (N,)), "q": Arr("f8", (N, N)),
         "sig": Arr("f8", (N, N))}, check=_rmf_angles),

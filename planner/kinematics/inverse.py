@@ -328,8 +328,10 @@ def inverse_batch(model: str | URModel, poses, tcp=None, q6_ref=0.0) -> IKSoluti
     Parameters
     ----------
     model : str or URModel
-    poses : array_like, shape (6,) or (n, 6)
-        Tool poses ``[x, y, z, rx, ry, rz]`` (m, rotation vector) in the base frame.
+    poses : array_like, shape (6,) or (n, 6), or (n, 4, 4)
+        Tool poses ``[x, y, z, rx, ry, rz]`` (m, rotation vector) in the base frame, or their homogeneous
+        transforms (rotation orthonormal to 1e-9; a planner that holds frames as matrices skips the rotation
+        vectors both ways).
     tcp : array_like, shape (6,), optional
         Tool-centre-point offset in the flange frame (the poses are TCP poses).
     q6_ref : float or array_like (n,), optional
@@ -343,8 +345,40 @@ def inverse_batch(model: str | URModel, poses, tcp=None, q6_ref=0.0) -> IKSoluti
         flagged in ``valid`` and filled with NaN; joint limits are flagged in ``within_limits``.
     """
     m = get_model(model)
+    if np.ndim(poses) == 3:
+        T = _transforms(poses, tcp)
+        return _solve(m, T, _q6_reference(q6_ref, len(T))).public(m)
     P, _ = rows_of_six(poses, "pose")
     return _solve(m, _flange_targets(m, P, tcp), _q6_reference(q6_ref, len(P))).public(m)
+
+
+_PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
+
+
+def _transforms(poses, tcp) -> np.ndarray:
+    """Flange transforms (n, 4, 4) of tool transforms (n, 4, 4), checked: finite, the rotations orthonormal."""
+    T = as_floats(poses, "pose")
+    if T.shape[1:] != (4, 4):
+        raise PlannerError(f"pose: expected transforms of shape (n, 4, 4), got {T.shape}")
+    bad = ~np.isfinite(T).all(axis=(1, 2))
+    if bad.any():
+        raise PlannerError(f"pose[{int(np.argmax(bad))}]: every entry of a transform must be finite")
+    R = T[:, :3, :3]
+    c = [R[:, :, i] for i in range(3)]  # the columns: orthonormal, and c0 x c1 = c2 (proper)
+    err = np.abs(np.stack([np.einsum("ij,ij->i", c[i], c[j]) - (i == j) for i, j in _PAIRS])).max(axis=0)
+    bad = (err > 1e-9) | (np.einsum("ij,ij->i", np.cross(c[0], c[1]), c[2]) <= 0.0)
+    if bad.any():
+        i = int(np.argmax(bad))
+        raise PlannerError(f"pose[{i}]: the rotation of a transform must be orthonormal and proper "
+                           f"(error {err[i]:.3g})")
+    out = np.zeros_like(T)
+    out[:, 3, 3] = 1.0
+    frame = tcp_frame(tcp)
+    if frame is None:
+        out[:, :3, :] = T[:, :3, :]
+    else:
+        out[:, :3, :3], out[:, :3, 3] = compose(np.ascontiguousarray(R), T[:, :3, 3], *invert_1(*frame))
+    return out
 
 
 class _Limits:
