@@ -104,6 +104,8 @@ def main() -> None:
             poses = "-"
             for suffix in outputs:
                 out = [] if suffix is None else ["-o", str(t / f"out{suffix}")]
+                if suffix == ".script":  # the whole job as one program, over the 250 kB a controller takes at once
+                    out += ["--max-program-bytes", "100000000"]
                 mb, wall, code = peak(["plan", str(src), *extra, *out])
                 if suffix == ".csv" and code == 0:
                     with open(t / "out.csv", encoding="utf-8") as f:
