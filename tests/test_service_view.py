@@ -9,7 +9,6 @@ from __future__ import annotations
 
 import io
 import json
-import shutil
 import time
 from pathlib import Path
 
@@ -17,11 +16,10 @@ import numpy as np
 import pytest
 from PIL import Image
 
+from tests import chromium
 from tests.test_service_server import ServiceProcess
 
 ROOT = Path(__file__).resolve().parents[1]
-CHROMIUM = shutil.which("chromium") or "/usr/bin/chromium"
-CHROMEDRIVER = shutil.which("chromedriver") or "/usr/bin/chromedriver"
 DEMO = {"robot": "ur5e", "part_frame": [0.4, 0.9965, -0.1, 0.0, 0.0, 0.0], "cut_output": ["standard", 0]}
 BACKGROUND = np.array([0xF4, 0xF6, 0xF9])
 
@@ -36,17 +34,7 @@ def server(tmp_path_factory):
 
 @pytest.fixture(scope="module")
 def browser():
-    from selenium import webdriver
-    from selenium.webdriver.chrome.service import Service
-
-    assert Path(CHROMIUM).exists() and Path(CHROMEDRIVER).exists(), \
-        "needs Debian's chromium and chromium-driver (apt-get install chromium chromium-driver)"
-    options = webdriver.ChromeOptions()
-    options.binary_location = CHROMIUM
-    for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1400,1100",
-                "--use-angle=swiftshader", "--enable-unsafe-swiftshader"):
-        options.add_argument(arg)
-    driver = webdriver.Chrome(service=Service(executable_path=CHROMEDRIVER), options=options)
+    driver = chromium.start("--use-angle=swiftshader", "--enable-unsafe-swiftshader")
     yield driver
     driver.quit()
 

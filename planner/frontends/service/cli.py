@@ -222,12 +222,19 @@ def _team_robots(args: argparse.Namespace, cfg: ServiceConfig) -> tuple[str, ...
 
 
 def cmd_teams_create(args: argparse.Namespace) -> None:
-    from planner.frontends.service.teams import create_team, robots_text
+    from planner.frontends.service.teams import create_team
+
+    _team_with_robots(args, create_team)
+
+
+def _team_with_robots(args: argparse.Namespace, change) -> None:
+    """``change(session, name, robots)`` (create a team, set its robots) and the line naming the team's robots."""
+    from planner.frontends.service.teams import robots_text
 
     cfg = _config(args)
     robots = _team_robots(args, cfg)
     with _open(args, cfg)() as s:
-        row = create_team(s, args.name, robots)
+        row = change(s, args.name, robots)
     print(f"team {row.name}  robots {robots_text(robots)}")
 
 
@@ -242,13 +249,9 @@ def cmd_teams_list(args: argparse.Namespace) -> None:
 
 
 def cmd_teams_robots(args: argparse.Namespace) -> None:
-    from planner.frontends.service.teams import robots_text, set_robots
+    from planner.frontends.service.teams import set_robots
 
-    cfg = _config(args)
-    robots = _team_robots(args, cfg)
-    with _open(args, cfg)() as s:
-        row = set_robots(s, args.name, robots)
-    print(f"team {row.name}  robots {robots_text(robots)}")
+    _team_with_robots(args, set_robots)
 
 
 def cmd_teams_delete(args: argparse.Namespace) -> None:
