@@ -140,8 +140,12 @@ def test_cancel_from_another_thread_stops_the_arm(fast_job, mode):
     cancel = threading.Event()
     with SimDriver(speed=10.0) as d:  # paced: about 0.7 s of wall time for the job
         d.move_to_start(fast_job)
-        threading.Timer(0.3, cancel.set).start()
-        report = d.execute(fast_job, mode=mode, cancel=cancel)
+
+        def cancel_at_0_6_s(stage, k, total):  # from the driver's progress, at 0.6 s of job time (however loaded)
+            if k * DT >= 0.6:
+                threading.Thread(target=cancel.set).start()  # (from another thread)
+
+        report = d.execute(fast_job, mode=mode, cancel=cancel, progress=cancel_at_0_6_s)
         state = d.state()
         qd = d.core.motion.qd
     assert not report.ok and isinstance(report.failure, CancelledError)

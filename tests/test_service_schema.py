@@ -27,7 +27,8 @@ max_response_time = 120
 
 # A schema-valid request the service refuses by what it means, not its shape, with a documented 4xx: a submitted
 # file that is no toolpath or settings whose combination the planner refuses (422), a robot name the service does
-# not configure (422), an export or execution of a job that is not done or was planned without a robot (409, 422).
+# not configure (422), an export or execution of a job that is not done or was planned without a robot (409, 422),
+# a window of the 3D view's path that is not one (422).
 [[operations]]
 include-operation-id = "submit"
 checks.positive_data_acceptance.expected-statuses = ["2xx", "422"]
@@ -38,6 +39,11 @@ checks.positive_data_acceptance.expected-statuses = ["2xx", "404", "409", "422"]
 
 [[operations]]
 include-operation-id = "trajectory"
+checks.positive_data_acceptance.expected-statuses = ["2xx", "404", "409", "422"]
+
+# the 3D view's detail: a window of job time needs t0 < t1 within the job (422 naming them otherwise)
+[[operations]]
+include-operation-id = "view_path"
 checks.positive_data_acceptance.expected-statuses = ["2xx", "404", "409", "422"]
 """
 #: Checks not run: a job's DELETE cancels it and an execution's stops it; the record stays (state cancelled),

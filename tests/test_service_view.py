@@ -166,8 +166,9 @@ def test_the_view_data_refuses_bad_windows_and_serves_detail(server, demo):
         r = c.get(f"/v1/jobs/{job_id}/view/path", params={"t0": 5, "t1": 1})
         assert r.status_code == 422 and r.json()["detail"][0]["msg"] == \
             "the window needs t0 < t1, got t0 = 5.0 s, t1 = 1.0 s"
-        r = c.get(f"/v1/jobs/{job_id}/view", params={"tolerance": "nan"})
-        assert r.status_code == 422 and "tolerance must be in" in r.json()["detail"][0]["msg"]
+        for bad in ("nan", "0", "1"):  # the schema's bounds [1e-5, 0.1] m, naming the parameter
+            r = c.get(f"/v1/jobs/{job_id}/view", params={"tolerance": bad})
+            assert r.status_code == 422 and r.json()["detail"][0]["loc"] == ["query", "tolerance"], r.text
         coarse = c.get(f"/v1/jobs/{job_id}/view", params={"tolerance": 2e-3}).json()["path"]
         fine = c.get(f"/v1/jobs/{job_id}/view/path", params={"t0": 10, "t1": 20, "tolerance": 1e-5}).json()["path"]
         assert c.get("/view3d/../routes/view.py").status_code == 404

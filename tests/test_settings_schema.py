@@ -201,7 +201,7 @@ def test_a_refusal_keeps_its_field_through_pickle():
     ({"PLANNER_QUEUE": "celery"}, {}, "PLANNER_BROKER (the broker's URL, redis://HOST:PORT/0) is needed with "
                                       "PLANNER_QUEUE=celery"),
     ({"PLANNER_QUEUE": "celery", "PLANNER_BROKER": "amqp://127.0.0.1"}, {},
-     "PLANNER_BROKER must be a redis:// (or rediss://) URL, got 'amqp://127.0.0.1'"),
+     "PLANNER_BROKER must be redis://HOST:PORT/DB (or rediss://), got 'amqp://127.0.0.1'"),
 ])
 def test_service_configuration_refusals_name_the_variable_and_field(env, overrides, message):
     with pytest.raises(PlannerError) as err:

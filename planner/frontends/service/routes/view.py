@@ -79,7 +79,8 @@ def _fine(svc: Service, row: Job):
 @router.get("/jobs/{job_id}/view", responses=documented(404, 409, 422, e404="no such job of this key's team",
                                                          e409="the job is not done"))
 def view(svc: ServiceDep, row: OwnJob,
-         tolerance: Annotated[float | None, Query(description="path tolerance, m (default: a pixel)")] = None,
+         tolerance: Annotated[float | None, Query(ge=view_data.FINE_TOLERANCE, le=view_data.MAX_TOLERANCE,
+                                                  description="path tolerance, m (default: a pixel)")] = None,
          pixels: Annotated[int, Query(ge=100, le=20_000, description="the view's width, px")] = 1000) -> JSONResponse:
     """The 3D view's scene of a done job: the arm (DH), part frame, stations, problems and the path within
     ``tolerance`` (default: the size of one pixel of a ``pixels``-wide view of the whole path)."""
@@ -95,7 +96,8 @@ def view(svc: ServiceDep, row: OwnJob,
 @router.get("/jobs/{job_id}/view/path", responses=documented(404, 409, 422, e404="no such job of this key's team",
                                                               e409="the job is not done"))
 def view_path(svc: ServiceDep, row: OwnJob, t0: float, t1: float,
-              tolerance: Annotated[float, Query(description="path tolerance, m")] = view_data.FINE_TOLERANCE
+              tolerance: Annotated[float, Query(ge=view_data.FINE_TOLERANCE, le=view_data.MAX_TOLERANCE,
+                                                description="path tolerance, m")] = view_data.FINE_TOLERANCE
               ) -> JSONResponse:
     """The path between job times ``t0`` and ``t1`` s within ``tolerance`` m (detail on demand)."""
     view_data.checked_window(tolerance, t0, t1)
