@@ -89,14 +89,17 @@ class Loop:
             owed += self.speed * max(behind, 1)
             n = int(owed + 1e-9)
             owed -= n
+            # one package per wall-clock period due, the n control periods spread over them
+            wall = max(behind, 1)
             if n > self.max_batch:
                 # fast-forward faster than this machine can simulate: simulated time falls behind the asked
-                # speed instead of bursts of catch-up ticks that would hold the core (and its clients) for long
+                # speed instead of bursts of catch-up ticks that would hold the core (and its clients) for long;
+                # the packages still carry whole wall periods of simulated time (speed control periods each),
+                # fewer of them, as a client recording every package expects
                 n, owed = self.max_batch, 0.0
+                wall = max(1, min(wall, n // max(1, round(self.speed))))
             start = time.perf_counter()
             with core.lock:
-                # one package per wall-clock period due, the n control periods spread over them
-                wall = max(behind, 1)
                 done = 0
                 for w in range(1, wall + 1):
                     # the RTDE inputs that had arrived by this period's time (all of them in the last period)
