@@ -20,6 +20,11 @@ from planner.frontends.service.tasks.transitions import Transitions
 
 log = logging.getLogger("planner.frontends.service")
 
+#: Seconds between a slot's looks at its task's row: every cancel and stop of this process pokes the slot holding
+#: the task, so the look is a safety net (the celery backend's slots look every CANCEL_POLL s: a cancel comes from
+#: another machine).
+POKED_POLL = 2.0
+
 
 class LocalBackend:
     """Planning slots and execution slots of this process over one store."""
@@ -33,7 +38,8 @@ class LocalBackend:
         self.stopping = threading.Event()
         self._cond = threading.Condition()
         self._lock = threading.Lock()
-        self.slots = [Slot(store, cfg.job_timeout_s, self.stopping, on_finish=on_finish) for _ in range(cfg.workers)]
+        self.slots = [Slot(store, cfg.job_timeout_s, self.stopping, on_finish=on_finish, cancel_poll=POKED_POLL)
+                      for _ in range(cfg.workers)]
         self._threads = [threading.Thread(target=self._serve, args=(s,), name=f"planner-worker-{i}", daemon=True)
                          for i, s in enumerate(self.slots)]
         self.executions: dict[str, tuple[Slot, threading.Thread]] = {}
@@ -105,7 +111,8 @@ class LocalBackend:
 
             raise RobotBusy("the service is shutting down")
         self.store.create_execution(values)
-        slot = Slot(self.store, self.cfg.job_timeout_s, self.stopping, name="planner-exec", on_finish=self.on_finish)
+        slot = Slot(self.store, self.cfg.job_timeout_s, self.stopping, name="planner-exec", on_finish=self.on_finish,
+                    cancel_poll=POKED_POLL)
         thread = threading.Thread(target=self._execute, args=(slot, values["id"]),
                                   name=f"execution-{values['id'][:8]}", daemon=True)
         with self._lock:

@@ -59,11 +59,15 @@ class Slot:
         The worker process's name (planner-work, planner-exec).
     on_finish : callable or None
         Told of every end this slot stored.
+    cancel_poll : float
+        Seconds between looks at the task's row for a cancellation (a backend whose requests :attr:`poke` the slot
+        looks rarely: the look is then only a safety net).
     """
 
     def __init__(self, store: Transitions, job_timeout_s: float, stopping: threading.Event,
-                 name: str = "planner-work", on_finish: Finished | None = None):
+                 name: str = "planner-work", on_finish: Finished | None = None, cancel_poll: float = CANCEL_POLL):
         self.store = store
+        self.cancel_poll = cancel_poll
         self.job_timeout_s = job_timeout_s
         self.stopping = stopping
         self.name = name
@@ -173,15 +177,17 @@ class Slot:
         self.conn.send(("plan" if kind is JOB else "execute", spec))
         start = time.monotonic()
         deadline = start + self.job_timeout_s if kind is JOB else float("inf")
-        next_look = start + CANCEL_POLL
+        next_look = start + self.cancel_poll
         next_beat = start + HEARTBEAT_EVERY
-        last_write = 0.0
+        # a job shorter than a progress write's interval writes no progress (its claim and end are the two commits);
+        # an execution writes its first message at once
+        last_write = start if kind is JOB else 0.0
         stop_sent: float | None = None
         while True:
             t = time.monotonic()
             if t >= next_look or self.poke.is_set() or self.stopping.is_set():
                 self.poke.clear()
-                next_look = t + CANCEL_POLL
+                next_look = t + self.cancel_poll
                 try:
                     state = self.store.state(kind, task_id)
                 except DBAPIError:  # the database away for a moment: the work goes on, the next look tries again

@@ -240,8 +240,10 @@ class Transitions:
             n = conn.execute(update(table).where(table.id == task_id, table.attempts == attempt,
                                                  table.state.in_(kind.active)).values(**values)).rowcount
             stored = {**outcome.files, **({} if outcome.plan is None else {"plan": outcome.plan})}
-            for name, data in stored.items() if n == 1 else ():  # (keyed by the task's id: jobs' and executions'
-                conn.execute(delete(JobData).where(JobData.job_id == task_id, JobData.name == name))  # never meet)
+            # (keyed by the task's id: jobs' and executions' never meet; only a task run before may have stored some)
+            for name, data in stored.items() if n == 1 else ():
+                if attempt > 1:
+                    conn.execute(delete(JobData).where(JobData.job_id == task_id, JobData.name == name))
                 conn.execute(insert(JobData).values(job_id=task_id, name=name, data=data, bytes=len(data),
                                                     created_at=now()))
         return n == 1
