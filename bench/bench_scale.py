@@ -11,13 +11,15 @@ state and plans in PostgreSQL; Redis and PostgreSQL started by this script on lo
    from the job's row stored to its start in a worker (started_at - created_at) on each backend, and the median
    submit-to-done round trip.
 3. The whole NX job split: its fits made in pieces by 2 processes (sent back as bytes, as between machines) and the
-   job planned with them, against one process.
+   job planned with them, against one process; and the same through the celery backend (``planner worker`` x 2:
+   the service splits it, PLANNER_SPLIT_CHORDS) against PLANNER_SPLIT_CHORDS=0, exports compared.
 4. The plan in the store: the whole NX job's saved plan (``shared/data/nx_clsf_variable_contour_ust_a2.cls``, the file
    of bench_cam.py) written to and read from the ``job_data`` table, SQLite and PostgreSQL: size and times.
 
-Run: ``python bench/bench_scale.py [--jobs 1000] [--workers 1,2,4] [--quick]`` (``--quick``: 200 jobs, 1 and 2
-workers, no NX plan; a few minutes). Both backends run on this machine's cores: a ratio near 1 says the broker costs
-little per task; more workers than cores add nothing here.
+Run: ``python bench/bench_scale.py [--jobs 1000] [--workers 1,2,4] [--quick] [--only replicas|nx-split]``
+(``--quick``: 200 jobs, 1 and 2 workers, no NX plan; a few minutes; ``--only replicas``: the row "celery, 2 API
+replicas" alone; ``--only nx-split``: the NX job through the service alone). Both backends run on this machine's
+cores: a ratio near 1 says the broker costs little per task; more workers than cores add nothing here.
 """
 
 from __future__ import annotations
@@ -82,10 +84,11 @@ class Proc:
 
 
 def cluster(backend: str, workers: int, folder: Path, pg, redis,
-            replicas: int = 1) -> tuple[list[Proc], list[Proc], str]:
-    """API replicas and workers of ``backend``, healthy, and their database's URL."""
+            replicas: int = 1, extra: dict | None = None) -> tuple[list[Proc], list[Proc], str]:
+    """API replicas and workers of ``backend`` (``extra``: more of their environment), healthy, and their
+    database's URL."""
     env = {**{k: v for k, v in os.environ.items() if not k.startswith("PLANNER_")}, "PLANNER_DEV_NO_AUTH": "1",
-           "PLANNER_MAX_REQUEST_BYTES": str(64 << 20)}
+           "PLANNER_MAX_REQUEST_BYTES": str(64 << 20), **(extra or {})}
     if backend == "local":
         env["PLANNER_DB"] = f"sqlite:///{folder / 'jobs.sqlite'}"
         api = Proc(["serve", "--port", "0", "--workers", str(workers)], env, folder, "api")
@@ -98,7 +101,9 @@ def cluster(backend: str, workers: int, folder: Path, pg, redis,
     env.update(PLANNER_QUEUE="celery", PLANNER_BROKER=redis.url.rsplit("/", 1)[0] + f"/{1 + hash(folder) % 15}",
                PLANNER_DB=db, PLANNER_DATA=str(folder / "data"))
     subprocess.run(["redis-cli", "-u", env["PLANNER_BROKER"], "FLUSHDB"], capture_output=True, check=False)
-    pool = [Proc(["worker", "--concurrency", str(workers)], env, folder, "worker")]
+    pool = [Proc(["worker", "--concurrency", "1"], env, folder, f"worker{i}") for i in range(workers)] if (
+        extra or {}).get("PLANNER_SPLIT_CHORDS") is not None else [
+        Proc(["worker", "--concurrency", str(workers)], env, folder, "worker")]
     apis = [Proc(["serve", "--port", "0"], env, folder, f"api{i}") for i in range(replicas)]
     for a in apis:
         a.wait_workers(workers)
@@ -223,6 +228,51 @@ def nx_split(workers: int = 2) -> tuple[list[list[str]], bytes]:
     return rows, whole.to_bytes()
 
 
+def nx_service_split(pg, redis, workers: int = 2) -> list[list[str]]:
+    """The whole NX job through the celery backend with ``workers`` worker processes (one ``planner worker`` each):
+    split across them (the default PLANNER_SPLIT_CHORDS) against planned in one process (PLANNER_SPLIT_CHORDS=0):
+    submit to done (the store's clocks), and the split job's note (pieces, their chords and fit times). The two
+    plans' CSV and JSON exports compared byte for byte. Rows for the table."""
+    import hashlib
+
+    rows, digests = [], []
+    for label, chords in ((f"split across {workers} workers", None), ("one process", "0")):
+        with tempfile.TemporaryDirectory() as tmp:
+            extra = {"PLANNER_SPLIT_CHORDS": chords or str(16384)}
+            apis, pool, _ = cluster("celery", workers, Path(tmp), pg, redis, extra=extra)
+            try:
+                with httpx.Client(base_url=apis[0].url, timeout=120) as c:
+                    for i in range(2 * workers):  # every worker's process started (as warm workers are)
+                        c.post("/v1/jobs", json={"waypoints": [[0, 0, 0], [0.1, 0.01 * i, 0], [0.2, 0, 0]]})
+                    while c.get("/metrics").text.count('planner_jobs{state="done"} ' + str(2 * workers)) == 0:
+                        time.sleep(0.2)
+                    with open(NX_FILE, "rb") as f:
+                        job_id = c.post("/v1/jobs", files={"file": (NX_FILE.name, f)}).json()["id"]
+                    while (v := c.get(f"/v1/jobs/{job_id}").json())["state"] not in ("done", "failed"):
+                        time.sleep(0.2)
+                    if v["state"] != "done":
+                        raise SystemExit(f"the NX job failed: {v['error']}")
+                    digest = []
+                    for fmt in ("csv", "json"):
+                        h = hashlib.sha256()
+                        with c.stream("GET", f"/v1/jobs/{job_id}/trajectory?format={fmt}") as r:
+                            for piece in r.iter_bytes():
+                                h.update(piece)
+                        digest.append(h.hexdigest())
+                    digests.append(digest)
+            finally:
+                for p in apis + pool:
+                    p.stop()
+        rows.append([label, f"{v['finished_at'] - v['created_at']:.1f}", f"{v['timings']['planning_s']:.1f}",
+                     v["note"] or ""])
+    one = float(rows[1][1])
+    for r in rows:
+        r.insert(2, f"{one / float(r[1]):.2f}")
+    same = digests[0] == digests[1]
+    rows.append(["exports (CSV, JSON) of the two byte for byte the same", "", "", "", str(same)])
+    return rows
+
+
 def plan_storage(pg, blob: bytes) -> list[list[str]]:
     """The whole NX job's saved plan written to and read from job_data (SQLite, PostgreSQL): rows for the table."""
     from sqlalchemy import delete, insert, select
@@ -256,6 +306,9 @@ def main() -> None:
     ap.add_argument("--jobs", type=int, default=1000)
     ap.add_argument("--workers", default="1,2,4")
     ap.add_argument("--quick", action="store_true", help="200 jobs, 1 and 2 workers, no NX plan")
+    ap.add_argument("--only", choices=["replicas", "nx-split"],
+                    help="only the row 'celery, 2 API replicas' (2 workers), or only the NX job split through the "
+                         "service")
     args = ap.parse_args()
     n_jobs, counts = (200, [1, 2]) if args.quick else (args.jobs, [int(x) for x in args.workers.split(",")])
     import signal
@@ -266,6 +319,22 @@ def main() -> None:
     signal.signal(signal.SIGTERM, lambda *_: sys.exit(143))  # the servers stopped on a kill too
     pg, redis = PostgresServer().start(), RedisServer(appendonly=False).start()
     try:
+        if args.only == "nx-split":
+            print(f"the whole NX job ({NX_FILE.name}) through the celery backend, 2 worker processes, load average "
+                  f"{os.getloadavg()[0]:.1f}")
+            print_table(["", "submit to done s", "x one", "planning s (join)", "note"], nx_service_split(pg, redis))
+            return
+        if args.only == "replicas":
+            jobs = curves(n_jobs, 100)
+            print(f"{n_jobs} jobs x 100 waypoints, {CLIENTS} clients, 2 API replicas, 2 workers, load average "
+                  f"{os.getloadavg()[0]:.1f}")
+            r = throughput("celery", 2, jobs, pg, redis, 2)
+            print_table(["backend", "workers", "jobs/s", "p50 submit ms", "p99 submit ms", "p50 completion s",
+                         "p99 completion s", "lost", "duplicated"],
+                        [["celery, 2 API replicas", 2, f"{r['rate']:.1f}", f"{r['p50s']:.1f}", f"{r['p99s']:.1f}",
+                          f"{r['p50c']:.2f}", f"{r['p99c']:.2f}", r["lost"], r["dup"]]])
+            print(f"load average after: {os.getloadavg()[0]:.1f}")
+            return
         jobs = curves(n_jobs, 100)
         print(f"{n_jobs} jobs x 100 waypoints, {CLIENTS} concurrent clients, {os.cpu_count()} cores, load average "
               f"{os.getloadavg()[0]:.1f}\n")
@@ -297,6 +366,8 @@ def main() -> None:
             print(f"\nthe whole NX job ({NX_FILE.name}) split: its fits in pieces on other processes, then planned "
                   "with them (the exports byte for byte the same: tests/test_plan_split.py)")
             print_table(["", "wall s", "fitting s", "parse + split for the pieces s", "fits sent MiB", "x one"], rows)
+            print("\nthe same through the celery backend (2 worker processes): split across them against one process")
+            print_table(["", "submit to done s", "x one", "planning s (join)", "note"], nx_service_split(pg, redis))
             print(f"\nthe whole NX job's plan in the store ({NX_FILE.name}):")
             print_table(["database", "plan MiB", "write ms", "read ms"], plan_storage(pg, blob))
     finally:

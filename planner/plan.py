@@ -347,15 +347,20 @@ def _batch_ranges(cuts, s: PlanSettings) -> list[tuple[int, int]]:
     return out + ([(start, len(cuts))] if start < len(cuts) else [])
 
 
-def fit_batches(source, settings: PlanSettings | None = None, *, read_options: dict | None = None
-                ) -> list[tuple[int, int]]:
+def fit_batches(source, settings: PlanSettings | None = None, *, read_options: dict | None = None,
+                chords: bool = False) -> list[tuple[int, ...]]:
     """The fitting work of a job in independent pieces: the (start, stop) ranges of its cutting passes that the
-    planner fits together, with their number of CAM chords: fitted apart (:func:`fit_passes_of`, e.g. on several
-    machines) and given back to :func:`plan` (``fits=``), they make the same job, export for export."""
+    planner fits together (with ``chords``: (start, stop, CAM chords of those passes)): fitted apart
+    (:func:`fit_passes_of`, e.g. on several machines) and given back to :func:`plan` (``fits=``), they make the same
+    job, export for export."""
     settings = PlanSettings() if settings is None else settings
     _check_plan_arguments(settings, read_options, None)
     tp, seg, s = _prepared(source, settings, None, None, read_options, {}, [])
-    return _batch_ranges(seg.passes, s)
+    ranges = _batch_ranges(seg.passes, s)
+    if not chords:
+        return list(ranges)
+    spans = np.cumsum([0] + [len(p) - 1 for p in seg.passes])
+    return [(a, b, int(spans[b] - spans[a])) for a, b in ranges]
 
 
 def fit_passes_of(source, settings: PlanSettings | None, start: int, stop: int, *,

@@ -240,6 +240,133 @@ def test_two_replicas_one_robot_never_two_executions_and_a_cancel_reaches_anothe
         assert a.stop() == 0, a.log.read_text()
 
 
+# -- one large job split across workers (planner/frontends/service/tasks/split.py) -------------------------------
+#: Split from 1000 CAM chords (the default, 16384, would make the test's files, and its time, larger).
+SPLIT = {"PLANNER_SPLIT_CHORDS": "1000"}
+#: The raster's part frame for the UR5e: reachable, its URScript under the controller's 250 kB.
+RASTER_PART = [0.4, -0.05, 0.0, 3.14159, 0.0, 0.0]
+
+
+def raster(rows: int, per: int) -> bytes:
+    """A CSV raster (mm): ``rows`` passes of ``per`` points over a gently waved surface, turned at their ends (each
+    pass a fit batch of its own in the interpolating path model)."""
+    lines = ["x,y,z,i,j,k"]
+    for r in range(rows):
+        x = np.linspace(0.0, 200.0, per)[:: -1 if r % 2 else 1]
+        lines += [f"{a:.4f},{5.0 * r:.4f},{2.0 * np.sin(a / 15.0 + r):.4f},0,0,1" for a in x]
+    return ("\n".join(lines) + "\n").encode()
+
+
+def submit_file(c, name: str, data: bytes, settings: dict) -> str:
+    r = c.post("/v1/jobs", files={"file": (name, data)}, data={"settings": json.dumps(settings)})
+    assert r.status_code == 202, r.text
+    return r.json()["id"]
+
+
+def piece_elsewhere(s: CeleryService, job_id: str, timeout: float = 120.0):
+    """The worker (not the job's own) fitting a piece of the job, once one does."""
+    found: list = []
+
+    def look() -> bool:
+        rows = s.sql("select c.holder from job_chunks c join jobs j on j.id = c.job_id where c.job_id = :id and "
+                     "c.state = 'running' and c.holder <> j.holder", id=job_id)
+        found[:] = [w for w in s.pool if rows and w.proc.pid == int(rows[0][0].rsplit(":", 1)[1])]
+        return bool(found) and bool(found[0].children("planner-work"))
+
+    wait_for(look, timeout, f"a piece of job {job_id} fitted by another worker")
+    return found[0]
+
+
+def reference(tmp_path: Path, name: str, data: bytes, settings: dict):
+    """The job planned in this process, at once (the stored settings, the file under its name)."""
+    from planner import PlanSettings, plan
+
+    path = tmp_path / "reference" / name
+    path.parent.mkdir(exist_ok=True)
+    path.write_bytes(data)
+    return plan(path, PlanSettings.from_dict(settings))
+
+
+def test_a_large_file_split_across_workers_is_the_job_planned_at_once_and_survives_a_worker_killed(
+        postgres, redis, tmp_path):
+    import hashlib
+
+    from planner.export import stream
+
+    s = CeleryService(tmp_path, db=fresh_database(postgres), broker=fresh_broker(redis), workers=2, env=SPLIT).start()
+    try:
+        with s.client() as c:
+            for j in [c.post("/v1/jobs", json=small(i)).json()["id"] for i in range(4)]:  # the workers warmed up
+                wait_state(c, j, timeout=120)
+            data = raster(10, 300)  # 10 passes, 2999 chords, 89 kB
+            jid = submit_file(c, "raster.csv", data, {"robot": "ur5e", "part_frame": RASTER_PART})
+            view = wait_state(c, jid, timeout=300)
+            assert view["state"] == "done" and view["attempts"] == 1, view
+            assert view["note"].startswith("split: fitted in 2 pieces by 2 workers (CAM chords "), view["note"]
+            assert s.sql("select count(*) from job_chunks") == [(0,)]  # its pieces removed with their fits
+            assert s.sql("select name from job_data where job_id = :id order by name", id=jid) == [("input",),
+                                                                                                   ("plan",)]
+            whole = reference(tmp_path, "raster.csv", data, view["settings"])
+            for fmt in ("csv", "json", "script"):
+                got = c.get(f"/v1/jobs/{jid}/trajectory?format={fmt}")
+                assert got.status_code == 200, got.text
+                assert got.content == b"".join(stream(whole, fmt, parameters={"input": "raster.csv"})), fmt
+            # the worker fitting the other piece killed (SIGKILL, its processes with it): the job's own worker takes
+            # the piece over once its heartbeats have stopped; the job is done once, the same plan
+            data = raster(28, 600)  # 28 passes, 16799 chords: seconds of fitting per piece
+            jid = submit_file(c, "big.csv", data, {})
+            victim = piece_elsewhere(s, jid)
+            time.sleep(0.3)
+            victim.kill()
+            view = wait_state(c, jid, timeout=LEASE_S + 300)
+            assert view["state"] == "done" and view["attempts"] == 1, view
+            assert "1 taken over from a worker that stopped answering" in view["note"], view["note"]
+            whole = reference(tmp_path, "big.csv", data, view["settings"])
+            for fmt in ("csv", "json"):
+                got = hashlib.sha256()
+                with c.stream("GET", f"/v1/jobs/{jid}/trajectory?format={fmt}") as r:
+                    for chunk in r.iter_bytes():
+                        got.update(chunk)
+                want = hashlib.sha256()
+                for chunk in stream(whole, fmt, parameters={"input": "big.csv"}):
+                    want.update(chunk)
+                assert got.hexdigest() == want.hexdigest(), fmt
+            assert s.sql("select count(*) from job_data where job_id = :id and name = 'plan'", id=jid) == [(1,)]
+    finally:
+        assert s.stop() == 0, s.log.read_text()
+
+
+def test_a_split_job_cancelled_stops_its_pieces_and_a_failed_piece_fails_it(postgres, redis, tmp_path):
+    s = CeleryService(tmp_path, db=fresh_database(postgres), broker=fresh_broker(redis), workers=2, env=SPLIT).start()
+    data = raster(28, 600)
+    try:
+        with s.client() as c:
+            jid = submit_file(c, "big.csv", data, {})
+            worker = piece_elsewhere(s, jid)
+            child = worker.children("planner-work")
+            time.sleep(0.3)
+            tic = time.monotonic()
+            assert c.delete(f"/v1/jobs/{jid}").json()["state"] == "cancelled"
+            wait_for(lambda: all(not Path(f"/proc/{p}").exists() or Path(f"/proc/{p}/stat").read_text().split()[2]
+                                 in "ZX" for p in child), 1.0, "the piece's process in the other worker stopped")
+            print(f"cancel reached the piece's process in {1e3 * (time.monotonic() - tic):.0f} ms")
+            assert s.sql("select count(*) from job_chunks where job_id = :id", id=jid) == [(0,)]  # gone with it
+            assert c.get(f"/v1/jobs/{jid}").json()["state"] == "cancelled"
+            # a piece's process dies (as an out-of-memory kill would end it): the job fails with its one-line error
+            jid = submit_file(c, "big.csv", data, {})
+            worker = piece_elsewhere(s, jid)
+            time.sleep(0.3)
+            for p in worker.children("planner-work"):
+                os.kill(p, 9)
+            view = wait_state(c, jid, timeout=120)
+            assert view["state"] == "failed", view
+            assert view["error"]["message"].startswith("the worker process planning this job died (exit code -9)")
+            assert "\n" not in view["error"]["message"] and view["error"]["kind"] == "internal"
+            wait_for(lambda: s.sql("select count(*) from job_chunks") == [(0,)], 10, "the failed job's pieces removed")
+    finally:
+        assert s.stop() == 0, s.log.read_text()
+
+
 def test_planner_worker_refuses_bad_options(tmp_path):
     import subprocess
     import sys

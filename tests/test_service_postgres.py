@@ -40,9 +40,9 @@ def test_migrations_and_the_one_active_execution_per_robot_index(pg_url):
         assert engine.dialect.name == "postgresql"
         migrate(engine)  # again: nothing to do
         with engine.connect() as conn:
-            assert conn.execute(text("SELECT version_num FROM alembic_version")).scalar() == "0004"
+            assert conn.execute(text("SELECT version_num FROM alembic_version")).scalar() == "0005"
         names = set(inspect(engine).get_table_names())
-        assert {"jobs", "api_keys", "executions", "job_data", "workers"} <= names
+        assert {"jobs", "api_keys", "executions", "job_data", "workers", "job_chunks"} <= names
         with sessions() as s:
             s.add_all([_execution("a", "running"), _execution("b", "starting"), _execution("a", "done"),
                        _execution("a", "failed")])

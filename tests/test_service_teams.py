@@ -196,7 +196,7 @@ def _check_migrated(s: ServiceProcess, url: str, made: dict) -> None:
     engine = make_engine(url)
     try:
         with engine.connect() as conn:
-            assert conn.execute(text("SELECT version_num FROM alembic_version")).scalar() == "0004"
+            assert conn.execute(text("SELECT version_num FROM alembic_version")).scalar() == "0005"
             assert conn.execute(text("SELECT name, robots FROM teams")).all() == [("default", None)]
             assert dict(conn.execute(text("SELECT id, team FROM api_keys")).all()) == {
                 k: "default" for k in made["keys"]}

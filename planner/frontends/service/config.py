@@ -29,6 +29,9 @@ ROLES = ("planner", "operator")
 DEFAULT_DB = "sqlite:///jobs.sqlite"
 #: The longest planning time a service may allow a job, s (30 days).
 MAX_JOB_TIMEOUT = 30 * 86400.0
+#: CAM chords from which the celery backend splits a job across its workers (PLANNER_SPLIT_CHORDS; measured:
+#: bench/bench_scale.py).
+SPLIT_CHORDS = 16384
 
 
 @dataclass(frozen=True)
@@ -272,6 +275,9 @@ class ServiceConfig(BaseModel):
         service itself; "celery" sends every task to ``planner worker`` processes on any machine through the broker.
     broker : str or None
         The Celery broker's URL, ``redis://HOST:PORT/DB`` (``PLANNER_BROKER``; needed with ``queue="celery"``).
+    split_chords : int
+        The celery backend splits a toolpath file of at least this many CAM chords (and at least two fit batches of
+        8192 chords) across its workers (``PLANNER_SPLIT_CHORDS``; 0: never; :mod:`.tasks.split`).
     worker_nice : int
         Niceness added to worker processes, 0..19 (``PLANNER_WORKER_NICE``; read by each worker process itself,
         :data:`.tasks.child.WORKER_NICE`: checked here so that a bad value is refused when the service starts).
@@ -291,6 +297,7 @@ class ServiceConfig(BaseModel):
     robots: tuple[RobotConfig, ...] = Field(DEFAULT_ROBOTS, json_schema_extra=_env("PLANNER_ROBOTS"))
     queue: Literal["local", "celery"] = Field("local", json_schema_extra=_env("PLANNER_QUEUE"))
     broker: str | None = Field(None, max_length=4096, json_schema_extra=_env("PLANNER_BROKER"))
+    split_chords: int = Field(SPLIT_CHORDS, ge=0, le=2**31 - 1, json_schema_extra=_env("PLANNER_SPLIT_CHORDS"))
     worker_nice: int = Field(10, ge=0, le=19, json_schema_extra=_env("PLANNER_WORKER_NICE"))
 
     @field_validator("db_url")
@@ -323,8 +330,8 @@ class ServiceConfig(BaseModel):
     def from_env(cls, env: dict | None = None, options: dict[str, str] | None = None, **overrides) -> ServiceConfig:
         """The configuration from ``PLANNER_DB``, ``PLANNER_DATA``, ``PLANNER_WORKERS``, ``PLANNER_DEV_NO_AUTH``,
         ``PLANNER_MAX_REQUEST_BYTES``, ``PLANNER_MAX_WAYPOINTS``, ``PLANNER_JOB_TIMEOUT``, ``PLANNER_MAX_ATTEMPTS``,
-        ``PLANNER_ROBOTS``, ``PLANNER_QUEUE``, ``PLANNER_BROKER``, ``PLANNER_WORKER_NICE`` (unset or empty: the
-        default); ``overrides`` (by field name, None: not given) win.
+        ``PLANNER_ROBOTS``, ``PLANNER_QUEUE``, ``PLANNER_BROKER``, ``PLANNER_SPLIT_CHORDS``, ``PLANNER_WORKER_NICE``
+        (unset or empty: the default); ``overrides`` (by field name, None: not given) win.
         PlannerError, one line naming the variable (or the option of an override: :data:`OPTIONS`, or ``options``
         by field name) and what is expected, for a refused value."""
         env = dict(os.environ if env is None else env)

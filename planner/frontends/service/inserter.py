@@ -11,8 +11,10 @@ millisecond here; the requests waiting for it waited that long. The loop is bloc
 from __future__ import annotations
 
 import asyncio
+import contextlib
 from collections.abc import Callable
 from concurrent.futures import ThreadPoolExecutor
+from typing import Any
 
 from sqlalchemy import Table
 
@@ -38,6 +40,7 @@ class Inserter:
         self._threaded = not store.sqlite
         self._in_flight = False
         self._executor = ThreadPoolExecutor(1, thread_name_prefix="planner-commit") if self._threaded else None
+        self._conn: Any = None  # the commit thread's own connection (a database server)
 
     async def store_job(self, row: dict, data: bytes | None = None) -> None:
         """Store a job row (the columns of :class:`Job`) and its input file's bytes; returns once committed (raises
@@ -77,10 +80,31 @@ class Inserter:
     def _write(self, batch: list) -> None:
         blobs = [{"job_id": row["id"], "name": "input", "data": data, "bytes": len(data), "created_at": now()}
                  for row, data, _ in batch if data is not None]
+        if self._threaded and not blobs:  # rows only: one statement, one round trip (see _insert_rows)
+            self._insert_rows([row for row, _, _ in batch])
+            return
         with self.store.write_lock, self.store.engine.begin() as conn:
             conn.execute(JOBS.insert(), [row for row, _, _ in batch])  # one executemany, Core
             if blobs:
                 conn.execute(DATA.insert(), blobs)
+
+    def _insert_rows(self, rows: list[dict]) -> None:
+        """Rows stored by one multi-row INSERT on this thread's own connection in autocommit (a statement is atomic:
+        all rows or none): one round trip to the database server, where a pooled transaction takes four (the pool's
+        liveness ping, BEGIN, INSERT, COMMIT), each a wait for the server's process on a loaded machine. A connection
+        that failed is dropped; the next commit opens a new one."""
+        from sqlalchemy.exc import DBAPIError
+
+        if self._conn is None:
+            self._conn = self.store.engine.connect().execution_options(isolation_level="AUTOCOMMIT")
+        try:
+            self._conn.execute(JOBS.insert().values(rows))
+        except DBAPIError:
+            conn, self._conn = self._conn, None
+            with contextlib.suppress(Exception):
+                conn.invalidate()
+                conn.close()
+            raise
 
     def _settle(self, batch: list, exc: BaseException | None) -> None:
         for _, _, done in batch:
@@ -97,3 +121,7 @@ class Inserter:
     def close(self) -> None:
         if self._executor is not None:
             self._executor.shutdown(wait=True)
+        if self._conn is not None:
+            with contextlib.suppress(Exception):
+                self._conn.close()
+            self._conn = None

@@ -44,6 +44,7 @@ from planner.frontends.service.config import ServiceConfig
 from planner.frontends.service.store import Job, open_store
 from planner.frontends.service.tasks.lifecycle import EXECUTION, JOB, Kind, Outcome
 from planner.frontends.service.tasks.runner import Slot
+from planner.frontends.service.tasks.split import Coordinator
 from planner.frontends.service.tasks.transitions import HEARTBEAT_EVERY, LEASE_S, Transitions, now
 
 log = logging.getLogger("planner.frontends.service")
@@ -77,7 +78,8 @@ def make_celery(cfg: ServiceConfig):
         broker_connection_retry_on_startup=True,
         broker_connection_timeout=2.0,
         task_default_queue=PLAN_QUEUE,
-        task_routes={"planner.execute_job": {"queue": EXECUTE_QUEUE}, "planner.plan_job": {"queue": PLAN_QUEUE}},
+        task_routes={"planner.execute_job": {"queue": EXECUTE_QUEUE}, "planner.plan_job": {"queue": PLAN_QUEUE},
+                     "planner.fit_piece": {"queue": PLAN_QUEUE}},
         worker_hijack_root_logger=False,
         worker_send_task_events=False,
         task_send_sent_event=False,
@@ -92,10 +94,11 @@ class WorkerContext:
     """What the tasks of one ``planner worker`` process share: the configuration, the store, one runner per pool
     thread."""
 
-    def __init__(self, cfg: ServiceConfig, queues: str, concurrency: int):
+    def __init__(self, cfg: ServiceConfig, queues: str, concurrency: int, app=None):
         self.cfg = cfg
         self.queues = queues
         self.concurrency = concurrency
+        self.app = app
         self.engine, _ = open_store(cfg.db_url)
         self.store = Transitions(self.engine)
         self.stopping = threading.Event()
@@ -103,6 +106,19 @@ class WorkerContext:
         self._local = threading.local()
         self._lock = threading.Lock()
         self.slots: list[Slot] = []
+        self.coordinator = Coordinator(self.store, cfg.job_timeout_s, cfg.split_chords, self.stopping,
+                                       self.send_pieces, lambda: self.store.workers_alive(PLAN_QUEUE)[0])
+
+    def send_pieces(self, job_id: str, firsts: list[int]) -> None:
+        """The messages of a split job's pieces (a piece whose message is lost is fitted by the job's own worker)."""
+        if not firsts or self.app is None:
+            return
+        try:
+            with self.app.producer_or_acquire() as producer:
+                for first in firsts:
+                    self.app.send_task("planner.fit_piece", args=[job_id, first], producer=producer, retry=False)
+        except Exception as exc:
+            log.warning("the broker did not take the pieces of job %s (%s); its own worker fits them", job_id, exc)
 
     def slot(self) -> Slot:
         """This pool thread's planning runner (its worker process kept warm between jobs)."""
@@ -158,10 +174,15 @@ def _register(app) -> None:
         claimed = ctx.store.claim_job(job_id)
         if claimed is None:  # taken by another delivery, cancelled, or ended: nothing to do (idempotent)
             return "skipped"
-        ctx.slot().run(JOB, *claimed)
+        ctx.coordinator.run_job(ctx.slot(), *claimed)  # (split across the workers if it pays: .split)
         if ctx.stopping.is_set() and ctx.store.state(JOB, job_id) == "queued":  # handed back by a stopping worker
             raise Reject("the worker is stopping", requeue=True)
         return "ran"
+
+    @app.task(name="planner.fit_piece", **options)
+    def fit_piece_task(self, job_id: str, first: int) -> str:
+        ctx = _ctx()
+        return ctx.coordinator.run_piece(ctx.slot(), job_id, int(first))
 
     @app.task(name="planner.execute_job", **options)
     def execute_job_task(self, execution_id: str) -> str:
@@ -205,7 +226,7 @@ def run_worker(cfg: ServiceConfig, concurrency: int, queues: str, loglevel: str 
 
     names = worker_queues(cfg, queues)
     app = make_celery(cfg)
-    _context = WorkerContext(cfg, ",".join(names), concurrency)
+    _context = WorkerContext(cfg, ",".join(names), concurrency, app)
     ctx = _context
     threading.Thread(target=ctx.beat, name="worker-heartbeat", daemon=True).start()
 

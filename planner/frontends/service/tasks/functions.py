@@ -43,7 +43,12 @@ class PlanSpec:
     read_options: dict = field(default_factory=dict)
     input_json: str | None = None
     input_data: bytes | None = None
-    passes: tuple[int, ...] | None = None  # plan only these passes of the file (a chunk of a split job)
+    #: What to do (a large file split across workers, :mod:`.split`): "plan" the job (with ``fits``: the fits of
+    #: its pieces, made apart, in pass order), find its "pieces" (its fit batches with their CAM chords), or "fit"
+    #: the cutting passes ``piece`` = (first, stop) (whole fit batches).
+    step: str = "plan"
+    piece: tuple[int, int] | None = None
+    fits: tuple[bytes, ...] | None = None
 
 
 @dataclass(frozen=True)
@@ -89,10 +94,14 @@ def _throttled(report: Report) -> Callable[[str, int, int], None]:
 
 def plan_job(spec: PlanSpec, report: Report) -> Outcome:
     """Plan one job with :func:`planner.plan`: done with its saved plan, summary and describe, or failed with the
-    planner's one-line error (kind "input": the user's; "internal": ours)."""
+    planner's one-line error (kind "input": the user's; "internal": ours). A step of a split job (``spec.step``):
+    "pieces", done with ``values["pieces"]`` = [[first, stop, chords], ...] (:func:`planner.plan.fit_batches`);
+    "fit", done with the piece's fits as ``plan`` (:func:`planner.job.fits_to_bytes`) and ``values["seconds"]``."""
     from planner.errors import NumericalError, PlannerError
 
     try:
+        if spec.step != "plan":
+            return _piece_step(spec)
         job = _plan(spec, _throttled(report))
         blob = job.to_bytes()
         summary = plain(job.summary())
@@ -111,6 +120,38 @@ def plan_job(spec: PlanSpec, report: Report) -> Outcome:
         return failed("internal", f"internal error: {type(exc).__name__}: {exc}")
 
 
+@contextlib.contextmanager
+def _input_file(spec: PlanSpec):
+    """The job's input file written under its name in a temporary folder (the name the planner reports: summary,
+    describe, headers), removed after."""
+    if spec.input_data is None:
+        raise ValueError(f"job {spec.job_id}: its input file is not in the store")
+    with tempfile.TemporaryDirectory(prefix="planner-input-") as folder:
+        path = Path(folder) / spec.input_name
+        path.write_bytes(spec.input_data)
+        yield path
+
+
+def _piece_step(spec: PlanSpec) -> Outcome:
+    """The "pieces" or "fit" step of a split job (its input a file)."""
+    import importlib
+
+    from planner.job import fits_to_bytes
+    from planner.settings import PlanSettings
+
+    P = importlib.import_module("planner.plan")  # (the package's name plan is the function)
+    settings = PlanSettings.from_dict(spec.settings)
+    with _input_file(spec) as path:
+        if spec.step == "pieces":
+            pieces = P.fit_batches(path, settings, read_options=spec.read_options, chords=True)
+            return Outcome("done", values={"pieces": [list(p) for p in pieces]})
+        if spec.step != "fit" or spec.piece is None:
+            raise ValueError(f"job {spec.job_id}: no such step {spec.step!r}")
+        tic = time.perf_counter()
+        fits = P.fit_passes_of(path, settings, spec.piece[0], spec.piece[1], read_options=spec.read_options)
+        return Outcome("done", plan=fits_to_bytes(fits), values={"seconds": time.perf_counter() - tic})
+
+
 def _plan(spec: PlanSpec, progress):
     import numpy as np
 
@@ -119,12 +160,13 @@ def _plan(spec: PlanSpec, progress):
 
     settings = PlanSettings.from_dict(spec.settings)
     if spec.input_kind == "file":
-        if spec.input_data is None:
-            raise ValueError(f"job {spec.job_id}: its input file is not in the store")
-        with tempfile.TemporaryDirectory(prefix="planner-input-") as folder:
-            path = Path(folder) / spec.input_name  # the name the planner reports (summary, describe, headers)
-            path.write_bytes(spec.input_data)
-            return plan(path, settings, read_options=spec.read_options, progress=progress)
+        with _input_file(spec) as path:
+            fits = None
+            if spec.fits is not None:
+                from planner.job import fits_from_bytes
+
+                fits = [f for data in spec.fits for f in fits_from_bytes(data)]
+            return plan(path, settings, read_options=spec.read_options, progress=progress, fits=fits)
     data = json.loads(spec.input_json or "{}")
     feeds = data.get("feeds")
     if feeds is not None:

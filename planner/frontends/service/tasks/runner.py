@@ -162,11 +162,34 @@ class Slot:
                 delay *= 2
         return self.store.finish(kind, task_id, attempt, outcome)
 
-    def _run(self, kind: Kind, task_id: str, attempt: int, spec: Any) -> Outcome | None:
+    def ask(self, task_id: str, attempt: int, spec: Any, *, beat: Callable[[], None] | None = None,
+            live: Callable[[str], bool] | None = None, on_stopping: Callable[[], None] | None = None,
+            progress: bool = True, deadline: float | None = None) -> Outcome | None:
+        """One step of a planning job in this slot's process (a split job's pieces, a piece's fits, the join:
+        :mod:`.split`), its end not stored: the step's outcome, or None if it was stopped (the job no longer
+        ``live``, by its state; or this worker stopping, after ``on_stopping``). ``beat``: the heartbeat (default: the
+        job's); ``progress``: the step's progress written to the job's row; ``deadline``: time.monotonic() by which
+        the step is failed "limit" (default: the job time limit from now)."""
+        self.current = (task_id, attempt)
+        try:
+            return self._run(JOB, task_id, attempt, spec, beat=beat, live=live, on_stopping=on_stopping,
+                             progress=progress, deadline=deadline)
+        except Exception:  # never lose the slot: fail the step with the reason
+            log.exception("the runner failed on a step of job %s", task_id)
+            self.stop_process(kill=True)
+            return failed("internal", "internal error in the task runner (see the log of the process running it)")
+        finally:
+            self.current = None
+            self.poke.clear()
+
+    def _run(self, kind: Kind, task_id: str, attempt: int, spec: Any, *, beat: Callable[[], None] | None = None,
+             live: Callable[[str], bool] | None = None, on_stopping: Callable[[], None] | None = None,
+             progress: bool = True, deadline: float | None = None) -> Outcome | None:
         """The task's outcome to store, or None if the task's end is stored already (cancelled) or it went back to
         the queue."""
-        def beat() -> None:
-            self.store.heartbeat(kind, task_id, attempt)
+        if beat is None:
+            def beat() -> None:
+                self.store.heartbeat(kind, task_id, attempt)
 
         if not self.alive:
             self.stop_process(kill=True)
@@ -176,7 +199,8 @@ class Slot:
         assert self.conn is not None and self.process is not None
         self.conn.send(("plan" if kind is JOB else "execute", spec))
         start = time.monotonic()
-        deadline = start + self.job_timeout_s if kind is JOB else float("inf")
+        if deadline is None:
+            deadline = start + self.job_timeout_s if kind is JOB else float("inf")
         next_look = start + self.cancel_poll
         next_beat = start + HEARTBEAT_EVERY
         # a job shorter than a progress write's interval writes no progress (its claim and end are the two commits);
@@ -195,10 +219,14 @@ class Slot:
                 if state is None:
                     pass
                 elif kind is JOB:
-                    if self.stopping.is_set() or state != "running":  # cancelled (or ended) meanwhile; or stopping
+                    alive = state == "running" if live is None else live(state)
+                    if self.stopping.is_set() or not alive:  # cancelled (or ended) meanwhile; or stopping
                         self.stop_process(kill=True)
-                        if self.stopping.is_set() and state == "running":
-                            self.store.requeue(task_id, attempt)
+                        if self.stopping.is_set() and alive:
+                            if on_stopping is None:
+                                self.store.requeue(task_id, attempt)
+                            else:
+                                on_stopping()
                         else:
                             self.start_process()
                         return None
@@ -219,7 +247,7 @@ class Slot:
             if t >= next_beat:
                 next_beat = t + HEARTBEAT_EVERY
                 with contextlib.suppress(DBAPIError):  # (a missed beat: the next one tries again)
-                    self.store.heartbeat(kind, task_id, attempt)
+                    beat()
             try:
                 ready = self.conn.poll(0.05)
                 msg = self.conn.recv() if ready else None
@@ -237,6 +265,8 @@ class Slot:
                                               "job may need more memory than the worker has")
                 return failed("internal", f"the execution's process ended without a result (exit code {code})")
             if isinstance(msg, Progress):
+                if not progress:
+                    continue
                 if msg.started or t - last_write >= PROGRESS_WRITE_EVERY[kind.name] or (
                         kind is EXECUTION and msg.done >= msg.total > 0):
                     last_write = t

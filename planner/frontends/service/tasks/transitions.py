@@ -27,9 +27,9 @@ from sqlalchemy import Table, bindparam, delete, func, insert, select, update
 from sqlalchemy.engine import Engine
 from sqlalchemy.exc import IntegrityError
 
-from planner.frontends.service.store import Execution, Job, JobData, Worker
+from planner.frontends.service.store import Execution, Job, JobChunk, JobData, Worker
 from planner.frontends.service.tasks.functions import ExecuteSpec, PlanSpec
-from planner.frontends.service.tasks.lifecycle import EXECUTION, JOB, Kind, Outcome, Progress
+from planner.frontends.service.tasks.lifecycle import EXECUTION, FINAL_STATES, JOB, Kind, Outcome, Progress
 
 #: Seconds between a running task's heartbeats.
 HEARTBEAT_EVERY = 2.0
@@ -103,13 +103,16 @@ class Transitions:
                 row = conn.execute(self._claim_one, {"now": now(), "job_id": job_id}).mappings().first()
         if row is None:
             return None
+        return row["id"], int(row["attempts"]), self._spec(row)
+
+    def _spec(self, row) -> PlanSpec:
+        """A job's specification from its row (the columns :data:`_CLAIM_COLUMNS`), its input file read."""
         data = None
         if row["input_kind"] == "file":
             with self.engine.connect() as conn:
                 data = conn.scalar(select(JobData.data).where(JobData.job_id == row["id"], JobData.name == "input"))
-        spec = PlanSpec(row["id"], row["input_kind"], row["input_name"], json.loads(row["settings"]),
+        return PlanSpec(row["id"], row["input_kind"], row["input_name"], json.loads(row["settings"]),
                         json.loads(row["read_options"]), row["input_json"], data)
-        return row["id"], int(row["attempts"]), spec
 
     def requeue(self, job_id: str, attempt: int) -> None:
         """A job whose worker is stopping (not failing): queued again, its start not counted."""
@@ -127,9 +130,106 @@ class Transitions:
                     return None
                 n = conn.execute(update(Job).where(Job.id == job_id, Job.state == before).values(
                     state="cancelled", finished_at=now())).rowcount
+                if n == 1:  # a split job's pieces and fits: gone with it (their runners stop at their next look)
+                    conn.execute(delete(JobChunk).where(JobChunk.job_id == job_id))
+                    conn.execute(delete(JobData).where(JobData.job_id == job_id, JobData.name.like("fits.%")))
             if n == 1:
                 return before
         return None
+
+    # -- the pieces of a split job (:mod:`.split`) -----------------------------------------------------------------
+    def pieces(self, job_id: str, wanted: list[tuple[int, int, int]]) -> list[dict]:
+        """The job's pieces: those stored by an earlier attempt if any (their fits kept), else ``wanted`` ((first,
+        stop, chords) each) stored, queued."""
+        with self.write_lock, self.engine.begin() as conn:
+            if conn.scalar(select(func.count()).select_from(JobChunk).where(JobChunk.job_id == job_id)) == 0:
+                conn.execute(insert(JobChunk), [{"job_id": job_id, "first": a, "stop": b, "chords": c,
+                                                 "state": "queued", "takes": 0} for a, b, c in wanted])
+        return self.chunks(job_id)
+
+    def chunks(self, job_id: str) -> list[dict]:
+        """The job's pieces in pass order: first, stop, chords, state, takes, holder, heartbeat_at, seconds,
+        error_kind, error."""
+        with self.engine.connect() as conn:
+            return [dict(r) for r in conn.execute(select(JobChunk).where(JobChunk.job_id == job_id)
+                                                  .order_by(JobChunk.first)).mappings()]
+
+    def claim_chunk(self, job_id: str, first: int, stale_before: float | None = None
+                    ) -> tuple[int, PlanSpec] | None:
+        """Take a queued piece of an active job (or, given ``stale_before`` (Unix s), a running one whose holder's
+        last heartbeat is older: its holder is taken for dead): its take number and the specification of its fit;
+        None if another worker has it, it has ended or the job has."""
+        taken = JobChunk.state == "queued"
+        if stale_before is not None:
+            taken = taken | ((JobChunk.state == "running") & (JobChunk.heartbeat_at < stale_before))
+        active = select(Job.id).where(Job.id == job_id, Job.state.in_(JOB.active)).exists()
+        with self.write_lock, self.engine.begin() as conn:
+            row = conn.execute(update(JobChunk).where(JobChunk.job_id == job_id, JobChunk.first == first, taken,
+                                                      active)
+                               .values(state="running", takes=JobChunk.takes + 1, holder=self.holder,
+                                       heartbeat_at=now())
+                               .returning(JobChunk.takes, JobChunk.stop)).first()
+            if row is None:
+                return None
+            job = conn.execute(select(*_CLAIM_COLUMNS).where(Job.id == job_id)).mappings().first()
+        if job is None:
+            return None
+        from dataclasses import replace
+
+        return int(row[0]), replace(self._spec(job), step="fit", piece=(first, int(row[1])))
+
+    def chunk_beat(self, job_id: str, first: int, takes: int) -> None:
+        with self.write_lock, self.engine.begin() as conn:
+            conn.execute(update(JobChunk).where(JobChunk.job_id == job_id, JobChunk.first == first,
+                                                JobChunk.takes == takes, JobChunk.state == "running")
+                         .values(heartbeat_at=now()))
+
+    def release_chunk(self, job_id: str, first: int, takes: int) -> None:
+        """A piece whose worker is stopping: queued again (another worker, or the job's own, fits it)."""
+        with self.write_lock, self.engine.begin() as conn:
+            conn.execute(update(JobChunk).where(JobChunk.job_id == job_id, JobChunk.first == first,
+                                                JobChunk.takes == takes, JobChunk.state == "running")
+                         .values(state="queued", holder=None, heartbeat_at=None))
+
+    def finish_chunk(self, job_id: str, first: int, takes: int, outcome: Outcome) -> bool:
+        """End a piece of this take: done, its fits (``outcome.plan``) stored as ``fits.<first>`` in the same
+        transaction; or failed with the outcome's error. False if it was no longer this take's (taken over)."""
+        values: dict = {"state": "done" if outcome.state == "done" else "failed", "heartbeat_at": now(),
+                        "seconds": outcome.values.get("seconds"), "error_kind": outcome.error_kind,
+                        "error": outcome.error}
+        name = f"fits.{first}"
+        with self.write_lock, self.engine.begin() as conn:
+            n = conn.execute(update(JobChunk).where(JobChunk.job_id == job_id, JobChunk.first == first,
+                                                    JobChunk.takes == takes, JobChunk.state == "running")
+                             .values(**values)).rowcount
+            if n == 1 and outcome.state == "done" and outcome.plan is not None:
+                conn.execute(delete(JobData).where(JobData.job_id == job_id, JobData.name == name))
+                conn.execute(insert(JobData).values(job_id=job_id, name=name, data=outcome.plan,
+                                                    bytes=len(outcome.plan), created_at=now()))
+        return n == 1
+
+    def chunk_fits(self, job_id: str) -> list[bytes]:
+        """The fits of the job's pieces, in pass order."""
+        with self.engine.connect() as conn:
+            firsts = list(conn.scalars(select(JobChunk.first).where(JobChunk.job_id == job_id)
+                                       .order_by(JobChunk.first)))
+            data = dict(conn.execute(select(JobData.name, JobData.data).where(
+                JobData.job_id == job_id, JobData.name.in_([f"fits.{k}" for k in firsts]))).all())
+        missing = [k for k in firsts if f"fits.{k}" not in data]
+        if missing:
+            raise ValueError(f"job {job_id}: the fits of its pieces from pass {missing} are not in the store")
+        return [bytes(data[f"fits.{k}"]) for k in firsts]
+
+    def drop_chunks(self, job_id: str) -> None:
+        """The job's pieces and their fits removed (the job has ended)."""
+        with self.write_lock, self.engine.begin() as conn:
+            conn.execute(delete(JobChunk).where(JobChunk.job_id == job_id))
+            conn.execute(delete(JobData).where(JobData.job_id == job_id, JobData.name.like("fits.%")))
+
+    def job_ended(self, job_id: str) -> bool:
+        """The job has ended (done, failed, cancelled) or is gone."""
+        state = self.state(JOB, job_id)
+        return state is None or state in FINAL_STATES
 
     # -- executions -------------------------------------------------------------------------------------------------
     def create_execution(self, values: dict) -> None:
@@ -310,10 +410,13 @@ class Transitions:
         with self.write_lock, self.engine.begin() as conn:
             conn.execute(delete(Worker).where(Worker.id == self.holder))
 
-    def workers_alive(self) -> tuple[int, int]:
-        """Worker slots (processes) alive and busy, by the heartbeats of the last :data:`LEASE_S` s."""
+    def workers_alive(self, queue: str | None = None) -> tuple[int, int]:
+        """Worker slots (processes) alive and busy, by the heartbeats of the last :data:`LEASE_S` s (of the workers
+        serving ``queue``: all if None)."""
+        q = select(func.coalesce(func.sum(Worker.concurrency), 0), func.coalesce(func.sum(Worker.busy), 0)).where(
+            Worker.heartbeat_at > now() - LEASE_S)
+        if queue is not None:
+            q = q.where(Worker.queues.contains(queue))
         with self.engine.connect() as conn:
-            row = conn.execute(select(func.coalesce(func.sum(Worker.concurrency), 0),
-                                      func.coalesce(func.sum(Worker.busy), 0))
-                               .where(Worker.heartbeat_at > now() - LEASE_S)).first()
+            row = conn.execute(q).first()
         return (0, 0) if row is None else (int(row[0]), int(row[1]))
