@@ -9,9 +9,9 @@ which the simulated controller runs programs on: the same samples, the same limi
 checked on those samples before it is written:
 
 - first every :data:`COARSE`-th control period (speeds and accelerations from differences over that spacing, which
-  smooths a peak a few periods wide); a move whose joints reach :data:`SCREEN` of a limit there (a quarter: the first look sees a quarter
-  to a third of the peaks of short blends and of a move that ends next to a singularity, on the shared NX job) is sampled at every
-  control period, as the controller samples it;
+  smooths a peak a few periods wide: on the shared NX job it sees a quarter to a third of the peaks of short blends
+  and of a move that ends next to a singularity); a move whose joints reach :data:`SCREEN` of a limit there is
+  sampled at every control period, as the controller samples it;
 - a move with a sample beyond :data:`LOWER_ABOVE` of a limit is slowed to :data:`TARGET` of it by stretching its time
   law: v over c, a over c^2 (and a timed move's t times c), which scales every joint speed of a single move by 1 / c
   and every joint acceleration by 1 / c^2; on a pass of blended ``movep`` moves only the moves with samples that
