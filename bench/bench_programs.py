@@ -79,17 +79,20 @@ def main() -> None:
     # the planned path, every 10th sample (a chord of at most 10 samples: under 1 um from the path on bends of 1 mm
     # radius at the job's feed), and its output switches: read a move at a time (the whole path at 500 Hz would not
     # fit in this machine's memory with its search tree)
-    keep, n_switch, last_io, duration = [], 0, None, 0.0
+    keep, where, n_switch, last_io, duration = [], [], 0, None, 0.0
     for c in job.trajectory().chunks(joints=False):
         if not len(c):
             continue
         keep.append(c.poses[::10, :3])
         keep.append(c.poses[-1:, :3])
+        n_kept = len(c.poses[::10]) + 1
+        where.append(np.column_stack([np.full(n_kept, c.pass_index), np.r_[c.lines[::10], c.lines[-1:]]]))
         io = np.asarray(c.io)
         n_switch += int(np.count_nonzero(np.diff(io))) + int(last_io is not None and io[0] != last_io)
         last_io = io[-1]
         duration = float(c.times[-1])
     pp = np.concatenate(keep)
+    where_pp = np.concatenate(where)
     core = Core("ur5e", IOState())
     core.motion.q = np.array(job.start_joints, dtype=float)
     refused = not core.load_program(whole)
@@ -116,7 +119,10 @@ def main() -> None:
                 switches.append(out)
     t_run = time.perf_counter() - t0
     tcp = forward("ur5e", np.array(qs))[:, :3]
-    d, _ = PolylineIndex(pp).distance(tcp)
+    d, seg = PolylineIndex(pp).distance(tcp)
+    worst = int(np.argmax(d))
+    w_pass, w_line = (int(x) for x in where_pp[min(int(seg[worst]), len(where_pp) - 1)])
+    slowed = [m.slowed for m in moves if m.slowed]
     t = np.array(ts)
     near = np.zeros(t.size, dtype=bool)
     for ts_seam, _, _ in seams:
@@ -126,6 +132,7 @@ def main() -> None:
         ["whole program refused (too large)", refused],
         ["duration s (planned)", f"{core.time:.1f} ({duration:.1f})"],
         ["largest path error mm (tolerance 0.01)", f"{1e3 * d.max():.4f}"],
+        ["  where (job time s, pass, source line)", f"{ts[worst]:.2f}, {w_pass}, {w_line}"],
         ["largest path error within 1 s of a seam mm", f"{1e3 * d[near].max():.4f}" if near.any() else "-"],
         ["seams", len(seams)],
         ["largest joint speed at a seam rad/s", f"{max((s[1] for s in seams), default=0.0):.2e}"],
@@ -134,7 +141,10 @@ def main() -> None:
         ["protective stops", sum(1 for m in core.log if m[1] == "Safety")],
         ["run stopped", stopped],
         ["core wall time s", f"{t_run:.0f}"],
+        ["moves slowed for the joint limits", len(slowed)],
     ])
+    for x in slowed[:20]:
+        print("  slowed:", x)
 
 
 if __name__ == "__main__":

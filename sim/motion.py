@@ -1,7 +1,9 @@
 """The simulated arm's one motion model: joint state integrated every control period (2 ms).
 
 Every entry point (ur_rtde's control script, URScript programs) drives the arm through
-:class:`MotionModel`; kinematics come only from :mod:`planner.kinematics`.
+:class:`MotionModel`; kinematics come only from :mod:`planner.kinematics`, and so do the samples of movej, movel
+and movep and the joint limits they are held to (:mod:`planner.kinematics.ur_moves`, which the program writer checks
+its programs on).
 
 Modes
 -----
@@ -48,267 +50,35 @@ from __future__ import annotations
 
 import bisect
 import math
-from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
-from planner.kinematics import (
-    UnreachableError,
-    forward,
-    forward_matrix,
-    get_model,
-    inverse_nearest,
-    inverse_path,
-    wrap_angle,
+from planner.kinematics import UnreachableError, forward, forward_matrix, get_model, inverse_nearest, wrap_angle
+from planner.kinematics.ur_moves import (  # noqa: F401 - DT, ROTATION_RADIUS: the simulator's names for them
+    ACCEL_TOLERANCE,
+    DT,
+    JOINT_ACCEL_MAX,
+    ROTATION_RADIUS,
+    SPEED_TOLERANCE,
+    MotionError,
+    MoveSamples,
+    Segment,
+    first_excess,
+    joint_samples,
+    linear_samples,
 )
 
-DT = 0.002  # control period (s), 500 Hz
 #: Gravity (m/s^2) in the base frame of a floor-mounted arm.
 GRAVITY = np.array([0.0, 0.0, -9.81])
-#: Joint acceleration limit (rad/s^2) of every joint, beyond which the arm stops with a protective stop.
-#: UR publishes no acceleration limits (``planner.kinematics`` models none); this is the bound the controller
-#: accepts in a move command, as ur_rtde 1.6.5 checks it (UR_JOINT_ACCELERATION_MAX, rtde_control_interface.h).
-JOINT_ACCEL_MAX = 40.0
-#: Relative tolerance on the joint acceleration limit before a protective stop (sampled trajectories).
-ACCEL_TOLERANCE = 1e-3
 #: Tracking time constant scale of servoj: tau = SERVO_GAIN_TIME / gain (gain 300 -> 33 ms).
 SERVO_GAIN_TIME = 10.0
-#: Length (m) one radian of tool rotation counts for in a linear move's path length.
-ROTATION_RADIUS = 0.1
-#: Relative tolerance on the joint speed limits before a protective stop.
-SPEED_TOLERANCE = 1e-6
-#: Path grid spacing (m or rad) of the time law, and its sample bounds.
-GRID_STEP = 5e-4
-GRID_MIN, GRID_MAX = 16, 4000
 
 HOME = np.array([0.0, -math.pi / 2, math.pi / 2, -math.pi / 2, -math.pi / 2, 0.0])
-
-
-class MotionError(Exception):
-    """A motion command that cannot start (the message says why); the caller raises a protective stop."""
 
 
 def servo_following_error(speed: float, lookahead_time: float, gain: float) -> float:
     """Bound on |actual - commanded| (rad) of servoj for a target moving at most ``speed`` rad/s."""
     return speed * (0.5 * lookahead_time + SERVO_GAIN_TIME / gain)
-
-
-@dataclass
-class Segment:
-    """One move of a path: target (joints, or a tool pose for linear moves), speed, acceleration, blend."""
-
-    target: np.ndarray
-    v: float
-    a: float
-    r: float = 0.0
-
-
-@dataclass
-class Trajectory:
-    """A planned joint trajectory sampled every ``DT``.
-
-    Attributes
-    ----------
-    q : ndarray, shape (K, 6)
-        Joint positions (rad) at t = DT, 2 DT, ..., the last one the end of the move.
-    starts : list of int
-        Sample index at which each path entry starts (for async progress).
-    fault : str or None
-        If set, the arm stops with a protective stop after the last sample (a limit is exceeded or
-        the path leaves the workspace there).
-    """
-
-    q: np.ndarray
-    starts: list[int] = field(default_factory=list)
-    fault: str | None = None
-
-
-def _time_law(d: np.ndarray, vmax: np.ndarray, amax: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Times (s) and speeds at the path grid ``d`` of the fastest rest-to-rest profile under vmax(d), amax(d).
-
-    Between grid points the speed squared is linear in the path parameter: constant acceleration."""
-    n = len(d)
-    ds = np.diff(d)
-    v = vmax.astype(float).copy()
-    v[0] = 0.0
-    v[-1] = 0.0
-    two_a_ds = 2.0 * np.minimum(amax[:-1], amax[1:]) * ds
-    for i in range(n - 1):  # forward pass (acceleration)
-        lim = math.sqrt(v[i] * v[i] + two_a_ds[i])
-        if v[i + 1] > lim:
-            v[i + 1] = lim
-    for i in range(n - 2, -1, -1):  # backward pass (deceleration)
-        lim = math.sqrt(v[i + 1] * v[i + 1] + two_a_ds[i])
-        if v[i] > lim:
-            v[i] = lim
-    vs = v[:-1] + v[1:]
-    dt = np.divide(2.0 * ds, vs, out=np.zeros_like(ds), where=vs > 0)
-    return np.concatenate([[0.0], np.cumsum(dt)]), v
-
-
-def _corner_radii(radii: np.ndarray, lengths: np.ndarray) -> np.ndarray:
-    """Blend radius (m+1,) at every waypoint of a path of m segments, in the path parameter's units: the move's
-    ``r`` into the waypoint clipped to half of either neighbouring segment; 0 at the ends and where the arm
-    passes the waypoint unblended (``r`` 0, or a segment of length 0)."""
-    r = np.zeros(len(lengths) + 1)
-    if len(lengths) > 1:
-        r[1:-1] = np.minimum(radii[:-1], 0.5 * np.minimum(lengths[:-1], lengths[1:]))
-        r[1:-1][(lengths[:-1] <= 0) | (lengths[1:] <= 0)] = 0.0
-    return np.maximum(r, 0.0)
-
-
-def _blend_points(W: np.ndarray, radii: np.ndarray, lengths: np.ndarray, d: np.ndarray):
-    """Points of the polyline ``W`` (m+1, k) at polyline parameter ``d`` with corners blended.
-
-    ``lengths`` (m,) are the segment lengths in the parameter's norm; returns (points (n, k),
-    segment index (n,), fraction within the segment (n,)).
-    """
-    D = np.concatenate([[0.0], np.cumsum(lengths)])
-    seg = np.clip(np.searchsorted(D, d, side="right") - 1, 0, len(lengths) - 1)
-    frac = np.divide(d - D[seg], lengths[seg], out=np.ones_like(d), where=lengths[seg] > 0)
-    frac = np.clip(frac, 0.0, 1.0)
-    P = W[seg] + frac[:, None] * (W[seg + 1] - W[seg])
-    corner_r = _corner_radii(radii, lengths)
-    for i in np.flatnonzero(corner_r > 0.0):  # interior corners with a blend
-        r = corner_r[i]
-        zone = (d >= D[i] - r) & (d <= D[i] + r)
-        if not zone.any():
-            continue
-        u0 = (W[i] - W[i - 1]) / lengths[i - 1]
-        u1 = (W[i + 1] - W[i]) / lengths[i]
-        A, B = W[i] - r * u0, W[i] + r * u1
-        w = ((d[zone] - (D[i] - r)) / (2.0 * r))[:, None]
-        P[zone] = (1 - w) ** 2 * A + 2 * w * (1 - w) * W[i] + w**2 * B
-    return P, seg, frac
-
-
-def _blend_rotations(rots: Rotation, radii: np.ndarray, lengths: np.ndarray, d: np.ndarray, seg: np.ndarray,
-                     frac: np.ndarray) -> np.ndarray:
-    """Rotation vectors (n, 3) at path parameter ``d`` of a linear path through the orientations ``rots`` (m+1),
-    with its corners blended as :func:`_blend_points` blends the positions.
-
-    On segment k the orientation is the slerp R_k exp(f e_k), e_k = log(R_k^-1 R_k+1), at the fraction f
-    (``seg``, ``frac`` from :func:`_blend_points`). Within ``r`` of waypoint j it is the quadratic Bezier curve
-    on rotations from R_A (``r`` before the waypoint on segment j-1) over R_j to R_B (``r`` after it on segment
-    j) by de Casteljau's construction with slerp, at w = (d - D_j + r) / 2r: with rho = r / length of each
-    segment, R_j X(w), X = exp(a) exp(w log(exp(-a) exp(b))), a = (w - 1) rho_j-1 e_j-1, b = w rho_j e_j. It
-    starts at R_A and ends at R_B with the segments' angular velocities (d/dw = 2 rho e), as the position arc
-    starts and ends with the segments' velocities: the angular velocity is continuous through the blend."""
-    e = (rots[:-1].inv() * rots[1:]).as_rotvec()  # (m, 3)
-    out = (rots[seg] * Rotation.from_rotvec(frac[:, None] * e[seg])).as_rotvec()
-    corner_r = _corner_radii(radii, lengths)
-    if not (corner_r > 0.0).any():
-        return out
-    D = np.concatenate([[0.0], np.cumsum(lengths)])
-    j = np.clip(np.searchsorted(0.5 * (D[:-1] + D[1:]), d), 0, len(D) - 1)  # the nearest waypoint
-    r = corner_r[j]
-    zone = np.flatnonzero((r > 0.0) & (np.abs(d - D[j]) <= r))
-    if not len(zone):
-        return out
-    j, r = j[zone], r[zone]
-    w = np.clip((d[zone] - D[j] + r) / (2.0 * r), 0.0, 1.0)
-    a = Rotation.from_rotvec(((w - 1.0) * r / lengths[j - 1])[:, None] * e[j - 1])
-    b = Rotation.from_rotvec((w * r / lengths[j])[:, None] * e[j])
-    X = a * Rotation.from_rotvec(w[:, None] * (a.inv() * b).as_rotvec())
-    out[zone] = (rots[j] * X).as_rotvec()
-    return out
-
-
-def _stretched(t: np.ndarray, v: np.ndarray, duration: float) -> tuple[np.ndarray, np.ndarray]:
-    """The profile (times, speeds) of :func:`_time_law` slowed down uniformly to last ``duration`` s (a move's
-    ``t``; never faster than planned): times times c, speeds over c, accelerations over c^2, c = duration / T."""
-    T = float(t[-1])
-    if not (duration > T > 0.0):
-        return t, v
-    c = duration / T
-    return t * c, v / c
-
-
-def _inf_norm(x: np.ndarray, axis: int) -> np.ndarray:
-    return np.abs(x).max(axis=axis)
-
-
-def _corner_turns(parts: list[np.ndarray], lengths: np.ndarray, norm) -> np.ndarray:
-    """How sharply the path turns at each waypoint (m+1,): the change of its direction there, the direction of a
-    segment being its displacement per unit of the path parameter (``parts``: arrays (m, k) of displacements, e.g.
-    position and scaled rotation, each measured by ``norm`` over its last axis; the largest part counts, as the
-    path parameter is the largest part's length). 0 at the ends and next to a segment of length 0."""
-    turn = np.zeros(len(lengths) + 1)
-    if len(lengths) < 2:
-        return turn
-    ok = lengths > 0
-    inv = np.divide(1.0, lengths, out=np.zeros_like(lengths), where=ok)
-    for x in parts:
-        u = x * inv[:, None]
-        turn[1:-1] = np.maximum(turn[1:-1], norm(u[1:] - u[:-1], axis=1))
-    turn[1:-1][~(ok[:-1] & ok[1:])] = 0.0
-    return turn
-
-
-def _path_grid(lengths: np.ndarray, segs: list[Segment], turns: np.ndarray | None = None):
-    """Parameter grid over the whole path, with per-sample speed and acceleration limits.
-
-    The grid holds every waypoint; the speed limit is 0 at an interior waypoint without a blend (``r`` 0 on
-    the move that ends there): the arm comes to rest there, as the controller stops at an unblended waypoint.
-    Through a blend the speed is at most sqrt(2 a r / turn) (``turns`` from :func:`_corner_turns`, r from
-    :func:`_corner_radii`): a blend turns the direction by ``turn`` over 2 r of the path parameter (the quadratic
-    Bezier arc of :func:`_blend_points`, whose second derivative is turn / 2r), so at speed v it accelerates the
-    arm by v^2 turn / 2r, which ``a`` bounds as it bounds the speeding up and slowing down along the path (UR's
-    movel/movep ``a`` is the tool's acceleration). A blend too small for the speed is thus passed slowly, never
-    within one control period at full speed."""
-    total = float(lengths.sum())
-    n = int(min(GRID_MAX, max(GRID_MIN, math.ceil(total / GRID_STEP)))) + 1
-    D = np.concatenate([[0.0], np.cumsum(lengths)])
-    d = np.union1d(np.linspace(0.0, total, n), D)
-    vs = np.array([s.v for s in segs])
-    As = np.array([s.a for s in segs])
-    cap = r = None
-    if turns is not None and len(segs) > 1:
-        r = _corner_radii(np.array([s.r for s in segs]), lengths)
-        cap = np.full(len(D), np.inf)
-        sharp = np.flatnonzero((r > 0.0) & (turns > 0.0))
-        cap[sharp] = np.sqrt(2.0 * np.minimum(As[sharp - 1], As[sharp]) * r[sharp] / turns[sharp])
-        slow = np.flatnonzero(cap < np.maximum(vs[np.maximum(np.arange(len(D)) - 1, 0)],
-                                               vs[np.minimum(np.arange(len(D)), len(segs) - 1)]))
-        if len(slow):  # the blend's ends on the grid, so that the speed is capped over the whole blend
-            d = np.union1d(d, np.clip(np.concatenate([D[slow] - r[slow], D[slow] + r[slow]]), 0.0, total))
-        else:
-            cap = None
-    seg = np.clip(np.searchsorted(D, d, side="right") - 1, 0, len(segs) - 1)
-    v = vs[seg]
-    a = As[seg]
-    if cap is not None and r is not None:
-        j = np.clip(np.searchsorted(0.5 * (D[:-1] + D[1:]), d), 0, len(D) - 1)  # the nearest waypoint
-        zone = np.abs(d - D[j]) <= r[j] * (1.0 + 1e-12)
-        v[zone] = np.minimum(v[zone], cap[j[zone]])
-    stops = [D[i + 1] for i, s in enumerate(segs[:-1]) if s.r <= 0.0]
-    if stops:
-        v[np.searchsorted(d, stops)] = 0.0
-    return d, v, a
-
-
-def _sample_times(t: np.ndarray, d: np.ndarray, v: np.ndarray) -> np.ndarray:
-    """Path parameter at every control period DT, 2 DT, ..., ending exactly at the path's end.
-
-    Exact for the profile of :func:`_time_law` (constant acceleration between its grid points), so that the
-    samples' second differences are the profile's acceleration (a linear interpolation in time would put the
-    acceleration of a whole grid interval into single periods)."""
-    T = float(t[-1])
-    K = max(1, math.ceil(T / DT - 1e-9))
-    tk = np.minimum(np.arange(1, K + 1) * DT, T)
-    i = np.clip(np.searchsorted(t, tk, side="right") - 1, 0, len(t) - 2)
-    h = t[i + 1] - t[i]
-    tau = np.minimum(tk - t[i], h)
-    acc = np.divide(v[i + 1] - v[i], h, out=np.zeros_like(h), where=h > 0)
-    dk = d[i] + v[i] * tau + 0.5 * acc * tau * tau
-    dk[-1] = d[-1]
-    return np.minimum(dk, d[-1])
-
-
-def _starts(dk: np.ndarray, lengths: np.ndarray) -> list[int]:
-    D = np.concatenate([[0.0], np.cumsum(lengths)])
-    return [int(np.searchsorted(dk, D[i], side="right")) for i in range(len(lengths))]
 
 
 class MotionModel:
@@ -332,7 +102,7 @@ class MotionModel:
         self.qdd = np.zeros(6)
         self.mode = "idle"
         self.fault: str | None = None
-        self.traj: Trajectory | None = None
+        self.traj: MoveSamples | None = None
         self.index = 0.0  # playback position in traj.q (float, speed-slider scaled)
         # servo state
         self.servo_target = self.q.copy()
@@ -401,28 +171,11 @@ class MotionModel:
 
     def _check_limits(self, q: np.ndarray, what: str, accel: bool = True) -> tuple[int, str | None]:
         """First sample of ``q`` (K, 6), played from rest at the current joints, beyond the joint speed limits
-        or (``accel``) the acceleration limit, and why; (-1, None) when none is."""
-        P = np.vstack([self.q, self.q, q])
-        V = np.diff(P, axis=0) / DT  # speed reached at each sample (0: at rest before the move)
-        speed = np.abs(V[1:]) > self.qd_max * (1.0 + SPEED_TOLERANCE)
-        if accel:
-            acc = np.abs(np.diff(V, axis=0)) / DT > JOINT_ACCEL_MAX * (1.0 + ACCEL_TOLERANCE)
-            over = speed | acc
-        else:
-            over = speed
-        bad = np.flatnonzero(over.any(axis=1))
-        if not len(bad):
-            return -1, None
-        k = int(bad[0])
-        v = V[k + 1]
-        if speed[k].any():
-            j = int(np.argmax(np.abs(v) / self.qd_max))
-            return k, (f"{what}: joint {j} speed {abs(v[j]):.3f} rad/s beyond its limit {self.qd_max[j]:.3f} rad/s")
-        a = np.abs(V[k + 1] - V[k]) / DT
-        j = int(np.argmax(a))
-        return k, f"{what}: joint {j} acceleration {a[j]:.1f} rad/s^2 beyond the limit {JOINT_ACCEL_MAX:g} rad/s^2"
+        or (``accel``) the acceleration limit, and why; (-1, None) when none is
+        (:func:`planner.kinematics.ur_moves.first_excess`)."""
+        return first_excess(self.model, self.q, q, what, accel)
 
-    def _start(self, traj: Trajectory, what: str = "move", accel: bool = True) -> Trajectory:
+    def _start(self, traj: MoveSamples, what: str = "move", accel: bool = True) -> MoveSamples:
         k, why = self._check_limits(traj.q, what, accel)
         out = np.flatnonzero(((traj.q < self.lower) | (traj.q > self.upper)).any(axis=1))
         if len(out) and (k < 0 or out[0] < k):
@@ -440,17 +193,17 @@ class MotionModel:
         self.mode = "trajectory"
         return traj
 
-    def plan_joint(self, segs: list[Segment], duration: float = 0.0) -> Trajectory:
+    def plan_joint(self, segs: list[Segment], duration: float = 0.0) -> MoveSamples:
         """Plan and start a (blended) joint-space move through ``segs`` (targets are joints); ``duration`` > 0 (a
         move's ``t``, s) slows its profile down uniformly to last that long, before the limits are checked."""
         return self._start(self._joint_samples(self.q, segs, duration), "movej")
 
-    def plan_linear(self, segs: list[Segment], duration: float = 0.0) -> Trajectory:
+    def plan_linear(self, segs: list[Segment], duration: float = 0.0) -> MoveSamples:
         """Plan and start a (blended) linear tool move through ``segs`` (targets are TCP poses); ``duration`` as
         for :meth:`plan_joint`."""
         return self._start(self._linear_samples(self.q, segs, duration), "movel")
 
-    def plan_path(self, moves: list[tuple[str, Segment, bool]]) -> Trajectory:
+    def plan_path(self, moves: list[tuple[str, Segment, bool]]) -> MoveSamples:
         """Plan and start a path of ``(kind, segment, target_is_pose)`` moves, kind ``movej``/``movel``/``movep``.
 
         Consecutive moves of one family (joint, or linear/process) are blended into one run; where the family
@@ -492,74 +245,19 @@ class MotionModel:
                 fault = tr.fault
                 break
             q0 = tr.q[-1]
-        return self._start(Trajectory(np.vstack(parts), starts, fault), "path")
+        return self._start(MoveSamples(np.vstack(parts), starts, fault), "path")
 
-    def _joint_samples(self, q0: np.ndarray, segs: list[Segment], duration: float = 0.0) -> Trajectory:
+    def _joint_samples(self, q0: np.ndarray, segs: list[Segment], duration: float = 0.0) -> MoveSamples:
         """The samples of a (blended) joint-space move from ``q0`` through ``segs`` (not started), lasting at least
-        ``duration`` s."""
-        W = np.vstack([q0] + [np.asarray(s.target, dtype=float) for s in segs])
-        for i, s in enumerate(segs):
-            self._check_q(W[i + 1], f"movej target {i}")
-            if not (s.v > 0 and s.a > 0):
-                raise MotionError(f"movej target {i}: speed and acceleration must be > 0")
-        lengths = np.abs(np.diff(W, axis=0)).max(axis=1)
-        if lengths.sum() <= 0.0:
-            return Trajectory(np.array(q0, dtype=float)[None].copy(), [0] * len(segs))
-        d, v, a = _path_grid(lengths, segs, _corner_turns([np.diff(W, axis=0)], lengths, _inf_norm))
-        t, vt = _stretched(*_time_law(d, v, a), duration)
-        dk = _sample_times(t, d, vt)
-        q, _, _ = _blend_points(W, np.array([s.r for s in segs]), lengths, dk)
-        q[-1] = W[-1]
-        return Trajectory(q, _starts(dk, lengths))
+        ``duration`` s (:func:`planner.kinematics.ur_moves.joint_samples`)."""
+        return joint_samples(self.model, q0, segs, duration)
 
-    def _linear_samples(self, q0: np.ndarray, segs: list[Segment], duration: float = 0.0) -> Trajectory:
+    def _linear_samples(self, q0: np.ndarray, segs: list[Segment], duration: float = 0.0) -> MoveSamples:
         """The samples of a (blended) linear tool move from joints ``q0`` through ``segs`` (not started), lasting at
-        least ``duration`` s."""
-        P0 = forward(self.model, q0, self.tcp)
-        poses = np.vstack([P0] + [np.asarray(s.target, dtype=float) for s in segs])
-        for i, s in enumerate(segs):
-            if not np.isfinite(poses[i + 1]).all():
-                raise MotionError(f"movel target {i}: pose is not finite")
-            if not (s.v > 0 and s.a > 0):
-                raise MotionError(f"movel target {i}: speed and acceleration must be > 0")
-        rots = Rotation.from_rotvec(poses[:, 3:])
-        turn = (rots[:-1].inv() * rots[1:]).as_rotvec()  # each segment's rotation, in its start frame
-        chord = np.diff(poses[:, :3], axis=0)
-        lengths = np.maximum(np.linalg.norm(chord, axis=1), np.linalg.norm(turn, axis=1) * ROTATION_RADIUS)
-        # the target itself must be reachable before the arm moves
-        try:
-            q_end = inverse_path(self.model, poses[-1:], q0, tcp=self.tcp)[0]
-        except UnreachableError:
-            raise MotionError("movel: target pose is not reachable (no inverse kinematics solution)") from None
-        if lengths.sum() <= 0.0:
-            return Trajectory(np.array(q0, dtype=float)[None].copy(), [0] * len(segs))
-        # the angular velocity at a waypoint, before and after it, in the frame there: e_k-1 and e_k (the slerp
-        # R_k-1 exp(f e_k-1) turns about e_k-1, which R_k-1 exp(e_k-1) = R_k leaves unchanged)
-        d, v, a = _path_grid(lengths, segs, _corner_turns([chord, ROTATION_RADIUS * turn], lengths, np.linalg.norm))
-        t, vt = _stretched(*_time_law(d, v, a), duration)
-        dk = _sample_times(t, d, vt)
-        radii = np.array([s.r for s in segs])
-        pos, seg, frac = _blend_points(poses[:, :3], radii, lengths, dk)
-        samples = np.hstack([pos, _blend_rotations(rots, radii, lengths, dk, seg, frac)])
-        samples[-1] = poses[-1]
-        q = inverse_path(self.model, samples, q0, tcp=self.tcp, allow_unreachable=True)
-        fault = None
-        bad = np.flatnonzero(np.isnan(q).any(axis=1))
-        if len(bad):
-            q = q[: bad[0]]
-            fault = "movel: the path leaves the workspace (no inverse kinematics solution)"
-        if len(q) == 0:
-            raise MotionError(fault or "movel: empty path")
-        outside = np.flatnonzero(((q < self.lower) | (q > self.upper)).any(axis=1))
-        if len(outside):
-            q = q[: outside[0]]
-            fault = "movel: the path leaves the joint position limits"
-        if not fault:
-            # the last sample is the target: take the branch nearest the tracked path (exact pose)
-            q[-1] = q_end + 2 * np.pi * np.round((q[-1] - q_end) / (2 * np.pi))
-        return Trajectory(q if len(q) else np.array(q0, dtype=float)[None].copy(), _starts(dk, lengths), fault)
+        least ``duration`` s (:func:`planner.kinematics.ur_moves.linear_samples`)."""
+        return linear_samples(self.model, self.tcp, q0, segs, duration)
 
-    def plan_stop(self, decel: float, linear: bool = False) -> Trajectory:
+    def plan_stop(self, decel: float, linear: bool = False) -> MoveSamples:
         """Decelerate to rest (stopj / stopl): joint speeds scaled down together at ``decel``.
 
         ``decel`` is rad/s^2 for the leading joint (stopj) or m/s^2 of the tool (stopl).
@@ -574,12 +272,12 @@ class MotionModel:
             speed = float(np.abs(qd).max())
         self.mode = "idle"
         if speed <= 0.0:
-            return self._start(Trajectory(self.q[None].copy(), [0]))
+            return self._start(MoveSamples(self.q[None].copy(), [0]))
         T = speed / decel
         K = max(1, math.ceil(T / DT - 1e-9))
         tk = np.minimum(np.arange(1, K + 1) * DT, T)[:, None]
         q = self.q + qd * tk - 0.5 * (qd / T) * tk**2
-        return self._start(Trajectory(q, [0]), "stop", accel=False)
+        return self._start(MoveSamples(q, [0]), "stop", accel=False)
 
     def servo(self, q_target, t: float, lookahead: float, gain: float) -> None:
         """servoj: track ``q_target``; ``t`` is the client's command period (s)."""

@@ -77,6 +77,12 @@ class ProgramMove:
         Angle the tool turns by (rapids and turns), rad.
     joints : ndarray (6,) or None
         Target joint positions of a reconfiguration (rad).
+    acceleration : float or None
+        The move's ``a`` where it was lowered for the joints (m/s^2; rad/s^2 for a reconfiguration), None: the
+        job's (a cut's are in its plan).
+    slowed : str
+        Where and how much the move was slowed for the joints' limits, for a person ("" if not; see
+        :mod:`planner.export.move_check`).
     """
 
     move: int
@@ -92,6 +98,8 @@ class ProgramMove:
     duration: float
     turn: float
     joints: np.ndarray | None = None
+    acceleration: float | None = None
+    slowed: str = ""
 
 
 def _turn_pose(m, Tb: np.ndarray, angle: float) -> np.ndarray:
@@ -167,6 +175,83 @@ def plan_job_program(job, *, tolerance: float | None = None, angle_tolerance: fl
                                    _turn_pose(m, Tb, angle), 0.0, m.duration, angle))
     if progress is not None:
         progress("script", len(job.moves), len(job.moves))
+    return _checked_moves(job, out)
+
+
+def _written(x) -> np.ndarray:
+    """``x`` as the controller reads it from the program (:func:`num`'s 12 decimals)."""
+    return np.array([float(num(v)) for v in np.ravel(x)]).reshape(np.shape(x))
+
+
+def _target_lines(job, m: ProgramMove, which) -> str:
+    """The source lines of a cut's movep targets ``which`` (indices of its moves, each into target i + 1)."""
+    from planner.motion.evaluator import span_bounds
+
+    pm = job.moves[m.move]
+    assert m.plan is not None
+    b = span_bounds(pm.path)
+    lines = pm.item.lines
+    span = np.clip(np.searchsorted(b, m.plan.s[np.asarray(which) + 1], side="left"), 1, len(lines) - 1)
+    ln = np.unique(np.asarray(lines)[span])
+    return f"line {ln[0]}" if ln.size == 1 else f"lines {ln[0]}-{ln[-1]}"
+
+
+def _checked_moves(job, moves: list[ProgramMove]) -> tuple[ProgramMove, ...]:
+    """The moves checked on the controller's samples, in order from the job's start joints, each slowed where a
+    joint would go too fast (:mod:`planner.export.move_check`); ExportError naming the move where that cannot help."""
+    from dataclasses import replace
+
+    from planner.export.move_check import check_run, stretch_text
+    from planner.kinematics import get_model
+    from planner.kinematics.ur_moves import Segment
+
+    s = job.settings
+    if s.robot is None or not moves:
+        return tuple(moves)
+    model = get_model(s.robot)
+    tcp = _written(matrix_to_pose(as_transform(s.tcp, "tcp")))
+    a = float(_written(s.limits.acceleration))
+    jl = s.joint_limits
+    q = _written(_start_joints(job))
+    out = []
+    for m in moves:
+        where = (f"pass {m.pass_index} (lines {m.first_line}-{m.last_line})" if m.kind == "cut"
+                 else f"{m.kind} at line {m.first_line}")
+        if m.kind == "dwell":
+            out.append(m)
+            continue
+        if m.kind == "cut":
+            p = m.plan
+            assert p is not None
+            P, V, R = _written(p.poses[1:]), _written(p.speeds[1:]), _written(p.radii[1:])
+            segs = [Segment(P[i], V[i], a, R[i]) for i in range(len(V))]
+            run = check_run(model, tcp, q, segs, what=f"{job.source} {where}")
+            if run.slowed:
+                speeds, acc = p.speeds.copy(), np.full(p.s.size, a)
+                speeds[1:] = [x.v for x in run.segs]
+                acc[1:] = [x.a for x in run.segs]
+                acc[0] = 0.0
+                m = replace(m, plan=replace(p, speeds=speeds, accelerations=acc), slowed=(
+                    f"{where}: {len(run.slowed)} movep move{'s' * (len(run.slowed) > 1)} at "
+                    f"{_target_lines(job, m, run.slowed)} slowed ({stretch_text(run.factor)}): "
+                    f"{run.before.describe()}, {run.after.describe()} now"))
+        else:
+            if m.kind == "reconfiguration":
+                seg = Segment(_written(m.joints), float(_written(jl.speed)), float(_written(jl.acceleration)))
+                dur = float(_written(m.duration))
+            else:
+                v = m.speed if m.kind == "rapid" else s.limits.speed
+                seg = Segment(_written(m.target), float(_written(v)), a)
+                dur = float(_written(m.duration)) if m.kind != "rapid" or m.turn > 0.0 else 0.0
+            run = check_run(model, tcp, q, [seg], dur, joint=m.kind == "reconfiguration",
+                            what=f"{job.source} {where}")
+            if run.slowed:
+                new = run.segs[0]
+                m = replace(m, speed=new.v, acceleration=new.a, duration=run.duration if dur > 0.0 else m.duration,
+                            slowed=f"{where}: slowed ({stretch_text(run.factor)}): {run.before.describe()}, "
+                                   f"{run.after.describe()} now")
+        q = run.q_end
+        out.append(m)
     return tuple(out)
 
 
@@ -300,6 +385,8 @@ def _program_parts(job, moves, *, tolerance, angle_tolerance, approach_speed, ap
             ev = events[e_next]
             lines.append(comment(f"line {ev.line}: {ev.text or ev.kind}"[:200]))
             e_next += 1
+        if m.slowed:
+            lines.append(comment(f"slowed for the joint limits: {m.slowed}"[:300]))
         if i == 0:
             lines += [f"  # start of the job (line {m.first_line}): joint move onto the planned branch",
                       f"  movej({vec(q0)}, a={num(aa)}, v={num(va)})"]
@@ -321,13 +408,16 @@ def _program_parts(job, moves, *, tolerance, angle_tolerance, approach_speed, ap
             jl = s.joint_limits
             lines.append(comment(f"change of the arm configuration for pass {r.pass_index}, line {m.first_line} "
                                  f"({r.where}): {r.change}; joint move of {m.duration:.3f} s"))
-            lines.append(f"  movej({vec(m.joints)}, a={num(jl.acceleration)}, v={num(jl.speed)}, t={num(m.duration)})")
+            ja = jl.acceleration if m.acceleration is None else m.acceleration
+            jv = m.speed if m.speed > 0.0 else jl.speed
+            lines.append(f"  movej({vec(m.joints)}, a={num(ja)}, v={num(jv)}, t={num(m.duration)})")
         elif m.kind == "rapid":
             dist = float(np.linalg.norm(m.target[:3] - m.start[:3]))
             timing = f", t={num(m.duration)}" if m.turn > 0.0 else ""
             lines.append(comment(f"rapid, line {m.first_line}: {1e3 * dist:.3f} mm, tool axis turns "
                                  f"{math.degrees(m.turn):.3f} deg"))
-            lines.append(f"  movel({pose(m.target)}, a={num(a)}, v={num(m.speed)}{timing}, r={num(0.0)})")
+            ma = a if m.acceleration is None else m.acceleration
+            lines.append(f"  movel({pose(m.target)}, a={num(ma)}, v={num(m.speed)}{timing}, r={num(0.0)})")
         elif m.kind == "dwell":
             lines.append(comment(f"dwell, line {m.first_line} ({job.moves[m.move].item.name}): the tool waits "
                                  f"{m.duration:.6g} s"))
@@ -335,8 +425,9 @@ def _program_parts(job, moves, *, tolerance, angle_tolerance, approach_speed, ap
         else:
             lines.append(comment(f"turn in place, line {m.first_line}: {math.degrees(m.turn):.3f} deg in "
                                  f"{m.duration:.3f} s"))
-            lines.append(f"  movel({pose(m.target)}, a={num(a)}, v={num(s.limits.speed)}, t={num(m.duration)}, "
-                         f"r={num(0.0)})")
+            ma = a if m.acceleration is None else m.acceleration
+            tv = m.speed if m.speed > 0.0 else s.limits.speed
+            lines.append(f"  movel({pose(m.target)}, a={num(ma)}, v={num(tv)}, t={num(m.duration)}, r={num(0.0)})")
     tail = [comment(f"line {ev.line}: {ev.text or ev.kind}"[:200]) for ev in events[e_next:]]
     return head, body, tail, q0
 

@@ -52,6 +52,9 @@ class MovePPlan:
         I/O events in time order; ``index`` is the target after whose move the switch is issued.
     tolerance : float
         The path tolerance the plan meets, m.
+    accelerations : ndarray (m,) or None
+        Tool acceleration ``a`` of the move into each target, m/s^2, where moves were slowed for the joints' limits
+        (:mod:`planner.export.move_check`); None: the program's one acceleration for every move.
     """
 
     s: np.ndarray
@@ -62,6 +65,7 @@ class MovePPlan:
     angle_deviation: float
     events: tuple
     tolerance: float
+    accelerations: np.ndarray | None = None
 
 
 def _deviations(pa, Ra, pb, Rb, pc, Rc) -> tuple[np.ndarray, np.ndarray]:

@@ -20,6 +20,8 @@ Numbers are written in fixed point with 12 decimals (no exponents), far below th
 
 from __future__ import annotations
 
+import numpy as np
+
 from planner.errors import PlannerError
 from planner.export.files import text_target
 from planner.export.movep import MovePPlan
@@ -35,7 +37,8 @@ GAIN_RANGE = (100.0, 2000.0)
 def movep_lines(plan: MovePPlan, acceleration: float) -> list[str]:
     """The body lines that follow a plan from its first target (where the tool is) to its last.
 
-    One ``movep(p[...], a, v, r)`` per target after the first (speed and blend radius of the plan),
+    One ``movep(p[...], a, v, r)`` per target after the first (speed and blend radius of the plan; ``a`` the
+    plan's where it has its own, see :attr:`MovePPlan.accelerations`),
     each target's I/O switches after its move; the switches at the first target come first.
     """
     a = positive(acceleration, "acceleration")
@@ -43,8 +46,10 @@ def movep_lines(plan: MovePPlan, acceleration: float) -> list[str]:
     for e in plan.events:
         by_target.setdefault(e.index, []).append(e)
     lines = [io_line(e) for e in by_target.get(0, [])]
+    acc = np.full(plan.s.size, a) if plan.accelerations is None else plan.accelerations
     for i in range(1, plan.s.size):
-        lines.append(f"  movep({pose(plan.poses[i])}, a={num(a)}, v={num(plan.speeds[i])}, r={num(plan.radii[i])})")
+        lines.append(f"  movep({pose(plan.poses[i])}, a={num(acc[i])}, v={num(plan.speeds[i])}, "
+                     f"r={num(plan.radii[i])})")
         lines += [io_line(e) for e in by_target.get(i, [])]
     return lines
 

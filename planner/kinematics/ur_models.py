@@ -22,7 +22,8 @@ Universal_Robots_ROS2_Description, ``config/<model>/joint_limits.yaml``). Joint 
 Caveats: the elbow cannot physically turn much beyond +-180 deg (the upper arm collides with the
 lower arm); the inverse kinematics here produces elbow angles in [-pi, pi] anyway. UR's UR3e data
 sheet advertises infinite rotation of wrist 3; we keep the manual's +-360 deg (the conservative
-value). Acceleration limits are not published by UR and are not modelled here.
+value). Acceleration limits are not published by UR: the controller's bound on every joint is
+planner.kinematics.ur_moves.JOINT_ACCEL_MAX.
 """
 
 from __future__ import annotations
