@@ -30,7 +30,8 @@ import threading
 
 import numpy as np
 
-from planner.kinematics import forward, forward_matrix
+from planner.kinematics import forward_matrix
+from planner.rotations import matrix_to_rotvec_1
 from sim.control_script import ControlScript
 from sim.motion import DT, GRAVITY, MotionModel, Segment
 from sim.primary_packages import READ_ONLY_INTERFACE
@@ -115,8 +116,12 @@ class Core:
         self.input_time: dict[str, float] = {}
         self.watchdog: tuple[str, float] | None = None
         self._history: collections.deque[np.ndarray] = collections.deque(maxlen=1000)
+        # TCP transforms (4, 4) of the last joint vectors asked about, by identity (a joint vector is never changed
+        # in place): the pose of this period and the speed over the last ones reuse them (:meth:`_frame`)
+        self._frames: collections.deque[tuple[np.ndarray, np.ndarray]] = collections.deque(maxlen=4)
         self._tcp_cache: tuple[int, np.ndarray, np.ndarray] | None = None
         self._elbow_cache: tuple[int, np.ndarray] | None = None
+        self._gravity_cache: tuple[int, np.ndarray] | None = None
         self._speed = np.zeros(6)
         self._accel = np.zeros(6)
         self._speed_step = -1
@@ -150,13 +155,25 @@ class Core:
         tcp = self.motion.tcp
         return tcp if np.any(tcp) else None
 
+    def _frame(self, q: np.ndarray) -> np.ndarray:
+        """The TCP transform (4, 4) of joint vector ``q`` (6,), remembered for the last few joint vectors: the pose
+        of a period and the speed over the last periods compute each period's transform once."""
+        for q_seen, T in self._frames:
+            if q_seen is q:
+                return T
+        # one joint vector on Python floats: entry for entry the row of a batch (planner.kinematics.forward_matrix)
+        T = forward_matrix(self.motion.model, q, self._tcp_offset())
+        self._frames.append((q, T))
+        return T
+
     def _tcp(self) -> tuple[int, np.ndarray, np.ndarray]:
         """(period, TCP transform (4, 4), TCP pose (6,)) of the current joints, cached per period."""
         cache = self._tcp_cache
         if cache is None or cache[0] != self.steps:
-            m = self.motion
-            tcp = self._tcp_offset()
-            cache = (self.steps, forward_matrix(m.model, m.q, tcp), forward(m.model, m.q, tcp))
+            T = self._frame(self.motion.q)
+            # the pose from the transform's entries: what planner.kinematics.forward computes from them
+            R = T[:3, :3].ravel().tolist()
+            cache = (self.steps, T, np.array([*T[:3, 3].tolist(), *matrix_to_rotvec_1(*R)]))
             self._tcp_cache = cache
         return cache
 
@@ -187,8 +204,8 @@ class Core:
         if n < 2:
             self._speed, self._accel = np.zeros(6), np.zeros(6)
             return
-        T = forward_matrix(self.motion.model, np.vstack([self._history[k] for k in range(-n, 0)]),
-                           self._tcp_offset())
+        # the transforms of the last n periods' joints, as one batch (n, 4, 4) would give them
+        T = np.stack([self._frame(self._history[k]) for k in range(-n, 0)])
         v = (T[1:, :3, 3] - T[:-1, :3, 3]) / DT
         W = (T[1:, :3, :3] - T[:-1, :3, :3]) @ T[1:, :3, :3].transpose(0, 2, 1) / DT  # skew(omega) per period
         speeds = np.column_stack([v, W[:, 2, 1], W[:, 0, 2], W[:, 1, 0]])
@@ -197,7 +214,11 @@ class Core:
 
     def tool_gravity(self) -> np.ndarray:
         """Gravity (m/s^2) in the tool frame, what a tool accelerometer at rest reads."""
-        return self._tcp_matrix()[:3, :3].T @ GRAVITY
+        cache = self._gravity_cache
+        if cache is None or cache[0] != self.steps:
+            cache = (self.steps, self._tcp_matrix()[:3, :3].T @ GRAVITY)
+            self._gravity_cache = cache
+        return cache[1]
 
     def elbow_position(self) -> np.ndarray:
         """The elbow's position (m, base frame) of the current joints (computed on demand, cached per period: the
@@ -209,7 +230,9 @@ class Core:
         return cache[1]
 
     def tcp_changed(self) -> None:
+        self._frames.clear()
         self._tcp_cache = None
+        self._gravity_cache = None
         self._speed_step = -1
 
     def q_history(self, steps: int) -> np.ndarray:
