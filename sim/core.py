@@ -30,7 +30,8 @@ import threading
 
 import numpy as np
 
-from planner.kinematics import forward, forward_matrix
+from planner.kinematics import forward_matrix
+from planner.rotations import matrix_to_rotvec_1
 from sim.control_script import ControlScript
 from sim.motion import DT, GRAVITY, MotionModel, Segment
 from sim.primary_packages import READ_ONLY_INTERFACE
@@ -115,8 +116,13 @@ class Core:
         self.input_time: dict[str, float] = {}
         self.watchdog: tuple[str, float] | None = None
         self._history: collections.deque[np.ndarray] = collections.deque(maxlen=1000)
+        # what was computed of the last joint vectors asked about, by identity (a joint vector is never changed in
+        # place): [q, TCP transform, TCP pose, gravity in the tool frame] (:meth:`_frame`)
+        self._frames: collections.deque[list] = collections.deque(maxlen=4)
+        self._rates_of: tuple = ()  # the transforms the TCP speed and acceleration were computed from
         self._tcp_cache: tuple[int, np.ndarray, np.ndarray] | None = None
-        self._elbow_cache: tuple[int, np.ndarray] | None = None
+        self._elbow_cache: tuple[np.ndarray, np.ndarray] | None = None
+        self._gravity_cache: tuple[int, np.ndarray] | None = None
         self._speed = np.zeros(6)
         self._accel = np.zeros(6)
         self._speed_step = -1
@@ -150,18 +156,31 @@ class Core:
         tcp = self.motion.tcp
         return tcp if np.any(tcp) else None
 
+    def _frame(self, q: np.ndarray) -> list:
+        """[q, TCP transform (4, 4), TCP pose (6,) or None, tool-frame gravity (3,) or None] of joint vector ``q``
+        (6,), remembered for the last few joint vectors: each period's transform is computed once for its pose and
+        the speed over the last periods, and an arm at rest (the same joint vector period after period) computes
+        nothing again."""
+        for entry in self._frames:
+            if entry[0] is q:
+                return entry
+        # one joint vector on Python floats: entry for entry the row of a batch (planner.kinematics.forward_matrix)
+        entry = [q, forward_matrix(self.motion.model, q, self._tcp_offset()), None, None]
+        self._frames.append(entry)
+        return entry
+
     def _tcp(self) -> tuple[int, np.ndarray, np.ndarray]:
         """(period, TCP transform (4, 4), TCP pose (6,)) of the current joints, cached per period."""
         cache = self._tcp_cache
         if cache is None or cache[0] != self.steps:
-            m = self.motion
-            tcp = self._tcp_offset()
-            cache = (self.steps, forward_matrix(m.model, m.q, tcp), forward(m.model, m.q, tcp))
+            entry = self._frame(self.motion.q)
+            T = entry[1]
+            if entry[2] is None:
+                # the pose from the transform's entries: what planner.kinematics.forward computes from them
+                entry[2] = np.array([*T[:3, 3].tolist(), *matrix_to_rotvec_1(*T[:3, :3].ravel().tolist())])
+            cache = (self.steps, T, entry[2])
             self._tcp_cache = cache
         return cache
-
-    def _tcp_matrix(self) -> np.ndarray:
-        return self._tcp()[1]
 
     def tcp_pose(self) -> np.ndarray:
         """TCP pose p[x, y, z, rx, ry, rz] of the current joints (computed on demand, cached per period)."""
@@ -187,8 +206,12 @@ class Core:
         if n < 2:
             self._speed, self._accel = np.zeros(6), np.zeros(6)
             return
-        T = forward_matrix(self.motion.model, np.vstack([self._history[k] for k in range(-n, 0)]),
-                           self._tcp_offset())
+        frames = tuple(self._frame(self._history[k])[1] for k in range(-n, 0))
+        if len(frames) == len(self._rates_of) and all(a is b for a, b in zip(frames, self._rates_of, strict=True)):
+            return  # the same transforms as last time (an arm at rest): the same speed and acceleration
+        self._rates_of = frames
+        # the transforms of the last n periods' joints, as one batch (n, 4, 4) would give them
+        T = np.stack(frames)
         v = (T[1:, :3, 3] - T[:-1, :3, 3]) / DT
         W = (T[1:, :3, :3] - T[:-1, :3, :3]) @ T[1:, :3, :3].transpose(0, 2, 1) / DT  # skew(omega) per period
         speeds = np.column_stack([v, W[:, 2, 1], W[:, 0, 2], W[:, 1, 0]])
@@ -197,20 +220,30 @@ class Core:
 
     def tool_gravity(self) -> np.ndarray:
         """Gravity (m/s^2) in the tool frame, what a tool accelerometer at rest reads."""
-        return self._tcp_matrix()[:3, :3].T @ GRAVITY
+        cache = self._gravity_cache
+        if cache is None or cache[0] != self.steps:
+            entry = self._frame(self.motion.q)
+            if entry[3] is None:
+                entry[3] = entry[1][:3, :3].T @ GRAVITY
+            cache = (self.steps, entry[3])
+            self._gravity_cache = cache
+        return cache[1]
 
     def elbow_position(self) -> np.ndarray:
         """The elbow's position (m, base frame) of the current joints (computed on demand, cached per period: the
         real-time interface sends it every period)."""
         cache = self._elbow_cache
-        if cache is None or cache[0] != self.steps:
-            cache = (self.steps, _link3_origin(self.motion.model, self.motion.q))
+        if cache is None or cache[0] is not self.motion.q:
+            cache = (self.motion.q, _link3_origin(self.motion.model, self.motion.q))
             self._elbow_cache = cache
         return cache[1]
 
     def tcp_changed(self) -> None:
+        self._frames.clear()
         self._tcp_cache = None
+        self._gravity_cache = None
         self._speed_step = -1
+        self._rates_of = ()
 
     def q_history(self, steps: int) -> np.ndarray:
         """Actual joints ``steps`` periods ago (0 = now)."""

@@ -18,7 +18,7 @@ from __future__ import annotations
 
 import struct
 
-from sim.rtde_fields import OUTPUTS, Snapshot
+from sim.rtde_fields import Snapshot, compile_packer
 
 #: Header: the package's size in bytes (this header included).
 HEADER = struct.Struct(">i")
@@ -86,7 +86,23 @@ def package_size(version) -> int:
     :class:`sim.versions.SoftwareVersion`)."""
     return [size for since, size in SIZES if version.at_least(since)][-1]
 
-_SOURCES = tuple((n, OUTPUTS[src][1] if src else None) for _, n, _, src in FIELDS)
+
+
+def _packer(size: int):
+    """The packer (:func:`sim.rtde_fields.compile_packer`) of a ``size``-byte package: the header, then the fields that
+    fit, each from its RTDE output, the reserved ones zeros."""
+    codes, sources, at = "", [], HEADER.size
+    for _, n, code, src in FIELDS:
+        if at >= size:
+            break
+        codes += code * n
+        at += 8 * n
+        sources.append((0.0,) * n if src is None else src)
+    return compile_packer(struct.Struct(HEADER.format + codes), (size,), sources)
+
+
+#: The packer of each package size (`SIZES`).
+_PACKERS = {size: _packer(size) for _, size in SIZES}
 
 
 def offsets() -> dict[str, int]:
@@ -102,12 +118,4 @@ def offsets() -> dict[str, int]:
 def realtime_state(snap: Snapshot, size: int = PACKAGE_SIZE) -> bytes:
     """One real-time state package of the controller as ``snap`` sees it: ``size`` bytes (one of `SIZES`: the
     package of that release, a prefix of the 5.10 one)."""
-    values: list = []
-    for n, getter in _SOURCES:
-        if getter is None:
-            values.extend((0.0,) * n)
-        elif n == 1:
-            values.append(getter(snap))
-        else:
-            values.extend(getter(snap))
-    return HEADER.pack(size) + BODY.pack(*values)[: size - HEADER.size]
+    return _PACKERS[size](snap)

@@ -3,8 +3,8 @@
 Every control period of wall time (the control loop's schedule, :class:`sim.server.Loop`, the one RTDE's data packages
 follow) each connected client gets one state package (:func:`sim.realtime_packages.realtime_state`, 1220 bytes from
 PolyScope 5.10, the prefix an earlier release sends before: :func:`sim.realtime_packages.package_size`), built
-under the controller's lock from the same state as that period's RTDE packages. What a client sends is URScript or a
-primary command (:func:`sim.script_server.serve_scripts`), as on 30001 and 30002.
+under the controller's lock from the same snapshot of the controller as that period's RTDE packages. What a client
+sends is URScript or a primary command (:func:`sim.script_server.serve_scripts`), as on 30001 and 30002.
 
 A controller never waits for a client: a client that does not read (ur_rtde keeps 30003 open to upload its control
 script and never reads it) has packages skipped while the previous one is still unsent, and always gets whole
@@ -53,8 +53,9 @@ class RealtimeServer(Listeners):
                 self.streams.discard(out)
             out.close()
 
-    def publish(self) -> int:
-        """One state package to every client ready for it (the caller holds ``core.lock``); returns how many."""
+    def publish(self, snap: Snapshot | None = None) -> int:
+        """One state package of the controller as ``snap`` sees it (None: as it is now) to every client ready for it
+        (the caller holds ``core.lock``); returns how many."""
         if not self.streams:
             return 0
         with self._lock:
@@ -68,7 +69,7 @@ class RealtimeServer(Listeners):
                 ready.append(out)
         if not ready:  # no package is built for clients that do not read (ur_rtde's script connection)
             return 0
-        package = realtime_state(Snapshot(self.core), self.package_size)
+        package = realtime_state(snap or Snapshot(self.core), self.package_size)
         for out in ready:
             out.write(package)
         self.packages_sent += len(ready)

@@ -13,12 +13,14 @@ the RTDE server (``sim.rtde_server``) through the controller's register file and
 
 from __future__ import annotations
 
+import struct
 from collections.abc import Callable
 
 import numpy as np
 
 from planner.kinematics.ur_outputs import UR_OUTPUTS
 from sim.motion import DT, GRAVITY
+from sim.rtde_protocol import TYPE_WIDTH
 
 N_REGISTERS = 48  # int and double registers 0..47 (24..47 from PolyScope 5.3: `INTRODUCED`)
 BIT_REGISTERS = range(64, 128)  # general-purpose bit registers (the guide's X in [64..127])
@@ -233,8 +235,35 @@ class Registers:
         self.in_bits = 0
 
 
+def compile_packer(layout: struct.Struct, head: tuple, sources) -> Callable[[Snapshot], bytes]:
+    """A function of a :class:`Snapshot` giving one package of ``layout``: the values ``head`` (the package header's),
+    then the value of each output named in ``sources`` in order, a vector's scalars one by one (a source that is a
+    tuple is sent as it is: reserved fields' zeros).
+
+    The package is packed by one ``layout.pack`` call written out for these fields (no per-field loop, no
+    intermediate lists: the 500 Hz streams build one every control period); the source text holds no name, only
+    positions, so any names may be given."""
+    env: dict = {"pack": layout.pack}
+    args = [f"h{i}" for i in range(len(head))]
+    env.update((f"h{i}", v) for i, v in enumerate(head))
+    for i, src in enumerate(sources):
+        if isinstance(src, tuple):
+            env[f"c{i}"] = src
+            args.append(f"*c{i}")
+        elif src in CONSTANT_OUTPUTS:
+            rtde_type, value = CONSTANT_OUTPUTS[src]
+            env[f"c{i}"] = value if rtde_type in TYPE_WIDTH else (value,)  # a vector's value is a tuple
+            args.append(f"*c{i}")
+        else:
+            rtde_type, env[f"g{i}"] = OUTPUTS[src]
+            args.append(f"*g{i}(s)" if rtde_type in TYPE_WIDTH else f"g{i}(s)")
+    exec(f"def packer(s):\n    return pack({', '.join(args)})\n", env)
+    return env["packer"]
+
+
 class Snapshot:
-    """The controller as one data package sees it; derived values computed on first use.
+    """The controller as the packages of one control period see it (every interface's: RTDE, real-time); derived
+    values computed on first use.
 
     Parameters
     ----------
@@ -246,7 +275,15 @@ class Snapshot:
         self.core = core
         self.motion = core.motion
         self.registers = core.registers
-        self.io = core.io.snapshot()
+        self._io: dict | None = None
+
+    @property
+    def io(self) -> dict:
+        """The I/O state (:meth:`sim.io_state.IOState.snapshot`), taken on first use."""
+        if self._io is None:
+            self._io = self.core.io.snapshot()
+        return self._io
+
 
     @property
     def actual_tcp_pose(self) -> np.ndarray:

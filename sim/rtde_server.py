@@ -32,12 +32,13 @@ import socket
 import struct
 import threading
 import time
+from collections.abc import Callable
 
 from planner._deprecated import module_getattr
 from planner.kinematics.ur_outputs import UR_OUTPUTS
 from sim import rtde_protocol as rp
 from sim.hosts import set_realtime_priority
-from sim.rtde_fields import INPUTS, OUTPUTS, Snapshot, input_type, output_type
+from sim.rtde_fields import INPUTS, Snapshot, compile_packer, input_type, output_type
 from sim.streams import OutputStream
 
 MAX_FREQUENCY = 500.0
@@ -50,8 +51,8 @@ class Connection(OutputStream):
         super().__init__(sock)
         self.server = server
         self.addr = addr
-        # recipe, getters, layout (with the recipe id byte in protocol version 2), the id as packed, phase
-        self.outputs: list[tuple[rp.Recipe, list, struct.Struct, tuple, float]] = []
+        # recipe, its data package's packer (header and recipe id byte included, :func:`data_packer`), phase
+        self.outputs: list[tuple[rp.Recipe, Callable[[Snapshot], bytes], float]] = []
         self.inputs: dict[int, rp.Recipe] = {}
         self.next_output_id = 1
         self.next_input_id = 1
@@ -140,12 +141,12 @@ class Connection(OutputStream):
         if ok:
             self.next_output_id += 1
             recipe = rp.Recipe(rid, names, types, min(freq, MAX_FREQUENCY))
-            getters = [OUTPUTS[n][1] for n in names]
+            packer = data_packer(recipe, self.protocol)
             if self.protocol == 1:
                 with self.server.core.lock:  # not while the control loop sends this connection's packages
-                    self.outputs[:] = [(recipe, getters, recipe.struct, (), 0.0)]
+                    self.outputs[:] = [(recipe, packer, 0.0)]
             else:
-                self.outputs.append((recipe, getters, struct.Struct(">B" + recipe.struct.format[1:]), (rid,), 0.0))
+                self.outputs.append((recipe, packer, 0.0))
         answer = ",".join(types).encode()
         self.write(rp.package(rp.SETUP_OUTPUTS, answer if self.protocol == 1 else bytes([rid]) + answer))
 
@@ -187,6 +188,14 @@ class Connection(OutputStream):
                       "extra bytes ignored", level=rp.WARNING)
         values = rp.unflatten(recipe.types, layout.unpack_from(body))
         self.server.receive_inputs(dict(zip(recipe.names, values, strict=True)))
+
+
+def data_packer(recipe: rp.Recipe, protocol: int) -> Callable[[Snapshot], bytes]:
+    """The function of a :class:`sim.rtde_fields.Snapshot` giving output ``recipe``'s whole data package ('U') in
+    RTDE protocol version ``protocol`` (version 2: the recipe id after the header)."""
+    head = (recipe.recipe_id,) if protocol == 2 else ()
+    layout = struct.Struct(rp.HEADER.format + "B" * len(head) + recipe.struct.format[1:])
+    return compile_packer(layout, (layout.size, rp.DATA_PACKAGE, *head), recipe.names)
 
 
 class RTDEServer:
@@ -301,8 +310,9 @@ class RTDEServer:
                 io.set_analog_out(i, 10.0 * ratio if voltage else 0.004 + 0.016 * ratio)
 
     # ---- outputs (tick thread) ---------------------------------------------------------------
-    def publish(self, ticks: int = 1) -> int:
-        """Send the data packages due after ``ticks`` more 500 Hz wall-clock ticks; returns how many."""
+    def publish(self, ticks: int = 1, snap: Snapshot | None = None) -> int:
+        """Send the data packages due after ``ticks`` more 500 Hz wall-clock ticks, of the controller as ``snap`` sees
+        it (None: as it is now); returns how many."""
         self.ticks += ticks
         core = self.core
         conns = self.conns
@@ -310,23 +320,23 @@ class RTDEServer:
         if msgs:
             core.outbox = []
         sent = 0
-        snap = None
         for conn in list(conns):
             if not conn.started or conn.closed:
                 continue
-            for text, source, level in msgs:
-                conn.text(text, level, source)
-            for k, (recipe, getters, layout, head, phase) in enumerate(conn.outputs):
+            # what is due for this connection goes out in one write: its text messages, then its data packages
+            out = [rp.text_message(text, source, level, conn.protocol) for text, source, level in msgs]
+            outputs = conn.outputs
+            for k, (recipe, packer, phase) in enumerate(outputs):
                 phase += ticks * recipe.frequency / MAX_FREQUENCY
                 if phase >= 1.0 - 1e-9:
                     phase = min(phase - 1.0, 1.0)
                     if snap is None:
                         snap = Snapshot(core)
-                    vals = rp.flatten(recipe.types, [g(snap) for g in getters])
-                    body = layout.pack(*head, *vals)
-                    conn.write(rp.package(rp.DATA_PACKAGE, body))
+                    out.append(packer(snap))
                     sent += 1
-                conn.outputs[k] = (recipe, getters, layout, head, phase)
+                outputs[k] = (recipe, packer, phase)
+            if out:
+                conn.write(out[0] if len(out) == 1 else b"".join(out))
         return sent
 
 

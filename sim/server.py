@@ -36,6 +36,7 @@ from sim.hosts import check_host, check_speed, set_realtime_priority
 from sim.motion import DT
 from sim.primary_server import PrimaryServer
 from sim.realtime_server import RealtimeServer
+from sim.rtde_fields import Snapshot
 from sim.rtde_server import RTDEServer
 from sim.versions import DEFAULT, parse_polyscope
 
@@ -107,9 +108,10 @@ class Loop:
                     for _ in range(n * w // wall - done):
                         core.tick()
                     done = n * w // wall
-                    core.packages_sent += rtde.publish(1)
+                    snap = Snapshot(core)  # the period's state, as every interface's packages carry it
+                    core.packages_sent += rtde.publish(1, snap)
                     if realtime is not None:
-                        realtime.publish()  # the same state as these RTDE packages
+                        realtime.publish(snap)
             core.execution_time_ms = (time.perf_counter() - start) * 1e3
             for conn in list(rtde.conns):
                 conn.flush()

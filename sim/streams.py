@@ -31,9 +31,23 @@ class OutputStream:
         with self._lock:
             if self.closed:
                 return
-            self._out += data
-            if not self.held:
-                self._flush_locked()
+            if self._out or self.held:
+                self._out += data
+                if not self.held:
+                    self._flush_locked()
+                return
+            # nothing queued (the usual case): straight to the socket, only what it does not take is kept
+            try:
+                n = self.sock.send(data, socket.MSG_DONTWAIT)
+            except (BlockingIOError, InterruptedError):
+                n = 0
+            except OSError:
+                self._close_locked()
+                return
+            if n < len(data):
+                self._out += memoryview(data)[n:]
+                if len(self._out) > MAX_BACKLOG:
+                    self._close_locked()
 
     @property
     def backlog(self) -> int:
