@@ -68,9 +68,9 @@ def test_the_servo_model_is_the_simulated_controllers_and_the_shaper_inverts_it(
 def test_bead_in_process_old_settings_cut_the_bends_shaped_targets_do_not(tmp_path):
     job = bead(tmp_path, 6.0)
     with SimDriver(**OLD, path_tolerance=0.05e-3) as d:
-        old = d.execute(job)
+        old = d.execute(job, mode="stream")
     with SimDriver(path_tolerance=0.05e-3, fail_on_deviation=True) as d:
-        new = d.execute(job)
+        new = d.execute(job, mode="stream")
     assert old.ok and new.ok, (old.describe(), new.describe())
     assert 0.5e-3 < old.max_path_error < 0.8e-3  # the 0.61 mm
     assert old.deviation_count == 2  # one per bend, each with its place and cause
