@@ -146,10 +146,15 @@ def test_bead_streamed_through_ur_rtde_within_0_05_mm_on_5_mm_bends(make_sim, be
 
 @pytest.mark.realtime
 def test_bead_with_the_former_settings_is_reported_beyond_the_tolerance(make_sim, bead5):
+    """The former servo settings cut the first bend by 0.7 mm: with fail_on_deviation the stream stops there (it
+    checks as it records, every 0.2 s), not after the second bend, with the deviation's place and cause."""
     sim = make_sim()
     with URDriver(sim.host, "ur5e", path_tolerance=0.05e-3, fail_on_deviation=True, **OLD, **FAST) as d:
         rep = d.execute(bead5, mode="stream")
     assert not rep.ok and isinstance(rep.failure, PathDeviationError), rep.describe()
-    assert rep.max_path_error > 0.5e-3 and rep.deviation_count == 2
-    assert all("servo lag" in dv.cause or "missed control periods" in dv.cause for dv in rep.deviations)
-    assert rep.failure.line in {dv.line for dv in rep.deviations}
+    assert rep.max_path_error > 0.5e-3 and rep.deviation_count == 1
+    dv = rep.deviations[0]
+    assert "servo lag" in dv.cause or "missed control periods" in dv.cause
+    # the failure names the deviation as far as it was recorded when the stream stopped (within the one reported)
+    assert dv.t_start <= rep.failure.t <= dv.t_end and rep.failure.line is not None
+    assert rep.duration < 0.6 * rep.planned_duration, rep.describe()  # stopped at the first of the two bends

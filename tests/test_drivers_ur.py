@@ -287,7 +287,7 @@ sim = start_sim()
 d = URDriver(sim.host, "ur5e", **FAST)
 d.connect()
 out = {}
-th = threading.Thread(target=lambda: out.update(rep=d.execute(job)))
+th = threading.Thread(target=lambda: out.update(rep=d.execute(job, mode="stream")))
 th.start()
 while d._mode != "stream":
     time.sleep(0.01)
@@ -493,7 +493,7 @@ def test_stream_whole_job_with_a_reconfiguration(make_sim, tmp_path):
     path = tmp_path / "ctrl.npz"
     sim = make_sim(record=path)
     with URDriver(sim.host, "ur5e", lookahead=RECONF_LOOKAHEAD, **FAST) as d:
-        rep = d.execute(job)
+        rep = d.execute(job, mode="stream")
         q_end = np.asarray(d.state().joints)
     sim.stop()
     ctrl = recording.load(path)
