@@ -192,6 +192,7 @@ def test_the_part_frame_is_typed_in_mm_and_deg_and_metres_typed_there_are_refuse
                        "its unit: 0.4m, 1.5708rad), or auto, got 5 values",
         "400,0,0,0,0,90grad": 'part frame 400,0,0,0,0,90grad: rz = 90grad: unknown unit "grad" (an angle takes deg, '
                               'rad)',
+        "400,1e999,0,0,0,0": "part frame 400,1e999,0,0,0,0: y = 1e999 is not a finite number",
         "400,nan,0,0,0,0": "part frame 400,nan,0,0,0,0: y = nan is not a number (must be six values x, y, z in mm "
                            "and rx, ry, rz in deg (or each with its unit: 0.4m, 1.5708rad), or auto)",
     }

@@ -179,6 +179,7 @@ function partFrame(text) {
     if (!Object.hasOwn(units, unit))
       throw new Error(`part frame ${text}: ${names[i]} = ${p}: unknown unit "${m[2]}" (${i < 3 ? "a length" : "an angle"} takes ${Object.keys(units).join(", ")})`);
     const x = parseFloat(m[1]);
+    if (!Number.isFinite(x)) throw new Error(`part frame ${text}: ${names[i]} = ${p} is not a finite number`);
     if (i < 3 && !m[2] && x !== 0) typed.push(x);
     si.push(x * units[unit]);
   });
