@@ -11,7 +11,7 @@ from __future__ import annotations
 import threading
 from collections.abc import Callable
 from dataclasses import dataclass
-from typing import TYPE_CHECKING, Protocol, runtime_checkable
+from typing import TYPE_CHECKING, Literal, Protocol, runtime_checkable
 
 import numpy as np
 
@@ -20,6 +20,15 @@ if TYPE_CHECKING:  # pragma: no cover
 
 #: Progress callback: (stage, done, total), the same the CLI and the service use.
 ProgressCallback = Callable[[str, int, int], None]
+
+#: The execution modes: "program" (the job's URScript program, run by the controller) and "stream" (servoJ targets
+#: sent by this machine every control period).
+Mode = Literal["program", "stream"]
+MODES: tuple[Mode, ...] = ("program", "stream")
+#: The execution mode every front end offers by default (``planner run``, the REST API's executions and its robots
+#: listing, the page) and the drivers' default: program mode runs in the controller and does not depend on this
+#: machine's scheduling; a stream on a loaded machine misses control periods (bench/bench_modes.py measures both).
+DEFAULT_MODE: Mode = "program"
 
 
 class DriverError(RuntimeError):
@@ -154,9 +163,10 @@ class RobotDriver(Protocol):
     def move_to_start(self, job, *, speed: float = 0.5, acceleration: float = 0.5) -> None:
         """A joint move (rad/s, rad/s^2) onto ``job.start_joints``, the arm configuration the planner chose."""
 
-    def execute(self, job, *, mode: str = "stream", progress=None,
+    def execute(self, job, *, mode: str = DEFAULT_MODE, progress=None,
                 cancel: threading.Event | None = None) -> ExecutionReport:
-        """Execute the job ("stream": servoJ with the planner's joints; "program": its URScript program).
+        """Execute the job ("program", the default: its URScript program; "stream": servoJ with the planner's
+        joints).
         ``progress(stage, done, total)``; ``cancel`` set from another thread ends the run with the arm stopped.
         Returns the report; a failure is in ``report.failure`` (and ``report.ok`` is False)."""
 

@@ -31,7 +31,7 @@ from __future__ import annotations
 import random
 import socket
 
-from drivers.base import DriverError
+from drivers.base import DEFAULT_MODE, DriverError
 
 #: The controller's ports (RTDE, dashboard, primary, secondary, real-time) a simulated controller serves.
 UR_PORTS = (30004, 29999, 30001, 30002, 30003)
@@ -76,7 +76,7 @@ def start_sim(model: str, *, host: str | None = None, modbus: bool = False, spee
         raise DriverError(f"cannot start a simulated controller on {host}: {lines[-1] if lines else exc}") from exc
 
 
-def execute_job(job, host: str, *, mode: str = "stream", io: str = "rtde", modbus_port: int = 502,
+def execute_job(job, host: str, *, mode: str = DEFAULT_MODE, io: str = "rtde", modbus_port: int = 502,
                 progress=None, cancel=None, **driver_options):
     """Connect a :class:`drivers.ur.URDriver` to ``host``, execute ``job``, disconnect; the ExecutionReport."""
     from drivers.ur import URDriver
@@ -89,7 +89,7 @@ def execute_job(job, host: str, *, mode: str = "stream", io: str = "rtde", modbu
         driver.close()
 
 
-def run_demo_on_sim(job, *, mode: str = "program", speed: float = 10.0, progress=None, plot=None):
+def run_demo_on_sim(job, *, mode: str = DEFAULT_MODE, speed: float = 10.0, progress=None, plot=None):
     """Execute a planned job on a simulated controller through real ur_rtde (the end of ``planner demo``).
 
     Program mode runs the job's URScript in fast-forward (``speed`` simulated seconds per second); stream

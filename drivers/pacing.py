@@ -38,8 +38,10 @@ class LoopStats:
     missed: int
 
     def describe(self) -> str:
+        held = (f" (the arm held its last target through each: the job ran {1e3 * self.missed * self.period:.0f} ms "
+                "late)" if self.missed else "")
         return (f"control loop {self.rate:.2f} Hz over {self.n} periods: period p50 {1e3 * self.p50:.3f} ms, "
-                f"p99 {1e3 * self.p99:.3f} ms, max {1e3 * self.max:.3f} ms; {self.missed} missed periods")
+                f"p99 {1e3 * self.p99:.3f} ms, max {1e3 * self.max:.3f} ms; {self.missed} missed periods{held}")
 
 
 class Schedule:

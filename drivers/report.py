@@ -348,11 +348,8 @@ def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=Non
         events = [dataclasses.replace(e, missed_periods=int(np.searchsorted(st, e.planned_t, side="right")),
                                       period=period) for e in events]
     deviations = _deviations(rec, plan, failure, stalls, lag_cause or f"{mode} tracking")
-    if deviations and fail_on_deviation and failure is None and rec.tolerance is not None:
-        worst = max(deviations, key=lambda dv: dv.error)
-        failure = PathDeviationError(f"the tracked TCP left the planned path by {worst.error * 1e3:.3f} mm, beyond "
-                                     f"the path tolerance {rec.tolerance * 1e3:.3f} mm: {worst.cause}",
-                                     t=worst.t, pose=worst.pose, line=worst.line)
+    if fail_on_deviation and failure is None:
+        failure = deviation_failure(rec, plan, stalls, lag_cause or f"{mode} tracking", deviations)
     return ExecutionReport(
         mode=mode, ok=failure is None, reason="" if failure is None else failure.reason,
         planned_duration=plan.duration, duration=rec.duration, samples=int(rec.samples),
@@ -363,6 +360,21 @@ def execution_report(job, recorded_times, recorded_tcp=None, recorded_joints=Non
         path_tolerance=math.nan if rec.tolerance is None else rec.tolerance, deviations=tuple(deviations),
         deviation_count=rec.excursion_count, programs=int(programs), program_bytes=int(program_bytes),
         seams=tuple(seams))
+
+
+def deviation_failure(rec: Recording, plan: PlannedPath, stalls, lag_cause: str,
+                      deviations: list[PathDeviation] | None = None) -> PathDeviationError | None:
+    """The failure of a run made to fail on a path deviation: PathDeviationError at the recording's largest
+    deviation so far (its place and cause), None when the tracked TCP stayed within the tolerance (or none was
+    given). A streaming loop calls it as it records, to stop the arm as soon as it leaves the path."""
+    if deviations is None:
+        deviations = _deviations(rec, plan, None, stalls, lag_cause)
+    if not deviations or rec.tolerance is None:
+        return None
+    worst = max(deviations, key=lambda dv: dv.error)
+    return PathDeviationError(f"the tracked TCP left the planned path by {worst.error * 1e3:.3f} mm, beyond the path "
+                              f"tolerance {rec.tolerance * 1e3:.3f} mm: {worst.cause}",
+                              t=worst.t, pose=worst.pose, line=worst.line)
 
 
 #: A deviation within this much job time of a missed control period or of a stop is put down to it, s.

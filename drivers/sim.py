@@ -32,7 +32,7 @@ import time
 
 import numpy as np
 
-from drivers.base import DriverError, NotReadyError, ProtectiveStopError, RobotState
+from drivers.base import DEFAULT_MODE, MODES, DriverError, NotReadyError, ProtectiveStopError, RobotState
 from drivers.feed import HISTORY
 from drivers.jobs import check_job, stop_requested
 from drivers.plan_window import PlannedPath
@@ -42,8 +42,6 @@ from drivers.stations import Station, Stations
 from sim.core import RUNTIME_PAUSED, RUNTIME_PLAYING, RUNTIME_STOPPED, SAFETY_PROTECTIVE_STOP, Core
 from sim.io_state import IOState
 from sim.motion import DT, MotionError, Segment
-
-MODES = ("stream", "program")
 
 
 class _Recorder:
@@ -263,7 +261,7 @@ class SimDriver:
         return stop_requested(cancel, self._stop)
 
     # ---- execution ----------------------------------------------------------------------------------
-    def execute(self, job, *, mode: str = "stream", progress=None,
+    def execute(self, job, *, mode: str = DEFAULT_MODE, progress=None,
                 cancel: threading.Event | None = None) -> ExecutionReport:
         """Execute ``job`` on the simulated arm and return its report (``report.failure`` on failure).
 

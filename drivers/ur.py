@@ -8,7 +8,8 @@ Two modes, one report (:func:`drivers.report.execution_report`):
   schedule (:class:`drivers.pacing.Schedule`, the loop SCHED_FIFO where the system allows it), after a joint move
   onto ``job.start_joints`` (the safe approach), and
   ending with ``servoStop`` (a controlled stop). The job's digital outputs switch at the samples where the
-  trajectory's I/O bits change (RTDE I/O interface, or Modbus with ``io="modbus"``).
+  trajectory's I/O bits change (RTDE I/O interface, or Modbus with ``io="modbus"``). Stream mode depends on this
+  machine's scheduling: see "A stream that misses periods" below.
 - "program": the job's URScript program (:func:`planner.export.job_program`) sent to the script port
   (30002); the driver watches it run (RTDE runtime state; progress by the planned sample nearest the actual TCP).
   A program larger than ``max_program_bytes`` (default :data:`planner.export.job_script.MAX_PROGRAM_BYTES`, what a
@@ -25,7 +26,24 @@ phase drifted against the controller's, some 20 in a minute); the streaming loop
 ``RTDEReceiveInterface`` each period for its checks (faults, runtime state, the outputs' stations). Every
 failure is a :class:`drivers.base.DriverError` subclass with the robot's reason and the job's time, planned
 pose and source line; the driver never retries a motion by itself. The driver connects only to the host it is
-given.
+given. Program mode is the default (:data:`drivers.base.DEFAULT_MODE`).
+
+A stream that misses periods
+----------------------------
+When the streaming loop starts a period late (a loaded machine did not run it in time), the controller holds the
+arm on the last target it was sent, a point of the planned path, for the periods missed; the loop then goes on with
+the next target, so that the rest of the job runs that many periods later. No target is skipped: catching up (the
+target due now instead of the next one) would be a jump along the path within one period, which the controller's
+servo turns into more than the joint acceleration limit (a protective stop) after a stall of a few periods at a
+usual feed, and a cut across a bend. The outputs stay as they are meanwhile. So any number of short stalls delays
+the job (the report counts the missed periods, the longest period and where each was) and leaves the path only by
+the servo's settling when the arm stops and starts again (the report's deviations name "missed control periods").
+
+The run stops (``servoStop``: a controlled stop on the path, the outputs off) with :class:`PeriodOverrunError`, its
+reason naming the stall, only when a single stall lasts longer than ``overrun_limit`` (default 1 s, 500 periods at
+500 Hz: the machine cannot stream the job; program mode can run it), or, with ``path_tolerance`` and
+``fail_on_deviation``, with :class:`drivers.report.PathDeviationError` as soon as the tracked TCP is further from the
+path than the tolerance (checked every 0.2 s while the stream runs, not after the job has ended).
 """
 
 from __future__ import annotations
@@ -41,6 +59,8 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from drivers.base import (
+    DEFAULT_MODE,
+    MODES,
     ConnectionLostError,
     DriverError,
     EmergencyStopError,
@@ -54,11 +74,19 @@ from drivers.jobs import check_job, stop_requested
 from drivers.pacing import Schedule
 from drivers.package_log import PackageLog
 from drivers.plan_window import PlannedPath, PlanWindow
-from drivers.report import ExecutionReport, Seam, check_tolerance, execution_report, new_recording
+from drivers.report import (
+    ExecutionReport,
+    Seam,
+    check_tolerance,
+    deviation_failure,
+    execution_report,
+    new_recording,
+)
 from drivers.servo import DEFAULT_GAIN, DEFAULT_LOOKAHEAD, ServoModel, ServoShaper, check_servo
 from drivers.stations import Station, Stations
 from planner.export.job_script import MAX_PROGRAM_BYTES
 from planner.kinematics.ur_outputs import UR_OUTPUTS
+from planner.wording import counted
 
 if TYPE_CHECKING:  # pragma: no cover
     from drivers.modbus_io import ModbusToolIO
@@ -74,7 +102,6 @@ _SAFETY_MODES = {1: "NORMAL", 2: "REDUCED", 3: "PROTECTIVE_STOP", 4: "RECOVERY",
                  6: "SYSTEM_EMERGENCY_STOP", 7: "ROBOT_EMERGENCY_STOP", 8: "VIOLATION", 9: "FAULT",
                  10: "VALIDATE_JOINT_ID", 11: "UNDEFINED_SAFETY_MODE", 12: "AUTOMATIC_MODE_SAFEGUARD_STOP",
                  13: "SYSTEM_THREE_POSITION_ENABLING_STOP"}
-MODES = ("stream", "program")
 #: The streaming loop takes the recorded packages into its recording (reduced at once) after this many periods, in
 #: a period with this much time left, s.
 _RT_BLOCK, _RT_SPARE = 100, 1.2e-3
@@ -83,6 +110,10 @@ _READ_EVERY = 0.05
 #: SCHED_FIFO priority of the streaming loop (``realtime``): below a controller simulated on the same machine
 #: (its control loop runs at 10, its RTDE server at 8).
 LOOP_PRIORITY = 5
+#: The longest stall of the streaming loop a stream rides out (the arm holding its last target meanwhile), s: a longer
+#: one stops the run (PeriodOverrunError). A shared virtual machine under load stalls a thread for tens to a few
+#: hundred ms now and then (214 ms failed a service's stream at 98.5 % under the former 0.2 s limit).
+OVERRUN_LIMIT = 1.0
 #: Missed periods of a stream remembered (the job time of each: the causes of path deviations and of late switches).
 MAX_STALLS = 10_000
 #: ur_rtde interfaces whose connection dropped: never disconnected or destroyed (see URDriver.close).
@@ -174,9 +205,9 @@ class URDriver:
         A run beyond ``path_tolerance`` fails (``report.ok`` False, :class:`drivers.report.PathDeviationError` at
         its largest deviation); otherwise it is only reported.
     overrun_limit : float
-        Two targets this many seconds apart stop the run with PeriodOverrunError, s. The arm holds its last
-        (planned, on the path) target meanwhile, so a short stall delays the job without leaving the path: the
-        default 0.2 s tolerates the tens of ms a shared virtual machine stalls now and then.
+        Stream: two targets this many seconds apart stop the run with PeriodOverrunError, s (default
+        :data:`OVERRUN_LIMIT`). The arm holds its last (planned, on the path) target meanwhile, so a shorter stall
+        delays the job without leaving the path (see the module doc).
     settle : float
         Seconds of recording after the last target (the arm's lag behind the servo targets).
     deceleration : float
@@ -195,8 +226,8 @@ class URDriver:
     def __init__(self, host: str, model: str = "ur5e", *, io: str = "rtde", modbus_port: int = 502,
                  lookahead: float = DEFAULT_LOOKAHEAD, gain: float = DEFAULT_GAIN, compensate: bool = True,
                  realtime: bool = True, path_tolerance: float | None = None, fail_on_deviation: bool = False,
-                 max_program_bytes: int | None = MAX_PROGRAM_BYTES, overrun_limit: float = 0.2, settle: float = 0.3,
-                 deceleration: float = 10.0, frequency: float = 500.0, approach_speed: float = 0.5,
+                 max_program_bytes: int | None = MAX_PROGRAM_BYTES, overrun_limit: float = OVERRUN_LIMIT,
+                 settle: float = 0.3, deceleration: float = 10.0, frequency: float = 500.0, approach_speed: float = 0.5,
                  approach_acceleration: float = 0.5, samples=None) -> None:
         if not isinstance(host, str) or not host.strip():
             raise ValueError(f"host must be the controller's address, got {host!r}")
@@ -500,7 +531,7 @@ class URDriver:
         self._stop.set()
 
     # ---- execution --------------------------------------------------------------------------------------
-    def execute(self, job, *, mode: str = "stream", progress=None,
+    def execute(self, job, *, mode: str = DEFAULT_MODE, progress=None,
                 cancel: threading.Event | None = None) -> ExecutionReport:
         """Execute ``job`` (see the module doc) and return its report (``report.failure`` on failure).
 
@@ -541,11 +572,7 @@ class URDriver:
         finally:
             if feed is not None:
                 feed.close()
-        if mode == "stream":
-            cause = (f"servo lag (servoJ lookahead {self.lookahead:g} s, gain {self.gain:g}, "
-                     + ("targets shaped by the servo model)" if self.compensate else "planned joints unshaped)"))
-        else:
-            cause = "the controller's blending of the program's moves (movep)"
+        cause = self._lag_cause(mode)
         program = mode == "program"
         return execution_report(job, rec, mode=mode, failure=failure, planned=planned, loop=loop,
                                 recording="every data package", stalls=self._stalls if mode == "stream" else (),
@@ -556,6 +583,13 @@ class URDriver:
 
     def _stopped(self, cancel) -> DriverError | None:
         return stop_requested(cancel, self._stop)
+
+    def _lag_cause(self, mode: str) -> str:
+        """What puts the arm behind the plan in ``mode`` (the cause of a deviation without a stall or a stop)."""
+        if mode == "stream":
+            return (f"servo lag (servoJ lookahead {self.lookahead:g} s, gain {self.gain:g}, "
+                    + ("targets shaped by the servo model)" if self.compensate else "planned joints unshaped)"))
+        return "the controller's blending of the program's moves (movep)"
 
     def _safe_off(self, mask: int) -> None:
         """Switch the job's outputs off after a failure (best effort: the connection may be gone), and wait until
@@ -685,13 +719,20 @@ class URDriver:
                     if untaken >= _RT_BLOCK and sched.time_left() > _RT_SPARE:
                         self._take(log, rec, ts0)
                         untaken = 0
+                        off = deviation_failure(rec, planned, stalls, self._lag_cause("stream")) if (
+                            self.fail_on_deviation and rec.excursion_count) else None
+                        if off is not None:  # off the path now: stopped here, not after the job
+                            raise off
                     now = sched.wait()
                     if sched.missed != missed_seen:  # one entry per period missed (each delays the rest by one)
                         stalls.extend([t_cmd] * min(sched.missed - missed_seen, MAX_STALLS - len(stalls)))
                         missed_seen = sched.missed
-                    if now - last > overrun:
-                        raise PeriodOverrunError(f"the control loop missed its period: {1e3 * (now - last):.1f} ms "
-                                                 f"between targets (limit {1e3 * overrun:.0f} ms)")
+                    if now - last > overrun:  # the arm held its last target meanwhile: stopped there
+                        missed_all = counted(sched.missed, "period")
+                        raise PeriodOverrunError(
+                            f"the control loop stalled for {1e3 * (now - last):.0f} ms between two targets (the arm "
+                            f"held the last one; the limit is {1e3 * overrun:.0f} ms, {missed_all} missed so far): "
+                            "this machine is too loaded to stream the job; run it in program mode")
                     last = now
             # hold the last target until the arm, lagging its targets, has arrived; then a controlled stop
             n_settle = int(self.settle * rate)
@@ -765,7 +806,7 @@ class URDriver:
     def _locate(err: DriverError, k: int, planned: PlannedPath, rec=None) -> DriverError:
         """``err`` at planned sample ``k``: its job time, planned pose and source line (from the recording's window
         of the plan when it holds the sample)."""
-        if planned.n == 0:
+        if planned.n == 0 or err.t is not None:  # (an error placed already: a path deviation at its worst point)
             return err
         t, pose, line = planned.at(k, rec.planned if rec is not None else None)
         return err.located(t, pose, line)

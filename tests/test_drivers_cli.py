@@ -38,7 +38,7 @@ def test_planner_run_sim_program_mode_prints_the_report(capsys):
     (["--robot", "ur5e"], "give the controller's address with --host"),
     (["--robot", "none", "--sim"], "--robot MODEL is needed"),
     (["--robot", "ur5e", "--host", "robot.local"], "--host must be an IP address"),
-    (["--robot", "ur5e", "--sim", "--sim-speed", "5"], "program mode only"),
+    (["--robot", "ur5e", "--sim", "--mode", "stream", "--sim-speed", "5"], "program mode only"),
 ])
 def test_planner_run_refuses_bad_options_before_planning(capsys, args, message):
     assert main(["run", DEMO, *args]) == 2

@@ -109,7 +109,7 @@ def test_demo_job_dry_run_meets_the_streaming_targets():
     following distance unless switched when the actual TCP reaches it, as the drivers do: within 1 mm."""
     job = demo_job()
     with SimDriver() as d:
-        report = d.execute(job)
+        report = d.execute(job, mode="stream")
     assert report.ok, "\n".join(report.describe())
     assert report.max_path_error < 0.2e-3
     assert all(e.switched for e in report.io_events)
@@ -129,7 +129,7 @@ def test_program_runs_the_exported_script_within_its_tolerance(fast_job):
 def test_progress_reaches_the_end(fast_job):
     seen = []
     with SimDriver() as d:
-        d.execute(fast_job, progress=lambda stage, done, total: seen.append((stage, done, total)))
+        d.execute(fast_job, mode="stream", progress=lambda stage, done, total: seen.append((stage, done, total)))
     assert seen and all(s == "execute" for s, _, _ in seen)
     assert [x[1] for x in seen] == sorted(x[1] for x in seen)
     assert seen[-1][1] == seen[-1][2] == planned_path(fast_job)[0].size
@@ -163,7 +163,7 @@ def test_stop_from_another_thread(fast_job):
     with SimDriver(speed=10.0) as d:
         d.move_to_start(fast_job)
         threading.Timer(0.3, d.stop).start()
-        report = d.execute(fast_job)
+        report = d.execute(fast_job, mode="stream")
     assert isinstance(report.failure, CancelledError) and "driver.stop()" in report.failure.reason
 
 
@@ -176,9 +176,9 @@ def test_pause_holds_the_arm_on_the_path(fast_job):
 
         d.move_to_start(fast_job)
         threading.Timer(0.35, pause_and_resume).start()
-        report = d.execute(fast_job)
+        report = d.execute(fast_job, mode="stream")
     with SimDriver() as d:
-        base = d.execute(fast_job)
+        base = d.execute(fast_job, mode="stream")
     assert report.ok, "\n".join(report.describe())
     # held on the path, not off it: within the stream mode's accuracy figure (0.05 mm) of the unpaused run (the
     # servo shaping of the stop and the restart, wherever the pause falls, moves it by up to about 0.02 mm)
@@ -203,7 +203,7 @@ def test_joint_limit_is_a_protective_stop_with_time_pose_and_line(fast_job):
         else:
             m.lower = m.lower.copy()
             m.lower[j] = 0.5 * (Q[0, j] + Q[:, j].min())
-        report = d.execute(fast_job)
+        report = d.execute(fast_job, mode="stream")
         state = d.state()
         qd = m.qd.copy()
     f = report.failure
@@ -255,7 +255,7 @@ def _compare_stream(make_sim, tmp_path, job):
     assert ur_report.ok, "\n".join(ur_report.describe())
     ctrl = recording.load(path)
     with SimDriver(record=True) as d:
-        report = d.execute(job)
+        report = d.execute(job, mode="stream")
         rec = d.recording
     assert report.ok
     Q = planned_joints(job)
@@ -329,7 +329,7 @@ from planner import PlanSettings, plan
 job = plan("examples/nx_first_pass.cls", PlanSettings(robot="ur5e", part_frame=(0.4, 0.9965, -0.1, 0, 0, 0),
                                                      cut_output=("standard", 0), feed_override=float(sys.argv[1])))
 with SimDriver() as d:
-    rep = d.execute(job)
+    rep = d.execute(job, mode="stream")
 print(json.dumps({"n": job.trajectory().n_samples, "rss_kib": resource.getrusage(resource.RUSAGE_SELF).ru_maxrss,
                   "ok": rep.ok, "trace": len(rep.trace), "samples": rep.samples, "error": rep.max_path_error,
                   "io": [e.distance_mm for e in rep.io_events]}))
@@ -416,6 +416,6 @@ def check_reconfigured_run(job, report, t, actual_q, commanded_q=None) -> None:
 def test_stream_whole_job_with_a_reconfiguration(tmp_path):
     job = reconfiguring_job(tmp_path)
     with SimDriver(record=True, lookahead=RECONF_LOOKAHEAD) as d:
-        rep = d.execute(job)
+        rep = d.execute(job, mode="stream")
         rec = d.recording
     check_reconfigured_run(job, rep, rec["t"], rec["actual_q"], rec["target_q"])

@@ -20,7 +20,7 @@ PART = (0.4, 0.9965, -0.1, 0.0, 0.0, 0.0)
 def run():
     job = plan(DEMO, PlanSettings(robot="ur5e", part_frame=PART, cut_output=("standard", 0), feed_override=4.0))
     with SimDriver() as d:
-        rep = d.execute(job)
+        rep = d.execute(job, mode="stream")
     assert rep.ok, "\n".join(rep.describe())
     return job, rep
 

@@ -295,6 +295,25 @@ def test_refusals_name_the_problem(server, op, demo_job):
     assert not any(_busy(op).values())  # nothing refused was started
 
 
+def test_one_default_mode_for_the_api_its_robots_listing_and_the_command_line(op, demo_job):
+    """An execution asked for without a mode runs in the drivers' DEFAULT_MODE (program: chosen by
+    bench/bench_modes.py), the mode the schema documents, the robots listing offers (the page selects it) and
+    ``planner run`` takes without --mode."""
+    from drivers.base import DEFAULT_MODE
+    from planner.frontends.cli.main import build_parser
+
+    assert DEFAULT_MODE == "program"
+    assert {r["mode_default"] for r in op.get("/v1/robots").json()["robots"]} == {DEFAULT_MODE}
+    schema = op.get("/openapi.json").json()["components"]["schemas"]
+    assert schema["ExecutionRequest"]["properties"]["mode"]["default"] == DEFAULT_MODE
+    assert build_parser().parse_args(["run", DEMO, "--sim"]).mode == DEFAULT_MODE
+    r = op.post(f"/v1/jobs/{demo_job['id']}/executions", json={"robot": "sim"})
+    assert r.status_code == 202, r.text
+    view = wait_execution(op, r.json()["id"])
+    assert view["state"] == "done" and view["mode"] == DEFAULT_MODE, view
+    assert view["report"]["describe"][0].startswith(f"execution ({DEFAULT_MODE}): ok"), view["report"]["describe"]
+
+
 @pytest.mark.realtime
 def test_stop_brings_the_arm_to_rest_within_a_second(op, demo_job, cell):
     r = op.post(f"/v1/jobs/{demo_job['id']}/executions", json={"robot": "cell", "mode": "stream"})

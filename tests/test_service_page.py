@@ -102,11 +102,28 @@ def test_upload_a_clsf_file_for_a_robot_and_a_refused_input(server, browser):
     from selenium.webdriver.support.ui import Select
 
     Select(d.find_element("id", "robot")).select_by_visible_text("ur5e")
-    d.find_element("id", "partframe").send_keys("0.4,0.9965,-0.1,0,0,0")
+    d.find_element("id", "partframe").send_keys("400, 996.5, -100, 0, 0, 0")  # mm and deg, as the label says
     d.find_element("id", "submit").click()
     assert until_done(d) == "done", d.find_element("id", "job-error").text
     assert "ur5e: every move reachable" in d.find_element("id", "summary").text
     wait(d, lambda d: len(d.find_elements("id", "download-script")) == 1)
+    # the page sent the API's metres: the same job as the API planned from the part frame in SI
+    page_job = d.find_element("id", "job-id").text
+    with server.client() as c:
+        seen = c.get(f"/v1/jobs/{page_job}").json()
+        np.testing.assert_allclose(seen["settings"]["part_frame"], [0.4, 0.9965, -0.1, 0, 0, 0], rtol=0, atol=1e-12)
+        with open(ROOT / "examples" / "nx_first_pass.cls", "rb") as f:
+            r = c.post("/v1/jobs", files={"file": ("nx_first_pass.cls", f)},
+                       data={"settings": json.dumps({"robot": "ur5e", "part_frame": [0.4, 0.9965, -0.1, 0, 0, 0]})})
+        assert r.status_code == 202, r.text
+        api_job = wait_job(c, r.json()["id"])
+        untimed = lambda lines: [re.sub(r"planned in [\d.]+ m?s", "", ln) for ln in lines]  # noqa: E731
+        assert api_job["state"] == "done" and untimed(api_job["describe"]) == untimed(seen["describe"])
+        assert api_job["settings"] == seen["settings"]
+    # the execution mode the page offers is the service's default (the robots listing's)
+    from drivers.base import DEFAULT_MODE
+
+    wait(d, lambda d: d.find_element("id", "exec-mode").get_attribute("value") == DEFAULT_MODE, 30)
     # run it on the simulated robot (program mode, fast-forward): progress, then the execution report
     wait(d, lambda d: d.find_element("id", "exec-robot").text.strip() == "sim (simulated)", 30)  # from /v1/robots
     d.find_element("id", "execute").click()
@@ -137,6 +154,57 @@ def test_upload_a_clsf_file_for_a_robot_and_a_refused_input(server, browser):
     wait(d, lambda d: d.find_element("id", "error").text != "")
     assert d.find_element("id", "error").text == "waypoints: waypoint 1: duplicates waypoint 0 (consecutive points " \
                                                   "must differ)"
+
+
+def wait_job(client, job_id: str, timeout: float = 90.0) -> dict:
+    end = time.monotonic() + timeout
+    while True:
+        view = client.get(f"/v1/jobs/{job_id}").json()
+        if view["state"] not in ("queued", "running") or time.monotonic() > end:
+            return view
+        time.sleep(0.2)
+
+
+def test_the_part_frame_is_typed_in_mm_and_deg_and_metres_typed_there_are_refused(server, browser):
+    """The part frame field takes mm and deg (each value may carry its unit, as on the command line) and sends the
+    API's metres and radians; a position typed in metres (every value under 5 mm) is refused on the page with the
+    likely mistake named, and nothing is submitted."""
+    d = browser
+    d.get(server.url + "/")
+    label = d.find_element("css selector", "label[for=partframe]").text
+    assert label == "part frame x,y,z (mm), rx,ry,rz (deg), or auto"
+    convert = lambda text: d.execute_script("return partFrame(arguments[0]);", text)  # noqa: E731
+    np.testing.assert_allclose(convert("400, 996.5, -100, 0, 0, 90"), [0.4, 0.9965, -0.1, 0, 0, np.pi / 2],
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(convert("0.4m 99.65cm -100mm 0 1.5708rad 0deg"), [0.4, 0.9965, -0.1, 0, 1.5708, 0],
+                               rtol=0, atol=1e-12)
+    np.testing.assert_allclose(convert("2mm, 0, 0, 0, 0, 0"), [0.002, 0, 0, 0, 0, 0], rtol=0, atol=1e-15)  # meant
+    assert convert("AUTO") == "auto"
+    with server.client() as c:
+        before = [j["id"] for j in c.get("/v1/jobs").json()["jobs"]]
+    d.find_element("id", "tab-points").click()
+    d.find_element("id", "points").send_keys("0, 0, 0\n100, 20, 0\n200, 0, 10")
+    refusals = {
+        "0.4,0.9965,-0.1,0,0,0": "part frame 0.4,0.9965,-0.1,0,0,0: x, y, z are in mm and all under 5 mm: did you "
+                                 "type m where mm is expected? In mm that is 400, 996.5, -100; give a value its unit "
+                                 "(0.4mm) if millimetres are meant",
+        "400,0,0,0,0": "part frame 400,0,0,0,0: must be six values x, y, z in mm and rx, ry, rz in deg (or each with "
+                       "its unit: 0.4m, 1.5708rad), or auto, got 5 values",
+        "400,0,0,0,0,90grad": 'part frame 400,0,0,0,0,90grad: rz = 90grad: unknown unit "grad" (an angle takes deg, '
+                              'rad)',
+        "400,1e999,0,0,0,0": "part frame 400,1e999,0,0,0,0: y = 1e999 is not a finite number",
+        "400,nan,0,0,0,0": "part frame 400,nan,0,0,0,0: y = nan is not a number (must be six values x, y, z in mm "
+                           "and rx, ry, rz in deg (or each with its unit: 0.4m, 1.5708rad), or auto)",
+    }
+    for typed, message in refusals.items():
+        field = d.find_element("id", "partframe")
+        field.clear()
+        field.send_keys(typed)
+        d.find_element("id", "submit").click()
+        wait(d, lambda d: d.find_element("id", "error").text != "", 10)
+        assert d.find_element("id", "error").text == message
+    with server.client() as c:
+        assert [j["id"] for j in c.get("/v1/jobs").json()["jobs"]] == before  # nothing submitted
 
 
 def test_the_docs_page_renders_from_the_service_alone(server, browser):

@@ -1,4 +1,4 @@
-"""``planner run FILE --robot ur5e --host 127.0.0.2 [--mode stream|program] [--io rtde|modbus] [--sim]``:
+"""``planner run FILE --robot ur5e --host 127.0.0.2 [--mode program|stream] [--io rtde|modbus] [--sim]``:
 plan a toolpath file (the options of ``planner plan``), execute it on a UR controller with a progress bar,
 print the execution report.
 
@@ -16,7 +16,7 @@ import math
 import os
 import sys
 
-from drivers.base import ConnectionLostError, DriverError
+from drivers.base import DEFAULT_MODE, MODES, ConnectionLostError, DriverError
 from drivers.execute import execute_job, plot_run, start_sim
 from drivers.servo import DEFAULT_GAIN, DEFAULT_LOOKAHEAD
 from planner.frontends.cli.options import Progress, add_plan_options, settings_from_args
@@ -40,9 +40,10 @@ def add_run_subcommand(subparsers) -> argparse.ArgumentParser:
                                           "with a progress bar and the execution report")
     add_plan_options(r, outputs=False)
     r.add_argument("--host", help="the controller's address (the only host the driver connects to)")
-    r.add_argument("--mode", choices=["stream", "program"], default="stream",
-                   help="stream: servoJ with the planner's joints at the job's rate (default); program: send the "
-                        "job's URScript program to the script port and watch it run")
+    r.add_argument("--mode", choices=MODES, default=DEFAULT_MODE,
+                   help="program: send the job's URScript program to the script port and watch it run; stream: "
+                        "servoJ with the planner's joints at the job's rate, sent from this machine every control "
+                        f"period (default {DEFAULT_MODE})")
     r.add_argument("--io", choices=["rtde", "modbus"], default="rtde",
                    help="switch the job's outputs through RTDE (default) or the controller's Modbus server")
     r.add_argument("--modbus-port", type=int, default=None,

@@ -84,7 +84,8 @@ PAGE = r"""<!doctype html>
         <div><label for="robot">robot</label><select id="robot"><option value="">none</option><option>ur3e</option>
           <option>ur5e</option><option>ur10e</option><option>ur16e</option><option>ur20</option></select></div>
         <div><label for="passes">passes (K,K or longest)</label><input id="passes" placeholder="all"></div>
-        <div><label for="partframe">part frame x,y,z,rx,ry,rz (m, rad) or auto</label><input id="partframe"></div>
+        <div><label for="partframe">part frame x,y,z (mm), rx,ry,rz (deg), or auto</label><input id="partframe"
+          placeholder="400, 996.5, -100, 0, 0, 0"></div>
       </div>
       <button id="submit" class="primary" type="button">Plan</button>
       <div id="error"></div>
@@ -127,7 +128,7 @@ PAGE = r"""<!doctype html>
 <script>
 "use strict";
 const $ = (id) => document.getElementById(id);
-let current = null, timer = null, devMode = false, execution = null, execTimer = null;
+let current = null, timer = null, devMode = false, execution = null, execTimer = null, modeChosen = false;
 $("apikey").value = localStorage.getItem("planner-key") || "";
 $("apikey").addEventListener("change", () => { localStorage.setItem("planner-key", $("apikey").value); listJobs(); });
 
@@ -162,6 +163,34 @@ function tab(which) {
 $("tab-file").onclick = () => tab("file");
 $("tab-points").onclick = () => tab("points");
 
+// a part frame as typed: x, y, z in mm and rx, ry, rz in deg (or each with its unit, as on the command line: 0.4m,
+// 1.5708rad) -> the API's metres and radians; "auto" as it is
+const LENGTH_UNITS = {mm: 1e-3, cm: 1e-2, m: 1, in: 0.0254}, ANGLE_UNITS = {deg: Math.PI / 180, rad: 1};
+function partFrame(text) {
+  if (text.toLowerCase() === "auto") return "auto";
+  const parts = text.split(/[\s,;]+/).filter((p) => p), names = ["x", "y", "z", "rx", "ry", "rz"];
+  const usage = "six values x, y, z in mm and rx, ry, rz in deg (or each with its unit: 0.4m, 1.5708rad), or auto";
+  if (parts.length !== 6) throw new Error(`part frame ${text}: must be ${usage}, got ${parts.length} values`);
+  const si = [], typed = [];
+  parts.forEach((p, i) => {
+    const m = /^([-+]?(?:\d+\.?\d*|\.\d+)(?:e[-+]?\d+)?)([a-z]*)$/i.exec(p);
+    if (!m) throw new Error(`part frame ${text}: ${names[i]} = ${p} is not a number (must be ${usage})`);
+    const units = i < 3 ? LENGTH_UNITS : ANGLE_UNITS, unit = m[2].toLowerCase() || (i < 3 ? "mm" : "deg");
+    if (!Object.hasOwn(units, unit))
+      throw new Error(`part frame ${text}: ${names[i]} = ${p}: unknown unit "${m[2]}" (${i < 3 ? "a length" : "an angle"} takes ${Object.keys(units).join(", ")})`);
+    const x = parseFloat(m[1]);
+    if (!Number.isFinite(x)) throw new Error(`part frame ${text}: ${names[i]} = ${p} is not a finite number`);
+    if (i < 3 && !m[2] && x !== 0) typed.push(x);
+    si.push(x * units[unit]);
+  });
+  // metres typed where millimetres are expected: every position value given without a unit under 5 mm
+  if (typed.length && typed.every((x) => Math.abs(x) < 5)) {
+    const mm = parts.slice(0, 3).map((p) => (/[a-z]$/i.test(p) ? p : String(+(parseFloat(p) * 1000).toPrecision(12))));
+    throw new Error(`part frame ${text}: x, y, z are in mm and all under 5 mm: did you type m where mm is expected? ` +
+                    `In mm that is ${mm.join(", ")}; give a value its unit (${parts[0]}mm) if millimetres are meant`);
+  }
+  return si;
+}
 function num(id, scale) { const v = parseFloat($(id).value); return Number.isFinite(v) ? v * (scale || 1) : undefined; }
 function settings() {
   const s = {path: $("path").value, axes: $("axes").value, frame: $("frame").value};
@@ -170,7 +199,7 @@ function settings() {
   put("rate", num("rate"));
   if ($("robot").value) s.robot = $("robot").value;
   const pf = $("partframe").value.trim();
-  if (pf) s.part_frame = pf.toLowerCase() === "auto" ? "auto" : pf.split(/[ ,]+/).map(Number);
+  if (pf) s.part_frame = partFrame(pf);
   const p = $("passes").value.trim();
   if (p === "longest") s.passes = "longest";
   else if (p && p !== "all") s.passes = p.split(/[ ,]+/).map((x) => parseInt(x, 10));
@@ -294,8 +323,11 @@ async function listRobots() {
       sel.appendChild(o);
     }
     if (robots.some((r) => r.name === keep)) sel.value = keep;
+    const robot = robots.find((r) => r.name === sel.value);
+    if (robot && !modeChosen) $("exec-mode").value = robot.mode_default;  // the service's default mode
   } catch (e) { /* no key yet */ }
 }
+$("exec-mode").addEventListener("change", () => { modeChosen = true; });
 $("execute").onclick = async () => {
   $("execute-result").textContent = ""; $("exec-report").classList.add("hidden");
   try {

@@ -14,6 +14,7 @@ from typing import Annotated, Any, Literal
 
 from pydantic import BaseModel, ConfigDict, Field, create_model
 
+from drivers.base import DEFAULT_MODE, Mode
 from planner.settings import OUTPUT_KINDS, SETTINGS, PlanSettings, Setting
 
 #: A finite number (NaN and +-inf refused, naming the field; true and false are not numbers).
@@ -291,9 +292,10 @@ class ExecutionRequest(Strict):
     model_config = ConfigDict(json_schema_extra={"examples": [{"robot": "sim", "mode": "program"}]})
 
     robot: str = Field(max_length=32, description="the name of a robot of the key's team (GET /v1/robots)")
-    mode: Literal["stream", "program"] = Field(
-        default="stream", description="stream: servoJ with the planner's joints at the job's rate; program: the "
-                                      "job's URScript program on the controller")
+    mode: Mode = Field(
+        default=DEFAULT_MODE, description=f"program: the job's URScript program, run by the controller; stream: "
+                                          f"servoJ with the planner's joints at the job's rate, sent from the "
+                                          f"service's machine every control period (default {DEFAULT_MODE})")
 
 
 class ExecutionCreated(BaseModel):
@@ -387,7 +389,7 @@ class RobotView(BaseModel):
     name: str
     model: str | None
     simulated: bool
-    mode_default: str
+    mode_default: Mode = Field(description="the execution mode a request without one runs in")
     busy: bool
 
 

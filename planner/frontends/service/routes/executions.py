@@ -20,6 +20,7 @@ from fastapi.concurrency import run_in_threadpool
 from fastapi.responses import FileResponse, JSONResponse
 from sqlalchemy import select
 
+from drivers.base import DEFAULT_MODE
 from planner.errors import PlannerError
 from planner.frontends.service.auth import NOT_OPERATOR, Principal
 from planner.frontends.service.deps import API, JOB_ID, Caller, Service, ServiceDep, own_job, shown_id
@@ -87,8 +88,8 @@ def own_execution(svc: Service, who: Principal, execution_id: str) -> Execution:
                                      e422="no robot of that name for this key's team, a robot of another model, or a "
                                           "refused body (not a JSON object, not UTF-8, an unknown field)")})
 def create_execution(svc: ServiceDep, job_id: str, body: ExecutionRequest, who: Caller) -> JSONResponse:
-    """Run a done job of the team on one of the team's robots (by name), in "stream" (servoJ) or "program"
-    (URScript) mode."""
+    """Run a done job of the team on one of the team's robots (by name), in "program" (URScript, the default) or
+    "stream" (servoJ) mode."""
     require_operator(who)
     job = own_job(svc, who, job_id)
     robots = _team_robots(svc, who)
@@ -199,8 +200,8 @@ def _run_data(svc: Service, row: Execution) -> tuple[bytes | None, bytes | None]
 @router.get("/robots", response_model=RobotList, responses=documented())
 def list_robots(svc: ServiceDep, who: Caller) -> dict:
     """The robots the caller's team may execute jobs on: name, model (null: a simulated robot of the job's model),
-    simulated, busy."""
-    return {"robots": [{"name": r.name, "model": r.model, "simulated": r.simulated, "mode_default": "stream",
+    simulated, the execution mode a request without one runs in, busy."""
+    return {"robots": [{"name": r.name, "model": r.model, "simulated": r.simulated, "mode_default": DEFAULT_MODE,
                         "busy": svc.store.robot_busy(r.name)} for r in _team_robots(svc, who)]}
 
 
