@@ -53,7 +53,8 @@ from planner.kinematics.poses import frame_matrix, pose_frame_1, pose_matrices_n
 from planner.kinematics.ur_models import URModel, get_model
 from planner.validation import as_floats
 
-__all__ = ["IKSolutions", "inverse", "inverse_batch", "inverse_nearest", "inverse_path", "wrap_angle"]
+__all__ = ["IKSolutions", "inverse", "inverse_batch", "inverse_frames", "inverse_nearest", "inverse_path",
+           "wrap_angle"]
 
 from planner.kinematics._tolerances import BOUNDARY_TOL as _BOUNDARY_TOL
 from planner.kinematics._tolerances import INV_TWO_PI as _INV_TWO_PI
@@ -350,6 +351,44 @@ def inverse_batch(model: str | URModel, poses, tcp=None, q6_ref=0.0) -> IKSoluti
         return _solve(m, T, _q6_reference(q6_ref, len(T))).public(m)
     P, _ = rows_of_six(poses, "pose")
     return _solve(m, _flange_targets(m, P, tcp), _q6_reference(q6_ref, len(P))).public(m)
+
+
+def inverse_frames(model: str | URModel, p: np.ndarray, R: np.ndarray, tcp=None) -> tuple[np.ndarray, np.ndarray]:
+    """All eight branches of tool frames the planner made itself, joint-major: for a search over many poses.
+
+    The same solutions as :func:`inverse_batch` of the transforms (p, R) (q6 = 0 at a wrist singularity),
+    without its checks of the input (the frames are orthonormal by construction: rotation-minimizing frames
+    turned about their own axis) and without its re-arrangement to sample-major arrays.
+
+    Parameters
+    ----------
+    model : str or URModel
+    p : ndarray, shape (n, 3)
+        Tool positions in the base frame, m.
+    R : ndarray, shape (n, 3, 3)
+        Tool rotations in the base frame (columns: the tool's x, y, z axes).
+    tcp : array_like, shape (6,), optional
+        Tool-centre-point offset in the flange frame.
+
+    Returns
+    -------
+    q : ndarray, shape (6, 8, n)
+        Joints (rad, wrapped to (-pi, pi]) by joint, branch (as :class:`IKSolutions`) and pose; NaN where not
+        valid. ``q[:, b, i]`` is ``inverse_batch(...).q[i, b]`` bit for bit.
+    valid : ndarray of bool, shape (8, n)
+    """
+    m = get_model(model)
+    n = len(p)
+    T = np.zeros((n, 4, 4))
+    T[:, 3, 3] = 1.0
+    frame = tcp_frame(tcp)
+    if frame is None:
+        T[:, :3, :3], T[:, :3, 3] = R, p
+    else:
+        T[:, :3, :3], T[:, :3, 3] = compose(np.ascontiguousarray(R, dtype=float), np.asarray(p, dtype=float),
+                                            *invert_1(*frame))
+    sol = _solve(m, T, np.zeros(n))
+    return sol.q, sol.valid
 
 
 _PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))
