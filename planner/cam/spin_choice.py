@@ -223,7 +223,7 @@ def _feed_at(moves, S: _Samples) -> tuple[np.ndarray, np.ndarray]:
     for k in np.unique(S.move):
         if moves[k].kind == "cut":
             rows = S.move == k
-            v[rows], a[rows] = moves[k].profile.v(S.tl[rows]), moves[k].profile.a(S.tl[rows])
+            _, v[rows], a[rows] = moves[k].profile.state(S.tl[rows])
     return v, a
 
 
@@ -235,7 +235,8 @@ def _phase_points(moves, cuts) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         prof = moves[k].profile
         tp = prof.t
         te = (tp[:-1, None] + np.diff(tp)[:, None] * np.linspace(0.0, 1.0, 9)[None, :]).ravel()
-        out.append((X0 + prof.s(te), prof.v(te), prof.a(te)))
+        se, ve, ae = prof.state(te)
+        out.append((X0 + se, ve, ae))
     return tuple(np.concatenate([e[i] for e in out]) for i in range(3))  # type: ignore[return-value]
 
 
@@ -266,10 +267,8 @@ class _Arm:
             valid = np.ascontiguousarray(va.reshape(8, n, G).transpose(1, 0, 2))
         return np.where(valid, q, 0.0), valid
 
-    def node_cost(self, q: np.ndarray, valid: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray,
-                                                                                   np.ndarray]:
-        """(cost, singularity margin, joint-limit margin), each (...) over joints q (6, ...) (0 where not valid),
-        valid (...) and spins psi (broadcast to (...))."""
+    def margins(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(singularity margin, joint-limit margin), each (...) over joints q (6, ...) (0 where not valid)."""
         m = self.model
         q12 = q[1] + q[2]
         sing = np.minimum(np.minimum(np.abs(np.sin(q[2])), np.abs(np.sin(q[4]))),
@@ -281,10 +280,17 @@ class _Arm:
             joint = np.minimum(q[f] - m.lower[f][at], m.upper[f][at] - q[f]).min(axis=0)
         else:
             joint = np.full(sing.shape, math.pi)
+        return sing, joint
+
+    def node_cost(self, q: np.ndarray, valid: np.ndarray, psi: np.ndarray) -> np.ndarray:
+        """Cost (...) of the nodes of joints q (6, ...) (0 where not valid), valid (...) and spins psi (broadcast to
+        (...)): the margins below their safe values and the distance from the RMM spin; out of reach where not
+        valid."""
+        sing, joint = self.margins(q)
         cost = (W_SING * np.maximum(0.0, 1.0 - sing / SING_SAFE) ** 2
                 + W_JOINT * np.maximum(0.0, 1.0 - joint / JOINT_SAFE) ** 2
                 + W_RMM * (_wrap(psi) / math.pi) ** 2)
-        return np.where(valid, cost, OUT_OF_REACH), sing, joint
+        return np.where(valid, cost, OUT_OF_REACH)
 
     def step_ratio(self, dq: np.ndarray, dt) -> np.ndarray:
         """Largest joint speed over a step as a fraction of its limit, (...) from joint steps dq (6, ...) and dt."""
@@ -331,8 +337,9 @@ def _step_costs(arm: _Arm, q: np.ndarray, valid: np.ndarray, X: np.ndarray, t: n
         for j in range(6):  # |dq_j| wrapped (the joints lie in one turn, (-pi, pi])
             np.subtract(q[j, i0 + 1:i1 + 1, :, None, :], qw[j, i0:i1], out=d)
             np.abs(d, out=d)
-            np.subtract(two_pi, d, out=e)
-            np.minimum(d, e, out=d)
+            if d.max() > math.pi:  # (elsewhere d is the shorter way round already)
+                np.subtract(two_pi, d, out=e)
+                np.minimum(d, e, out=d)
             if j == 3:
                 travel = d.copy()
             elif j == 5:
@@ -376,7 +383,7 @@ def _figures(arm: _Arm, S: _Samples, psi: np.ndarray) -> tuple[np.ndarray, np.nd
     a fraction of its limit, of any joint and of wrist 3) and each branch's rank key (8, 3)."""
     q, valid = arm.joints(S.p, S.R, psi[:, None])
     q, valid = q[..., 0], valid[..., 0]  # (6, n, 8), (n, 8)
-    _, sing, joint = arm.node_cost(q, valid, psi[:, None])
+    sing, joint = arm.margins(q)
     dq = _wrap(np.diff(q, axis=1))
     ratio = arm.step_ratio(dq, np.diff(S.t)[:, None])
     both = valid[1:] & valid[:-1]
@@ -444,12 +451,12 @@ def _grid_path(arm: _Arm, S: _Samples, rate: float, free: int = 0, pin: float = 
     n_all = S.X.size
     idx = np.flatnonzero(_coarse(S, free))
     q, valid = arm.joints(S.p[idx], S.R[idx], grid)  # (6, m, 8, G), (m, 8, G)
-    node, _, _ = arm.node_cost(q, valid, grid)
+    node = arm.node_cost(q, valid, grid)
     jump = np.abs(np.diff(np.minimum(node, 2.0), axis=0)).max(axis=(1, 2)) > FLAT
     more = np.flatnonzero(_inside(n_all, idx, jump))
     if more.size:  # where the margins are not flat: every sample
         q2, valid2 = arm.joints(S.p[more], S.R[more], grid)
-        node2, _, _ = arm.node_cost(q2, valid2, grid)
+        node2 = arm.node_cost(q2, valid2, grid)
         order = np.argsort(np.concatenate((idx, more)), kind="stable")
         idx = np.concatenate((idx, more))[order]
         q = np.concatenate((q, q2), axis=1)[:, order]
@@ -655,9 +662,10 @@ def _over_bounds(moves, S: _Samples, curve: SpinCurve, rate: float, acc: float) 
             start = np.repeat(np.cumsum(m) - m, m)
             frac = (np.arange(int(m.sum())) - start) / np.repeat(m - 1, m)
             tt = np.repeat(prof.t[changing], m) + frac * np.repeat(dur[changing], m)
-            xs.append(X0 + prof.s(tt))
-            vs.append(prof.v(tt))
-            as_.append(prof.a(tt))
+            st, vt, at = prof.state(tt)
+            xs.append(X0 + st)
+            vs.append(vt)
+            as_.append(at)
     if not xs:
         return 0.0
     x, v, a = np.clip(np.concatenate(xs), kn[0], kn[-1]), np.concatenate(vs), np.concatenate(as_)
@@ -845,7 +853,7 @@ def spin_rates(m) -> tuple[float, float]:
         return 0.0, 0.0
     T = float(m.profile.duration)
     t = np.linspace(0.0, T, min(max(3, math.ceil(T / 2e-3) + 1), 100_001))
-    x, v, a = m.profile.s(t), m.profile.v(t), m.profile.a(t)
+    x, v, a = m.profile.state(t)
     c = m.frames.spin
     d1, d2 = c(x, 1), c(x, 2)
     if m.kind == "reorientation":

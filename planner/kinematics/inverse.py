@@ -78,6 +78,11 @@ def wrap_angle(x) -> np.ndarray:
     x = as_floats(x, "x")
     if np.isinf(x).any():
         raise PlannerError(f"x: angles must be finite (NaN passes), got {x[np.isinf(x)][0]}")
+    return _wrap(x)
+
+
+def _wrap(x: np.ndarray) -> np.ndarray:
+    """:func:`wrap_angle` of a float array the solver made (finite or NaN: not checked)."""
     w = np.subtract(x, _TWO_PI * np.round(x * _INV_TWO_PI), out=np.empty_like(x))
     # round(x / 2 pi) may leave w a rounding error outside (-pi, pi]: one step back covers it
     np.add(w, _TWO_PI, out=w, where=w <= -np.pi)
@@ -260,15 +265,15 @@ def _solve_block(m: URModel, T, q6_ref, q_out, valid_out, singular_out, clipped_
 
     # Joints wrapped to (-pi, pi] as they are written: atan2, acos and asin give [-pi, pi] or (-3 pi, 3 pi)
     # (q1: psi +- asin, q2: a difference of atan2, q4 = q234 - q2 - q3), q6 any value where it was set.
-    q_out[0] = wrap_angle(q1)[:, None, None]
+    q_out[0] = _wrap(q1)[:, None, None]
     q2 = np.stack([phi - gam, phi + gam], axis=2)  # (2, 2, 2, k): shoulder, wrist, elbow
-    q_out[1] = wrap_angle(q2)
+    q_out[1] = _wrap(q2)
     q3 = q_out[2]
     q3[:, :, 0], q3[:, :, 1] = t3, -t3
     _pi_not_minus_pi(q3)
-    q_out[3] = wrap_angle(q234[:, :, None] - q2 - q3)
+    q_out[3] = _wrap(q234[:, :, None] - q2 - q3)
     q_out[4] = _pi_not_minus_pi(q5)[:, :, None]
-    q_out[5] = (wrap_angle(q6) if turned else _pi_not_minus_pi(q6))[:, :, None]
+    q_out[5] = (_wrap(q6) if turned else _pi_not_minus_pi(q6))[:, :, None]
     valid_out[...] = (ok1 & ok3)[:, :, None]
     singular_out[...] = sing[:, None, None]
     clipped_out[...] = ((np.abs(ratio) > 1.0) | (np.abs(cos3) > 1.0) | adjusted)[:, :, None]
