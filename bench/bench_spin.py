@@ -18,14 +18,17 @@ The README's case on the command line (main's convention: a part frame's lengths
     planner plan ../shared/data/nx_clsf_variable_contour_ust_a2.cls --robot ur5e \
         --part-frame 400mm,996.5mm,-100mm,0,0,0 --spin reach
 
-Run: ``python bench/bench_spin.py`` (the NX job twice per case: about 25 minutes on 2 idle cores), or
-``python bench/bench_spin.py --quick`` (the small cases only). "choose s" is the time to choose the spin, "share" its
-part of the whole planning time of that plan ("plan s", wall clock: compare shares within one run).
+Run: ``python bench/bench_spin.py`` (the NX job twice per case: about 25 minutes on 2 idle cores),
+``python bench/bench_spin.py --quick`` (the small cases only), or ``--only TEXT`` (the cases whose name holds
+TEXT, e.g. ``--only "tight frame"``). "choose s" is the time to choose the spin, "share" its part of the whole
+planning time of that plan ("plan s", wall clock: compare shares within one run; the last line gives the load
+average over the run).
 """
 
 from __future__ import annotations
 
 import math
+import os
 import sys
 import time
 from pathlib import Path
@@ -72,8 +75,12 @@ def _row(name: str, spin: str, job, seconds: float) -> list:
 
 def main(argv: list[str]) -> None:
     quick = "--quick" in argv
+    only = argv[argv.index("--only") + 1] if "--only" in argv[:-1] else None
+    load0 = os.getloadavg()[0]
     rows = []
     for name, src, frame, tcp, read in CASES:
+        if only is not None and only not in name:
+            continue
         if not src.exists():
             print(f"{name}: {src} not found, skipped")
             continue
@@ -93,6 +100,8 @@ def main(argv: list[str]) -> None:
         print(f"{name}: done", flush=True)
     print_table(["case", "spin", "problems", "slowed", "lowest feed", "reconfig.", "job s", "sing. margin",
                  "out of reach", "spin deg/s", "spin deg/s^2", "choose s", "plan s", "share"], rows)
+    print(f"load average (1 min) {load0:.1f} at the start, {os.getloadavg()[0]:.1f} at the end, "
+          f"on {os.cpu_count()} cores")
 
 
 if __name__ == "__main__":

@@ -165,9 +165,9 @@ class AxisField:
         """Tool frames at arc lengths s (n,) from the start of the pass (metres)."""
         return self.frames(self.path.parameter_at_length(s))
 
-    @property
+    @cached_property
     def end(self) -> np.ndarray:
-        """Frame at the end of the pass (3, 3)."""
+        """Frame at the end of the pass (3, 3) (evaluated once: the plan, the spin and the checks all ask for it)."""
         return self.frames(self.path.knots[-1:])[0]
 
     def axis_errors(self) -> np.ndarray:

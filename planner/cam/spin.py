@@ -80,9 +80,13 @@ class SpinCurve:
         return cls(**state)
 
     @cached_property
-    def _splines(self) -> tuple[BSpline, BSpline, BSpline]:
-        b = BSpline(self.knots, self.coeffs, SPIN_DEGREE, extrapolate=False)
-        return b, b.derivative(1), b.derivative(2)
+    def _spline(self) -> BSpline:
+        return BSpline(self.knots, self.coeffs, SPIN_DEGREE, extrapolate=False)
+
+    @cached_property
+    def _derivatives(self) -> tuple[BSpline, BSpline]:
+        """psi' and psi'' (built when first asked: most curves are only evaluated, at a move's ends)."""
+        return self._spline.derivative(1), self._spline.derivative(2)
 
     @cached_property
     def is_constant(self) -> bool:
@@ -101,7 +105,7 @@ class SpinCurve:
             return np.full(x.shape, float(self.coeffs[0]) if nu == 0 else 0.0)
         lo, hi = float(self.knots[0]), float(self.knots[-1])
         inside = (x >= lo) & (x <= hi)
-        out = self._splines[nu](np.clip(x, lo, hi))
+        out = (self._spline if nu == 0 else self._derivatives[nu - 1])(np.clip(x, lo, hi))
         return out if nu == 0 else np.where(inside, out, 0.0)
 
 

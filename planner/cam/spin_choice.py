@@ -53,11 +53,12 @@ import time
 from dataclasses import dataclass, replace
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from scipy.interpolate import BSpline
 
 from planner.cam.configure import groups
 from planner.cam.spin import SPIN_DEGREE, SpinCurve, SpinFigures, SpunFrames, spun
-from planner.kinematics import get_model, inverse_batch
+from planner.kinematics import get_model, inverse_frames
 from planner.kinematics.poses import as_transform
 from planner.motion import MotionLimits, plan_feed
 
@@ -80,8 +81,8 @@ SPEED_SAFE = 0.8
 W_SING, W_JOINT, W_SPEED, W_FAST, W_TRAVEL, W_RATE, W_RMM = 1.0, 1.0, 10.0, 20.0, 0.01, 5.0, 0.01
 #: Cost of a sample out of reach on a branch.
 OUT_OF_REACH = 1e6
-#: Steps of the grid search whose step costs are computed at once (about 50 kB each).
-BLOCK = 256
+#: Steps of the grid search whose step costs are computed at once (all shifts: about 250 kB per array).
+BLOCK = 32
 #: The grid search starts from every COARSE-th sample of a run (reach_step apart), ...
 COARSE = 4
 #: ... and takes every sample of a step over which a node's cost (capped at 2) changes by more than FLAT (a
@@ -222,7 +223,7 @@ def _feed_at(moves, S: _Samples) -> tuple[np.ndarray, np.ndarray]:
     for k in np.unique(S.move):
         if moves[k].kind == "cut":
             rows = S.move == k
-            v[rows], a[rows] = moves[k].profile.v(S.tl[rows]), moves[k].profile.a(S.tl[rows])
+            _, v[rows], a[rows] = moves[k].profile.state(S.tl[rows])
     return v, a
 
 
@@ -234,7 +235,8 @@ def _phase_points(moves, cuts) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         prof = moves[k].profile
         tp = prof.t
         te = (tp[:-1, None] + np.diff(tp)[:, None] * np.linspace(0.0, 1.0, 9)[None, :]).ravel()
-        out.append((X0 + prof.s(te), prof.v(te), prof.a(te)))
+        se, ve, ae = prof.state(te)
+        out.append((X0 + se, ve, ae))
     return tuple(np.concatenate([e[i] for e in out]) for i in range(3))  # type: ignore[return-value]
 
 
@@ -249,50 +251,52 @@ class _Arm:
         self.fixed = ~self.model.multiturn
 
     def joints(self, p: np.ndarray, R: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Joints (n, 8, G, 6) and validity (n, 8, G) of positions p (n, 3), frames R (n, 3, 3) turned by each
-        spin of psi (G,) (a row of spins (n, G) per sample also works)."""
+        """Joints (6, n, 8, G) (joint-major, 0 where not valid) and validity (n, 8, G) of positions p (n, 3), frames
+        R (n, 3, 3) turned by each spin of psi (G,) (a row of spins (n, G) per sample also works)."""
         psi = np.broadcast_to(psi, (p.shape[0],) + np.shape(psi)[-1:])
         n, G = psi.shape
-        if self.wrist3:
-            sol = inverse_batch(self.robot, _transforms(p, R), tcp=self.tcp)
-            q = np.repeat(sol.q[:, :, None, :], G, axis=2)
-            q[..., 5] = _wrap(q[..., 5] + psi[:, None, :])
-            return q, np.repeat(sol.valid[:, :, None], G, axis=2)
-        F = spun(np.repeat(R[:, None], G, axis=1), psi)
-        sol = inverse_batch(self.robot, _transforms(np.repeat(p, G, axis=0), F.reshape(-1, 3, 3)), tcp=self.tcp)
-        return (np.swapaxes(sol.q.reshape(n, G, 8, 6), 1, 2), np.swapaxes(sol.valid.reshape(n, G, 8), 1, 2))
+        if self.wrist3:  # the spin is wrist 3 alone: one solution per sample, q6 shifted
+            q1, v1 = inverse_frames(self.model, p, R, tcp=self.tcp)  # (6, 8, n), (8, n)
+            q = np.repeat(q1.transpose(0, 2, 1)[..., None], G, axis=3)
+            q[5] = _wrap(q[5] + psi[:, None, :])
+            valid = np.repeat(v1.T[:, :, None], G, axis=2)
+        else:
+            F = spun(np.repeat(R[:, None], G, axis=1), psi)
+            qa, va = inverse_frames(self.model, np.repeat(p, G, axis=0), F.reshape(-1, 3, 3), tcp=self.tcp)
+            q = qa.reshape(6, 8, n, G).transpose(0, 2, 1, 3)
+            valid = np.ascontiguousarray(va.reshape(8, n, G).transpose(1, 0, 2))
+        return np.where(valid, q, 0.0), valid
 
-    def node_cost(self, q: np.ndarray, valid: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray,
-                                                                                   np.ndarray]:
-        """(cost, singularity margin, joint-limit margin), each (..., ) over q (..., 6), valid (...)."""
+    def margins(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(singularity margin, joint-limit margin), each (...) over joints q (6, ...) (0 where not valid)."""
         m = self.model
-        qz = np.where(valid[..., None], q, 0.0)
-        sing = np.minimum(np.minimum(np.abs(np.sin(qz[..., 2])), np.abs(np.sin(qz[..., 4]))),
-                          np.abs(m.a2 * np.cos(qz[..., 1]) + m.a3 * np.cos(qz[..., 1] + qz[..., 2])
-                                 + m.d5 * np.sin(qz[..., 1] + qz[..., 2] + qz[..., 3])) / (abs(m.a2) + abs(m.a3)))
+        q12 = q[1] + q[2]
+        sing = np.minimum(np.minimum(np.abs(np.sin(q[2])), np.abs(np.sin(q[4]))),
+                          np.abs(m.a2 * np.cos(q[1]) + m.a3 * np.cos(q12) + m.d5 * np.sin(q12 + q[3]))
+                          / (abs(m.a2) + abs(m.a3)))
         if self.fixed.any():
-            jm = np.minimum(qz[..., self.fixed] - m.lower[self.fixed], m.upper[self.fixed] - qz[..., self.fixed])
-            joint = jm.min(axis=-1)
+            f = np.flatnonzero(self.fixed)
+            at = (slice(None),) + (None,) * (q.ndim - 1)
+            joint = np.minimum(q[f] - m.lower[f][at], m.upper[f][at] - q[f]).min(axis=0)
         else:
             joint = np.full(sing.shape, math.pi)
+        return sing, joint
+
+    def node_cost(self, q: np.ndarray, valid: np.ndarray, psi: np.ndarray) -> np.ndarray:
+        """Cost (...) of the nodes of joints q (6, ...) (0 where not valid), valid (...) and spins psi (broadcast to
+        (...)): the margins below their safe values and the distance from the RMM spin; out of reach where not
+        valid."""
+        sing, joint = self.margins(q)
         cost = (W_SING * np.maximum(0.0, 1.0 - sing / SING_SAFE) ** 2
                 + W_JOINT * np.maximum(0.0, 1.0 - joint / JOINT_SAFE) ** 2
                 + W_RMM * (_wrap(psi) / math.pi) ** 2)
-        return np.where(valid, cost, OUT_OF_REACH), sing, joint
+        return np.where(valid, cost, OUT_OF_REACH)
 
     def step_ratio(self, dq: np.ndarray, dt) -> np.ndarray:
-        """Largest joint speed over a step as a fraction of its limit, (...) from dq (..., 6) and dt."""
+        """Largest joint speed over a step as a fraction of its limit, (...) from joint steps dq (6, ...) and dt."""
         dt = np.asarray(dt, dtype=float)
-        r = np.abs(dq) / self.vmax
-        top = r.max(axis=-1)
+        top = (np.abs(dq) / self.vmax.reshape((6,) + (1,) * (dq.ndim - 1))).max(axis=0)
         return np.where(dt > 0.0, top / np.where(dt > 0.0, dt, 1.0), np.where(top > 1e-9, np.inf, 0.0))
-
-
-def _transforms(p: np.ndarray, R: np.ndarray) -> np.ndarray:
-    """Homogeneous transforms (n, 4, 4) of positions p (n, 3) and rotations R (n, 3, 3)."""
-    T = np.zeros((p.shape[0], 4, 4))
-    T[:, :3, :3], T[:, :3, 3], T[:, 3, 3] = R, p, 1.0
-    return T
 
 
 def _wrap(x):
@@ -302,46 +306,75 @@ def _wrap(x):
 def _step_costs(arm: _Arm, q: np.ndarray, valid: np.ndarray, X: np.ndarray, t: np.ndarray, free: int, rate: float,
                 gstep: float, shifts: np.ndarray) -> np.ndarray:
     """Cost (n - 1, 8, 2K+1, G) of every step of the grid search from grid value g - shifts[k] (clipped to the grid)
-    at sample i to g at sample i + 1 on each branch, for joints q (n, 8, G, 6) and their validity (n, 8, G) (a node out
-    of reach: its node cost says so) at run coordinates X (n,) and times t (n,): wrist travel, and after the first
-    ``free`` steps (rapids) a joint beyond SPEED_SAFE of its limit and a spin faster than ``rate`` (spin change
-    |shift| gstep over the step's time); a shift over a turn in place (the run's coordinate stands) is out of reach.
-    Computed :data:`BLOCK` steps at a time, joint by joint and shift by shift on views of the joints (no copies of the
-    (n, 8, 2K+1, G, 6) differences)."""
-    n, nb, G = valid.shape
+    at sample i to g at sample i + 1 on each branch, for joints q (6, n, 8, G) (0 where not valid) and their validity
+    (n, 8, G) (a node out of reach: its node cost says so) at run coordinates X (n,) and times t (n,): wrist travel,
+    and after the first ``free`` steps (rapids) a joint beyond SPEED_SAFE of its limit and a spin faster than
+    ``rate`` (spin change |shift| gstep over the step's time); a shift over a turn in place (the run's coordinate
+    stands) is out of reach. ``shifts`` are -K..K. Computed :data:`BLOCK` steps at a time, all shifts at once on
+    windows of the joints padded along the grid (no copies), joint by joint into two buffers."""
+    _, n, nb, G = q.shape
     K = int(np.abs(shifts).max())
-    qj = np.moveaxis(np.where(valid[..., None], q, 0.0), -1, 0)  # (6, n, 8, G)
-    qp = np.concatenate((np.repeat(qj[..., :1], K, axis=-1), qj, np.repeat(qj[..., -1:], K, axis=-1)), axis=-1)
-    vp = np.concatenate((np.repeat(valid[..., :1], K, axis=-1), valid, np.repeat(valid[..., -1:], K, axis=-1)), axis=-1)
-    out = np.empty((n - 1, nb, shifts.size, G))
+    assert np.array_equal(shifts, np.arange(-K, K + 1))
+    S = shifts.size
+    qp = np.concatenate((np.repeat(q[..., :1], K, axis=-1), q, np.repeat(q[..., -1:], K, axis=-1)), axis=-1)
+    vp = np.concatenate((np.repeat(valid[..., :1], K, axis=-1), valid, np.repeat(valid[..., -1:], K, axis=-1)),
+                        axis=-1)
+    # window w of the padded grid starts at w: shift k (sh = k - K) takes the one starting at K - sh = 2K - k
+    qw = sliding_window_view(qp, G, axis=-1)[..., ::-1, :]  # (6, n, 8, 2K+1, G)
+    vw = sliding_window_view(vp, G, axis=-1)[..., ::-1, :]  # (n, 8, 2K+1, G)
+    out = np.empty((n - 1, nb, S, G))
     dX, dt = np.diff(X), np.diff(t)
     inv_v = 1.0 / arm.vmax
     two_pi = 2.0 * math.pi
+    moving = (shifts != 0)[None, None, :, None]
+    spin_step = (np.abs(shifts) * gstep)[None, None, :, None]
     for i0 in range(0, n - 1, BLOCK):
         i1 = min(n - 1, i0 + BLOCK)
+        B = i1 - i0
+        d = np.empty((B, nb, S, G))
+        e = np.empty((B, nb, S, G))
+        top = np.empty((B, nb, S, G))
+        for j in range(6):  # |dq_j| wrapped (the joints lie in one turn, (-pi, pi])
+            np.subtract(q[j, i0 + 1:i1 + 1, :, None, :], qw[j, i0:i1], out=d)
+            np.abs(d, out=d)
+            if d.max() > math.pi:  # (elsewhere d is the shorter way round already)
+                np.subtract(two_pi, d, out=e)
+                np.minimum(d, e, out=d)
+            if j == 3:
+                travel = d.copy()
+            elif j == 5:
+                travel += d
+            if j == 0:
+                np.multiply(d, inv_v[j], out=top)
+            else:
+                np.multiply(d, inv_v[j], out=e)
+                np.maximum(top, e, out=top)
+        both = valid[i0 + 1:i1 + 1, :, None, :] & vw[i0:i1]  # a step from or to a node out of reach
+        travel *= both  # costs nothing more than its node
+        top *= both
+        cost = W_TRAVEL * travel
         timed = np.arange(i0, i1) >= free
-        h = dt[i0:i1, None, None]
-        for k, sh in enumerate(shifts):
-            travel = np.zeros((i1 - i0, nb, G))
-            top = np.zeros((i1 - i0, nb, G))
-            for j in range(6):  # |dq_j| wrapped (the joints lie in one turn, (-pi, pi])
-                d = np.abs(qj[j, i0 + 1:i1 + 1] - qp[j, i0:i1, :, K - sh:K - sh + G])
-                np.minimum(d, two_pi - d, out=d)
-                if j in (3, 5):
-                    travel += d
-                np.maximum(top, d * inv_v[j], out=top)
-            both = valid[i0 + 1:i1 + 1] & vp[i0:i1, :, K - sh:K - sh + G]  # a step from or to a node out of reach
-            travel *= both  # costs nothing more than its node
-            top *= both
-            cost = W_TRAVEL * travel
-            if timed.any():
+        if timed.any():
+            h = dt[i0:i1, None, None, None]
+            if (h > 0.0).all():
+                ratio = top / h
+            else:
                 ratio = np.where(h > 0.0, top / np.where(h > 0.0, h, 1.0), np.where(top > 1e-9, np.inf, 0.0))
-                speed = W_SPEED * np.maximum(0.0, ratio - SPEED_SAFE) ** 2 + W_FAST * (ratio > 1.0)
-                spin = W_RATE * np.maximum(0.0, abs(sh) * gstep / np.maximum(h, 1e-9) / max(rate, 1e-9) - 1.0) ** 2
-                cost += np.where(timed[:, None, None], speed + spin, 0.0)
-            if sh != 0:  # psi is a function of the run's arc length: it stands over a turn in place
-                cost += np.where((dX[i0:i1] <= 0.0)[:, None, None], OUT_OF_REACH, 0.0)
-            out[i0:i1, :, k] = np.minimum(cost, OUT_OF_REACH)
+            spin = W_RATE * np.maximum(0.0, spin_step / np.maximum(h, 1e-9) / max(rate, 1e-9) - 1.0) ** 2
+            spin = np.where(timed[:, None, None, None], spin, 0.0)
+            fast = ratio > SPEED_SAFE  # elsewhere the speed cost is 0.0 exactly
+            fast &= timed[:, None, None, None]
+            if spin.any():
+                cost += spin
+            if fast.any():
+                at = np.nonzero(fast)
+                r = ratio[at]
+                speed = W_SPEED * np.maximum(0.0, r - SPEED_SAFE) ** 2 + W_FAST * (r > 1.0)
+                cost[at] = W_TRAVEL * travel[at] + (speed + np.broadcast_to(spin, cost.shape)[at])
+        stands = (dX[i0:i1] <= 0.0)[:, None, None, None]
+        if stands.any():  # psi is a function of the run's arc length: it stands over a turn in place
+            cost += np.where(stands & moving, OUT_OF_REACH, 0.0)
+        np.minimum(cost, OUT_OF_REACH, out=out[i0:i1])
     return out
 
 
@@ -349,18 +382,18 @@ def _figures(arm: _Arm, S: _Samples, psi: np.ndarray) -> tuple[np.ndarray, np.nd
     """Figures (8, 7) of spin psi (n,) on every branch (see SpinFigures; then the largest joint speed over a step as
     a fraction of its limit, of any joint and of wrist 3) and each branch's rank key (8, 3)."""
     q, valid = arm.joints(S.p, S.R, psi[:, None])
-    q, valid = q[:, :, 0], valid[:, :, 0]
-    _, sing, joint = arm.node_cost(q, valid, psi[:, None])
-    dq = _wrap(np.diff(q, axis=0))
+    q, valid = q[..., 0], valid[..., 0]  # (6, n, 8), (n, 8)
+    sing, joint = arm.margins(q)
+    dq = _wrap(np.diff(q, axis=1))
     ratio = arm.step_ratio(dq, np.diff(S.t)[:, None])
     both = valid[1:] & valid[:-1]
     fast = np.where(both, ratio > 1.0, False).sum(axis=0)
     out = (~valid).sum(axis=0)
-    travel = np.where(both, np.abs(dq[..., 3]) + np.abs(dq[..., 5]), 0.0).sum(axis=0)
+    travel = np.where(both, np.abs(dq[3]) + np.abs(dq[5]), 0.0).sum(axis=0)
     s_min = np.where(valid, sing, np.inf).min(axis=0)
     j_min = np.where(valid, joint, np.inf).min(axis=0)
     top = np.where(both, ratio, 0.0).max(axis=0, initial=0.0)
-    top6 = np.where(both, np.abs(dq[..., 5]) / arm.vmax[5] / np.maximum(np.diff(S.t), 1e-300)[:, None], 0.0).max(
+    top6 = np.where(both, np.abs(dq[5]) / arm.vmax[5] / np.maximum(np.diff(S.t), 1e-300)[:, None], 0.0).max(
         axis=0, initial=0.0)
     fig = np.stack([s_min, j_min, fast, out, travel, top, top6], axis=1)
     key = np.stack([out, fast, -np.minimum(s_min, SING_SAFE)], axis=1)
@@ -417,16 +450,17 @@ def _grid_path(arm: _Arm, S: _Samples, rate: float, free: int = 0, pin: float = 
     gstep = float(grid[1] - grid[0])
     n_all = S.X.size
     idx = np.flatnonzero(_coarse(S, free))
-    q, valid = arm.joints(S.p[idx], S.R[idx], grid)  # (m, 8, G, 6)
-    node, _, _ = arm.node_cost(q, valid, np.broadcast_to(grid, valid.shape))
+    q, valid = arm.joints(S.p[idx], S.R[idx], grid)  # (6, m, 8, G), (m, 8, G)
+    node = arm.node_cost(q, valid, grid)
     jump = np.abs(np.diff(np.minimum(node, 2.0), axis=0)).max(axis=(1, 2)) > FLAT
     more = np.flatnonzero(_inside(n_all, idx, jump))
     if more.size:  # where the margins are not flat: every sample
         q2, valid2 = arm.joints(S.p[more], S.R[more], grid)
-        node2, _, _ = arm.node_cost(q2, valid2, np.broadcast_to(grid, valid2.shape))
+        node2 = arm.node_cost(q2, valid2, grid)
         order = np.argsort(np.concatenate((idx, more)), kind="stable")
         idx = np.concatenate((idx, more))[order]
-        q, valid, node = (np.concatenate(pair)[order] for pair in ((q, q2), (valid, valid2), (node, node2)))
+        q = np.concatenate((q, q2), axis=1)[:, order]
+        valid, node = (np.concatenate(pair)[order] for pair in ((valid, valid2), (node, node2)))
     free = int(np.searchsorted(idx, free))  # the steps in the rapids (all their samples are searched)
     if np.isfinite(pin):  # start from the grid value nearest where the arm is
         node[0] += np.where(np.arange(grid.size) == int(np.abs(grid - pin).argmin()), 0.0, OUT_OF_REACH)[None]
@@ -628,9 +662,10 @@ def _over_bounds(moves, S: _Samples, curve: SpinCurve, rate: float, acc: float) 
             start = np.repeat(np.cumsum(m) - m, m)
             frac = (np.arange(int(m.sum())) - start) / np.repeat(m - 1, m)
             tt = np.repeat(prof.t[changing], m) + frac * np.repeat(dur[changing], m)
-            xs.append(X0 + prof.s(tt))
-            vs.append(prof.v(tt))
-            as_.append(prof.a(tt))
+            st, vt, at = prof.state(tt)
+            xs.append(X0 + st)
+            vs.append(vt)
+            as_.append(at)
     if not xs:
         return 0.0
     x, v, a = np.clip(np.concatenate(xs), kn[0], kn[-1]), np.concatenate(vs), np.concatenate(as_)
@@ -818,7 +853,7 @@ def spin_rates(m) -> tuple[float, float]:
         return 0.0, 0.0
     T = float(m.profile.duration)
     t = np.linspace(0.0, T, min(max(3, math.ceil(T / 2e-3) + 1), 100_001))
-    x, v, a = m.profile.s(t), m.profile.v(t), m.profile.a(t)
+    x, v, a = m.profile.state(t)
     c = m.frames.spin
     d1, d2 = c(x, 1), c(x, 2)
     if m.kind == "reorientation":

@@ -9,7 +9,15 @@ simulated controller shares with the planner: pose <-> transform conversion (:mo
 
 from planner.kinematics.errors import UnreachableError
 from planner.kinematics.forward import forward, forward_matrix, link_frames
-from planner.kinematics.inverse import IKSolutions, inverse, inverse_batch, inverse_nearest, inverse_path, wrap_angle
+from planner.kinematics.inverse import (
+    IKSolutions,
+    inverse,
+    inverse_batch,
+    inverse_frames,
+    inverse_nearest,
+    inverse_path,
+    wrap_angle,
+)
 from planner.kinematics.poses import as_transform, matrix_to_pose, pose_to_matrix
 from planner.kinematics.reachability import (
     ReachabilityReport,
@@ -41,6 +49,7 @@ __all__ = [
     "get_model",
     "inverse",
     "inverse_batch",
+    "inverse_frames",
     "inverse_nearest",
     "inverse_path",
     "joint_speeds",

@@ -53,7 +53,8 @@ from planner.kinematics.poses import frame_matrix, pose_frame_1, pose_matrices_n
 from planner.kinematics.ur_models import URModel, get_model
 from planner.validation import as_floats
 
-__all__ = ["IKSolutions", "inverse", "inverse_batch", "inverse_nearest", "inverse_path", "wrap_angle"]
+__all__ = ["IKSolutions", "inverse", "inverse_batch", "inverse_frames", "inverse_nearest", "inverse_path",
+           "wrap_angle"]
 
 from planner.kinematics._tolerances import BOUNDARY_TOL as _BOUNDARY_TOL
 from planner.kinematics._tolerances import INV_TWO_PI as _INV_TWO_PI
@@ -77,6 +78,11 @@ def wrap_angle(x) -> np.ndarray:
     x = as_floats(x, "x")
     if np.isinf(x).any():
         raise PlannerError(f"x: angles must be finite (NaN passes), got {x[np.isinf(x)][0]}")
+    return _wrap(x)
+
+
+def _wrap(x: np.ndarray) -> np.ndarray:
+    """:func:`wrap_angle` of a float array the solver made (finite or NaN: not checked)."""
     w = np.subtract(x, _TWO_PI * np.round(x * _INV_TWO_PI), out=np.empty_like(x))
     # round(x / 2 pi) may leave w a rounding error outside (-pi, pi]: one step back covers it
     np.add(w, _TWO_PI, out=w, where=w <= -np.pi)
@@ -259,15 +265,15 @@ def _solve_block(m: URModel, T, q6_ref, q_out, valid_out, singular_out, clipped_
 
     # Joints wrapped to (-pi, pi] as they are written: atan2, acos and asin give [-pi, pi] or (-3 pi, 3 pi)
     # (q1: psi +- asin, q2: a difference of atan2, q4 = q234 - q2 - q3), q6 any value where it was set.
-    q_out[0] = wrap_angle(q1)[:, None, None]
+    q_out[0] = _wrap(q1)[:, None, None]
     q2 = np.stack([phi - gam, phi + gam], axis=2)  # (2, 2, 2, k): shoulder, wrist, elbow
-    q_out[1] = wrap_angle(q2)
+    q_out[1] = _wrap(q2)
     q3 = q_out[2]
     q3[:, :, 0], q3[:, :, 1] = t3, -t3
     _pi_not_minus_pi(q3)
-    q_out[3] = wrap_angle(q234[:, :, None] - q2 - q3)
+    q_out[3] = _wrap(q234[:, :, None] - q2 - q3)
     q_out[4] = _pi_not_minus_pi(q5)[:, :, None]
-    q_out[5] = (wrap_angle(q6) if turned else _pi_not_minus_pi(q6))[:, :, None]
+    q_out[5] = (_wrap(q6) if turned else _pi_not_minus_pi(q6))[:, :, None]
     valid_out[...] = (ok1 & ok3)[:, :, None]
     singular_out[...] = sing[:, None, None]
     clipped_out[...] = ((np.abs(ratio) > 1.0) | (np.abs(cos3) > 1.0) | adjusted)[:, :, None]
@@ -350,6 +356,44 @@ def inverse_batch(model: str | URModel, poses, tcp=None, q6_ref=0.0) -> IKSoluti
         return _solve(m, T, _q6_reference(q6_ref, len(T))).public(m)
     P, _ = rows_of_six(poses, "pose")
     return _solve(m, _flange_targets(m, P, tcp), _q6_reference(q6_ref, len(P))).public(m)
+
+
+def inverse_frames(model: str | URModel, p: np.ndarray, R: np.ndarray, tcp=None) -> tuple[np.ndarray, np.ndarray]:
+    """All eight branches of tool frames the planner made itself, joint-major: for a search over many poses.
+
+    The same solutions as :func:`inverse_batch` of the transforms (p, R) (q6 = 0 at a wrist singularity),
+    without its checks of the input (the frames are orthonormal by construction: rotation-minimizing frames
+    turned about their own axis) and without its re-arrangement to sample-major arrays.
+
+    Parameters
+    ----------
+    model : str or URModel
+    p : ndarray, shape (n, 3)
+        Tool positions in the base frame, m.
+    R : ndarray, shape (n, 3, 3)
+        Tool rotations in the base frame (columns: the tool's x, y, z axes).
+    tcp : array_like, shape (6,), optional
+        Tool-centre-point offset in the flange frame.
+
+    Returns
+    -------
+    q : ndarray, shape (6, 8, n)
+        Joints (rad, wrapped to (-pi, pi]) by joint, branch (as :class:`IKSolutions`) and pose; NaN where not
+        valid. ``q[:, b, i]`` is ``inverse_batch(...).q[i, b]`` bit for bit.
+    valid : ndarray of bool, shape (8, n)
+    """
+    m = get_model(model)
+    n = len(p)
+    T = np.zeros((n, 4, 4))
+    T[:, 3, 3] = 1.0
+    frame = tcp_frame(tcp)
+    if frame is None:
+        T[:, :3, :3], T[:, :3, 3] = R, p
+    else:
+        T[:, :3, :3], T[:, :3, 3] = compose(np.ascontiguousarray(R, dtype=float), np.asarray(p, dtype=float),
+                                            *invert_1(*frame))
+    sol = _solve(m, T, np.zeros(n))
+    return sol.q, sol.valid
 
 
 _PAIRS = ((0, 0), (1, 1), (2, 2), (0, 1), (0, 2), (1, 2))

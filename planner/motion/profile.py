@@ -78,21 +78,32 @@ class FeedProfile:
 
     def s(self, t) -> np.ndarray:
         """Arc length (m) at times t (n,), exact cubic per phase; 0 before the start, ``length`` after."""
-        t, p, tau = self._locate(t)
+        return self._s(*self._locate(t))
+
+    def v(self, t) -> np.ndarray:
+        """Speed ds/dt (m/s) at times t (n,)."""
+        return self._v(*self._locate(t))
+
+    def a(self, t) -> np.ndarray:
+        """Acceleration d^2 s/dt^2 (m/s^2) at times t (n,)."""
+        return self._a(*self._locate(t))
+
+    def state(self, t) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(:meth:`s`, :meth:`v`, :meth:`a`) at times t (n,), the phases found once."""
+        located = self._locate(t)
+        return self._s(*located), self._v(*located), self._a(*located)
+
+    def _s(self, t, p, tau) -> np.ndarray:
         # constant jerk: s = s0 + v0 tau + a0 tau^2 / 2 + j tau^3 / 6 (Horner)
         out = self.s0[p] + tau * (self.v0[p] + tau * (0.5 * self.a0[p] + tau * (self.j[p] / 6.0)))
         out = np.where(t >= self.t[-1], self.length, out)
         return np.where(t <= 0.0, 0.0, np.minimum(out, self.length))
 
-    def v(self, t) -> np.ndarray:
-        """Speed ds/dt (m/s) at times t (n,)."""
-        t, p, tau = self._locate(t)
+    def _v(self, t, p, tau) -> np.ndarray:
         out = self.v0[p] + tau * (self.a0[p] + tau * (0.5 * self.j[p]))
         return np.where((t <= 0.0) | (t >= self.t[-1]), 0.0, out)
 
-    def a(self, t) -> np.ndarray:
-        """Acceleration d^2 s/dt^2 (m/s^2) at times t (n,)."""
-        t, p, tau = self._locate(t)
+    def _a(self, t, p, tau) -> np.ndarray:
         out = self.a0[p] + tau * self.j[p]
         return np.where((t <= 0.0) | (t >= self.t[-1]), 0.0, out)
 
