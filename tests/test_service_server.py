@@ -155,6 +155,22 @@ class ServiceProcess:
         return out.getvalue()
 
 
+def sim_service(name: str, sim_speed: float):
+    """A module-scoped fixture: a service (development mode, one planning worker) with one simulated robot "sim"
+    whose program mode runs ``sim_speed`` times real time (and a quick approach), stopped cleanly after the module
+    (the page's and the 3D view's tests)."""
+
+    @pytest.fixture(scope="module")
+    def server(tmp_path_factory):
+        robots = {"sim": {"sim": True, "sim_speed": sim_speed, "approach_speed": 2.0, "approach_acceleration": 3.0}}
+        s = ServiceProcess(tmp_path_factory.mktemp(name), workers=1,
+                           env={"PLANNER_ROBOTS": json.dumps(robots)}).start()
+        yield s
+        assert s.stop() == 0, s.log.read_text()
+
+    return server
+
+
 def wait_state(client: httpx.Client, job_id: str, states=("done", "failed", "cancelled"), timeout: float = 120.0):
     """Poll a job until it reaches one of ``states``; its view."""
     deadline = time.monotonic() + timeout
