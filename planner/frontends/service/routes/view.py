@@ -28,6 +28,7 @@ from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import JSONResponse, Response, StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
+from planner.errors import PlannerError
 from planner.frontends.service import view_data
 from planner.frontends.service.deps import Caller, OwnJob, Service, ServiceDep
 from planner.frontends.service.errors import CheckedRoute, documented
@@ -53,7 +54,8 @@ _building: dict[tuple[str, int], threading.Lock] = {}
 
 
 def _fine(svc: Service, row: Job):
-    """(job, fine path, reach) of a done job, made once per job and kept (the :data:`CACHED` last)."""
+    """(job, fine path, reach) of a done job: the fine path stored with its plan (made by the planning task), read
+    once per job and kept (the :data:`CACHED` last)."""
     from planner.job import load_job
 
     if row.state != "done" or not row.job_file:
@@ -67,7 +69,17 @@ def _fine(svc: Service, row: Job):
                 _cache.move_to_end(key)
                 return _cache[key]
         job = load_job(svc.plan_bytes(row))
-        entry = (job, view_data.fine_path(job), view_data._reach(job))
+        stored = svc.job_data(row, "view")  # made by the planning task with the plan
+        fine = None
+        if stored is not None:
+            try:
+                fine = view_data.ViewPath.from_bytes(stored)
+            except PlannerError:  # another version's: made again (and not stored over the other)
+                fine = view_data.fine_path(job)
+        if fine is None:  # a job planned before the planning task made its view
+            fine = view_data.fine_path(job)
+            svc.keep_job_data(row, "view", fine.to_bytes())
+        entry = (job, fine, view_data._reach(job))
         with _cache_lock:
             _cache[key] = entry
             while len(_cache) > CACHED:
@@ -85,12 +97,7 @@ def view(svc: ServiceDep, row: OwnJob,
     """The 3D view's scene of a done job: the arm (DH), part frame, stations, problems and the path within
     ``tolerance`` (default: the size of one pixel of a ``pixels``-wide view of the whole path)."""
     job, fine, reach = _fine(svc, row)
-    if tolerance is None:
-        diag = float(np.linalg.norm(fine.xyz.max(axis=0) - fine.xyz.min(axis=0)))
-        tolerance = min(max(diag / pixels, view_data.FINE_TOLERANCE), view_data.MAX_TOLERANCE)
-    view_data.checked_window(tolerance, None, None)
-    overview = view_data.window(fine, tolerance, reach=reach)
-    return JSONResponse(view_data.scene_json(job, fine, overview, tolerance))
+    return JSONResponse(view_data.scene(job, fine, reach, tolerance, pixels))
 
 
 @router.get("/jobs/{job_id}/view/path", responses=documented(404, 409, 422, e404="no such job of this key's team",
@@ -102,8 +109,7 @@ def view_path(svc: ServiceDep, row: OwnJob, t0: float, t1: float,
     """The path between job times ``t0`` and ``t1`` s within ``tolerance`` m (detail on demand)."""
     view_data.checked_window(tolerance, t0, t1)
     job, fine, reach = _fine(svc, row)
-    part = view_data.window(fine, tolerance, t0, t1, reach=reach)
-    return JSONResponse({"t0": t0, "t1": t1, "path": view_data.path_json(part, tolerance)})
+    return JSONResponse(view_data.detail(fine, reach, t0, t1, tolerance))
 
 
 @router.get("/executions/{execution_id}/live", response_class=StreamingResponse,

@@ -97,10 +97,12 @@ def plan_job(spec: PlanSpec, report: Report) -> Outcome:
         blob = job.to_bytes()
         summary = plain(job.summary())
         passes = int(summary.get("passes") or 0)
+        report(Progress("view", passes, passes))
         return Outcome("done", values={"summary": json.dumps(summary), "describe": json.dumps(list(job.describe())),
                                        "stage": "done", "done": passes, "total": passes},
                        plan=blob, planning_s=float(sum(v for k, v in job.timings.items()
-                                                       if k in ("parse", "plan", "reach"))))
+                                                       if k in ("parse", "plan", "reach"))),
+                       files=view_files(job))
     except PlannerError as exc:
         return failed("input", str(exc))
     except NumericalError as exc:
@@ -109,6 +111,18 @@ def plan_job(spec: PlanSpec, report: Report) -> Outcome:
         return failed("internal", "out of memory while planning")
     except Exception as exc:  # a bug of ours: say what, never a traceback to the client
         return failed("internal", f"internal error: {type(exc).__name__}: {exc}")
+
+
+def view_files(job) -> dict[str, bytes]:
+    """The 3D view's data of a planned job, stored with its plan: {"view": the fine path}
+    (:func:`planner.frontends.service.view_data.fine_path`, :meth:`~.view_data.ViewPath.to_bytes`); {} if it cannot be
+    made (the service then makes it on the view's first request and says why there)."""
+    from planner.frontends.service.view_data import fine_path
+
+    try:
+        return {"view": fine_path(job).to_bytes()}
+    except Exception:  # (the view is a convenience: never the plan's failure)
+        return {}
 
 
 def _plan(spec: PlanSpec, progress):
