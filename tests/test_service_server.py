@@ -39,12 +39,13 @@ class ServiceProcess:
         self.url = ""
         self.log = self.folder / "service.log"
 
-    def start(self, timeout: float = 60.0) -> ServiceProcess:
-        """Start and wait until healthy; a service that does not come up is killed before the error is raised."""
+    def start(self, timeout: float = 60.0, port: int = 0) -> ServiceProcess:
+        """Start (on ``port``, 0: a free one) and wait until healthy; a service that does not come up is killed before
+        the error is raised."""
         out = open(self.log, "ab")  # noqa: SIM115 (kept open for the process)
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "planner.frontends.service", "serve", "--host", self.host, "--port", "0", "--workers",
-             str(self.workers)], cwd=self.folder, env=self.env, stdout=subprocess.PIPE, stderr=out)
+            [sys.executable, "-m", "planner.frontends.service", "serve", "--host", self.host, "--port", str(port),
+             "--workers", str(self.workers)], cwd=self.folder, env=self.env, stdout=subprocess.PIPE, stderr=out)
         out.close()
         try:
             self._wait_healthy(timeout)
@@ -71,6 +72,17 @@ class ServiceProcess:
             if time.monotonic() > deadline or self.proc.poll() is not None:
                 raise AssertionError(f"the service is not healthy in {timeout} s:\n{self.log.read_text()}")
             time.sleep(0.1)
+
+    @property
+    def port(self) -> int:
+        return int(self.url.rsplit(":", 1)[1])
+
+    def restart(self, timeout: float = 60.0) -> int:
+        """This service process stopped (SIGTERM) and started again on the same port and database (a celery
+        replica's workers go on); the stopped process's exit code."""
+        code = ServiceProcess.stop(self)
+        ServiceProcess.start(self, timeout, port=self.port)
+        return code
 
     def client(self, key: str | None = None) -> httpx.Client:
         headers = {"X-API-Key": key} if key else {}

@@ -59,11 +59,15 @@ class Slot:
         The worker process's name (planner-work, planner-exec).
     on_finish : callable or None
         Told of every end this slot stored.
+    live : LiveHub or RedisLive, optional
+        Where an execution's live samples go (:mod:`planner.frontends.service.live`; default this process's
+        :data:`~planner.frontends.service.live.HUB`).
     """
 
     def __init__(self, store: Transitions, job_timeout_s: float, stopping: threading.Event,
-                 name: str = "planner-work", on_finish: Finished | None = None):
+                 name: str = "planner-work", on_finish: Finished | None = None, live: Any = None):
         self.store = store
+        self.live = HUB if live is None else live
         self.job_timeout_s = job_timeout_s
         self.stopping = stopping
         self.name = name
@@ -144,7 +148,7 @@ class Slot:
                 self.on_finish(kind, outcome, time.monotonic() - t0)
         finally:
             if kind is EXECUTION:  # (after its end is stored: the live stream's end names the final state)
-                HUB.end(task_id)
+                self.live.end(task_id)
 
     def _finish(self, kind: Kind, task_id: str, attempt: int, outcome: Outcome) -> bool:
         """Store the end; the database away for a moment is waited for (1, 2, 4 ... s, up to a minute in all)."""
@@ -238,7 +242,7 @@ class Slot:
                     with contextlib.suppress(DBAPIError):  # (progress shown at the next write)
                         self.store.progress(kind, task_id, attempt, msg)
             elif isinstance(msg, Live):  # the execution's joint states, for the page's live view
-                HUB.add(task_id, msg.t, msg.q, msg.xyz, msg.io)
+                self.live.add(task_id, msg.t, msg.q, msg.xyz, msg.io)
             elif isinstance(msg, Outcome):
                 if kind is EXECUTION:  # its process ends after it
                     self.stop_process()
