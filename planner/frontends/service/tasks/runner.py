@@ -180,6 +180,7 @@ class Slot:
         next_look = start + CANCEL_POLL
         next_beat = start + HEARTBEAT_EVERY
         last_write = 0.0
+        last_stage = ""  # (a job's new stage is written at once: "preparing the 3D view" may last minutes)
         stop_sent: float | None = None
         while True:
             t = time.monotonic()
@@ -235,9 +236,10 @@ class Slot:
                                               "job may need more memory than the worker has")
                 return failed("internal", f"the execution's process ended without a result (exit code {code})")
             if isinstance(msg, Progress):
-                if msg.started or t - last_write >= PROGRESS_WRITE_EVERY[kind.name] or (
+                if msg.started or (kind is JOB and msg.stage != last_stage) or (
+                        t - last_write >= PROGRESS_WRITE_EVERY[kind.name]) or (
                         kind is EXECUTION and msg.done >= msg.total > 0):
-                    last_write = t
+                    last_write, last_stage = t, msg.stage
                     next_beat = t + HEARTBEAT_EVERY
                     with contextlib.suppress(DBAPIError):  # (progress shown at the next write)
                         self.store.progress(kind, task_id, attempt, msg)
