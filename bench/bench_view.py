@@ -4,8 +4,9 @@ Per job, what the service does (the same functions its routes call):
 - made: the fine path the planning task stores with the plan (:func:`view_data.fine_path`: poses thinned on the TCP
   and the tool frame, joints solved only at the kept samples and checked between them), s, and its stored bytes;
 - first request: the plan and the stored fine path read from their bytes and the scene of a 1000-px view made
-  (what the first ``GET /v1/jobs/{id}/view`` of a replica costs), s; cached: the scene again (the fine path kept in
-  memory), s; the scene's bytes (JSON, what is sent);
+  (what the first ``GET /v1/jobs/{id}/view`` of a replica costs), s; in memory: the scene made again from the fine
+  path a replica keeps (another view width; the same one is kept as bytes), s; the scene's bytes (JSON, what is
+  sent);
 - detail: ``GET /view/path`` of 1 % of the job's time (from its middle) at a tenth of the 1000-px tolerance (a view
   zoomed 10x), s and bytes.
 The load average (1 min) is printed with each row: the times are wall times on a shared machine.
@@ -85,7 +86,7 @@ def main() -> None:
         else:
             blob = plan(NX, PlanSettings.from_dict(NX_SETTINGS)).to_bytes()
         rows.append(row("whole NX job", blob))
-    print_table(["job", "poses", "fine samples", "made s", "stored", "first request s", "cached s",
+    print_table(["job", "poses", "fine samples", "made s", "stored", "first request s", "in memory s",
                  "samples at 1000 px", "scene at 1000 px", "detail (1 % of the job, 10x zoom)", "load 1 min"], rows)
 
 
