@@ -114,12 +114,12 @@ class CeleryService(ServiceProcess):
         if own_workers:
             self.pool = [WorkerProcess(self.folder, self.env, name=str(i)) for i in range(workers)]
 
-    def start(self, timeout: float = 90.0) -> CeleryService:
+    def start(self, timeout: float = 90.0, port: int = 0) -> CeleryService:
         for w in self.pool:
             if w.proc is None or w.proc.poll() is not None:
                 w.start()
         try:
-            super().start(timeout)
+            super().start(timeout, port)
         except BaseException:
             for w in self.pool:
                 w.stop()

@@ -22,3 +22,11 @@ def start(*extra: str):
     for arg in ("--headless=new", "--no-sandbox", "--disable-dev-shm-usage", "--window-size=1400,1100", *extra):
         options.add_argument(arg)
     return webdriver.Chrome(service=Service(executable_path=CHROMEDRIVER), options=options)
+
+
+def wait(driver, condition, timeout: float = 90.0):
+    """Wait until ``condition(driver)`` is true (polled every 0.1 s); selenium's TimeoutException after ``timeout``
+    s."""
+    from selenium.webdriver.support.ui import WebDriverWait
+
+    return WebDriverWait(driver, timeout, poll_frequency=0.1).until(condition)

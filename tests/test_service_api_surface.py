@@ -183,6 +183,9 @@ def test_planning_progress_counts_passes_planned_of_passes(keyed):
     assert counting, seen  # (written every 0.5 s while it plans: a few seconds here)
     assert all(p["total"] == n and 0 <= p["done"] <= n for p in counting), counting
     for p in counting:
+        if p["stage"] == "view":  # after the plan: the 3D view's data, made and stored with it
+            assert p["text"] == f"preparing the 3D view ({n} passes)" and p["done"] == n, p
+            continue
         what = {"fit": "fitting the passes", "plan": "planning tool frames and time laws"}[p["stage"]]
         assert p["text"] == f"{what}: {p['done']:g} of {n} passes"
     assert all(p["text"] in ("waiting for a worker", "starting: reading the input") for p in seen if not p["unit"])

@@ -15,17 +15,13 @@ import pytest
 from PIL import Image
 
 from tests import chromium
-from tests.test_service_server import ServiceProcess
+from tests.chromium import wait
+from tests.test_service_server import ServiceProcess, sim_service
 
 ROOT = Path(__file__).resolve().parents[1]
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    robots = {"sim": {"sim": True, "sim_speed": 20, "approach_speed": 2.0, "approach_acceleration": 3.0}}
-    s = ServiceProcess(tmp_path_factory.mktemp("page"), workers=1, env={"PLANNER_ROBOTS": json.dumps(robots)}).start()
-    yield s
-    assert s.stop() == 0, s.log.read_text()
+server = sim_service("page", sim_speed=20)
 
 
 @pytest.fixture(scope="module")
@@ -39,12 +35,6 @@ def _executions(client):
     r = client.get("/v1/executions")
     assert r.status_code == 200, r.text
     return r.json()["executions"]
-
-
-def wait(driver, condition, timeout: float = 90.0):
-    from selenium.webdriver.support.ui import WebDriverWait
-
-    return WebDriverWait(driver, timeout, poll_frequency=0.1).until(condition)
 
 
 def until_done(driver):

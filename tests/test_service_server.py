@@ -39,12 +39,13 @@ class ServiceProcess:
         self.url = ""
         self.log = self.folder / "service.log"
 
-    def start(self, timeout: float = 60.0) -> ServiceProcess:
-        """Start and wait until healthy; a service that does not come up is killed before the error is raised."""
+    def start(self, timeout: float = 60.0, port: int = 0) -> ServiceProcess:
+        """Start (on ``port``, 0: a free one) and wait until healthy; a service that does not come up is killed before
+        the error is raised."""
         out = open(self.log, "ab")  # noqa: SIM115 (kept open for the process)
         self.proc = subprocess.Popen(
-            [sys.executable, "-m", "planner.frontends.service", "serve", "--host", self.host, "--port", "0", "--workers",
-             str(self.workers)], cwd=self.folder, env=self.env, stdout=subprocess.PIPE, stderr=out)
+            [sys.executable, "-m", "planner.frontends.service", "serve", "--host", self.host, "--port", str(port),
+             "--workers", str(self.workers)], cwd=self.folder, env=self.env, stdout=subprocess.PIPE, stderr=out)
         out.close()
         try:
             self._wait_healthy(timeout)
@@ -71,6 +72,17 @@ class ServiceProcess:
             if time.monotonic() > deadline or self.proc.poll() is not None:
                 raise AssertionError(f"the service is not healthy in {timeout} s:\n{self.log.read_text()}")
             time.sleep(0.1)
+
+    @property
+    def port(self) -> int:
+        return int(self.url.rsplit(":", 1)[1])
+
+    def restart(self, timeout: float = 60.0) -> int:
+        """This service process stopped (SIGTERM) and started again on the same port and database (a celery
+        replica's workers go on); the stopped process's exit code."""
+        code = ServiceProcess.stop(self)
+        ServiceProcess.start(self, timeout, port=self.port)
+        return code
 
     def client(self, key: str | None = None) -> httpx.Client:
         headers = {"X-API-Key": key} if key else {}
@@ -153,6 +165,22 @@ class ServiceProcess:
             code = main([command, "--db", self.db, *args])
         assert code == 0, out.getvalue()
         return out.getvalue()
+
+
+def sim_service(name: str, sim_speed: float):
+    """A module-scoped fixture: a service (development mode, one planning worker) with one simulated robot "sim"
+    whose program mode runs ``sim_speed`` times real time (and a quick approach), stopped cleanly after the module
+    (the page's and the 3D view's tests)."""
+
+    @pytest.fixture(scope="module")
+    def server(tmp_path_factory):
+        robots = {"sim": {"sim": True, "sim_speed": sim_speed, "approach_speed": 2.0, "approach_acceleration": 3.0}}
+        s = ServiceProcess(tmp_path_factory.mktemp(name), workers=1,
+                           env={"PLANNER_ROBOTS": json.dumps(robots)}).start()
+        yield s
+        assert s.stop() == 0, s.log.read_text()
+
+    return server
 
 
 def wait_state(client: httpx.Client, job_id: str, states=("done", "failed", "cancelled"), timeout: float = 120.0):

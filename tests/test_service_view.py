@@ -17,19 +17,15 @@ import pytest
 from PIL import Image
 
 from tests import chromium
-from tests.test_service_server import ServiceProcess
+from tests.chromium import wait
+from tests.test_service_server import sim_service
 
 ROOT = Path(__file__).resolve().parents[1]
 DEMO = {"robot": "ur5e", "part_frame": [0.4, 0.9965, -0.1, 0.0, 0.0, 0.0], "cut_output": ["standard", 0]}
 BACKGROUND = np.array([0xF4, 0xF6, 0xF9])
 
 
-@pytest.fixture(scope="module")
-def server(tmp_path_factory):
-    robots = {"sim": {"sim": True, "sim_speed": 5, "approach_speed": 2.0, "approach_acceleration": 3.0}}
-    s = ServiceProcess(tmp_path_factory.mktemp("view"), workers=1, env={"PLANNER_ROBOTS": json.dumps(robots)}).start()
-    yield s
-    assert s.stop() == 0, s.log.read_text()
+server = sim_service("view", sim_speed=5)
 
 
 @pytest.fixture(scope="module")
@@ -56,12 +52,6 @@ def demo(server):
     assert v["state"] == "done", v
     job = plan(ROOT / "examples" / "nx_first_pass.cls", PlanSettings.from_dict(DEMO))
     return job_id, job, job.trajectory().collect()
-
-
-def wait(driver, condition, timeout: float = 90.0):
-    from selenium.webdriver.support.ui import WebDriverWait
-
-    return WebDriverWait(driver, timeout, poll_frequency=0.1).until(condition)
 
 
 def open_view(d, server, job_id):

@@ -6,6 +6,7 @@ job of the path (:data:`OwnJob`, 404 for another team's).
 from __future__ import annotations
 
 import re
+import time
 from typing import Annotated
 
 from fastapi import Depends, HTTPException, Request
@@ -74,11 +75,29 @@ class Service:
 
     def plan_bytes(self, job: Job) -> bytes:
         """The saved plan of a done job (from the store: any replica serves any job's exports)."""
-        with self.engine.connect() as conn:
-            data = conn.scalar(select(JobData.data).where(JobData.job_id == job.id, JobData.name == "plan"))
+        data = self.job_data(job, "plan")
         if data is None:
             raise HTTPException(500, f"job {job.id} is done but its plan is not in the store")
-        return bytes(data)
+        return data
+
+    def job_data(self, job: Job, name: str) -> bytes | None:
+        """A job's stored bytes ``name`` ("input", "plan", "view"), or None."""
+        with self.engine.connect() as conn:
+            data = conn.scalar(select(JobData.data).where(JobData.job_id == job.id, JobData.name == name))
+        return None if data is None else bytes(data)
+
+    def keep_job_data(self, job: Job, name: str, data: bytes) -> None:
+        """Store bytes made from a job after its end (the 3D view's data of a job planned before the planning task
+        made it), unless another replica stored them first."""
+        from sqlalchemy import insert
+        from sqlalchemy.exc import IntegrityError
+
+        try:
+            with self.store.write_lock, self.engine.begin() as conn:
+                conn.execute(insert(JobData).values(job_id=job.id, name=name, data=data, bytes=len(data),
+                                                    created_at=time.time()))
+        except IntegrityError:  # stored by another replica meanwhile: the same bytes
+            pass
 
 
 def make_backend(cfg: ServiceConfig, store: Transitions, finished):

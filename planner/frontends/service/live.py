@@ -1,26 +1,41 @@
-"""Live joint states of the executions this service process runs: what the page's 3D view shows of the arm while a job
-runs (``GET /v1/executions/{id}/live``, Server-Sent Events).
+"""Live joint states of executions: what the page's 3D view shows of the arm while a job runs
+(``GET /v1/executions/{id}/live``, Server-Sent Events).
 
 The execution's worker process relays the driver's recorded samples, thinned to ``tasks.functions.LIVE_RATE`` (job
-time, joints, TCP position, output bits; :class:`~.tasks.lifecycle.Live` messages); the runner (in this process)
-appends them here. Each execution keeps its last :data:`KEEP` samples (a page that connects or reconnects gets the
-recent past, then what follows), numbered from 1 (an event's id: a reconnecting page sends the last it had,
-``Last-Event-ID``). Executions run by another process (a Celery worker) are not seen here: their page shows progress
-only.
+time, joints, TCP position, output bits; :class:`~.tasks.lifecycle.Live` messages); the runner hands them to its
+backend's *live hub*, which numbers them from 1 (an event's id: a reconnecting page sends the last it had,
+``Last-Event-ID``) and keeps each execution's last :data:`KEEP` samples (a page that connects or reconnects gets the
+recent past, then what follows):
+
+- :class:`LiveHub` (the local backend): in the service process that runs the execution (:data:`HUB`);
+- :class:`RedisLive` (the celery backend): a Redis stream per execution on the broker's Redis, written by the
+  ``planner worker`` that runs it and read by every API replica (a replica restarted mid-run, or another one behind
+  the proxy, streams the same samples).
+
+Both answer ``feed(execution_id)`` with an object whose ``after(seq, wait)`` gives the rows numbered above ``seq``
+(waiting up to ``wait`` s for one) and whether the execution's feed has ended, or None while there is no feed.
 """
 
 from __future__ import annotations
 
+import contextlib
+import logging
 import threading
 import time
 from collections import OrderedDict, deque
 
 import numpy as np
 
+log = logging.getLogger("planner.frontends.service")
+
 #: Samples kept per execution.
 KEEP = 20_000
 #: Executions kept (the oldest forgotten first).
 EXECUTIONS = 16
+
+
+#: Columns of a row: seq, t s, q0..q5 rad, x, y, z m, io bits.
+COLUMNS = 12
 
 
 class LiveFeed:
@@ -54,7 +69,7 @@ class LiveFeed:
             while self.seq <= seq and not self.ended and time.monotonic() < deadline:
                 self.changed.wait(max(deadline - time.monotonic(), 0.0))
             if self.seq <= seq:
-                return np.zeros((0, 14)), self.ended
+                return np.zeros((0, COLUMNS)), self.ended
             rows = [r for r in self.rows if r[0] > seq]
             return np.array(rows), self.ended
 
@@ -88,3 +103,96 @@ class LiveHub:
 
 #: This process's hub.
 HUB = LiveHub()
+
+
+#: Seconds a Redis live stream is kept after its last write (an execution that never ended: its worker lost).
+REDIS_TTL = 24 * 3600.0
+#: Seconds a Redis live stream is kept after its execution ended.
+REDIS_TTL_ENDED = 3600.0
+
+
+def _stream_key(execution_id: str) -> str:
+    return f"planner:live:{execution_id}"
+
+
+class RedisLive:
+    """The live hub of the celery backend: one Redis stream per execution (``planner:live:<id>``) on ``url`` (the
+    broker's Redis), an entry per batch of samples (``rows``: float64 little-endian, :data:`COLUMNS` per row) whose
+    stream id is ``0-<seq of its last row>`` (a reader resumes after a row number with ``XREAD`` from ``0-<seq>``),
+    and an ``end`` entry; trimmed to about :data:`KEEP` entries and expired (:data:`REDIS_TTL`,
+    :data:`REDIS_TTL_ENDED`). The writer (a ``planner worker``) never fails a run for it: a sample Redis does not take
+    is left out of the live view."""
+
+    def __init__(self, url: str | None) -> None:
+        import redis
+
+        from planner.errors import PlannerError
+
+        if not url:
+            raise PlannerError("the celery backend needs PLANNER_BROKER (redis://HOST:PORT/0)")
+        self.client = redis.Redis.from_url(url, socket_timeout=5.0, socket_connect_timeout=2.0)
+        self.seq: dict[str, int] = {}
+        self.lock = threading.Lock()
+
+    def add(self, execution_id: str, t, q, xyz, io) -> None:
+        n = int(np.asarray(t).size)
+        if not n:
+            return
+        with self.lock:
+            first = self.seq.get(execution_id, 0) + 1
+            self.seq[execution_id] = first + n - 1
+        block = np.column_stack((np.arange(first, first + n), t, q, xyz, io)).astype("<f8")
+        key = _stream_key(execution_id)
+        try:
+            pipe = self.client.pipeline(transaction=False)
+            pipe.xadd(key, {"rows": block.tobytes()}, id=f"0-{first + n - 1}", maxlen=KEEP, approximate=True)
+            pipe.expire(key, int(REDIS_TTL))
+            pipe.execute()
+        except Exception as exc:  # the broker away: these samples miss the live view, never the run
+            log.debug("live samples of %s not relayed: %s", execution_id, exc)
+
+    def end(self, execution_id: str) -> None:
+        key = _stream_key(execution_id)
+        with self.lock:
+            last = self.seq.pop(execution_id, 0)
+        with contextlib.suppress(Exception):
+            pipe = self.client.pipeline(transaction=False)
+            pipe.xadd(key, {"end": b"1"}, id=f"0-{last + 1}")
+            pipe.expire(key, int(REDIS_TTL_ENDED))
+            pipe.execute()
+
+    def feed(self, execution_id: str, create: bool = False) -> RedisFeed | None:
+        """The execution's stream, or None while it has none (or Redis does not answer)."""
+        key = _stream_key(execution_id)
+        try:
+            if not self.client.exists(key):
+                return None
+        except Exception:
+            return None
+        return RedisFeed(self.client, key)
+
+
+class RedisFeed:
+    """One execution's Redis stream, read as :meth:`LiveFeed.after`."""
+
+    def __init__(self, client, key: str) -> None:
+        self.client = client
+        self.key = key
+
+    def after(self, seq: int, wait: float = 0.0) -> tuple[np.ndarray, bool]:
+        try:
+            got = self.client.xread({self.key: f"0-{int(seq)}"}, count=KEEP, block=max(int(wait * 1000), 1))
+        except Exception:  # Redis away for a moment: nothing now, the next read tries again
+            time.sleep(wait)
+            return np.zeros((0, COLUMNS)), False
+        blocks, ended = [], False
+        for _key, entries in got or []:
+            for _id, fields in entries:
+                if b"end" in fields:
+                    ended = True
+                elif b"rows" in fields:
+                    blocks.append(np.frombuffer(fields[b"rows"], "<f8").reshape(-1, COLUMNS))
+        if not blocks:
+            return np.zeros((0, COLUMNS)), ended
+        rows = np.vstack(blocks)
+        return rows[rows[:, 0] > seq], ended

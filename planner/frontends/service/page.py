@@ -128,7 +128,8 @@ PAGE = r"""<!doctype html>
 <script>
 "use strict";
 const $ = (id) => document.getElementById(id);
-let current = null, timer = null, devMode = false, execution = null, execTimer = null, modeChosen = false;
+let current = null, timer = null, devMode = false, execution = null, execTimer = null, modeChosen = false,
+    execLost = false;
 $("apikey").value = localStorage.getItem("planner-key") || "";
 $("apikey").addEventListener("change", () => { localStorage.setItem("planner-key", $("apikey").value); listJobs(); });
 
@@ -150,7 +151,7 @@ async function api(path, options) {
         ? body.detail.map((d) => (d.loc || []).slice(1).join(".") + ": " + d.msg).join("\n")
         : (body.detail || msg);
     } catch (e) { /* not JSON */ }
-    throw new Error(msg);
+    throw Object.assign(new Error(msg), {status: r.status});
   }
   return r;
 }
@@ -346,7 +347,13 @@ async function pollExecution() {
   const id = execution;
   if (!id) return;
   let v;
-  try { v = await (await api("/v1/executions/" + id)).json(); } catch (e) { $("execute-result").textContent = e.message; return; }
+  try { v = await (await api("/v1/executions/" + id)).json(); } catch (e) {
+    $("execute-result").textContent = e.message;
+    execLost = !e.status || e.status >= 500;  // the service away (restarting): asked again
+    if (execLost) execTimer = setTimeout(pollExecution, 1000);
+    return;
+  }
+  if (execLost) { $("execute-result").textContent = ""; execLost = false; }
   if (id !== execution) return;
   const active = ["starting", "running", "stopping"].includes(v.state);
   $("exec-state").textContent = v.state;

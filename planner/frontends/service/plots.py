@@ -10,6 +10,7 @@ Kept free of web and database imports (the drawing process imports only the plan
 
 from __future__ import annotations
 
+import contextlib
 import multiprocessing as mp
 import os
 import threading
@@ -103,9 +104,14 @@ class Plotter:
                                    initargs=(os.getpid(),))
 
     def stop(self) -> None:
+        """Stop drawing: a picture being drawn is abandoned, its process killed (a stopping service never waits for
+        a picture: on a busy machine one takes tens of seconds; it is drawn again when next asked for)."""
         with self._lock:
             pool, self._pool = self._pool, None
         if pool is not None:
+            for proc in list((getattr(pool, "_processes", None) or {}).values()):  # (public from Python 3.14 only)
+                with contextlib.suppress(Exception):
+                    proc.kill()
             pool.shutdown(wait=True, cancel_futures=True)
 
     def draw(self, plan: bytes, input_name: str, target: str) -> Future:

@@ -8,7 +8,8 @@
 - ``GET /v1/executions/{id}/live``: the execution's joint states as Server-Sent Events (``text/event-stream``; each
   event a JSON list of rows [t, q0..q5, x, y, z, io], its id the last row's number: a reconnecting client sends
   ``Last-Event-ID`` and gets what it missed still kept); an ``end`` event once the execution ended. Read with the
-  API key's header (fetch and a stream reader: EventSource cannot send one).
+  API key's header (fetch and a stream reader: EventSource cannot send one). Any API replica streams any
+  execution (the celery backend relays the samples through Redis, :mod:`planner.frontends.service.live`).
 - ``GET /view3d/{name}``: the view's script and the vendored three.js (a fixed list of files, gzip'd once).
 """
 
@@ -28,10 +29,10 @@ from fastapi import APIRouter, HTTPException, Query, Request
 from fastapi.responses import JSONResponse, Response, StreamingResponse
 from starlette.concurrency import run_in_threadpool
 
+from planner.errors import PlannerError
 from planner.frontends.service import view_data
 from planner.frontends.service.deps import Caller, OwnJob, Service, ServiceDep
 from planner.frontends.service.errors import CheckedRoute, documented
-from planner.frontends.service.live import HUB
 from planner.frontends.service.routes.executions import own_execution
 from planner.frontends.service.store import Job
 from planner.frontends.service.tasks.lifecycle import EXECUTION
@@ -47,13 +48,18 @@ CACHED = 4
 #: Seconds between the live stream's events at most (a comment keeps an idle connection open).
 LIVE_IDLE = 5.0
 
+#: Scenes kept in memory (the same view asked again: a page reloaded, another person, another tab).
+SCENES = 8
+
 _cache: OrderedDict[tuple[str, int], tuple] = OrderedDict()
+_scenes: OrderedDict[tuple, bytes | memoryview] = OrderedDict()
 _cache_lock = threading.Lock()
 _building: dict[tuple[str, int], threading.Lock] = {}
 
 
 def _fine(svc: Service, row: Job):
-    """(job, fine path, reach) of a done job, made once per job and kept (the :data:`CACHED` last)."""
+    """(job, fine path, reach) of a done job: the fine path stored with its plan (made by the planning task), read
+    once per job and kept (the :data:`CACHED` last)."""
     from planner.job import load_job
 
     if row.state != "done" or not row.job_file:
@@ -67,7 +73,17 @@ def _fine(svc: Service, row: Job):
                 _cache.move_to_end(key)
                 return _cache[key]
         job = load_job(svc.plan_bytes(row))
-        entry = (job, view_data.fine_path(job), view_data._reach(job))
+        stored = svc.job_data(row, "view")  # made by the planning task with the plan
+        fine = None
+        if stored is not None:
+            try:
+                fine = view_data.ViewPath.from_bytes(stored)
+            except PlannerError:  # another version's: made again (and not stored over the other)
+                fine = view_data.fine_path(job)
+        if fine is None:  # a job planned before the planning task made its view
+            fine = view_data.fine_path(job)
+            svc.keep_job_data(row, "view", fine.to_bytes())
+        entry = (job, fine, view_data._reach(job))
         with _cache_lock:
             _cache[key] = entry
             while len(_cache) > CACHED:
@@ -81,16 +97,20 @@ def _fine(svc: Service, row: Job):
 def view(svc: ServiceDep, row: OwnJob,
          tolerance: Annotated[float | None, Query(ge=view_data.FINE_TOLERANCE, le=view_data.MAX_TOLERANCE,
                                                   description="path tolerance, m (default: a pixel)")] = None,
-         pixels: Annotated[int, Query(ge=100, le=20_000, description="the view's width, px")] = 1000) -> JSONResponse:
+         pixels: Annotated[int, Query(ge=100, le=20_000, description="the view's width, px")] = 1000) -> Response:
     """The 3D view's scene of a done job: the arm (DH), part frame, stations, problems and the path within
     ``tolerance`` (default: the size of one pixel of a ``pixels``-wide view of the whole path)."""
     job, fine, reach = _fine(svc, row)
-    if tolerance is None:
-        diag = float(np.linalg.norm(fine.xyz.max(axis=0) - fine.xyz.min(axis=0)))
-        tolerance = min(max(diag / pixels, view_data.FINE_TOLERANCE), view_data.MAX_TOLERANCE)
-    view_data.checked_window(tolerance, None, None)
-    overview = view_data.window(fine, tolerance, reach=reach)
-    return JSONResponse(view_data.scene_json(job, fine, overview, tolerance))
+    key = (row.id, int(row.attempts), tolerance, pixels)
+    with _cache_lock:
+        body = _scenes.get(key)
+    if body is None:
+        body = JSONResponse(view_data.scene(job, fine, reach, tolerance, pixels)).body
+        with _cache_lock:
+            _scenes[key] = body
+            while len(_scenes) > SCENES:
+                _scenes.popitem(last=False)
+    return Response(bytes(body), media_type="application/json")
 
 
 @router.get("/jobs/{job_id}/view/path", responses=documented(404, 409, 422, e404="no such job of this key's team",
@@ -102,8 +122,7 @@ def view_path(svc: ServiceDep, row: OwnJob, t0: float, t1: float,
     """The path between job times ``t0`` and ``t1`` s within ``tolerance`` m (detail on demand)."""
     view_data.checked_window(tolerance, t0, t1)
     job, fine, reach = _fine(svc, row)
-    part = view_data.window(fine, tolerance, t0, t1, reach=reach)
-    return JSONResponse({"t0": t0, "t1": t1, "path": view_data.path_json(part, tolerance)})
+    return JSONResponse(view_data.detail(fine, reach, t0, t1, tolerance))
 
 
 @router.get("/executions/{execution_id}/live", response_class=StreamingResponse,
@@ -117,12 +136,14 @@ async def live(svc: ServiceDep, execution_id: str, who: Caller, request: Request
     except ValueError:
         seq = 0
 
+    hub = svc.backend.live  # this process's executions (local backend), or the workers' (celery: Redis)
+
     async def events():
         nonlocal seq
         yield "retry: 1000\n\n"
         idle = 0.0
         while True:
-            feed = HUB.feed(execution_id)
+            feed = await run_in_threadpool(hub.feed, execution_id)
             if feed is None:  # not (or not yet) run by this process: its state tells whether to wait
                 state = await run_in_threadpool(svc.store.state, EXECUTION, execution_id)
                 if state not in EXECUTION.active:

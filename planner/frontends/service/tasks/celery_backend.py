@@ -17,6 +17,8 @@ Delivery:
 - Retries with back-off (1, 2, 4 ... 60 s) for transient failures only: the database unreachable when a task starts
   (the broker unreachable: its messages wait in the store, :class:`Publisher`); anything else fails the task with
   the planner's one-line error.
+- Live samples of an execution (the page's 3D view): the worker running it writes them to a Redis stream on the
+  broker's Redis, every API replica reads them there (:class:`.live.RedisLive`).
 - Recovery (:class:`Keeper`, in every API replica): a running job whose worker stopped beating for
   :data:`.transitions.LEASE_S` s is queued again and its message sent again; an execution whose worker stopped
   beating fails "interrupted" and frees its robot; queued jobs whose messages the broker lost (a broker restarted
@@ -41,6 +43,7 @@ from sqlalchemy import update
 from sqlalchemy.exc import DBAPIError
 
 from planner.frontends.service.config import ServiceConfig
+from planner.frontends.service.live import RedisLive
 from planner.frontends.service.store import Job, open_store
 from planner.frontends.service.tasks.lifecycle import EXECUTION, JOB, Kind, Outcome
 from planner.frontends.service.tasks.runner import Slot
@@ -101,6 +104,7 @@ class WorkerContext:
         self.app = app
         self.engine, _ = open_store(cfg.db_url)
         self.store = Transitions(self.engine)
+        self.live = RedisLive(cfg.broker)  # executions' live samples, for every API replica
         self.stopping = threading.Event()
         self.started_at = now()
         self._local = threading.local()
@@ -190,7 +194,7 @@ def _register(app) -> None:
         claimed = ctx.store.claim_execution(execution_id, ctx.cfg.robots)
         if claimed is None:  # taken once already (never run twice on a robot), stopped, or ended
             return "skipped"
-        slot = Slot(ctx.store, ctx.cfg.job_timeout_s, ctx.stopping, name="planner-exec")
+        slot = Slot(ctx.store, ctx.cfg.job_timeout_s, ctx.stopping, name="planner-exec", live=ctx.live)
         with ctx._lock:
             ctx.slots.append(slot)
         try:
@@ -336,6 +340,7 @@ class CeleryBackend:
         self.app = make_celery(cfg)
         self.publisher = Publisher(self.app)
         self.keeper = Keeper(self)
+        self.live = RedisLive(cfg.broker)  # the workers' executions' live samples
         self._depth: tuple[float, int] = (0.0, 0)
 
     def start(self) -> dict:

@@ -106,10 +106,12 @@ def plan_job(spec: PlanSpec, report: Report) -> Outcome:
         blob = job.to_bytes()
         summary = plain(job.summary())
         passes = int(summary.get("passes") or 0)
+        report(Progress("view", passes, passes))
         return Outcome("done", values={"summary": json.dumps(summary), "describe": json.dumps(list(job.describe())),
                                        "stage": "done", "done": passes, "total": passes},
                        plan=blob, planning_s=float(sum(v for k, v in job.timings.items()
-                                                       if k in ("parse", "plan", "reach"))))
+                                                       if k in ("parse", "plan", "reach"))),
+                       files=view_files(job))
     except PlannerError as exc:
         return failed("input", str(exc))
     except NumericalError as exc:
@@ -150,6 +152,18 @@ def _piece_step(spec: PlanSpec) -> Outcome:
         tic = time.perf_counter()
         fits = P.fit_passes_of(path, settings, spec.piece[0], spec.piece[1], read_options=spec.read_options)
         return Outcome("done", plan=fits_to_bytes(fits), values={"seconds": time.perf_counter() - tic})
+
+
+def view_files(job) -> dict[str, bytes]:
+    """The 3D view's data of a planned job, stored with its plan: {"view": the fine path}
+    (:func:`planner.frontends.service.view_data.fine_path`, :meth:`~.view_data.ViewPath.to_bytes`); {} if it cannot be
+    made (the service then makes it on the view's first request and says why there)."""
+    from planner.frontends.service.view_data import fine_path
+
+    try:
+        return {"view": fine_path(job).to_bytes()}
+    except Exception:  # (the view is a convenience: never the plan's failure)
+        return {}
 
 
 def _plan(spec: PlanSpec, progress):

@@ -116,7 +116,8 @@ STAGE_CHARS = 32
 _PLACE = re.compile(r"^(?P<kind>[a-z]+)(?: pass (?P<pass>\d+))?(?: line (?P<line>-?\d+))?$")
 #: What a planning stage does, for a person.
 PLAN_STAGES = {"fit": "fitting the passes", "plan": "planning tool frames and time laws",
-               "place": "placing the part for the robot", "reach": "checking the robot's reach"}
+               "place": "placing the part for the robot", "reach": "checking the robot's reach",
+               "view": "preparing the 3D view"}
 #: The execution's stages before its run, for a person.
 EXECUTION_STAGES = {"starting": "starting", "controller": "starting the simulated controller",
                     "connecting": "connecting to the robot"}

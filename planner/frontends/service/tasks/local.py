@@ -14,6 +14,7 @@ from collections.abc import Callable
 from sqlalchemy.exc import DBAPIError
 
 from planner.frontends.service.config import ServiceConfig
+from planner.frontends.service.live import HUB
 from planner.frontends.service.tasks.lifecycle import EXECUTION, JOB, Kind, Outcome
 from planner.frontends.service.tasks.runner import STOP_GRACE, Slot
 from planner.frontends.service.tasks.transitions import Transitions
@@ -35,6 +36,7 @@ class LocalBackend:
         self.store = store
         self.cfg = cfg
         self.on_finish = on_finish
+        self.live = HUB  # executions' live samples: this process runs them
         self.stopping = threading.Event()
         self._cond = threading.Condition()
         self._lock = threading.Lock()

@@ -62,12 +62,17 @@ class Slot:
     cancel_poll : float
         Seconds between looks at the task's row for a cancellation (a backend whose requests :attr:`poke` the slot
         looks rarely: the look is then only a safety net).
+    live : LiveHub or RedisLive, optional
+        Where an execution's live samples go (:mod:`planner.frontends.service.live`; default this process's
+        :data:`~planner.frontends.service.live.HUB`).
     """
 
     def __init__(self, store: Transitions, job_timeout_s: float, stopping: threading.Event,
-                 name: str = "planner-work", on_finish: Finished | None = None, cancel_poll: float = CANCEL_POLL):
+                 name: str = "planner-work", on_finish: Finished | None = None, cancel_poll: float = CANCEL_POLL,
+                 live: Any = None):
         self.store = store
         self.cancel_poll = cancel_poll
+        self.live = HUB if live is None else live
         self.job_timeout_s = job_timeout_s
         self.stopping = stopping
         self.name = name
@@ -148,7 +153,7 @@ class Slot:
                 self.on_finish(kind, outcome, time.monotonic() - t0)
         finally:
             if kind is EXECUTION:  # (after its end is stored: the live stream's end names the final state)
-                HUB.end(task_id)
+                self.live.end(task_id)
 
     def _finish(self, kind: Kind, task_id: str, attempt: int, outcome: Outcome) -> bool:
         """Store the end; the database away for a moment is waited for (1, 2, 4 ... s, up to a minute in all)."""
@@ -203,9 +208,11 @@ class Slot:
             deadline = start + self.job_timeout_s if kind is JOB else float("inf")
         next_look = start + self.cancel_poll
         next_beat = start + HEARTBEAT_EVERY
-        # a job shorter than a progress write's interval writes no progress (its claim and end are the two commits);
-        # an execution writes its first message at once
+        # progress is written at most every PROGRESS_WRITE_EVERY s, the latest message at the latest that long after
+        # the write before (a stage that lasts, "preparing the 3D view", shows within it); a job shorter than that
+        # writes none (its claim and end are its two commits); an execution writes its first message at once
         last_write = start if kind is JOB else 0.0
+        pending: Progress | None = None
         stop_sent: float | None = None
         while True:
             t = time.monotonic()
@@ -244,6 +251,11 @@ class Slot:
                 self.stop_process(kill=True)
                 self.start_process(beat)
                 return failed("limit", f"planning took longer than the service's limit of {self.job_timeout_s:g} s")
+            if pending is not None and t - last_write >= PROGRESS_WRITE_EVERY[kind.name]:
+                last_write, next_beat = t, t + HEARTBEAT_EVERY
+                with contextlib.suppress(DBAPIError):  # (progress shown at the next write)
+                    self.store.progress(kind, task_id, attempt, pending)
+                pending = None
             if t >= next_beat:
                 next_beat = t + HEARTBEAT_EVERY
                 with contextlib.suppress(DBAPIError):  # (a missed beat: the next one tries again)
@@ -269,12 +281,13 @@ class Slot:
                     continue
                 if msg.started or t - last_write >= PROGRESS_WRITE_EVERY[kind.name] or (
                         kind is EXECUTION and msg.done >= msg.total > 0):
-                    last_write = t
-                    next_beat = t + HEARTBEAT_EVERY
+                    last_write, next_beat, pending = t, t + HEARTBEAT_EVERY, None
                     with contextlib.suppress(DBAPIError):  # (progress shown at the next write)
                         self.store.progress(kind, task_id, attempt, msg)
+                else:
+                    pending = msg  # written once PROGRESS_WRITE_EVERY s have passed, unless a newer one comes
             elif isinstance(msg, Live):  # the execution's joint states, for the page's live view
-                HUB.add(task_id, msg.t, msg.q, msg.xyz, msg.io)
+                self.live.add(task_id, msg.t, msg.q, msg.xyz, msg.io)
             elif isinstance(msg, Outcome):
                 if kind is EXECUTION:  # its process ends after it
                     self.stop_process()
