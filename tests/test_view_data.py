@@ -76,3 +76,27 @@ def test_the_stored_fine_path_reads_back_and_refuses_other_bytes(demo):
     np.savez(other, format=np.array("planner-view 99"), t=fine.t)
     with pytest.raises(PlannerError, match=r"^stored view data of format 'planner-view 99'; this version reads "):
         view_data.ViewPath.from_bytes(other.getvalue())
+
+
+def test_the_planning_task_makes_a_large_jobs_view_data_and_leaves_a_small_ones_to_its_first_request(monkeypatch):
+    """plan_job stores the fine path with the plan above VIEW_AT_PLAN_POSES poses (its first view would wait for
+    it), and nothing below (its first view request makes it in milliseconds; a job never viewed pays nothing)."""
+    import json
+
+    from planner.frontends.service.tasks import functions
+
+    spec = functions.PlanSpec("v", "waypoints", "", {"feed": 0.01},
+                              input_json=json.dumps({"waypoints": [[0, 0, 0], [0.1, 0.02, 0], [0.2, 0, 0.01]]}))
+    stages: list[str] = []
+    small = functions.plan_job(spec, lambda p: stages.append(p.stage))
+    assert small.state == "done" and small.files == {} and "view" not in stages
+    poses = json.loads(small.values["summary"])["duration_s"] * 500.0
+    assert 5_000 < poses < functions.VIEW_AT_PLAN_POSES
+    monkeypatch.setattr(functions, "VIEW_AT_PLAN_POSES", poses / 2)  # the same job counted as a large one
+    stages.clear()
+    large = functions.plan_job(spec, lambda p: stages.append(p.stage))
+    assert large.state == "done" and set(large.files) == {"view"} and stages[-1] == "view"
+    fine = view_data.ViewPath.from_bytes(large.files["view"])
+    assert 2 < fine.t.size < poses / 10 and fine.t[0] == 0.0
+    same = [{k: v for k, v in json.loads(o.values["summary"]).items() if k != "planning_s"} for o in (small, large)]
+    assert same[0] == same[1]  # the same plan

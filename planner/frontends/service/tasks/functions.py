@@ -30,6 +30,12 @@ LIVE_RATE = 60.0
 
 Report = Callable[[Progress], None]
 
+#: Poses of a job above which the planning task makes its 3D view's data (the whole NX job's 12.9 million: 67 s
+#: after its plan, so that its first view is seconds, not a minute). A smaller job's are made by its first view
+#: request (about 3 ms per thousand poses: 26 ms for a job of 7,600), which costs a job never viewed nothing (for
+#: the 100-waypoint jobs of bench_service they would add 75 % to the planning task).
+VIEW_AT_PLAN_POSES = 1_000_000
+
 
 @dataclass(frozen=True)
 class PlanSpec:
@@ -106,12 +112,14 @@ def plan_job(spec: PlanSpec, report: Report) -> Outcome:
         blob = job.to_bytes()
         summary = plain(job.summary())
         passes = int(summary.get("passes") or 0)
-        report(Progress("view", passes, passes))
+        poses = float(summary.get("duration_s") or 0.0) * float(job.settings.rate)
+        if poses > VIEW_AT_PLAN_POSES:
+            report(Progress("view", passes, passes))
         return Outcome("done", values={"summary": json.dumps(summary), "describe": json.dumps(list(job.describe())),
                                        "stage": "done", "done": passes, "total": passes},
                        plan=blob, planning_s=float(sum(v for k, v in job.timings.items()
                                                        if k in ("parse", "plan", "reach"))),
-                       files=view_files(job))
+                       files=view_files(job, poses))
     except PlannerError as exc:
         return failed("input", str(exc))
     except NumericalError as exc:
@@ -154,12 +162,15 @@ def _piece_step(spec: PlanSpec) -> Outcome:
         return Outcome("done", plan=fits_to_bytes(fits), values={"seconds": time.perf_counter() - tic})
 
 
-def view_files(job) -> dict[str, bytes]:
-    """The 3D view's data of a planned job, stored with its plan: {"view": the fine path}
-    (:func:`planner.frontends.service.view_data.fine_path`, :meth:`~.view_data.ViewPath.to_bytes`); {} if it cannot be
-    made (the service then makes it on the view's first request and says why there)."""
+def view_files(job, poses: float) -> dict[str, bytes]:
+    """The 3D view's data of a large planned job, stored with its plan: {"view": the fine path}
+    (:func:`planner.frontends.service.view_data.fine_path`, :meth:`~.view_data.ViewPath.to_bytes`); {} for a job of at
+    most :data:`VIEW_AT_PLAN_POSES` ``poses`` (its trajectory's samples), or if they cannot be made (the view's first
+    request then makes and stores them, and says why where they cannot be made)."""
     from planner.frontends.service.view_data import fine_path
 
+    if poses <= VIEW_AT_PLAN_POSES:
+        return {}
     try:
         return {"view": fine_path(job).to_bytes()}
     except Exception:  # (the view is a convenience: never the plan's failure)
