@@ -169,7 +169,11 @@ def test_planning_progress_counts_passes_planned_of_passes(keyed):
     s, keys = keyed
     src = Path(__file__).parent / "data" / "nx_clsf_ust_a2_excerpt.cls"
     with s.client(keys["cam"]) as c:
-        job = c.post("/v1/jobs", files={"file": (src.name, src.read_bytes())}).json()["id"]
+        # for a UR5e (its reach checked too: about a second of planning on a quiet machine, so that progress is
+        # written while it plans; a job shorter than 0.5 s writes none)
+        robot = {"robot": "ur5e", "part_frame": [0.4, 0.9965, -0.1, 0.0, 0.0, 0.0]}
+        job = c.post("/v1/jobs", files={"file": (src.name, src.read_bytes())},
+                     data={"settings": json.dumps(robot)}).json()["id"]
         seen = []
         while (v := c.get(f"/v1/jobs/{job}").json())["state"] in ("queued", "running"):
             seen.append(v["progress"])
@@ -182,11 +186,13 @@ def test_planning_progress_counts_passes_planned_of_passes(keyed):
     counting = [p for p in seen if p["unit"] == "passes"]
     assert counting, seen  # (written every 0.5 s while it plans: a few seconds here)
     assert all(p["total"] == n and 0 <= p["done"] <= n for p in counting), counting
+    assert {p["stage"] for p in counting} <= {"fit", "plan", "place", "reach", "done"}, counting
     for p in counting:
-        if p["stage"] == "view":  # after the plan: the 3D view's data, made and stored with it
-            assert p["text"] == f"preparing the 3D view ({n} passes)" and p["done"] == n, p
-            continue
-        what = {"fit": "fitting the passes", "plan": "planning tool frames and time laws"}[p["stage"]]
-        assert p["text"] == f"{what}: {p['done']:g} of {n} passes"
+        if p["stage"] in ("place", "reach"):
+            what = {"place": "placing the part for the robot", "reach": "checking the robot's reach"}[p["stage"]]
+            assert p["text"] == f"{what} ({n} passes)", p
+        elif p["stage"] != "done":
+            what = {"fit": "fitting the passes", "plan": "planning tool frames and time laws"}[p["stage"]]
+            assert p["text"] == f"{what}: {p['done']:g} of {n} passes"
     assert all(p["text"] in ("waiting for a worker", "starting: reading the input") for p in seen if not p["unit"])
     assert not any(p["total"] == 0 and p["stage"] == "done" for p in seen)  # never "done 0/0"

@@ -155,3 +155,39 @@ def test_files_of_jobs_stored_before_the_move_into_the_database_are_imported_onc
     assert _plans(store, job_id) == [blob]
     assert (folder / "plan.1.job").read_bytes() == blob  # the files left where they are
     engine.dispose()
+
+
+def test_a_large_jobs_view_data_are_made_after_its_end_is_stored(store):
+    """A job of more than VIEW_AT_PLAN_POSES poses (0.42 m at 0.2 mm/s: 2086 s, 1.04 million poses) planned by a real
+    worker process: its end (plan, summary) is stored first, its exports waiting for nothing, and the worker then
+    makes its 3D view data and the runner stores them under its id, readable by the view."""
+    import threading
+
+    from planner.frontends.service.tasks.functions import VIEW_AT_PLAN_POSES
+    from planner.frontends.service.tasks.runner import Slot
+    from planner.frontends.service.view_data import ViewPath
+
+    job_id = uuid.uuid4().hex
+    with store.engine.begin() as conn:
+        conn.execute(Job.__table__.insert(), [dict(
+            id=job_id, owner="k", state="queued", created_at=now(), input_kind="waypoints", input_name="<waypoints>",
+            input_format="waypoints", input_bytes=10, settings=json.dumps({"feed": 0.0002}), read_options="{}",
+            input_json=json.dumps({"waypoints": [[0, 0, 0], [0.2, 0.05, 0], [0.4, 0, 0.02]]}),
+            stage="", done=0, total=0, attempts=0, job_bytes=0)])
+    slot = Slot(store, 300.0, threading.Event())
+    slot.start_process()
+    try:
+        slot.run(JOB, *store.claim_job(job_id))
+    finally:
+        slot.stop_process()
+    with store.engine.connect() as conn:
+        state, finished, summary = conn.execute(select(Job.state, Job.finished_at, Job.summary)
+                                                .where(Job.id == job_id)).one()
+        data = {r.name: (r.created_at, bytes(r.data)) for r in conn.execute(
+            select(JobData.name, JobData.created_at, JobData.data).where(JobData.job_id == job_id))}
+    assert state == "done" and json.loads(summary)["duration_s"] * 500 > VIEW_AT_PLAN_POSES
+    assert sorted(data) == ["plan", "view"]
+    assert data["view"][0] > finished  # stored after the job's end
+    fine = ViewPath.from_bytes(data["view"][1])
+    assert fine.t[0] == 0.0 and fine.t[-1] == pytest.approx(json.loads(summary)["duration_s"], abs=0.01)
+    assert 2 < fine.t.size < 10_000  # a smooth path thinned within 10 um

@@ -6,7 +6,6 @@ job of the path (:data:`OwnJob`, 404 for another team's).
 from __future__ import annotations
 
 import re
-import time
 from typing import Annotated
 
 from fastapi import Depends, HTTPException, Request
@@ -87,17 +86,9 @@ class Service:
         return None if data is None else bytes(data)
 
     def keep_job_data(self, job: Job, name: str, data: bytes) -> None:
-        """Store bytes made from a job after its end (the 3D view's data of a job planned before the planning task
-        made it), unless another replica stored them first."""
-        from sqlalchemy import insert
-        from sqlalchemy.exc import IntegrityError
-
-        try:
-            with self.store.write_lock, self.engine.begin() as conn:
-                conn.execute(insert(JobData).values(job_id=job.id, name=name, data=data, bytes=len(data),
-                                                    created_at=time.time()))
-        except IntegrityError:  # stored by another replica meanwhile: the same bytes
-            pass
+        """Store bytes made from a job after its end (the 3D view's data of a job whose planning task did not make
+        them), unless another replica stored them first."""
+        self.store.keep_data(job.id, name, data)
 
 
 def make_backend(cfg: ServiceConfig, store: Transitions, finished):

@@ -1,8 +1,10 @@
 """The worker process that runs the task functions (:mod:`.functions`), spawned by a :class:`.runner.Slot`.
 
-Over one duplex pipe: in, ``("plan", PlanSpec)``, ``("execute", ExecuteSpec)``, ``("stop",)`` (the running task's
+Over one duplex pipe: in, ``("plan", PlanSpec)``, ``("execute", ExecuteSpec)``, ``("later", task_id)`` (make what the
+last planning task left for after its end, :attr:`~.lifecycle.Outcome.later`), ``("stop",)`` (the running task's
 cancel event: an execution ends with the arm at rest) and ``None`` (end); out, ``("ready",)`` once the planner is
-imported, then each task's :class:`~.lifecycle.Progress` messages and its one :class:`~.lifecycle.Outcome`. A planning
+imported, then each task's :class:`~.lifecycle.Progress` messages and its one :class:`~.lifecycle.Outcome` (and
+the :class:`~.lifecycle.Files` of a "later"). A planning
 process serves task after task; a process that executed a job ends after it (``os._exit``: ur_rtde 1.6.5 aborts the
 interpreter when it destroys interfaces whose connection dropped). A planning task is cancelled by killing its
 process (the planner's progress comes too rarely during a long fit to stop within a second).
@@ -56,7 +58,7 @@ def child_main(conn, parent_pid: int, name: str = "planner-work") -> None:
     """The worker's loop: tasks in, messages out, until the pipe closes or None arrives. ``name``: the process's
     name (planner-work plans, planner-exec executes)."""
     from planner.frontends.service.tasks.functions import Phase, execute_job, halt_until_the_run_ends, plan_job
-    from planner.frontends.service.tasks.lifecycle import failed
+    from planner.frontends.service.tasks.lifecycle import Files, failed
 
     die_with_parent(parent_pid)
     name_process(name)
@@ -100,15 +102,28 @@ def child_main(conn, parent_pid: int, name: str = "planner-work") -> None:
     except OSError:
         return
     threading.Thread(target=listen, name="worker-control", daemon=True).start()
+    later: list = []  # what the last planning task left to make after its end is stored (its 3D view data)
     while True:
         task = tasks.get()
         if task is None:
             return
         kind, spec = task
+        if kind == "later":  # the runner stored the end of task ``spec``: make and send what it left
+            files: dict = {}
+            for make in later:
+                with contextlib.suppress(Exception):  # (a convenience: made on the view's first request instead)
+                    files.update(make())
+            later.clear()
+            try:
+                send(Files(spec, files))
+            except (BrokenPipeError, OSError):
+                return
+            continue
+        later.clear()
         current["cancel"], current["phase"] = threading.Event(), Phase()
         try:
             if kind == "plan":
-                outcome = plan_job(spec, send)
+                outcome = plan_job(spec, send, later)
             else:
                 outcome = execute_job(spec, send, current["cancel"], current["phase"])
         except BaseException as exc:  # a bug of ours: say what, never a traceback to the client

@@ -98,11 +98,13 @@ def _throttled(report: Report) -> Callable[[str, int, int], None]:
     return progress
 
 
-def plan_job(spec: PlanSpec, report: Report) -> Outcome:
+def plan_job(spec: PlanSpec, report: Report, later: list[Callable[[], dict[str, bytes]]] | None = None) -> Outcome:
     """Plan one job with :func:`planner.plan`: done with its saved plan, summary and describe, or failed with the
     planner's one-line error (kind "input": the user's; "internal": ours). A step of a split job (``spec.step``):
     "pieces", done with ``values["pieces"]`` = [[first, stop, chords], ...] (:func:`planner.plan.fit_batches`);
-    "fit", done with the piece's fits as ``plan`` (:func:`planner.job.fits_to_bytes`) and ``values["seconds"]``."""
+    "fit", done with the piece's fits as ``plan`` (:func:`planner.job.fits_to_bytes`) and ``values["seconds"]``.
+    ``later``: where a large job's 3D view data are deferred to, as a callable, to make after its end is stored
+    (the outcome says ``later``); without it they are made here."""
     from planner.errors import NumericalError, PlannerError
 
     try:
@@ -113,13 +115,18 @@ def plan_job(spec: PlanSpec, report: Report) -> Outcome:
         summary = plain(job.summary())
         passes = int(summary.get("passes") or 0)
         poses = float(summary.get("duration_s") or 0.0) * float(job.settings.rate)
-        if poses > VIEW_AT_PLAN_POSES:
-            report(Progress("view", passes, passes))
+        files: dict[str, bytes] = {}
+        if later is not None and poses > VIEW_AT_PLAN_POSES:
+            later.append(lambda: view_files(job, poses))  # after the job's end is stored: its exports wait for nothing
+        else:
+            if poses > VIEW_AT_PLAN_POSES:
+                report(Progress("view", passes, passes))
+            files = view_files(job, poses)
         return Outcome("done", values={"summary": json.dumps(summary), "describe": json.dumps(list(job.describe())),
                                        "stage": "done", "done": passes, "total": passes},
                        plan=blob, planning_s=float(sum(v for k, v in job.timings.items()
                                                        if k in ("parse", "plan", "reach"))),
-                       files=view_files(job, poses))
+                       files=files, later=bool(later))
     except PlannerError as exc:
         return failed("input", str(exc))
     except NumericalError as exc:

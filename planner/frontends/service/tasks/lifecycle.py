@@ -90,6 +90,9 @@ class Outcome:
         Planning time (parse to saved plan), s.
     files : dict of str to bytes
         Further bytes stored with the task's end under its id (an execution's trace of its run, "run.trace").
+    later : bool
+        The worker process has more to store after the task's end (a large job's 3D view data): the runner asks it
+        for them (``("later", task_id)``) once the end is stored, and stores the :class:`Files` that come back.
     """
 
     state: Literal["done", "failed", "cancelled"]
@@ -99,6 +102,15 @@ class Outcome:
     plan: bytes | None = None
     planning_s: float | None = None
     files: dict[str, bytes] = field(default_factory=dict)
+    later: bool = False
+
+
+@dataclass(frozen=True, eq=False)
+class Files:
+    """Bytes made from a task after its end (:attr:`Outcome.later`), stored under its id: name -> bytes."""
+
+    task_id: str
+    files: dict[str, bytes]
 
 
 def failed(kind: str, reason: str, **values) -> Outcome:

@@ -29,7 +29,7 @@ from typing import Any
 from sqlalchemy.exc import DBAPIError
 
 from planner.frontends.service.live import HUB
-from planner.frontends.service.tasks.lifecycle import EXECUTION, JOB, Kind, Live, Outcome, Progress, failed
+from planner.frontends.service.tasks.lifecycle import EXECUTION, JOB, Files, Kind, Live, Outcome, Progress, failed
 from planner.frontends.service.tasks.transitions import CANCEL_POLL, HEARTBEAT_EVERY, Transitions
 
 log = logging.getLogger("planner.frontends.service")
@@ -149,11 +149,39 @@ class Slot:
             self.current = None
             self.poke.clear()
         try:
-            if outcome is not None and self._finish(kind, task_id, attempt, outcome) and self.on_finish:
-                self.on_finish(kind, outcome, time.monotonic() - t0)
+            if outcome is not None and self._finish(kind, task_id, attempt, outcome):
+                if self.on_finish:
+                    self.on_finish(kind, outcome, time.monotonic() - t0)
+                if outcome.later:
+                    self._later(task_id)
         finally:
             if kind is EXECUTION:  # (after its end is stored: the live stream's end names the final state)
                 self.live.end(task_id)
+
+    def _later(self, task_id: str) -> None:
+        """What the task's process left to make after the task's end (a large job's 3D view data: the job is done,
+        its exports served, meanwhile), made and stored; not if this process stops first (the view's first request
+        makes them then), nor if the worker process dies."""
+        self.current = (task_id, 0)
+        try:
+            assert self.conn is not None
+            self.conn.send(("later", task_id))
+            while not self.stopping.is_set():
+                if not self.conn.poll(0.2):
+                    continue
+                msg = self.conn.recv()
+                if isinstance(msg, Files):
+                    for name, data in msg.files.items():
+                        self.store.keep_data(task_id, name, data)
+                    return
+        except (EOFError, OSError, AssertionError):  # the process died: the next task starts another
+            self.stop_process(kill=True)
+        except DBAPIError as exc:
+            log.warning("cannot store what %s left: %s", task_id, str(exc).splitlines()[0])
+        finally:
+            self.current = None
+        if self.stopping.is_set():
+            self.stop_process(kill=True)
 
     def _finish(self, kind: Kind, task_id: str, attempt: int, outcome: Outcome) -> bool:
         """Store the end; the database away for a moment is waited for (1, 2, 4 ... s, up to a minute in all)."""

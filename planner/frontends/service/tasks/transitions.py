@@ -348,6 +348,16 @@ class Transitions:
                                                     created_at=now()))
         return n == 1
 
+    def keep_data(self, task_id: str, name: str, data: bytes) -> None:
+        """Store bytes made from a task after its end (a job's 3D view data) under its id, unless stored already
+        (by another replica or worker: the same bytes)."""
+        try:
+            with self.write_lock, self.engine.begin() as conn:
+                conn.execute(insert(JobData).values(job_id=task_id, name=name, data=data, bytes=len(data),
+                                                    created_at=now()))
+        except IntegrityError:
+            pass
+
     def recover(self, stale_before: float, max_attempts: int, why: str, whys: str) -> dict[str, Any]:
         """Tasks whose holder's last heartbeat is older than ``stale_before`` (Unix s; ``inf``: every active task):
         running jobs queued again (failed "interrupted" after ``max_attempts`` starts), active executions failed
