@@ -8,6 +8,7 @@ cluster)."""
 from __future__ import annotations
 
 import concurrent.futures
+import contextlib
 import json
 import os
 import time
@@ -188,19 +189,35 @@ def test_postgresql_restarted_the_api_answers_503_with_the_reason_and_recovers(r
         pg.stop()
 
 
-def test_two_replicas_one_robot_never_two_executions_and_a_cancel_reaches_another_process(postgres, redis, tmp_path):
-    robots = json.dumps({"sim": {"sim": True, "sim_speed": 10, **FAST}})
+@contextlib.contextmanager
+def replicas(postgres, redis, tmp_path, *, sim_speed: float, workers: int):
+    """Two API replicas on one database and broker, with a simulated robot "sim" at ``sim_speed``: ``a`` with
+    ``workers`` worker slots of its own, ``b`` with none (it only serves); both stopped cleanly after."""
+    robots = json.dumps({"sim": {"sim": True, "sim_speed": sim_speed, **FAST}})
     db, broker = fresh_database(postgres), fresh_broker(redis)
-    a = CeleryService(tmp_path / "a", db=db, broker=broker, workers=2, env={"PLANNER_ROBOTS": robots}).start()
-    b = CeleryService(tmp_path / "b", db=db, broker=broker, workers=2, own_workers=False,
+    a = CeleryService(tmp_path / "a", db=db, broker=broker, workers=workers, env={"PLANNER_ROBOTS": robots}).start()
+    b = CeleryService(tmp_path / "b", db=db, broker=broker, workers=workers, own_workers=False,
                       env={"PLANNER_ROBOTS": robots}).start()
     try:
+        yield a, b
+    finally:
+        assert b.stop() == 0, b.log.read_text()
+        assert a.stop() == 0, a.log.read_text()
+
+
+def demo_planned(submit, read) -> dict:
+    """The demo job uploaded through one replica's client (``submit``), its done view read through the other's."""
+    with open(DEMO, "rb") as f:
+        r = submit.post("/v1/jobs", files={"file": ("nx_first_pass.cls", f)}, data={"settings": json.dumps(SETTINGS)})
+    job = wait_state(read, r.json()["id"])
+    assert job["state"] == "done", job["error"]
+    return job
+
+
+def test_two_replicas_one_robot_never_two_executions_and_a_cancel_reaches_another_process(postgres, redis, tmp_path):
+    with replicas(postgres, redis, tmp_path, sim_speed=10, workers=2) as (a, b):
         with a.client() as ca, b.client() as cb:
-            with open(DEMO, "rb") as f:
-                r = ca.post("/v1/jobs", files={"file": ("nx_first_pass.cls", f)},
-                            data={"settings": json.dumps(SETTINGS)})
-            job = wait_state(cb, r.json()["id"])  # planned by a worker, read through the other replica
-            assert job["state"] == "done", job["error"]
+            job = demo_planned(ca, cb)  # planned by a worker, read through the other replica
             assert cb.get(f"/v1/jobs/{job['id']}/trajectory?format=script").status_code == 200
             body = {"robot": "sim", "mode": "program"}
             for _ in range(3):  # both replicas at once, several times: one execution holds the robot at a time
@@ -235,9 +252,6 @@ def test_two_replicas_one_robot_never_two_executions_and_a_cancel_reaches_anothe
                 assert 'planner_jobs{state="done"} 5' in m and 'planner_jobs{state="cancelled"} 1' in m
                 assert 'planner_executions{state="done"} 3' in m
                 assert metric(m, "planner_workers") == 2 and metric(m, "planner_queue_depth") == 0
-    finally:
-        assert b.stop() == 0, b.log.read_text()
-        assert a.stop() == 0, a.log.read_text()
 
 
 # -- one large job split across workers (planner/frontends/service/tasks/split.py) -------------------------------
@@ -410,18 +424,9 @@ def test_an_execution_on_a_worker_is_streamed_live_by_any_replica(postgres, redi
     by one replica's first view request, is served by the other from the store."""
     from planner.kinematics import forward
 
-    robots = json.dumps({"sim": {"sim": True, "sim_speed": 4, **FAST}})
-    db, broker = fresh_database(postgres), fresh_broker(redis)
-    a = CeleryService(tmp_path / "a", db=db, broker=broker, workers=1, env={"PLANNER_ROBOTS": robots}).start()
-    b = CeleryService(tmp_path / "b", db=db, broker=broker, workers=1, own_workers=False,
-                      env={"PLANNER_ROBOTS": robots}).start()
-    try:
+    with replicas(postgres, redis, tmp_path, sim_speed=4, workers=1) as (a, b):
         with a.client() as ca, b.client() as cb:
-            with open(DEMO, "rb") as f:
-                r = ca.post("/v1/jobs", files={"file": ("nx_first_pass.cls", f)},
-                            data={"settings": json.dumps(SETTINGS)})
-            job = wait_state(cb, r.json()["id"])
-            assert job["state"] == "done", job["error"]
+            job = demo_planned(ca, cb)
             # a job this small (31,000 poses) has its view data made by the first view request (one replica's),
             # stored for every replica
             assert b.sql("select bytes from job_data where job_id = :id and name = 'view'", id=job["id"]) == []
@@ -444,9 +449,6 @@ def test_an_execution_on_a_worker_is_streamed_live_by_any_replica(postgres, redi
             k = ids[len(ids) // 2]
             rest, _, end2 = sse_rows(ca, eid, last=k)  # resumed through the other replica
             assert end2 == {"state": "done"} and rest == rows[k:], (len(rest), len(rows), k)
-    finally:
-        assert b.stop() == 0, b.log.read_text()
-        assert a.stop() == 0, a.log.read_text()
 
 
 def test_the_page_survives_the_service_restarting_mid_run(postgres, redis, tmp_path):

@@ -73,16 +73,17 @@ def _fine(svc: Service, row: Job):
                 _cache.move_to_end(key)
                 return _cache[key]
         job = load_job(svc.plan_bytes(row))
-        stored = svc.job_data(row, "view")  # made by the planning task with the plan
+        stored = svc.job_data(row, "view")  # made by the worker after a large job's end, or by a first request
         fine = None
         if stored is not None:
             try:
                 fine = view_data.ViewPath.from_bytes(stored)
             except PlannerError:  # another version's: made again (and not stored over the other)
                 fine = view_data.fine_path(job)
-        if fine is None:  # a job planned before the planning task made its view
-            fine = view_data.fine_path(job)
-            svc.keep_job_data(row, "view", fine.to_bytes())
+        if fine is None:  # a small job's first view (or a job planned before the view's data were stored)
+            data = view_data.fine_path(job).to_bytes()
+            svc.keep_job_data(row, "view", data)
+            fine = view_data.ViewPath.from_bytes(data)  # as stored: every replica serves the same scene
         entry = (job, fine, view_data._reach(job))
         with _cache_lock:
             _cache[key] = entry
