@@ -189,6 +189,12 @@ def test_postgresql_restarted_the_api_answers_503_with_the_reason_and_recovers(r
         pg.stop()
 
 
+def wait_ended(pids, timeout: float, what: str) -> None:
+    """Wait until every process of ``pids`` has ended (gone, or a zombie): AssertionError naming ``what`` if not."""
+    wait_for(lambda: all(not Path(f"/proc/{p}").exists() or Path(f"/proc/{p}/stat").read_text().split()[2] in "ZX"
+                         for p in pids), timeout, what)
+
+
 @contextlib.contextmanager
 def replicas(postgres, redis, tmp_path, *, sim_speed: float, workers: int):
     """Two API replicas on one database and broker, with a simulated robot "sim" at ``sim_speed``: ``a`` with
@@ -238,8 +244,7 @@ def test_two_replicas_one_robot_never_two_executions_and_a_cancel_reaches_anothe
             time.sleep(0.5)
             tic = time.monotonic()
             assert cb.delete(f"/v1/jobs/{big}").json()["state"] == "cancelled"
-            wait_for(lambda: all(not Path(f"/proc/{p}").exists() or Path(f"/proc/{p}/stat").read_text().split()[2]
-                                 in "ZX" for p in child), 1.0, "the planning process in the worker stopped")
+            wait_ended(child, 1.0, "the planning process in the worker stopped")
             stopped_in = time.monotonic() - tic
             print(f"cancel reached the worker process in {1e3 * stopped_in:.0f} ms")
             assert ca.get(f"/v1/jobs/{big}").json()["state"] == "cancelled"
@@ -361,8 +366,7 @@ def test_a_split_job_cancelled_stops_its_pieces_and_a_failed_piece_fails_it(post
             time.sleep(0.3)
             tic = time.monotonic()
             assert c.delete(f"/v1/jobs/{jid}").json()["state"] == "cancelled"
-            wait_for(lambda: all(not Path(f"/proc/{p}").exists() or Path(f"/proc/{p}/stat").read_text().split()[2]
-                                 in "ZX" for p in child), 1.0, "the piece's process in the other worker stopped")
+            wait_ended(child, 1.0, "the piece's process in the other worker stopped")
             print(f"cancel reached the piece's process in {1e3 * (time.monotonic() - tic):.0f} ms")
             assert s.sql("select count(*) from job_chunks where job_id = :id", id=jid) == [(0,)]  # gone with it
             assert c.get(f"/v1/jobs/{jid}").json()["state"] == "cancelled"

@@ -3,7 +3,7 @@ fitted by whichever worker takes it.
 
 Revision ID: 0005
 Revises: 0004
-Create Date: 2026-12-03
+Create Date: 2026-11-29
 """
 
 import sqlalchemy as sa
