@@ -116,12 +116,12 @@ def plan_job(spec: PlanSpec, report: Report, later: list[Callable[[], dict[str, 
         passes = int(summary.get("passes") or 0)
         poses = float(summary.get("duration_s") or 0.0) * float(job.settings.rate)
         files: dict[str, bytes] = {}
-        if later is not None and poses > VIEW_AT_PLAN_POSES:
-            later.append(lambda: view_files(job, poses))  # after the job's end is stored: its exports wait for nothing
-        else:
-            if poses > VIEW_AT_PLAN_POSES:
+        if poses > VIEW_AT_PLAN_POSES:  # (a smaller job's are made by its first view request)
+            if later is not None:
+                later.append(lambda: view_files(job))  # after the job's end is stored: its exports wait for nothing
+            else:
                 report(Progress("view", passes, passes))
-            files = view_files(job, poses)
+                files = view_files(job)
         return Outcome("done", values={"summary": json.dumps(summary), "describe": json.dumps(list(job.describe())),
                                        "stage": "done", "done": passes, "total": passes},
                        plan=blob, planning_s=float(sum(v for k, v in job.timings.items()
@@ -169,15 +169,13 @@ def _piece_step(spec: PlanSpec) -> Outcome:
         return Outcome("done", plan=fits_to_bytes(fits), values={"seconds": time.perf_counter() - tic})
 
 
-def view_files(job, poses: float) -> dict[str, bytes]:
-    """The 3D view's data of a large planned job, stored with its plan: {"view": the fine path}
-    (:func:`planner.frontends.service.view_data.fine_path`, :meth:`~.view_data.ViewPath.to_bytes`); {} for a job of at
-    most :data:`VIEW_AT_PLAN_POSES` ``poses`` (its trajectory's samples), or if they cannot be made (the view's first
-    request then makes and stores them, and says why where they cannot be made)."""
+def view_files(job) -> dict[str, bytes]:
+    """The 3D view's data of a planned job (one of more than :data:`VIEW_AT_PLAN_POSES` poses), stored with its plan:
+    {"view": the fine path} (:func:`planner.frontends.service.view_data.fine_path`,
+    :meth:`~.view_data.ViewPath.to_bytes`); {} if they cannot be made (the view's first request then makes and
+    stores them, and says why where they cannot be made)."""
     from planner.frontends.service.view_data import fine_path
 
-    if poses <= VIEW_AT_PLAN_POSES:
-        return {}
     try:
         return {"view": fine_path(job).to_bytes()}
     except Exception:  # (the view is a convenience: never the plan's failure)

@@ -162,9 +162,10 @@ class Slot:
         """What the task's process left to make after the task's end (a large job's 3D view data: the job is done,
         its exports served, meanwhile), made and stored; not if this process stops first (the view's first request
         makes them then), nor if the worker process dies."""
+        if self.conn is None:  # (the process was stopped with the task)
+            return
         self.current = (task_id, 0)
         try:
-            assert self.conn is not None
             self.conn.send(("later", task_id))
             while not self.stopping.is_set():
                 if not self.conn.poll(0.2):
@@ -174,7 +175,7 @@ class Slot:
                     for name, data in msg.files.items():
                         self.store.keep_data(task_id, name, data)
                     return
-        except (EOFError, OSError, AssertionError):  # the process died: the next task starts another
+        except (EOFError, OSError):  # the process died: the next task starts another
             self.stop_process(kill=True)
         except DBAPIError as exc:
             log.warning("cannot store what %s left: %s", task_id, str(exc).splitlines()[0])
@@ -223,6 +224,11 @@ class Slot:
         if beat is None:
             def beat() -> None:
                 self.store.heartbeat(kind, task_id, attempt)
+
+        def write(p: Progress) -> None:
+            """Store the task's progress (a missed write: shown at the next one)."""
+            with contextlib.suppress(DBAPIError):
+                self.store.progress(kind, task_id, attempt, p)
 
         if not self.alive:
             self.stop_process(kill=True)
@@ -280,10 +286,8 @@ class Slot:
                 self.start_process(beat)
                 return failed("limit", f"planning took longer than the service's limit of {self.job_timeout_s:g} s")
             if pending is not None and t - last_write >= PROGRESS_WRITE_EVERY[kind.name]:
-                last_write, next_beat = t, t + HEARTBEAT_EVERY
-                with contextlib.suppress(DBAPIError):  # (progress shown at the next write)
-                    self.store.progress(kind, task_id, attempt, pending)
-                pending = None
+                write(pending)
+                last_write, next_beat, pending = t, t + HEARTBEAT_EVERY, None
             if t >= next_beat:
                 next_beat = t + HEARTBEAT_EVERY
                 with contextlib.suppress(DBAPIError):  # (a missed beat: the next one tries again)
@@ -309,9 +313,8 @@ class Slot:
                     continue
                 if msg.started or t - last_write >= PROGRESS_WRITE_EVERY[kind.name] or (
                         kind is EXECUTION and msg.done >= msg.total > 0):
+                    write(msg)
                     last_write, next_beat, pending = t, t + HEARTBEAT_EVERY, None
-                    with contextlib.suppress(DBAPIError):  # (progress shown at the next write)
-                        self.store.progress(kind, task_id, attempt, msg)
                 else:
                     pending = msg  # written once PROGRESS_WRITE_EVERY s have passed, unless a newer one comes
             elif isinstance(msg, Live):  # the execution's joint states, for the page's live view

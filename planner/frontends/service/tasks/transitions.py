@@ -59,6 +59,19 @@ def now() -> float:
     return time.time()
 
 
+def _put_data(conn, task_id: str, name: str, data: bytes, *, replace: bool) -> None:
+    """Store ``data`` as the task's ``name`` in the transaction ``conn`` (``replace``: over what is there)."""
+    if replace:
+        conn.execute(delete(JobData).where(JobData.job_id == task_id, JobData.name == name))
+    conn.execute(insert(JobData).values(job_id=task_id, name=name, data=data, bytes=len(data), created_at=now()))
+
+
+def _drop_chunks(conn, job_id: str) -> None:
+    """Remove a split job's pieces and their fits in the transaction ``conn``."""
+    conn.execute(delete(JobChunk).where(JobChunk.job_id == job_id))
+    conn.execute(delete(JobData).where(JobData.job_id == job_id, JobData.name.like("fits.%")))
+
+
 def _table(kind: Kind) -> Any:
     return Job if kind is JOB else Execution
 
@@ -131,8 +144,7 @@ class Transitions:
                 n = conn.execute(update(Job).where(Job.id == job_id, Job.state == before).values(
                     state="cancelled", finished_at=now())).rowcount
                 if n == 1:  # a split job's pieces and fits: gone with it (their runners stop at their next look)
-                    conn.execute(delete(JobChunk).where(JobChunk.job_id == job_id))
-                    conn.execute(delete(JobData).where(JobData.job_id == job_id, JobData.name.like("fits.%")))
+                    _drop_chunks(conn, job_id)
             if n == 1:
                 return before
         return None
@@ -203,9 +215,7 @@ class Transitions:
                                                     JobChunk.takes == takes, JobChunk.state == "running")
                              .values(**values)).rowcount
             if n == 1 and outcome.state == "done" and outcome.plan is not None:
-                conn.execute(delete(JobData).where(JobData.job_id == job_id, JobData.name == name))
-                conn.execute(insert(JobData).values(job_id=job_id, name=name, data=outcome.plan,
-                                                    bytes=len(outcome.plan), created_at=now()))
+                _put_data(conn, job_id, name, outcome.plan, replace=True)
         return n == 1
 
     def chunk_fits(self, job_id: str) -> list[bytes]:
@@ -223,8 +233,7 @@ class Transitions:
     def drop_chunks(self, job_id: str) -> None:
         """The job's pieces and their fits removed (the job has ended)."""
         with self.write_lock, self.engine.begin() as conn:
-            conn.execute(delete(JobChunk).where(JobChunk.job_id == job_id))
-            conn.execute(delete(JobData).where(JobData.job_id == job_id, JobData.name.like("fits.%")))
+            _drop_chunks(conn, job_id)
 
     def job_ended(self, job_id: str) -> bool:
         """The job has ended (done, failed, cancelled) or is gone."""
@@ -342,10 +351,7 @@ class Transitions:
             stored = {**outcome.files, **({} if outcome.plan is None else {"plan": outcome.plan})}
             # (keyed by the task's id: jobs' and executions' never meet; only a task run before may have stored some)
             for name, data in stored.items() if n == 1 else ():
-                if attempt > 1:
-                    conn.execute(delete(JobData).where(JobData.job_id == task_id, JobData.name == name))
-                conn.execute(insert(JobData).values(job_id=task_id, name=name, data=data, bytes=len(data),
-                                                    created_at=now()))
+                _put_data(conn, task_id, name, data, replace=attempt > 1)
         return n == 1
 
     def keep_data(self, task_id: str, name: str, data: bytes) -> None:
@@ -353,8 +359,7 @@ class Transitions:
         (by another replica or worker: the same bytes)."""
         try:
             with self.write_lock, self.engine.begin() as conn:
-                conn.execute(insert(JobData).values(job_id=task_id, name=name, data=data, bytes=len(data),
-                                                    created_at=now()))
+                _put_data(conn, task_id, name, data, replace=False)
         except IntegrityError:
             pass
 
