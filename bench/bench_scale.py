@@ -5,8 +5,9 @@ state and plans in PostgreSQL; Redis and PostgreSQL started by this script on lo
 1. Throughput and latency: N jobs of 100 waypoints (smooth random 3-D curves, seeded; the curves of
    bench_service.py) submitted as JSON by 20 concurrent clients, with 1, 2 and 4 worker processes: jobs/s from the
    first submit to the last job done, p50/p99 submit latency (the 202), p50/p99 completion latency (created -> done,
-   the store's clocks), and none lost (every job done) or duplicated (one attempt and one stored plan each). The
-   celery rows also with two API replicas behind the clients (half of the clients on each).
+   the store's clocks), none lost (every job answered 202 done), duplicated (started or stored twice), or unfinished
+   (still queued or running when the wait ends: slow, not lost). The celery rows also with two API replicas behind
+   the clients (half of the clients on each, in a process of their own).
 2. Per-task overhead of the broker: jobs of 3 waypoints submitted one at a time, each waited for: the median time
    from the job's row stored to its start in a worker (started_at - created_at) on each backend, and the median
    submit-to-done round trip.
@@ -110,21 +111,29 @@ def cluster(backend: str, workers: int, folder: Path, pg, redis,
     return apis, pool, db
 
 
-def throughput(backend: str, workers: int, jobs: list, pg, redis, replicas: int = 1) -> dict:
+def throughput(backend: str, workers: int, jobs: list, pg, redis, replicas: int = 1, wait_s: float = 900.0) -> dict:
+    """``jobs`` submitted by :data:`CLIENTS` clients (split evenly between the replicas; with two replicas each half
+    of the clients runs in a process of its own, as clients on other machines do: two event loops in one process
+    took turns at its GIL and timed each other's turns) and waited for (at most ``wait_s`` s after the last submit).
+
+    Counted from the store's own list: ``lost`` a job answered 202 that is not listed or ended failed or cancelled;
+    ``unfinished`` a job still queued or running when the wait ended (neither lost nor duplicated: slow);
+    ``duplicated`` a done job that was started more than once or whose plan was stored more than once, or an id
+    listed twice."""
     with tempfile.TemporaryDirectory() as tmp:
         apis, pool, db = cluster(backend, workers, Path(tmp), pg, redis, replicas)
         try:
             share = [jobs[i::len(apis)] for i in range(len(apis))]
             import concurrent.futures as cf
+            import multiprocessing
 
-            with cf.ThreadPoolExecutor(len(apis)) as ex:
-                runs = list(ex.map(lambda a_j: run_clients_async(a_j[0].url, a_j[1], CLIENTS // len(apis)),
-                                   zip(apis, share, strict=True)))
+            with cf.ProcessPoolExecutor(len(apis), mp_context=multiprocessing.get_context("spawn")) as ex:
+                runs = list(ex.map(run_clients_async, [a.url for a in apis], share, [CLIENTS // len(apis)] * len(apis)))
             lat = [x for r in runs for x in r[0]]
             ids = [x for r in runs for x in r[1]]
             t0 = min(r[2] for r in runs)
             with httpx.Client(base_url=apis[0].url, timeout=60) as c:
-                deadline = time.monotonic() + 600
+                deadline = time.monotonic() + wait_s
                 while True:
                     counts = {line.split('"')[1]: int(line.rsplit(" ", 1)[1]) for line in c.get("/metrics").text
                               .splitlines() if line.startswith("planner_jobs{")}
@@ -137,25 +146,30 @@ def throughput(backend: str, workers: int, jobs: list, pg, redis, replicas: int 
             for p in apis + pool:
                 p.stop()
     done = [j for j in listed if j["state"] == "done"]
-    t_end = max(j["finished_at"] for j in done)
-    completion = np.array([j["finished_at"] - j["created_at"] for j in done])
-    lost = len(jobs) - len(done) + len(set(ids) - {j["id"] for j in listed})
-    duplicated = sum(j["attempts"] != 1 for j in listed) + (len(listed) - len({j["id"] for j in listed})) + \
-        (len(done) - plans)
+    unfinished = sum(j["state"] in ("queued", "running") for j in listed)
+    by_id = {j["id"] for j in listed}
+    lost = len(set(ids) - by_id) + sum(j["state"] in ("failed", "cancelled") for j in listed)
+    duplicated = (sum(j["attempts"] > 1 for j in done) + (len(listed) - len(by_id)) + max(0, plans["rows"] - len(done))
+                  + plans["repeated"])
     lat_ms = np.array(lat) * 1e3
-    return {"rate": len(jobs) / (t_end - t0), "p50s": np.percentile(lat_ms, 50), "p99s": np.percentile(lat_ms, 99),
+    t_end = max((j["finished_at"] for j in done), default=t0 + 1.0)
+    completion = np.array([j["finished_at"] - j["created_at"] for j in done] or [np.nan])
+    return {"rate": len(done) / (t_end - t0), "p50s": np.percentile(lat_ms, 50), "p99s": np.percentile(lat_ms, 99),
             "p50c": np.percentile(completion, 50), "p99c": np.percentile(completion, 99), "lost": lost,
-            "dup": duplicated}
+            "dup": duplicated, "unfinished": unfinished}
 
 
-def plan_rows(db: str) -> int:
-    """Stored plans (one per done job)."""
+def plan_rows(db: str) -> dict:
+    """Stored plans: rows, and plans of a job stored more than once (a job's plan is one row, named 'plan')."""
     from sqlalchemy import create_engine, text
 
     engine = create_engine(db)
     try:
         with engine.connect() as conn:
-            return int(conn.scalar(text("select count(*) from job_data where name = 'plan'")))
+            rows = int(conn.scalar(text("select count(*) from job_data where name = 'plan'")))
+            repeated = int(conn.scalar(text("select count(*) - count(distinct job_id) from job_data "
+                                            "where name = 'plan'")))
+            return {"rows": rows, "repeated": repeated}
     finally:
         engine.dispose()
 
@@ -330,9 +344,9 @@ def main() -> None:
                   f"{os.getloadavg()[0]:.1f}")
             r = throughput("celery", 2, jobs, pg, redis, 2)
             print_table(["backend", "workers", "jobs/s", "p50 submit ms", "p99 submit ms", "p50 completion s",
-                         "p99 completion s", "lost", "duplicated"],
+                         "p99 completion s", "lost", "duplicated", "unfinished"],
                         [["celery, 2 API replicas", 2, f"{r['rate']:.1f}", f"{r['p50s']:.1f}", f"{r['p99s']:.1f}",
-                          f"{r['p50c']:.2f}", f"{r['p99c']:.2f}", r["lost"], r["dup"]]])
+                          f"{r['p50c']:.2f}", f"{r['p99c']:.2f}", r["lost"], r["dup"], r["unfinished"]]])
             print(f"load average after: {os.getloadavg()[0]:.1f}")
             return
         jobs = curves(n_jobs, 100)
@@ -348,12 +362,12 @@ def main() -> None:
                 ratio = r["rate"] / rate[("local", w, 1)]
                 rows.append([f"{backend}{'' if replicas == 1 else ', 2 API replicas'}", w, f"{r['rate']:.1f}",
                              f"{ratio:.2f}", f"{r['p50s']:.1f}", f"{r['p99s']:.1f}", f"{r['p50c']:.2f}",
-                             f"{r['p99c']:.2f}", r["lost"], r["dup"]])
+                             f"{r['p99c']:.2f}", r["lost"], r["dup"], r["unfinished"]])
                 print_table(["backend", "workers", "jobs/s", "x local", "p50 submit ms", "p99 submit ms",
-                             "p50 completion s", "p99 completion s", "lost", "duplicated"], rows[-1:])
+                             "p50 completion s", "p99 completion s", "lost", "duplicated", "unfinished"], rows[-1:])
         print()
         print_table(["backend", "workers", "jobs/s", "x local", "p50 submit ms", "p99 submit ms", "p50 completion s",
-                     "p99 completion s", "lost", "duplicated"], rows)
+                     "p99 completion s", "lost", "duplicated", "unfinished"], rows)
         if ("celery", 2, 1) in rate:
             print(f"\ntarget: celery with 2 workers >= 0.9 x local with 2 processes: "
                   f"{rate[('celery', 2, 1)] / rate[('local', 2, 1)]:.2f}")
