@@ -7,7 +7,8 @@
  * same paths bit for bit.
  *
  * No -ffast-math, and pyproject.toml turns off the contraction of a * b + c into fused multiply-adds: every operation
- * rounds as numpy's does.
+ * rounds as numpy's does. No value here is NaN (joints are 0 where not valid), so np.maximum and np.minimum are plain
+ * comparisons (fmax and fmin would be library calls).
  */
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
@@ -48,7 +49,7 @@ static void step(Py_ssize_t i, Py_ssize_t n, Py_ssize_t nb, Py_ssize_t G, Py_ssi
                     else if (j == 5)
                         travel = travel + d;
                     double r = d * inv_v[j];
-                    top = j == 0 ? r : fmax(top, r);
+                    top = (j == 0 || r > top) ? r : top; /* np.maximum: no NaN here */
                 }
                 if (!(va[g] && vb[s])) { /* a step from or to a node out of reach costs nothing more than it */
                     travel = travel * 0.0;
@@ -59,7 +60,7 @@ static void step(Py_ssize_t i, Py_ssize_t n, Py_ssize_t nb, Py_ssize_t G, Py_ssi
                     double sp = spin[i * S + k];
                     double ratio = h > 0.0 ? top / h : (top > 1e-9 ? INFINITY : 0.0);
                     if (ratio > w->speed_safe) {
-                        double m = fmax(0.0, ratio - w->speed_safe);
+                        double m = ratio - w->speed_safe; /* > 0 (np.maximum(0, m) is m) */
                         double speed = w->w_speed * (m * m) + w->w_fast * (ratio > 1.0 ? 1.0 : 0.0);
                         cost = cost + (speed + sp);
                     } else {
@@ -68,7 +69,8 @@ static void step(Py_ssize_t i, Py_ssize_t n, Py_ssize_t nb, Py_ssize_t G, Py_ssi
                 }
                 if (stands && k != K)
                     cost = cost + w->out_of_reach;
-                cost = fmin(cost, w->out_of_reach);
+                if (cost > w->out_of_reach) /* np.minimum: never NaN here */
+                    cost = w->out_of_reach;
                 if (pred != s)
                     cost = cost + w->out_of_reach;
                 double total = D[b * G + s] + cost;
