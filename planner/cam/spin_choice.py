@@ -388,9 +388,36 @@ def _step_costs(arm: _Arm, q: np.ndarray, valid: np.ndarray, X: np.ndarray, t: n
 def _figures(arm: _Arm, S: _Samples, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Figures (8, 7) of spin psi (n,) on every branch (see SpinFigures; then the largest joint speed over a step as
     a fraction of its limit, of any joint and of wrist 3) and each branch's rank key (8, 3)."""
-    q, valid = arm.joints(S.p, S.R, psi[:, None])
+    return _rated(arm, S, *_posed(arm, S.p, S.R, psi))
+
+
+def _posed(arm: _Arm, p: np.ndarray, R: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Joints (6, n, 8), validity (n, 8), singularity and joint-limit margins (n, 8) of positions p (n, 3) and frames
+    R (n, 3, 3) turned by psi (n,) (each sample on its own: the samples of many runs at once give each run's)."""
+    q, valid = arm.joints(p, R, psi[:, None])
     q, valid = q[..., 0], valid[..., 0]  # (6, n, 8), (n, 8)
-    sing, joint = arm.margins(q)
+    return (q, valid) + arm.margins(q)
+
+
+def _rmm_figures(arm: _Arm, runs: list) -> list:
+    """:func:`_figures` at the RMM spin (psi = 0) of the samples of every run in ``runs`` (a list of _Samples), the
+    joints and margins of all of them from one inverse-kinematics call (the same bits: each sample on its own)."""
+    if not runs:
+        return []
+    q, valid, sing, joint = _posed(arm, np.concatenate([S.p for S in runs]), np.concatenate([S.R for S in runs]),
+                                   np.zeros(sum(S.X.size for S in runs)))
+    out = []
+    a = 0
+    for S in runs:
+        b = a + S.X.size
+        out.append(_rated(arm, S, q[:, a:b], valid[a:b], sing[a:b], joint[a:b]))
+        a = b
+    return out
+
+
+def _rated(arm: _Arm, S: _Samples, q: np.ndarray, valid: np.ndarray, sing: np.ndarray,
+           joint: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_figures` from the samples' joints (6, n, 8), validity and margins (n, 8)."""
     dq = _wrap(np.diff(q, axis=1))
     ratio = arm.step_ratio(dq, np.diff(S.t)[:, None])
     both = valid[1:] & valid[:-1]
@@ -748,15 +775,18 @@ def choose_spin(moves, settings) -> SpinChoice:
     gap_curves: dict[int, SpinCurve] = {}
     prev = math.nan  # the spin where the arm is (the previous run's end)
     step = float(settings.reach_step)
+    todo = []  # every group's moves of its run, and their samples
     for g in plan_groups:
         ks = [k for k in g.run if moves[k].kind in ("cut", "reorientation", "dwell", "skipped")]
-        if not ks:
+        todo.append((ks,) + _samples(moves, ks, Tb, step) if ks else None)
+    rmm = iter(_rmm_figures(arm, [w[1] for w in todo if w is not None]))
+    for g, work in zip(plan_groups, todo, strict=True):
+        if work is None:
             ends.append((math.nan, math.nan))
             continue
         runs += 1
-        S, offsets = _samples(moves, ks, Tb, step)
-        zero = np.zeros(S.X.size)
-        fig0, key0 = _figures(arm, S, zero)
+        ks, S, offsets = work
+        fig0, key0 = next(rmm)
         b0 = _best(key0)
         gap_ks = [k for k in g.gap if moves[k].kind in ("rapid", "reorientation") and moves[k].profile is not None]
         moved = bool(np.isfinite(prev)) and prev != 0.0
