@@ -30,14 +30,20 @@ static void step(Py_ssize_t i, Py_ssize_t n, Py_ssize_t nb, Py_ssize_t G, Py_ssi
     const double two_pi = 2.0 * M_PI;
     const int timed = i >= free_steps, stands = dX[i] <= 0.0;
     const double h = dt[i];
+    /* top / h > speed_safe needs top > 0.99 speed_safe h (h > 0; rounding is far smaller), top > 1e-9 (h <= 0, where
+     * the ratio is inf or 0): the division only where that holds */
+    const double screen = h > 0.0 ? 0.99 * w->speed_safe * h : 1e-9;
     for (Py_ssize_t b = 0; b < nb; b++) {
         const double *qa = q + (i + 1) * row + b * G, *qb = q + i * row + b * G;
         const unsigned char *va = valid + (i + 1) * row + b * G, *vb = valid + i * row + b * G;
-        for (Py_ssize_t g = 0; g < G; g++) {
-            double best = 0.0;
-            int kbest = 0;
-            for (Py_ssize_t k = 0; k < S; k++) {
-                Py_ssize_t pred = g - (k - K);
+        double *best = Dn + b * G;
+        signed char *kbest = back + b * G;
+        for (Py_ssize_t k = 0; k < S; k++) {
+            const Py_ssize_t sh = k - K;
+            const double sp = timed ? spin[i * S + k] : 0.0;
+            const double extra = (stands && k != K) ? w->out_of_reach : 0.0;
+            for (Py_ssize_t g = 0; g < G; g++) {
+                Py_ssize_t pred = g - sh;
                 Py_ssize_t s = pred < 0 ? 0 : (pred > G - 1 ? G - 1 : pred);
                 double travel = 0.0, top = 0.0;
                 for (int j = 0; j < 6; j++) { /* |dq_j| wrapped: the joints lie in one turn */
@@ -57,31 +63,33 @@ static void step(Py_ssize_t i, Py_ssize_t n, Py_ssize_t nb, Py_ssize_t G, Py_ssi
                 }
                 double cost = w->w_travel * travel;
                 if (timed) {
-                    double sp = spin[i * S + k];
-                    double ratio = h > 0.0 ? top / h : (top > 1e-9 ? INFINITY : 0.0);
-                    if (ratio > w->speed_safe) {
-                        double m = ratio - w->speed_safe; /* > 0 (np.maximum(0, m) is m) */
-                        double speed = w->w_speed * (m * m) + w->w_fast * (ratio > 1.0 ? 1.0 : 0.0);
-                        cost = cost + (speed + sp);
+                    if (top > screen) {
+                        double ratio = h > 0.0 ? top / h : (top > 1e-9 ? INFINITY : 0.0);
+                        if (ratio > w->speed_safe) {
+                            double m = ratio - w->speed_safe; /* > 0 (np.maximum(0, m) is m) */
+                            double speed = w->w_speed * (m * m) + w->w_fast * (ratio > 1.0 ? 1.0 : 0.0);
+                            cost = cost + (speed + sp);
+                        } else {
+                            cost = cost + sp;
+                        }
                     } else {
                         cost = cost + sp;
                     }
                 }
-                if (stands && k != K)
-                    cost = cost + w->out_of_reach;
+                cost = cost + extra; /* a shift over a turn in place (x + 0 is x: cost >= 0) */
                 if (cost > w->out_of_reach) /* np.minimum: never NaN here */
                     cost = w->out_of_reach;
                 if (pred != s)
                     cost = cost + w->out_of_reach;
                 double total = D[b * G + s] + cost;
-                if (k == 0 || total < best) {
-                    best = total;
-                    kbest = (int)k;
+                if (k == 0 || total < best[g]) {
+                    best[g] = total;
+                    kbest[g] = (signed char)k;
                 }
             }
-            Dn[b * G + g] = best + node[(i + 1) * row + b * G + g];
-            back[b * G + g] = (signed char)kbest;
         }
+        for (Py_ssize_t g = 0; g < G; g++)
+            best[g] = best[g] + node[(i + 1) * row + b * G + g];
     }
 }
 
