@@ -603,8 +603,8 @@ def _refine(moves, S: _Samples, target: np.ndarray, rate: float, acc: float, pin
     B0 = BSpline.design_matrix(S.X, t, SPIN_DEGREE).toarray()
     K = B0.shape[1]
     eye = np.eye(K)
-    d1 = BSpline(t, eye, SPIN_DEGREE).derivative(1)
-    d2 = BSpline(t, eye, SPIN_DEGREE).derivative(2)
+    basis = BSpline(t, eye, SPIN_DEGREE)
+    d1, d2 = basis.derivative(1), basis.derivative(2)
     B1, B2 = d1(S.X), d2(S.X)  # (n, K): psi' and psi'' at the samples per coefficient
     # the bounds in time at the planned feed: |psi' v| <= rate, |psi'' v^2 + psi' a| <= acc
     v, a = _feed_at(moves, S)
