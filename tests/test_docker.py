@@ -53,11 +53,13 @@ def test_the_image_builds_from_the_debian_stand_in_and_carries_the_service(image
     assert "/healthz" in " ".join(config["Healthcheck"]["Test"])
     assert "8000/tcp" in config["ExposedPorts"] and "/data" in config["Volumes"]
     assert config["Entrypoint"] == ["python", "-m", "planner.frontends.service"]
-    probe = ("import sys, planner, psycopg, planner.curves._hermite_member as m; "
-             "print(sys.version_info[:2] == (3, 11), planner.__file__, m.__file__)")
-    same, package, member = docker("run", "--rm", "--entrypoint", "python", image, "-c", probe).split()
+    probe = ("import sys, planner, psycopg, planner.curves._hermite_member as m, planner.cam._spin_search as g; "
+             "print(sys.version_info[:2] == (3, 11), planner.__file__, m.__file__, g.__file__)")
+    same, package, member, search = docker("run", "--rm", "--entrypoint", "python", image, "-c", probe).split()
     # Python 3.11 of the base, the package installed from the wheel (not a source folder), the compiled member rule
-    assert same == "True" and "/site-packages/planner/" in package and member.endswith(".so"), (package, member)
+    # and grid search
+    assert same == "True" and "/site-packages/planner/" in package, package
+    assert member.endswith(".so") and search.endswith(".so"), (member, search)
     # the compiler stayed in the wheel's stage
     no_cc = run(["docker", "run", "--rm", "--entrypoint", "sh", image, "-c", "command -v gcc || command -v cc"],
                 timeout=120, what="docker run", check=False)

@@ -3,12 +3,15 @@
 The grid search of ``spin="reach"`` takes its joints joint-major from one unchecked inverse-kinematics call
 (:func:`planner.kinematics.inverse_frames`) and computes its step costs for all shifts at once; the time law gives s,
 v, a from one phase search (:meth:`FeedProfile.state`). Here each is compared with the public, checked function or the
-cost formula written out shift by shift, and a whole spun job's exports with those of the job planned on them.
+cost formula written out shift by shift, and a whole spun job's exports with those of the job planned on them. The
+compiled grid search (planner/cam/_spin_search.c, step costs and dynamic programming in one pass) is compared with
+the numpy one.
 """
 
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
@@ -147,6 +150,7 @@ def test_a_spun_job_exports_the_bytes_of_the_straightforward_spin_choice(monkeyp
     assert fast.summary()["spin"]["spun_runs"] == 1
     monkeypatch.setattr(sc._Arm, "joints", _reference_joints)
     monkeypatch.setattr(sc, "_step_costs", _reference_step_costs)
+    monkeypatch.setattr(sc, "_spin_search", None)  # the numpy search, on the step costs written out
     slow = plan(EXAMPLE, settings)
     for fmt in ("csv", "json"):
         assert export(fast, fmt) == export(slow, fmt)
@@ -154,3 +158,58 @@ def test_a_spun_job_exports_the_bytes_of_the_straightforward_spin_choice(monkeyp
              if hasattr(m.frames, "spin")]
     assert spins == [(m.frames.spin.knots.tobytes(), m.frames.spin.coeffs.tobytes()) for m in slow.moves
                      if hasattr(m.frames, "spin")]
+
+
+COMPILED_MISSING = (
+    "planner/cam/_spin_search.c is not built: the install found no C compiler (or Python's headers); "
+    "install gcc (Debian: apt-get install gcc python3-dev) and run `pip install -e .` again"
+)
+
+
+def test_the_compiled_grid_search_is_built():
+    """The install built the compiled grid search (pyproject.toml makes it optional for users; the test command's
+    machine has a C compiler, and without it every spin choice would silently take the numpy search)."""
+    assert sc._spin_search is not None, COMPILED_MISSING
+
+
+@pytest.mark.parametrize("tcp", [ANGLED, (0.0, 0.0, 0.1, 0.0, 0.0, 0.3)])  # a spin moves every joint; wrist 3 only
+def test_the_compiled_grid_search_is_the_numpy_one_bit_for_bit(run_samples, tcp, monkeypatch):
+    """The cheapest path (spins and branch) of the compiled search and of the numpy one, on the example's run: from
+    no spin and pinned where the arm is, with rapids before the run (no rate or speed costs there), a spin rate
+    bound that costs everywhere, and a step where the run's coordinate stands."""
+    assert sc._spin_search is not None, COMPILED_MISSING
+    arm = sc._Arm("ur5e", tcp)
+    S = run_samples
+    if arm.wrist3:
+        S = replace(S, p=S.p + np.array([0.0, 0.25, 0.25]))  # the short tool: nearer the arm's middle
+    X = S.X.copy()
+    X[5] = X[4]
+    S = replace(S, X=X)
+    paths = []
+    for rate, free, pin in ((math.radians(90.0), 0, math.nan), (math.radians(90.0), 10, 0.7), (1e-3, 3, -2.0)):
+        got = sc._grid_path(arm, S, rate, free, pin)
+        with monkeypatch.context() as m:
+            m.setattr(sc, "_spin_search", None)
+            want = sc._grid_path(arm, S, rate, free, pin)
+        assert got[1] == want[1] and got[0].tobytes() == want[0].tobytes()
+        paths.append(got[0])
+    assert any(np.ptp(p) > 0.0 for p in paths)  # some path turns the tool
+
+
+def test_the_compiled_grid_search_refuses_what_it_cannot_read():
+    """The kernel is private (_grid_path builds its arrays), but a wrong array is an exception naming it, never a
+    read past an array's end."""
+    assert sc._spin_search is not None, COMPILED_MISSING
+    kernel = sc._spin_search.grid_search
+    n, G, K = 4, 5, 2
+    args = [np.zeros((6, n, 8, G)), np.ones((n, 8, G), bool), np.zeros((n, 8, G)), np.ones(n - 1), np.ones(n - 1),
+            np.zeros((n - 1, 2 * K + 1)), np.ones(6), 0, K, (1.0, 1.0, 1.0, 0.8, 1e6), np.zeros((8, G)),
+            np.zeros((n - 1, 8, G), np.int8)]
+    kernel(*args)  # as _grid_path calls it
+    for i, bad, error, match in ((2, np.zeros((n, 8, G + 1)), ValueError, "shapes do not agree"),
+                                 (5, np.zeros((n - 1, 2 * K)), ValueError, "shapes do not agree"),
+                                 (0, np.zeros((6, n, 8 * G)), ValueError, r"q must be \(6, n, 8, G\)"),
+                                 (2, np.zeros((n, 8, G), np.float32), TypeError, "1-byte items, the rest float64"),
+                                 (0, np.zeros((6, n, G, 8)).transpose(0, 1, 3, 2), ValueError, "not C-contiguous")):
+        with pytest.raises(error, match=match):
+            kernel(*args[:i], bad, *args[i + 1:])

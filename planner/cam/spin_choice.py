@@ -21,8 +21,10 @@ psi is chosen in two stages, the first global and coarse, the second continuous:
    previous run ended with (no rate or joint-speed cost there: the rapids are timed for their spin afterwards). This
    is the ladder graph of ROS-Industrial Descartes and the sampled spin of RoboDK, over the whole run at once. The
    graph holds every :data:`COARSE`-th sample of the run where the margins are flat and every sample where a node's
-   cost changes by more than :data:`FLAT` over a step (and every sample of the rapids, the ends of every move); the
-   step costs are computed for blocks of samples at once, the dynamic programming is one min-plus step per sample.
+   cost changes by more than :data:`FLAT` over a step (and every sample of the rapids, the ends of every move). The
+   step costs and the dynamic programming run compiled (``_spin_search.c``, one pass per sample) where a C compiler
+   built it at install, else in numpy (step costs for blocks of samples at once, one min-plus step per sample): the
+   same arithmetic, the same bits.
 3. **Continuous refinement.** psi becomes a clamped cubic B-spline (C2) of arc length along the run, at most
    :data:`MAX_COEFFS` coefficients: the least-squares fit to the grid path, smoothed, under the spin bounds as linear
    constraints on the coefficients at every sample and inside every phase of the cuts' time laws, |psi'(s) v| <=
@@ -61,6 +63,11 @@ from planner.cam.spin import SPIN_DEGREE, SpinCurve, SpinFigures, SpunFrames, sp
 from planner.kinematics import get_model, inverse_frames
 from planner.kinematics.poses import as_transform
 from planner.motion import MotionLimits, plan_feed
+
+try:  # the grid search compiled (built at install where a C compiler is; see pyproject.toml), else its numpy version
+    from planner.cam import _spin_search
+except ImportError:  # pragma: no cover - an install without a C compiler
+    _spin_search = None  # type: ignore[assignment]
 
 #: Steps of the spin grid over [-pi, pi] from the RMM spin (15 deg apart, both ends included).
 GRID = 24
@@ -381,9 +388,36 @@ def _step_costs(arm: _Arm, q: np.ndarray, valid: np.ndarray, X: np.ndarray, t: n
 def _figures(arm: _Arm, S: _Samples, psi: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Figures (8, 7) of spin psi (n,) on every branch (see SpinFigures; then the largest joint speed over a step as
     a fraction of its limit, of any joint and of wrist 3) and each branch's rank key (8, 3)."""
-    q, valid = arm.joints(S.p, S.R, psi[:, None])
+    return _rated(arm, S, *_posed(arm, S.p, S.R, psi))
+
+
+def _posed(arm: _Arm, p: np.ndarray, R: np.ndarray, psi: np.ndarray) -> tuple[np.ndarray, ...]:
+    """Joints (6, n, 8), validity (n, 8), singularity and joint-limit margins (n, 8) of positions p (n, 3) and frames
+    R (n, 3, 3) turned by psi (n,) (each sample on its own: the samples of many runs at once give each run's)."""
+    q, valid = arm.joints(p, R, psi[:, None])
     q, valid = q[..., 0], valid[..., 0]  # (6, n, 8), (n, 8)
-    sing, joint = arm.margins(q)
+    return (q, valid) + arm.margins(q)
+
+
+def _rmm_figures(arm: _Arm, runs: list) -> list:
+    """:func:`_figures` at the RMM spin (psi = 0) of the samples of every run in ``runs`` (a list of _Samples), the
+    joints and margins of all of them from one inverse-kinematics call (the same bits: each sample on its own)."""
+    if not runs:
+        return []
+    q, valid, sing, joint = _posed(arm, np.concatenate([S.p for S in runs]), np.concatenate([S.R for S in runs]),
+                                   np.zeros(sum(S.X.size for S in runs)))
+    out = []
+    a = 0
+    for S in runs:
+        b = a + S.X.size
+        out.append(_rated(arm, S, q[:, a:b], valid[a:b], sing[a:b], joint[a:b]))
+        a = b
+    return out
+
+
+def _rated(arm: _Arm, S: _Samples, q: np.ndarray, valid: np.ndarray, sing: np.ndarray,
+           joint: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """:func:`_figures` from the samples' joints (6, n, 8), validity and margins (n, 8)."""
     dq = _wrap(np.diff(q, axis=1))
     ratio = arm.step_ratio(dq, np.diff(S.t)[:, None])
     both = valid[1:] & valid[:-1]
@@ -437,6 +471,45 @@ def _inside(n: int, idx: np.ndarray, steps: np.ndarray) -> np.ndarray:
     return np.cumsum(d[:n]) > 0
 
 
+def _min_plus(arm: _Arm, q: np.ndarray, valid: np.ndarray, node: np.ndarray, X: np.ndarray, t: np.ndarray, free: int,
+              rate: float, gstep: float, shifts: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """The dynamic programming of the grid search over the chain of samples: the cheapest cost (8, G) of a path to
+    each node of the last sample and the shift index (n - 1, 8, G) (into ``shifts``, -K..K) of every step of the
+    cheapest path to each node, for joints q (6, n, 8, G), validity (n, 8, G) and node costs (n, 8, G) at run
+    coordinates X (n,) and times t (n,) (see :func:`_step_costs`; the first ``free`` steps are in rapids).
+
+    By the compiled search (``_spin_search.c``: step costs and min-plus steps in one pass per sample, the same
+    arithmetic) where it is built, else by numpy (:func:`_step_costs` for blocks of samples, then one min-plus step
+    per sample); the same bits either way."""
+    n, _, G = node.shape
+    K = int(np.abs(shifts).max())
+    pred = np.arange(G)[None, :] - shifts[:, None]  # (2K+1, G): the predecessor of g by each shift
+    src = np.clip(pred, 0, G - 1)
+    D = node[0].copy()  # (8, G)
+    back = np.empty((n - 1, 8, G), dtype=np.int8)
+    if _spin_search is not None:
+        h = np.diff(t)
+        spin = W_RATE * np.maximum(0.0, (np.abs(shifts) * gstep)[None, :] / np.maximum(h, 1e-9)[:, None]
+                                   / max(rate, 1e-9) - 1.0) ** 2  # as in _step_costs
+        spin[:free] = 0.0
+        _spin_search.grid_search(np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(valid, dtype=bool),
+                                 np.ascontiguousarray(node, dtype=float), h, np.diff(X), spin,
+                                 np.ascontiguousarray(1.0 / arm.vmax), free, K,
+                                 (W_TRAVEL, W_SPEED, W_FAST, SPEED_SAFE, OUT_OF_REACH), D, back)
+        return D, back
+    trans = _step_costs(arm, q, valid, X, t, free, rate, gstep, shifts)  # (n - 1, 8, 2K+1, G)
+    trans += np.where((pred < 0) | (pred >= G), OUT_OF_REACH, 0.0)  # no predecessor past the grid's ends
+    rows = np.arange(8)[:, None]
+    cols = np.arange(G)[None, :]
+    for i in range(n - 1):  # the graph is a chain over samples: the min-plus step of the dynamic programming
+        total = D[:, src]
+        total += trans[i]
+        j = total.argmin(axis=1)  # (8, G)
+        back[i] = j
+        D = total[rows, j, cols] + node[i + 1]
+    return D, back
+
+
 def _grid_path(arm: _Arm, S: _Samples, rate: float, free: int = 0, pin: float = math.nan) -> tuple[np.ndarray, int]:
     """The grid search: spin (n,) (radians, in [-pi, pi]) and branch of the cheapest path through (sample, spin).
 
@@ -469,18 +542,7 @@ def _grid_path(arm: _Arm, S: _Samples, rate: float, free: int = 0, pin: float = 
     G = grid.size
     pred = np.arange(G)[None, :] - shifts[:, None]  # (2K+1, G): the predecessor of g by each shift
     src = np.clip(pred, 0, G - 1)
-    trans = _step_costs(arm, q, valid, S.X[idx], S.t[idx], free, rate, gstep, shifts)  # (n - 1, 8, 2K+1, G)
-    trans += np.where((pred < 0) | (pred >= G), OUT_OF_REACH, 0.0)  # no predecessor past the grid's ends
-    D = node[0].copy()  # (8, G)
-    back = np.empty((n - 1, 8, G), dtype=np.int8)
-    rows = np.arange(8)[:, None]
-    cols = np.arange(G)[None, :]
-    for i in range(n - 1):  # the graph is a chain over samples: the min-plus step of the dynamic programming
-        total = D[:, src]
-        total += trans[i]
-        j = total.argmin(axis=1)  # (8, G)
-        back[i] = j
-        D = total[rows, j, cols] + node[i + 1]
+    D, back = _min_plus(arm, q, valid, node, S.X[idx], S.t[idx], free, rate, gstep, shifts)
     b = int(D.min(axis=1).argmin())
     g = np.empty(n, dtype=np.int64)
     g[-1] = int(D[b].argmin())
@@ -541,8 +603,8 @@ def _refine(moves, S: _Samples, target: np.ndarray, rate: float, acc: float, pin
     B0 = BSpline.design_matrix(S.X, t, SPIN_DEGREE).toarray()
     K = B0.shape[1]
     eye = np.eye(K)
-    d1 = BSpline(t, eye, SPIN_DEGREE).derivative(1)
-    d2 = BSpline(t, eye, SPIN_DEGREE).derivative(2)
+    basis = BSpline(t, eye, SPIN_DEGREE)
+    d1, d2 = basis.derivative(1), basis.derivative(2)
     B1, B2 = d1(S.X), d2(S.X)  # (n, K): psi' and psi'' at the samples per coefficient
     # the bounds in time at the planned feed: |psi' v| <= rate, |psi'' v^2 + psi' a| <= acc
     v, a = _feed_at(moves, S)
@@ -713,15 +775,18 @@ def choose_spin(moves, settings) -> SpinChoice:
     gap_curves: dict[int, SpinCurve] = {}
     prev = math.nan  # the spin where the arm is (the previous run's end)
     step = float(settings.reach_step)
+    todo = []  # every group's moves of its run, and their samples
     for g in plan_groups:
         ks = [k for k in g.run if moves[k].kind in ("cut", "reorientation", "dwell", "skipped")]
-        if not ks:
+        todo.append((ks,) + _samples(moves, ks, Tb, step) if ks else None)
+    rmm = iter(_rmm_figures(arm, [w[1] for w in todo if w is not None]))
+    for g, work in zip(plan_groups, todo, strict=True):
+        if work is None:
             ends.append((math.nan, math.nan))
             continue
         runs += 1
-        S, offsets = _samples(moves, ks, Tb, step)
-        zero = np.zeros(S.X.size)
-        fig0, key0 = _figures(arm, S, zero)
+        ks, S, offsets = work
+        fig0, key0 = next(rmm)
         b0 = _best(key0)
         gap_ks = [k for k in g.gap if moves[k].kind in ("rapid", "reorientation") and moves[k].profile is not None]
         moved = bool(np.isfinite(prev)) and prev != 0.0
