@@ -5,13 +5,15 @@ one process: CSV, JSON and URScript byte for byte, the arm configurations chosen
 from __future__ import annotations
 
 import importlib
+import json
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from planner import PlannerError, PlanSettings, plan
 from planner.export import stream
-from planner.job import fits_from_bytes, fits_to_bytes
+from planner.job import fits_from_bytes, fits_to_bytes, piece_from_bytes, piece_to_bytes
 
 P = importlib.import_module("planner.plan")  # (the package's name plan is the function)
 DATA = Path(__file__).resolve().parent / "data"
@@ -58,3 +60,64 @@ def test_pieces_and_fits_that_do_not_belong_are_refused(monkeypatch):
         fits_from_bytes(b"PK\x03\x04 not a zip at all")
     with pytest.raises(PlannerError, match="the fits: .*FitChunk"):  # a whole job is not a chunk of fits
         fits_from_bytes(plan(APT, settings).to_bytes())
+
+
+# -- the moves planned in pieces too (plan_piece), joined by plan(pieces=...) ------------------------------------------
+NX = DATA / "nx_clsf_ust_a2_excerpt.cls"
+NX_PASSES = tuple(range(3, 15))
+
+
+def _summary(job) -> dict:
+    """The summary's figures but its timings (wall times), as JSON text (NaN equal to NaN)."""
+    return json.dumps({k: v for k, v in job.summary().items() if k != "planning_s"},
+                      sort_keys=True, default=str)
+
+
+@pytest.mark.parametrize(("source", "settings", "spans"), [
+    (NX, PlanSettings(passes=NX_PASSES), 12),  # tool axes from the file: each pass's frames from the move before
+    (NX, PlanSettings(axes="path", frame="rmf", passes=NX_PASSES), 12),  # the tool normal to the path
+    (APT, PlanSettings(passes=tuple(range(10))), 3),  # the CAM default axis
+    (APT, PlanSettings(robot="ur5e", part_frame="auto", passes=(0, 1, 2, 3, 4, 5)), 3),
+], ids=["nx file axes", "nx axes path", "apt", "apt robot placed"])
+def test_a_job_planned_in_pieces_is_the_job_planned_at_once(monkeypatch, source, settings, spans):
+    monkeypatch.setattr(P, "FIT_BATCH_SPANS", spans)  # small batches: several pieces in a short test
+    batches = P.fit_batches(source, settings)
+    whole = plan(source, settings)
+    assert len(batches) >= 3
+    pieces = [P.plan_piece(source, settings, a, b) for a, b in ((batches[0][0], batches[0][1]),
+                                                                  (batches[1][0], batches[-2][1]),
+                                                                  (batches[-1][0], batches[-1][1]))]
+    sent = [piece_from_bytes(piece_to_bytes(p)) for p in pieces]  # as between machines
+    assert [p.first for p in sent] == [0, pieces[0].stop, pieces[1].stop]
+    assert sent[-1].stop == len(whole.moves) - len(whole.reconfigurations)
+    joined = plan(source, settings, pieces=sent)
+    for fmt in ("csv", "json") + (("script",) if settings.robot else ()):
+        assert _bytes(joined, fmt) == _bytes(whole, fmt), fmt
+    assert _summary(joined) == _summary(whole)
+    assert joined.warnings == whole.warnings
+    assert [m.kind for m in joined.moves] == [m.kind for m in whole.moves]
+    for a, b in zip(joined.moves, whole.moves, strict=True):  # every frame bit for bit, not only the exported ones
+        assert np.array_equal(a.start_frame, b.start_frame) and np.array_equal(a.end_frame, b.end_frame)
+
+
+def test_pieces_that_do_not_belong_are_refused(monkeypatch):
+    monkeypatch.setattr(P, "FIT_BATCH_SPANS", 12)
+    settings = PlanSettings(passes=NX_PASSES)
+    batches = P.fit_batches(NX, settings)
+    pieces = [P.plan_piece(NX, settings, a, b) for a, b in batches]
+    with pytest.raises(PlannerError, match="piece 1 starts at move"):
+        plan(NX, settings, pieces=[pieces[0], *pieces[2:]])
+    with pytest.raises(PlannerError, match=r"they end at move \d+ of the job's \d+"):
+        plan(NX, settings, pieces=pieces[:-1])
+    with pytest.raises(PlannerError, match="fits and pieces: .* not both"):
+        plan(NX, settings, pieces=pieces, fits=[])
+    with pytest.raises(PlannerError, match="expected planned pieces"):
+        plan(NX, settings, pieces=[])
+    sel = PlanSettings(passes=NX_PASSES[1:])
+    other = P.plan_piece(NX, sel, *P.fit_batches(NX, sel)[0])  # a piece of another job of the same file
+    with pytest.raises(PlannerError, match="pieces: (move 0 is not this job's|piece 1 starts at move)"):
+        plan(NX, settings, pieces=[other, *pieces[1:]])
+    with pytest.raises(PlannerError, match=r"are not whole fit batches"):
+        P.plan_piece(NX, settings, 0, len(NX_PASSES) + 1)
+    with pytest.raises(PlannerError, match="the piece: .*PlannedPiece"):  # a whole job is not a piece
+        piece_from_bytes(plan(APT, PlanSettings(passes=(0,))).to_bytes())
