@@ -74,19 +74,19 @@ def _summary(job) -> dict:
 
 
 @pytest.mark.parametrize(("source", "settings", "spans"), [
-    (NX, PlanSettings(passes=NX_PASSES), 12),  # tool axes from the file: each pass's frames from the move before
-    (NX, PlanSettings(axes="path", frame="rmf", passes=NX_PASSES), 12),  # the tool normal to the path
+    (NX, PlanSettings(passes=NX_PASSES), 60),  # tool axes from the file: each pass's frames from the move before
+    (NX, PlanSettings(axes="path", frame="rmf", passes=NX_PASSES), 60),  # the tool normal to the path
     (APT, PlanSettings(passes=tuple(range(10))), 3),  # the CAM default axis
-    (APT, PlanSettings(robot="ur5e", part_frame="auto", passes=(0, 1, 2, 3, 4, 5)), 3),
+    (APT, PlanSettings(robot="ur5e", part_frame="auto", passes=(0, 1, 2, 3, 4, 5)), 4),
 ], ids=["nx file axes", "nx axes path", "apt", "apt robot placed"])
 def test_a_job_planned_in_pieces_is_the_job_planned_at_once(monkeypatch, source, settings, spans):
     monkeypatch.setattr(P, "FIT_BATCH_SPANS", spans)  # small batches: several pieces in a short test
-    batches = P.fit_batches(source, settings)
     whole = plan(source, settings)
-    assert len(batches) >= 3
-    pieces = [P.plan_piece(source, settings, a, b) for a, b in ((batches[0][0], batches[0][1]),
-                                                                  (batches[1][0], batches[-2][1]),
-                                                                  (batches[-1][0], batches[-1][1]))]
+    parts = P.plan_pieces(source, settings, 3)  # balanced, each piece ending where its chords say (not a fit batch)
+    assert len(parts) == 3 and parts[0][0] == 0 and parts[-1][1] == whole.summary()["passes"]
+    assert all(a[1] == b[0] for a, b in zip(parts, parts[1:], strict=False))
+    assert {b for _, b, _ in parts[:-1]} - {b for _, b in P.fit_batches(source, settings)}  # not only batch bounds
+    pieces = [P.plan_piece(source, settings, a, b) for a, b, _ in parts]
     sent = [piece_from_bytes(piece_to_bytes(p)) for p in pieces]  # as between machines
     assert [p.first for p in sent] == [0, pieces[0].stop, pieces[1].stop]
     assert sent[-1].stop == len(whole.moves) - len(whole.reconfigurations)
@@ -101,10 +101,8 @@ def test_a_job_planned_in_pieces_is_the_job_planned_at_once(monkeypatch, source,
 
 
 def test_pieces_that_do_not_belong_are_refused(monkeypatch):
-    monkeypatch.setattr(P, "FIT_BATCH_SPANS", 12)
     settings = PlanSettings(passes=NX_PASSES)
-    batches = P.fit_batches(NX, settings)
-    pieces = [P.plan_piece(NX, settings, a, b) for a, b in batches]
+    pieces = [P.plan_piece(NX, settings, a, b) for a, b, _ in P.plan_pieces(NX, settings, 3)]
     with pytest.raises(PlannerError, match="piece 1 starts at move"):
         plan(NX, settings, pieces=[pieces[0], *pieces[2:]])
     with pytest.raises(PlannerError, match=r"they end at move \d+ of the job's \d+"):
@@ -114,10 +112,25 @@ def test_pieces_that_do_not_belong_are_refused(monkeypatch):
     with pytest.raises(PlannerError, match="expected planned pieces"):
         plan(NX, settings, pieces=[])
     sel = PlanSettings(passes=NX_PASSES[1:])
-    other = P.plan_piece(NX, sel, *P.fit_batches(NX, sel)[0])  # a piece of another job of the same file
+    other = P.plan_piece(NX, sel, *P.plan_pieces(NX, sel, 3)[0][:2])  # a piece of another job of the same file
     with pytest.raises(PlannerError, match="pieces: (move 0 is not this job's|piece 1 starts at move)"):
         plan(NX, settings, pieces=[other, *pieces[1:]])
-    with pytest.raises(PlannerError, match=r"are not whole fit batches"):
-        P.plan_piece(NX, settings, 0, len(NX_PASSES) + 1)
+    with pytest.raises(PlannerError, match=r"passes 2..1 are not a range of its 12 passes"):
+        P.plan_piece(NX, settings, 2, 2)
+    with pytest.raises(PlannerError, match=r"passes 0..12 are not a range of its 12 passes"):
+        P.plan_piece(NX, settings, 0, 13)
+    with pytest.raises(PlannerError, match="n: must be a whole number of pieces >= 1, got 0"):
+        P.plan_pieces(NX, settings, 0)
     with pytest.raises(PlannerError, match="the piece: .*PlannedPiece"):  # a whole job is not a piece
         piece_from_bytes(plan(APT, PlanSettings(passes=(0,))).to_bytes())
+
+
+def test_pieces_are_balanced_for_their_chain():
+    chords = np.full(100, 10)
+    parts = P.balanced_pieces(chords, 2, 0.0)
+    assert [(a, b) for a, b, _ in parts] == [(0, 50), (50, 100)]
+    parts = P.balanced_pieces(chords, 2, 0.2)  # the second piece also chains the first's frames: it gets fewer
+    cost = [c + 0.2 * 10 * a for a, _, c in parts]
+    assert parts[0][1] in (55, 56) and max(cost) == 560  # the least largest cost (55: 550 and 560; 56: 560 and 552)
+    assert P.balanced_pieces(np.array([5, 7]), 4, 0.15) == [(0, 1, 5), (1, 2, 7)]  # no more pieces than passes
+    assert P.balanced_pieces(np.array([5, 7, 9]), 1, 0.15) == [(0, 3, 21)]
