@@ -520,6 +520,10 @@ def _joined(source: str, seg: Segmentation, pieces: Sequence[PlannedPiece], timi
             m.item.index == item.index and np.array_equal(m.item.points, item.points)))
         if not same:
             raise PlannerError(f"{source}: pieces: move {k} is not this job's ({_where(source, item)})")
+    # the job's own records (a saved job stores each once: a move's record is its segmentation's, a fit's points
+    # its pass's)
+    moves = [replace(m, item=item, fit=None if m.fit is None else replace(m.fit, points=item.points))
+             for m, item in zip(moves, seg.moves, strict=True)]
     reports = [r for p in pieces for r in p.passes]
     if [r.index for r in reports] != [c.index for c in seg.passes]:
         raise PlannerError(f"{source}: pieces: their pass reports are not those of the job's {len(seg.passes)} passes")
