@@ -407,42 +407,52 @@ def _piece_moves(seg: Segmentation, start: int, stop: int) -> tuple[int, int]:
     return (0 if start == 0 else at[start - 1] + 1), (len(seg.moves) if stop == len(seg.passes) else at[stop - 1] + 1)
 
 
-#: What chaining the tool frames of the moves before a piece costs it (:func:`plan_piece`), against planning those
-#: moves: their fit and frames, about 0.15 of the plan on the NX job (fit 0.6 s and frames 1.3 s of 12 s).
-CHAIN_COST = 0.15
+#: What planning a piece costs per CAM chord (:func:`plan_pieces`), against a chord of a pass whose tool axis varies
+#: (its rotation-minimizing frames, the angular speed caps of its time law: 0.76 ms on the NX job): (planning it,
+#: chaining it for a later piece (its fit and frames, no time law)) for a pass whose tool axis varies, and for one
+#: whose axis is constant (frames and time law on the bare length: 0.087 ms; chained: its fit, 0.037 ms).
+PIECE_COST = {"varying": (1.0, 0.23), "constant": (0.115, 0.05)}
 
 
 def plan_pieces(source, settings: PlanSettings | None = None, n: int = 2, *, read_options: dict | None = None
                 ) -> list[tuple[int, int, int]]:
     """A job's cutting passes in at most ``n`` consecutive pieces for :func:`plan_piece` on ``n`` machines, (start,
-    stop, CAM chords) each, balanced for its cost: a piece's chords plus :data:`CHAIN_COST` of the chords before it
-    (the later pieces have fewer passes). Fewer pieces when the job has fewer passes."""
+    stop, CAM chords) each, balanced for their cost (:data:`PIECE_COST`): a piece's passes planned and the passes
+    before it chained (the later pieces have fewer passes). Fewer pieces when the job has fewer passes."""
     settings = PlanSettings() if settings is None else settings
     _check_plan_arguments(settings, read_options, None)
-    if not isinstance(n, int) or n < 1:
+    if not isinstance(n, int) or isinstance(n, bool) or n < 1:
         raise ArgumentError("n", f"must be a whole number of pieces >= 1, got {_described(n)}")
     tp, seg, s = _prepared(source, settings, None, None, read_options, {}, [])
-    return balanced_pieces(np.array([len(p) - 1 for p in seg.passes]), n, CHAIN_COST if s.axes != "path" else 0.0)
+    chords = np.array([len(p) - 1 for p in seg.passes])
+    if s.axes == "path":  # frames about the path tangent: every pass alike, chained from the one before only
+        plan_cost, chain_cost = chords.astype(float), np.zeros(len(chords))
+    else:
+        varying = np.array([p.axes is not None and np.ptp(p.axes, axis=0).max() > 0.0 for p in seg.passes], bool)
+        (pv, cv), (pc, cc) = PIECE_COST["varying"], PIECE_COST["constant"]
+        plan_cost, chain_cost = chords * np.where(varying, pv, pc), chords * np.where(varying, cv, cc)
+    return [(a, b, int(chords[a:b].sum())) for a, b in balanced_pieces(plan_cost, chain_cost, n)]
 
 
-def balanced_pieces(chords: np.ndarray, n: int, chain: float) -> list[tuple[int, int, int]]:
-    """Passes with ``chords`` (k,) in at most ``n`` consecutive pieces (start, stop, chords) of the least largest
-    cost, a piece's cost its chords plus ``chain`` times the chords before it."""
-    C = np.concatenate(([0], np.cumsum(chords)))
+def balanced_pieces(cost: np.ndarray, chain: np.ndarray, n: int) -> list[tuple[int, int]]:
+    """Passes in at most ``n`` consecutive pieces (start, stop) of the least largest cost: a piece's cost the sum of
+    ``cost`` (k,) over its passes plus the sum of ``chain`` (k,) over the passes before it."""
+    C = np.concatenate(([0.0], np.cumsum(cost)))
+    H = np.concatenate(([0.0], np.cumsum(chain)))
 
     def cut(most: float) -> list[tuple[int, int]]:
         out, a = [], 0
-        while a < len(chords):  # each piece as long as its cost stays within ``most`` (at least one pass)
-            b = max(int(np.searchsorted(C, C[a] * (1.0 - chain) + most, side="right")) - 1, a + 1)
+        while a < len(cost):  # each piece as long as its cost stays within ``most`` (at least one pass)
+            b = max(int(np.searchsorted(C, C[a] - H[a] + most, side="right")) - 1, a + 1)
             out.append((a, b))
             a = b
         return out
 
-    lo, hi = 0.0, float(C[-1]) * (1.0 + chain) + 1.0
+    lo, hi = 0.0, float(C[-1] + H[-1]) + 1.0
     for _ in range(64):  # bisection on the largest cost
         mid = 0.5 * (lo + hi)
         lo, hi = (lo, mid) if len(cut(mid)) <= n else (mid, hi)
-    return [(a, b, int(C[b] - C[a])) for a, b in cut(hi)]
+    return cut(hi)
 
 
 def plan_piece(source, settings: PlanSettings | None, start: int, stop: int, *,
@@ -454,7 +464,7 @@ def plan_piece(source, settings: PlanSettings | None, start: int, stop: int, *,
 
     Its first move starts from the end frame of the move before it, bit for bit: the moves before it are chained
     here (their passes fitted and given their tool frames, no time law; with the tool normal to the path only the
-    pass just before, whose frames do not depend on the move before it): :data:`CHAIN_COST`. Passes are fitted in
+    pass just before, whose frames do not depend on the move before it): :data:`PIECE_COST`. Passes are fitted in
     the job's fit batches (:func:`fit_batches`), whole, as :func:`plan` fits them.
     """
     tic = time.perf_counter()

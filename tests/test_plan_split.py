@@ -76,7 +76,7 @@ def _summary(job) -> dict:
 @pytest.mark.parametrize(("source", "settings", "spans"), [
     (NX, PlanSettings(passes=NX_PASSES), 60),  # tool axes from the file: each pass's frames from the move before
     (NX, PlanSettings(axes="path", frame="rmf", passes=NX_PASSES), 60),  # the tool normal to the path
-    (APT, PlanSettings(passes=tuple(range(10))), 3),  # the CAM default axis
+    (APT, PlanSettings(passes=tuple(range(10))), 4),  # the CAM default axis
     (APT, PlanSettings(robot="ur5e", part_frame="auto", passes=(0, 1, 2, 3, 4, 5)), 4),
 ], ids=["nx file axes", "nx axes path", "apt", "apt robot placed"])
 def test_a_job_planned_in_pieces_is_the_job_planned_at_once(monkeypatch, source, settings, spans):
@@ -126,11 +126,12 @@ def test_pieces_that_do_not_belong_are_refused(monkeypatch):
 
 
 def test_pieces_are_balanced_for_their_chain():
-    chords = np.full(100, 10)
-    parts = P.balanced_pieces(chords, 2, 0.0)
-    assert [(a, b) for a, b, _ in parts] == [(0, 50), (50, 100)]
-    parts = P.balanced_pieces(chords, 2, 0.2)  # the second piece also chains the first's frames: it gets fewer
-    cost = [c + 0.2 * 10 * a for a, _, c in parts]
-    assert parts[0][1] in (55, 56) and max(cost) == 560  # the least largest cost (55: 550 and 560; 56: 560 and 552)
-    assert P.balanced_pieces(np.array([5, 7]), 4, 0.15) == [(0, 1, 5), (1, 2, 7)]  # no more pieces than passes
-    assert P.balanced_pieces(np.array([5, 7, 9]), 1, 0.15) == [(0, 3, 21)]
+    cost = np.full(100, 10.0)
+    assert P.balanced_pieces(cost, np.zeros(100), 2) == [(0, 50), (50, 100)]
+    parts = P.balanced_pieces(cost, np.full(100, 2.0), 2)  # the second piece chains the first's frames: fewer passes
+    largest = max(10.0 * (b - a) + 2.0 * a for a, b in parts)
+    assert parts[0][1] in (55, 56) and largest == 560  # the least largest cost (55: 550 and 560; 56: 560 and 552)
+    cost[:50] = 1.0  # cheap passes first (a constant tool axis): the first piece takes more of them
+    assert P.balanced_pieces(cost, np.zeros(100), 2)[0][1] in (72, 73)  # 270 and 280, or 280 and 270
+    assert P.balanced_pieces(np.array([5.0, 7.0]), np.zeros(2), 4) == [(0, 1), (1, 2)]  # no more pieces than passes
+    assert P.balanced_pieces(np.array([5.0, 7.0, 9.0]), np.ones(3), 1) == [(0, 3)]
