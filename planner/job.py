@@ -670,8 +670,11 @@ class PlannedPiece:
     fit_warnings, warnings : tuple of str
         What fitting its passes, then planning its moves, warned about (the job's warnings list them in that order).
     timings : dict
-        Wall times of its work, s: "fit", "frames", "time_law", "piece" (all of it, its file read and the frames
-        of the moves before it included).
+        Wall times of its work, s: "fit", "chain" (the frames of the moves before it), "frames", "time_law",
+        "piece" (all of it, its file read included).
+    settings : str
+        The settings it was planned with, resolved (:meth:`PlanSettings.to_dict` as JSON text): the join refuses a
+        piece of other settings.
     """
 
     first: int
@@ -681,11 +684,13 @@ class PlannedPiece:
     fit_warnings: tuple = ()
     warnings: tuple = ()
     timings: dict = field(default_factory=dict)
+    settings: str = ""
 
     def to_state(self) -> dict:
         """The fields as data, for the saved-job format (:mod:`planner.jobfile`)."""
         return {"first": self.first, "stop": self.stop, "moves": self.moves, "passes": self.passes,
-                "fit_warnings": self.fit_warnings, "warnings": self.warnings, "timings": self.timings}
+                "fit_warnings": self.fit_warnings, "warnings": self.warnings, "timings": self.timings,
+                "settings": self.settings}
 
     @classmethod
     def from_state(cls, state: dict) -> PlannedPiece:
@@ -702,7 +707,8 @@ def _check_piece(s: dict) -> None:
 #: The stored types of a planned piece of a job (the job file's own format and types).
 PIECE_TYPES = {**JOB_TYPES, "PlannedPiece": StoredType("PlannedPiece", PlannedPiece, {
     "first": Int(0), "stop": Int(1), "moves": Seq(Ref("PlannedMove")), "passes": Seq(Ref("PassReport")),
-    "fit_warnings": Seq(Str()), "warnings": Seq(Str()), "timings": Map(NAN)}, check=_check_piece)}
+    "fit_warnings": Seq(Str()), "warnings": Seq(Str()), "timings": Map(NAN), "settings": Str()},
+    check=_check_piece)}
 
 
 def piece_to_bytes(piece: PlannedPiece) -> bytes:

@@ -232,7 +232,7 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
         if pieces is not None:
-            moves, reports, joined = _joined(tp.source, seg, pieces, timings)
+            moves, reports, joined = _joined(tp.source, seg, s, pieces, timings)
         else:
             tic = time.perf_counter()
             if progress is not None:
@@ -415,10 +415,13 @@ PIECE_COST = {"varying": (1.0, 0.23), "constant": (0.115, 0.05)}
 
 
 def plan_pieces(source, settings: PlanSettings | None = None, n: int = 2, *, read_options: dict | None = None
-                ) -> list[tuple[int, int, int]]:
+                ) -> list[tuple[int, int, int, int]]:
     """A job's cutting passes in at most ``n`` consecutive pieces for :func:`plan_piece` on ``n`` machines, (start,
-    stop, CAM chords) each, balanced for their cost (:data:`PIECE_COST`): a piece's passes planned and the passes
-    before it chained (the later pieces have fewer passes). Fewer pieces when the job has fewer passes."""
+    stop, CAM chords, work) each, balanced for their cost (:data:`PIECE_COST`): a piece's passes planned and the
+    passes before it chained (the later pieces have fewer passes). Fewer pieces when the job has fewer passes.
+
+    A piece's work is the cost of planning its passes in CAM chords of a pass whose tool axis varies (a chord of a
+    constant axis counts 0.115): what says whether splitting a job pays."""
     settings = PlanSettings() if settings is None else settings
     _check_plan_arguments(settings, read_options, None)
     if not isinstance(n, int) or isinstance(n, bool) or n < 1:
@@ -431,7 +434,8 @@ def plan_pieces(source, settings: PlanSettings | None = None, n: int = 2, *, rea
         varying = np.array([p.axes is not None and np.ptp(p.axes, axis=0).max() > 0.0 for p in seg.passes], bool)
         (pv, cv), (pc, cc) = PIECE_COST["varying"], PIECE_COST["constant"]
         plan_cost, chain_cost = chords * np.where(varying, pv, pc), chords * np.where(varying, cv, cc)
-    return [(a, b, int(chords[a:b].sum())) for a, b in balanced_pieces(plan_cost, chain_cost, n)]
+    return [(a, b, int(chords[a:b].sum()), int(round(plan_cost[a:b].sum())))
+            for a, b in balanced_pieces(plan_cost, chain_cost, n)]
 
 
 def balanced_pieces(cost: np.ndarray, chain: np.ndarray, n: int) -> list[tuple[int, int]]:
@@ -505,10 +509,17 @@ def plan_piece(source, settings: PlanSettings | None, start: int, stop: int, *,
                                      frame=frame)
     timings["piece"] = time.perf_counter() - tic
     return PlannedPiece(first, last, tuple(moves), tuple(reports), tuple(fit_warnings),
-                        tuple(str(x.message) for x in w), timings)
+                        tuple(str(x.message) for x in w), timings, _settings_text(s))
 
 
-def _joined(source: str, seg: Segmentation, pieces: Sequence[PlannedPiece], timings: dict
+def _settings_text(s: PlanSettings) -> str:
+    """Resolved settings as JSON text (what a piece was planned with)."""
+    import json
+
+    return json.dumps(s.to_dict(), sort_keys=True, default=str)
+
+
+def _joined(source: str, seg: Segmentation, s: PlanSettings, pieces: Sequence[PlannedPiece], timings: dict
             ) -> tuple[list, list, list[str]]:
     """The moves, pass reports and warnings (fitting's, then planning's) of pieces planned apart, checked to be
     those of ``seg`` (consecutive, whole, the same records); sums of their timings in ``timings``."""
@@ -517,7 +528,10 @@ def _joined(source: str, seg: Segmentation, pieces: Sequence[PlannedPiece], timi
         raise PlannerError(f"{source}: pieces: expected planned pieces (plan_piece), got "
                            f"{_described(pieces[0] if pieces else pieces)}")
     at = 0
+    settings = _settings_text(s)
     for k, p in enumerate(pieces):
+        if p.settings != settings:
+            raise PlannerError(f"{source}: pieces: piece {k} was planned with other settings than these")
         if p.first != at:
             raise PlannerError(f"{source}: pieces: piece {k} starts at move {p.first}, not {at} (the pieces are not "
                                "consecutive, in order)")

@@ -102,7 +102,7 @@ def _throttled(report: Report) -> Callable[[str, int, int], None]:
 def plan_job(spec: PlanSpec, report: Report, later: list[Callable[[], dict[str, bytes]]] | None = None) -> Outcome:
     """Plan one job with :func:`planner.plan`: done with its saved plan, summary and describe, or failed with the
     planner's one-line error (kind "input": the user's; "internal": ours). A step of a split job (``spec.step``):
-    "pieces", done with ``values["pieces"]`` = [[first, stop, chords], ...] (:func:`planner.plan.plan_pieces`);
+    "pieces", done with ``values["pieces"]`` = [[first, stop, chords, work], ...] (:func:`planner.plan.plan_pieces`);
     "piece", done with the piece's moves as ``plan`` (:func:`planner.job.piece_to_bytes`) and ``values["seconds"]``.
     ``later``: where a large job's 3D view data are deferred to, as a callable, to make after its end is stored
     (the outcome says ``later``); without it they are made here."""

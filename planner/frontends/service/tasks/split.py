@@ -4,8 +4,9 @@ joined where the whole sequence is (placement, spin, the robot check and the arm
 The worker that takes the job's message is its coordinator (:func:`run_job`): it holds the job (its heartbeats,
 its progress, its time limit, its cancellation), finds the job's pieces (:func:`planner.plan.plan_pieces`: one per
 worker slot alive, consecutive cutting passes balanced by CAM chords and by what chaining the frames of the moves
-before a piece costs it; a parse of the file), and if the job is large enough (``PLANNER_SPLIT_CHORDS`` CAM chords;
-two pieces, two worker slots alive) stores its pieces (:class:`~planner.frontends.service.store.JobChunk`) and sends
+before a piece costs it; a parse of the file), and if the job is large enough (``PLANNER_SPLIT_CHORDS``: CAM chords
+of passes whose tool axis varies, a chord of a constant axis counting 0.115, :data:`planner.plan.PIECE_COST`; two
+pieces, two worker slots alive) stores its pieces (:class:`~planner.frontends.service.store.JobChunk`) and sends
 one message per piece ("planner.fit_piece", the name kept from when pieces were only fitted). Any worker takes a
 piece (:func:`run_piece`: :func:`planner.plan.plan_piece`, its planned moves stored in the database with the piece
 marked done, in one transaction); the coordinator plans the pieces no other worker has taken yet itself, so a job
@@ -15,9 +16,10 @@ plan is the one a single process makes, export for export, byte for byte: every 
 moves before it exactly as one process does (their fits and frames, no time law), so its first move starts from the
 same bits.
 
-Where it pays (``PLANNER_SPLIT_CHORDS``, default :data:`~planner.frontends.service.config.ServiceConfig`): a piece
-costs its worker a parse of the file, the chain, its moves' bytes written and read back (the NX job's 19,598 chords,
-2 pieces: about 1.5 s of its 11 s in one process), the join a parse and the moves read back.
+Where it pays (``PLANNER_SPLIT_CHORDS``, default :data:`~planner.frontends.service.config.SPLIT_CHORDS`): beyond its
+work a piece costs its worker a parse of the file, the chain, its moves written as bytes (0.8 s for the larger of the
+NX job's two pieces), and the coordinator about 0.5 s (the pieces found, the messages, its polling, the pieces' moves
+read back and the join).
 
 - Cancellation: a piece's runner reads the job's row like the job's own (every :data:`.transitions.CANCEL_POLL` s)
   and kills its process once the job has ended.
@@ -93,11 +95,11 @@ class Coordinator:
         if found.state != "done":  # (the file cannot be read: the planner's error, as the whole plan gives it)
             self._end(slot, job_id, attempt, found)
             return
-        wanted = [tuple(int(x) for x in p) for p in found.values["pieces"]]
-        if sum(p[2] for p in wanted) < self.split_chords or len(wanted) < 2:
+        wanted = [[int(x) for x in p] for p in found.values["pieces"]]  # (first, stop, chords, work)
+        if sum(p[3] for p in wanted) < self.split_chords or len(wanted) < 2:
             slot.run(JOB, job_id, attempt, spec)
             return
-        pieces = self.store.pieces(job_id, wanted)  # type: ignore[arg-type]
+        pieces = self.store.pieces(job_id, [(a, b, c) for a, b, c, _ in wanted])
         self.send(job_id, [p["first"] for p in pieces[1:] if p["state"] == "queued"])  # (the first: this worker's)
         outcome = self._plan_pieces(slot, job_id, attempt, spec, deadline)
         if outcome is None:  # cancelled (its pieces removed), or handed back (its pieces kept for the next start)
