@@ -29,6 +29,7 @@ The trajectory at the controller rate is produced on demand, move by move
 from __future__ import annotations
 
 import math
+import operator
 import os
 import time
 import warnings
@@ -475,7 +476,12 @@ def plan_piece(source, settings: PlanSettings | None, start: int, stop: int, *,
     settings = PlanSettings() if settings is None else settings
     _check_plan_arguments(settings, read_options, None)
     tp, seg, s = _prepared(source, settings, None, None, read_options, {}, [])
-    if not (isinstance(start, int) and isinstance(stop, int) and 0 <= start < stop <= len(seg.passes)):
+    try:
+        start, stop = operator.index(start), operator.index(stop)
+    except TypeError:
+        raise ArgumentError("start, stop", f"must be whole pass numbers, got {_described(start)} and "
+                                           f"{_described(stop)}") from None
+    if not 0 <= start < stop <= len(seg.passes):
         raise PlannerError(f"{tp.source}: passes {start}..{stop - 1} are not a range of its {len(seg.passes)} "
                            "passes")
     first, last = _piece_moves(seg, start, stop)

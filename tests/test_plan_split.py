@@ -121,6 +121,11 @@ def test_pieces_that_do_not_belong_are_refused(monkeypatch):
         P.plan_piece(NX, settings, 2, 2)
     with pytest.raises(PlannerError, match=r"passes 0..12 are not a range of its 12 passes"):
         P.plan_piece(NX, settings, 0, 13)
+    with pytest.raises(PlannerError, match="start, stop: must be whole pass numbers"):
+        P.plan_piece(NX, settings, 0.5, 2)
+    a, b, *_ = P.plan_pieces(NX, settings, 3)[0]
+    got = P.plan_piece(NX, settings, np.int64(a), np.int64(b))  # numpy's integers are pass numbers too
+    assert (got.first, got.stop) == (pieces[0].first, pieces[0].stop)
     with pytest.raises(PlannerError, match="n: must be a whole number of pieces >= 1, got 0"):
         P.plan_pieces(NX, settings, 0)
     with pytest.raises(PlannerError, match="the piece: .*PlannedPiece"):  # a whole job is not a piece
