@@ -30,10 +30,11 @@ DEFAULT_DB = "sqlite:///jobs.sqlite"
 #: The longest planning time a service may allow a job, s (30 days).
 MAX_JOB_TIMEOUT = 30 * 86400.0
 #: Planning work from which the celery backend splits a job across its workers (PLANNER_SPLIT_CHORDS), in CAM chords
-#: of passes whose tool axis varies (a chord of a constant axis counts 0.115: planner.plan.PIECE_COST). Measured
-#: (bench/bench_scale.py --only nx-split, 2 workers): a split costs about 0.5 s of fixed overhead (the pieces found,
-#: the messages, the coordinator's polling, the join's parse) and pays from about 2,500 such chords (the NX job's
-#: first 69 passes: 0.9 s split, 1.6 s in one process); twice that, for a margin on a loaded machine.
+#: of passes whose tool axis varies (a chord of a constant axis counts 0.115: planner.plan.PIECE_COST). From
+#: bench/bench_scale.py --only nx-split (2 workers, a loaded machine): a split costs about 0.5 s whatever the size
+#: (the pieces found, the messages, the coordinator's polling, the join's parse) and saves about 0.23 ms per such
+#: chord (the NX job's 13,300: its two pieces 6.4 and 5.2 s with their bytes 0.8 s each, against 10.8 s in one
+#: process), so it pays from about 2,200; twice that for a margin.
 SPLIT_CHORDS = 4096
 
 
