@@ -142,3 +142,18 @@ def test_pieces_are_balanced_for_their_chain():
     assert P.balanced_pieces(cost, np.zeros(100), 2)[0][1] in (72, 73)  # 270 and 280, or 280 and 270
     assert P.balanced_pieces(np.array([5.0, 7.0]), np.zeros(2), 4) == [(0, 1), (1, 2)]  # no more pieces than passes
     assert P.balanced_pieces(np.array([5.0, 7.0, 9.0]), np.ones(3), 1) == [(0, 3)]
+
+
+def test_dwells_that_start_a_piece_hold_the_frame_the_piece_before_ended_in(tmp_path):
+    from tests.test_cam_dwell import APT_DWELL
+
+    drill = tmp_path / "drill.apt"
+    drill.write_text(APT_DWELL)
+    whole = plan(drill)
+    parts = P.plan_pieces(drill, None, 3)
+    pieces = [piece_from_bytes(piece_to_bytes(P.plan_piece(drill, None, a, b))) for a, b, *_ in parts]
+    assert len(pieces) == 3 and all(p.moves[0].kind == "dwell" for p in pieces[1:])  # (a drilled hole's dwell)
+    joined = plan(drill, pieces=pieces)
+    for fmt in ("csv", "json"):
+        assert _bytes(joined, fmt) == _bytes(whole, fmt), fmt
+    assert _summary(joined) == _summary(whole)
