@@ -12,8 +12,10 @@ state and plans in PostgreSQL; Redis and PostgreSQL started by this script on lo
    from the job's row stored to its start in a worker (started_at - created_at) on each backend, and the median
    submit-to-done round trip.
 3. The whole NX job split: its fits made in pieces by 2 processes (sent back as bytes, as between machines) and the
-   job planned with them, against one process; and the same through the celery backend (``planner worker`` x 2:
-   the service splits it, PLANNER_SPLIT_CHORDS) against PLANNER_SPLIT_CHORDS=0, exports compared.
+   job planned with them, against one process; and through the celery backend (``planner worker`` x 2: the service
+   plans its moves in pieces on both and joins them) against PLANNER_SPLIT_CHORDS=0, exports compared, the planning
+   seconds of the coordinator and of the pieces; the same for its first passes (1/8, 1/4, 1/2 of its chords: from
+   which size the split pays), and what a piece costs beyond its work (parse, chain, its moves' bytes, PostgreSQL).
 4. The plan in the store: the whole NX job's saved plan (``shared/data/nx_clsf_variable_contour_ust_a2.cls``, the file
    of bench_cam.py) written to and read from the ``job_data`` table, SQLite and PostgreSQL: size and times.
 
@@ -26,6 +28,7 @@ cores: a ratio near 1 says the broker costs little per task; more workers than c
 from __future__ import annotations
 
 import argparse
+import json
 import os
 import subprocess
 import sys
@@ -242,49 +245,140 @@ def nx_split(workers: int = 2) -> tuple[list[list[str]], bytes]:
     return rows, whole.to_bytes()
 
 
-def nx_service_split(pg, redis, workers: int = 2) -> list[list[str]]:
-    """The whole NX job through the celery backend with ``workers`` worker processes (one ``planner worker`` each):
-    split across them (the default PLANNER_SPLIT_CHORDS) against planned in one process (PLANNER_SPLIT_CHORDS=0):
-    submit to done (the store's clocks), and the split job's note (pieces, their chords and fit times). The two
-    plans' CSV and JSON exports compared byte for byte. Rows for the table."""
+#: Parts of the NX job through the service (its first passes, by CAM chords), and the whole: where the split starts to
+#: pay.
+NX_PARTS = (0.125, 0.25, 0.5, 1.0)
+
+
+def _nx_passes(fraction: float) -> list[int] | None:
+    """The NX job's first passes holding ``fraction`` of its CAM chords (None: all)."""
+    if fraction >= 1.0:
+        return None
+    import importlib
+
+    P = importlib.import_module("planner.plan")
+    chords = np.cumsum([c for _, _, c, _ in P.plan_pieces(NX_FILE, None, 10**6)])
+    return list(range(int(np.searchsorted(chords, fraction * chords[-1])) + 1))
+
+
+def nx_service_split(pg, redis, workers: int = 2) -> tuple[list[list[str]], list[list[str]]]:
+    """The NX job (its first passes, :data:`NX_PARTS`, and the whole) through the celery backend with ``workers``
+    worker processes (one ``planner worker`` each): split across them (PLANNER_SPLIT_CHORDS=1000: every part) against
+    planned in one process (PLANNER_SPLIT_CHORDS=0): submit to done (the store's clocks), the planning seconds of the
+    coordinator (the join) and of the pieces (the job's note), the two plans' CSV and JSON exports compared byte for
+    byte. Rows for the table of the whole job, and for the table by size."""
     import hashlib
 
-    rows, digests = [], []
-    for label, chords in ((f"split across {workers} workers", None), ("one process", "0")):
+    parts = [(f, _nx_passes(f)) for f in NX_PARTS]
+    runs: dict[str, list[dict]] = {}
+    for label, chords in (("split", "1000"), ("one", "0")):
+        runs[label] = []
         with tempfile.TemporaryDirectory() as tmp:
-            extra = {"PLANNER_SPLIT_CHORDS": chords or str(16384)}
-            apis, pool, _ = cluster("celery", workers, Path(tmp), pg, redis, extra=extra)
+            apis, pool, _ = cluster("celery", workers, Path(tmp), pg, redis, extra={"PLANNER_SPLIT_CHORDS": chords})
             try:
                 with httpx.Client(base_url=apis[0].url, timeout=120) as c:
                     for i in range(2 * workers):  # every worker's process started (as warm workers are)
                         c.post("/v1/jobs", json={"waypoints": [[0, 0, 0], [0.1, 0.01 * i, 0], [0.2, 0, 0]]})
                     while c.get("/metrics").text.count('planner_jobs{state="done"} ' + str(2 * workers)) == 0:
                         time.sleep(0.2)
-                    with open(NX_FILE, "rb") as f:
-                        job_id = c.post("/v1/jobs", files={"file": (NX_FILE.name, f)}).json()["id"]
-                    while (v := c.get(f"/v1/jobs/{job_id}").json())["state"] not in ("done", "failed"):
-                        time.sleep(0.2)
-                    if v["state"] != "done":
-                        raise SystemExit(f"the NX job failed: {v['error']}")
-                    digest = []
-                    for fmt in ("csv", "json"):
-                        h = hashlib.sha256()
-                        with c.stream("GET", f"/v1/jobs/{job_id}/trajectory?format={fmt}") as r:
-                            for piece in r.iter_bytes():
-                                h.update(piece)
-                        digest.append(h.hexdigest())
-                    digests.append(digest)
+                    for _, passes in parts:
+                        with open(NX_FILE, "rb") as f:
+                            settings = {} if passes is None else {"passes": passes}
+                            job_id = c.post("/v1/jobs", files={"file": (NX_FILE.name, f)},
+                                            data={"settings": json.dumps(settings)}).json()["id"]
+                        while (v := c.get(f"/v1/jobs/{job_id}").json())["state"] not in ("done", "failed"):
+                            time.sleep(0.1)
+                        if v["state"] != "done":
+                            raise SystemExit(f"the NX job failed: {v['error']}")
+                        digest = []
+                        for fmt in ("csv", "json"):
+                            h = hashlib.sha256()
+                            with c.stream("GET", f"/v1/jobs/{job_id}/trajectory?format={fmt}") as r:
+                                for piece in r.iter_bytes():
+                                    h.update(piece)
+                            digest.append(h.hexdigest())
+                        runs[label].append({"s": v["finished_at"] - v["created_at"], "digest": digest,
+                                            "join": v["timings"]["planning_s"], "note": v["note"] or "",
+                                            "passes": v["summary"]["passes"]})
             finally:
                 for p in apis + pool:
                     p.stop()
-        rows.append([label, f"{v['finished_at'] - v['created_at']:.1f}", f"{v['timings']['planning_s']:.1f}",
-                     v["note"] or ""])
-    one = float(rows[1][1])
-    for r in rows:
-        r.insert(2, f"{one / float(r[1]):.2f}")
-    same = digests[0] == digests[1]
-    rows.append(["exports (CSV, JSON) of the two byte for byte the same", "", "", "", str(same)])
+    split, one = runs["split"][-1], runs["one"][-1]
+    rows = [[f"split across {workers} workers", f"{split['s']:.1f}", f"{one['s'] / split['s']:.2f}",
+             f"{split['join']:.1f}", _piece_seconds(split["note"]), split["note"]],
+            ["one process", f"{one['s']:.1f}", "1.00", f"{one['join']:.1f}", "", ""],
+            ["exports (CSV, JSON) of the two byte for byte the same", "", "", "", "",
+             str(split["digest"] == one["digest"])]]
+    by_size = [[f"{f:g}", str(sp["passes"]), f"{sp['s']:.1f}", f"{on['s']:.1f}", f"{on['s'] / sp['s']:.2f}",
+                _piece_seconds(sp["note"]), str(sp["digest"] == on["digest"])]
+               for (f, _), sp, on in zip(parts, runs["split"], runs["one"], strict=True)]
+    return rows, by_size
+
+
+def _piece_seconds(note: str) -> str:
+    """The pieces' planning seconds from a split job's note ("...; piece s 5.1, 4.9)")."""
+    return note.split("piece s ")[1].split(")")[0] if "piece s " in note else ""
+
+
+def split_overhead(pg) -> list[list[str]]:
+    """What a piece of the NX job split in two costs beyond its work, in this process: the file's parse and split
+    into moves (each piece, the pieces step and the join pay it), the chain of the moves before it, its moves to
+    bytes and back, their write to and read from PostgreSQL's job_data, and the join. Rows for the table."""
+    import importlib
+
+    from sqlalchemy import delete, insert, select
+
+    from planner import plan
+    from planner.frontends.service.store import JobData, now, open_store
+    from planner.job import piece_from_bytes, piece_to_bytes
+
+    P = importlib.import_module("planner.plan")
+    tic = time.perf_counter()
+    P.fit_batches(NX_FILE)  # a parse and split into moves, nothing else
+    t_parse = time.perf_counter() - tic
+    engine, _ = open_store(pg.create_database())
+    rows, pieces = [], []
+    try:
+        for k, (a, b, chords, _) in enumerate(P.plan_pieces(NX_FILE, None, 2)):
+            piece = P.plan_piece(NX_FILE, None, a, b)
+            tic = time.perf_counter()
+            data = piece_to_bytes(piece)
+            t_enc = time.perf_counter() - tic
+            tic = time.perf_counter()
+            with engine.begin() as conn:
+                conn.execute(delete(JobData).where(JobData.job_id == "nx"))
+                conn.execute(insert(JobData).values(job_id="nx", name=f"piece.{a}", data=data, bytes=len(data),
+                                                    created_at=now()))
+            with engine.connect() as conn:
+                data = bytes(conn.scalar(select(JobData.data).where(JobData.job_id == "nx")))
+            t_db = time.perf_counter() - tic
+            tic = time.perf_counter()
+            pieces.append(piece_from_bytes(data))
+            t_dec = time.perf_counter() - tic
+            t = piece.timings
+            rows.append([f"piece {k + 1}: passes {a}..{b - 1}, {chords} chords", f"{t['piece']:.2f}",
+                         f"{t_parse:.2f}", f"{t['chain']:.2f}", f"{len(data) / 2**20:.1f}", f"{t_enc + t_dec:.2f}",
+                         f"{t_db:.2f}"])
+    finally:
+        engine.dispose()
+    tic = time.perf_counter()
+    plan(NX_FILE, pieces=pieces)
+    rows.append(["the join (parse, checks, whole-sequence steps)", f"{time.perf_counter() - tic:.2f}", f"{t_parse:.2f}",
+                 "", "", "", ""])
     return rows
+
+
+def print_nx_service_split(pg, redis) -> None:
+    from planner.frontends.service.config import SPLIT_CHORDS
+
+    rows, by_size = nx_service_split(pg, redis)
+    print_table(["", "submit to done s", "x one", "planning s: coordinator (join)", "pieces", "note"], rows)
+    print("\nby size (the NX job's first passes, by fraction of its CAM chords; split: PLANNER_SPLIT_CHORDS=1000)")
+    print_table(["fraction", "passes", "split s", "one s", "x one", "pieces s", "exports the same"], by_size)
+    print(f"\nwhat a piece costs beyond its work (the NX job in 2 pieces, in this process; the default "
+          f"PLANNER_SPLIT_CHORDS: {SPLIT_CHORDS})")
+    print_table(["", "piece s", "parse + split s", "chain s", "moves MiB", "to bytes + back s", "PostgreSQL w+r s"],
+                split_overhead(pg))
 
 
 def plan_storage(pg, blob: bytes) -> list[list[str]]:
@@ -336,7 +430,8 @@ def main() -> None:
         if args.only == "nx-split":
             print(f"the whole NX job ({NX_FILE.name}) through the celery backend, 2 worker processes, load average "
                   f"{os.getloadavg()[0]:.1f}")
-            print_table(["", "submit to done s", "x one", "planning s (join)", "note"], nx_service_split(pg, redis))
+            print_nx_service_split(pg, redis)
+            print(f"load average after: {os.getloadavg()[0]:.1f}")
             return
         if args.only == "replicas":
             jobs = curves(n_jobs, 100)
@@ -381,7 +476,7 @@ def main() -> None:
                   "with them (the exports byte for byte the same: tests/test_plan_split.py)")
             print_table(["", "wall s", "fitting s", "parse + split for the pieces s", "fits sent MiB", "x one"], rows)
             print("\nthe same through the celery backend (2 worker processes): split across them against one process")
-            print_table(["", "submit to done s", "x one", "planning s (join)", "note"], nx_service_split(pg, redis))
+            print_nx_service_split(pg, redis)
             print(f"\nthe whole NX job's plan in the store ({NX_FILE.name}):")
             print_table(["database", "plan MiB", "write ms", "read ms"], plan_storage(pg, blob))
     finally:

@@ -651,3 +651,72 @@ def fits_to_bytes(fits) -> bytes:
 def fits_from_bytes(data: bytes) -> list[PassFit]:
     """The fits :func:`fits_to_bytes` wrote (PlannerError, one line, if they are not)."""
     return list(load(data, FIT_TYPES, "FitChunk", "the fits").fits)
+
+
+@dataclass(frozen=True, eq=False)
+class PlannedPiece:
+    """Moves ``first`` .. ``stop - 1`` of a job (indices into its segmentation's moves) planned apart, as
+    :func:`planner.plan` plans them: a piece of a large job split across machines (:func:`planner.plan.plan_piece`),
+    joined by ``plan(..., pieces=...)``.
+
+    Attributes
+    ----------
+    first, stop : int
+        Its moves in the job's (``segmentation.moves``).
+    moves : tuple of PlannedMove
+        Its moves, planned (stop - first of them).
+    passes : tuple of PassReport
+        The figures of its cutting passes.
+    fit_warnings, warnings : tuple of str
+        What fitting its passes, then planning its moves, warned about (the job's warnings list them in that order).
+    timings : dict
+        Wall times of its work, s: "fit", "chain" (the frames of the moves before it), "frames", "time_law",
+        "piece" (all of it, its file read included).
+    settings : str
+        The settings it was planned with, resolved (:meth:`PlanSettings.to_dict` as JSON text): the join refuses a
+        piece of other settings.
+    """
+
+    first: int
+    stop: int
+    moves: tuple
+    passes: tuple
+    fit_warnings: tuple = ()
+    warnings: tuple = ()
+    timings: dict = field(default_factory=dict)
+    settings: str = ""
+
+    def to_state(self) -> dict:
+        """The fields as data, for the saved-job format (:mod:`planner.jobfile`)."""
+        return {"first": self.first, "stop": self.stop, "moves": self.moves, "passes": self.passes,
+                "fit_warnings": self.fit_warnings, "warnings": self.warnings, "timings": self.timings,
+                "settings": self.settings}
+
+    @classmethod
+    def from_state(cls, state: dict) -> PlannedPiece:
+        """The object from :meth:`to_state` fields read back (checked by the reader)."""
+        return cls(**{**state, "moves": tuple(state["moves"]), "passes": tuple(state["passes"]),
+                      "fit_warnings": tuple(state["fit_warnings"]), "warnings": tuple(state["warnings"])})
+
+
+def _check_piece(s: dict) -> None:
+    need(0 <= s["first"] < s["stop"], "a piece's moves first .. stop - 1 are not a range")
+    need(len(s["moves"]) == s["stop"] - s["first"], "a piece's moves are not stop - first")
+
+
+#: The stored types of a planned piece of a job (the job file's own format and types).
+PIECE_TYPES = {**JOB_TYPES, "PlannedPiece": StoredType("PlannedPiece", PlannedPiece, {
+    "first": Int(0), "stop": Int(1), "moves": Seq(Ref("PlannedMove")), "passes": Seq(Ref("PassReport")),
+    "fit_warnings": Seq(Str()), "warnings": Seq(Str()), "timings": Map(NAN), "settings": Str()},
+    check=_check_piece)}
+
+
+def piece_to_bytes(piece: PlannedPiece) -> bytes:
+    """A planned piece of a job as bytes (the job file's format: arrays and a JSON manifest, nothing executable on
+    load)."""
+    return dump(piece, PIECE_TYPES)
+
+
+def piece_from_bytes(data: bytes) -> PlannedPiece:
+    """The piece :func:`piece_to_bytes` wrote (PlannerError, one line, if it is not)."""
+    return load(data, PIECE_TYPES, "PlannedPiece", "the piece")

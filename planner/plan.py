@@ -29,6 +29,7 @@ The trajectory at the controller rate is produced on demand, move by move
 from __future__ import annotations
 
 import math
+import operator
 import os
 import time
 import warnings
@@ -51,7 +52,7 @@ from planner.cam.moves import rapid_frames, straight_path, turn_frames, turn_pro
 from planner.cam.passes import CutPass, Dwell, RapidMove, Reorientation, Segmentation, split_passes
 from planner.errors import PlannerError
 from planner.frames.tool_field import PathToolField, path_tool_field
-from planner.job import PassReport, PlannedJob, PlannedMove
+from planner.job import PassReport, PlannedJob, PlannedMove, PlannedPiece
 from planner.motion import MotionLimits, plan_feed, tool_orientation
 from planner.settings import PlanSettings
 from planner.validation import ArgumentError, _described, as_floats
@@ -164,7 +165,8 @@ def resolve(settings: PlanSettings, fmt: str, has_axes: bool) -> PlanSettings:
 
 
 def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None, read_options: dict | None = None,
-         progress: Progress | None = None, fits: Sequence[PassFit] | None = None) -> PlannedJob:
+         progress: Progress | None = None, fits: Sequence[PassFit] | None = None,
+         pieces: Sequence[PlannedPiece] | None = None) -> PlannedJob:
     """Plan a toolpath file, a :class:`planner.io.Toolpath`, or waypoints: every pass, rapid and turn.
 
     Parameters
@@ -183,6 +185,11 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
         The fitted paths of every cutting pass, made apart (a large job fitted in pieces on several machines:
         :func:`fit_batches`, :func:`fit_passes_of`); the job is then the one this call would plan, export for
         export. PlannerError if they are not this input's passes.
+    pieces : sequence of PlannedPiece, optional
+        All the moves of the job planned apart, in consecutive pieces (a large job planned in pieces on several
+        machines: :func:`fit_batches`, :func:`plan_piece`): joined, and what needs the whole sequence done here
+        (placement, spin, the robot check and the arm configurations along all of it); the job is the one this
+        call would plan, export for export. PlannerError if they are not this input's moves.
 
     Returns
     -------
@@ -218,24 +225,31 @@ def plan(source, settings: PlanSettings | None = None, *, axes=None, feeds=None,
     caught: list[str] = []
     tp, seg, s = _prepared(source, settings, axes, feeds, read_options, timings, caught)
     t_plan = timings.pop("_start")
+    if fits is not None and pieces is not None:
+        raise PlannerError("fits and pieces: give the fits of the passes or the planned pieces, not both")
+    cuts = seg.passes
+    n_cuts = len(cuts)
+    joined: list[str] = []  # the pieces' warnings
     with warnings.catch_warnings(record=True) as w:
         warnings.simplefilter("always")
-        cuts = seg.passes
-        n_cuts = len(cuts)
-        tic = time.perf_counter()
-        if progress is not None:
-            progress("fit", 0, n_cuts)
-        if fits is None:
-            fits = _fit(tp.source, cuts, s, progress)
+        if pieces is not None:
+            moves, reports, joined = _joined(tp.source, seg, s, pieces, timings)
         else:
-            fits = _given_fits(tp.source, cuts, fits)
-        fit_time = time.perf_counter() - tic
-        timings["fit"] = fit_time
-        if progress is not None:
-            progress("fit", n_cuts, n_cuts)
-        spans_total = max(sum(len(p) - 1 for p in cuts), 1)
-        moves, reports = _plan_moves(tp, seg, fits, s, fit_time / spans_total, timings, progress)
-    caught += [str(x.message) for x in w]
+            tic = time.perf_counter()
+            if progress is not None:
+                progress("fit", 0, n_cuts)
+            if fits is None:
+                fits = _fit(tp.source, cuts, s, progress)
+            else:
+                fits = _given_fits(tp.source, cuts, fits)
+            fit_time = time.perf_counter() - tic
+            timings["fit"] = fit_time
+            if progress is not None:
+                progress("fit", n_cuts, n_cuts)
+            spans_total = max(sum(len(p) - 1 for p in cuts), 1)
+            moves, reports = _plan_moves(tp, seg, fits, s, fit_time / spans_total, timings, progress)
+        moves, reports = _whole_sequence(moves, reports, s, timings)
+    caught += joined + [str(x.message) for x in w]
     if progress is not None:
         progress("plan", n_cuts, n_cuts)
     timings["plan"] = time.perf_counter() - t_plan
@@ -370,13 +384,182 @@ def fit_passes_of(source, settings: PlanSettings | None, start: int, stop: int, 
     settings = PlanSettings() if settings is None else settings
     _check_plan_arguments(settings, read_options, None)
     tp, seg, s = _prepared(source, settings, None, None, read_options, {}, [])
-    bounds = {0} | {b for r in _batch_ranges(seg.passes, s) for b in r}
-    if not (0 <= start < stop <= len(seg.passes)) or start not in bounds or stop not in bounds:
-        raise PlannerError(f"{tp.source}: passes {start}..{stop - 1} are not whole fit batches of its "
-                           f"{len(seg.passes)} passes (see fit_batches)")
+    _check_batches(tp.source, seg, s, start, stop)
     with warnings.catch_warnings():
         warnings.simplefilter("ignore")  # (plan() reports them)
         return _fit(tp.source, seg.passes[start:stop], s)
+
+
+def _check_batches(source: str, seg: Segmentation, s: PlanSettings, start: int, stop: int) -> list[tuple[int, int]]:
+    """The job's fit batches; PlannerError unless passes ``start`` .. ``stop - 1`` are whole ones."""
+    ranges = _batch_ranges(seg.passes, s)
+    bounds = {0} | {b for r in ranges for b in r}
+    if not (0 <= start < stop <= len(seg.passes)) or start not in bounds or stop not in bounds:
+        raise PlannerError(f"{source}: passes {start}..{stop - 1} are not whole fit batches of its "
+                           f"{len(seg.passes)} passes (see fit_batches)")
+    return ranges
+
+
+def _piece_moves(seg: Segmentation, start: int, stop: int) -> tuple[int, int]:
+    """The moves (first, stop) of the piece of cutting passes ``start`` .. ``stop - 1``: from the move after pass
+    ``start - 1`` (the job's first move for the first piece) to pass ``stop - 1`` (to the job's last move for the
+    last piece): the rapids, turns and dwells before a pass are its piece's."""
+    at = {m.index: k for k, m in enumerate(seg.moves) if isinstance(m, CutPass)}
+    return (0 if start == 0 else at[start - 1] + 1), (len(seg.moves) if stop == len(seg.passes) else at[stop - 1] + 1)
+
+
+#: What planning a piece costs per CAM chord (:func:`plan_pieces`), against a chord of a pass whose tool axis varies
+#: (its rotation-minimizing frames, the angular speed caps of its time law: 0.76 ms on the NX job): (planning it,
+#: chaining it for a later piece (its fit and frames, no time law)) for a pass whose tool axis varies, and for one
+#: whose axis is constant (frames and time law on the bare length: 0.087 ms; chained: its fit, 0.037 ms).
+PIECE_COST = {"varying": (1.0, 0.23), "constant": (0.115, 0.05)}
+
+
+def plan_pieces(source, settings: PlanSettings | None = None, n: int = 2, *, read_options: dict | None = None
+                ) -> list[tuple[int, int, int, int]]:
+    """A job's cutting passes in at most ``n`` consecutive pieces for :func:`plan_piece` on ``n`` machines, (start,
+    stop, CAM chords, work) each, balanced for their cost (:data:`PIECE_COST`): a piece's passes planned and the
+    passes before it chained (the later pieces have fewer passes). Fewer pieces when the job has fewer passes.
+
+    A piece's work is the cost of planning its passes in CAM chords of a pass whose tool axis varies (a chord of a
+    constant axis counts 0.115): what says whether splitting a job pays."""
+    settings = PlanSettings() if settings is None else settings
+    _check_plan_arguments(settings, read_options, None)
+    if not isinstance(n, int) or isinstance(n, bool) or n < 1:
+        raise ArgumentError("n", f"must be a whole number of pieces >= 1, got {_described(n)}")
+    tp, seg, s = _prepared(source, settings, None, None, read_options, {}, [])
+    chords = np.array([len(p) - 1 for p in seg.passes])
+    if s.axes == "path":  # frames about the path tangent: every pass alike, chained from the one before only
+        plan_cost, chain_cost = chords.astype(float), np.zeros(len(chords))
+    else:
+        varying = np.array([p.axes is not None and np.ptp(p.axes, axis=0).max() > 0.0 for p in seg.passes], bool)
+        (pv, cv), (pc, cc) = PIECE_COST["varying"], PIECE_COST["constant"]
+        plan_cost, chain_cost = chords * np.where(varying, pv, pc), chords * np.where(varying, cv, cc)
+    return [(a, b, int(chords[a:b].sum()), int(round(plan_cost[a:b].sum())))
+            for a, b in balanced_pieces(plan_cost, chain_cost, n)]
+
+
+def balanced_pieces(cost: np.ndarray, chain: np.ndarray, n: int) -> list[tuple[int, int]]:
+    """Passes in at most ``n`` consecutive pieces (start, stop) of the least largest cost: a piece's cost the sum of
+    ``cost`` (k,) over its passes plus the sum of ``chain`` (k,) over the passes before it."""
+    C = np.concatenate(([0.0], np.cumsum(cost)))
+    H = np.concatenate(([0.0], np.cumsum(chain)))
+
+    def cut(most: float) -> list[tuple[int, int]]:
+        out, a = [], 0
+        while a < len(cost):  # each piece as long as its cost stays within ``most`` (at least one pass)
+            b = max(int(np.searchsorted(C, C[a] - H[a] + most, side="right")) - 1, a + 1)
+            out.append((a, b))
+            a = b
+        return out
+
+    lo, hi = 0.0, float(C[-1] + H[-1]) + 1.0
+    for _ in range(64):  # bisection on the largest cost
+        mid = 0.5 * (lo + hi)
+        lo, hi = (lo, mid) if len(cut(mid)) <= n else (mid, hi)
+    return cut(hi)
+
+
+def plan_piece(source, settings: PlanSettings | None, start: int, stop: int, *,
+               read_options: dict | None = None) -> PlannedPiece:
+    """The moves of cutting passes ``start`` .. ``stop - 1`` planned as :func:`plan` plans them, with the rapids,
+    turns and dwells before each (after the last pass of the job: those after it too): a piece of a job split across
+    machines (:func:`plan_pieces`), joined by ``plan(..., pieces=...)`` into the job :func:`plan` makes, export for
+    export.
+
+    Its first move starts from the end frame of the move before it, bit for bit: the moves before it are chained
+    here (their passes fitted and given their tool frames, no time law; with the tool normal to the path only the
+    pass just before, whose frames do not depend on the move before it): :data:`PIECE_COST`. Passes are fitted in
+    the job's fit batches (:func:`fit_batches`), whole, as :func:`plan` fits them.
+    """
+    tic = time.perf_counter()
+    settings = PlanSettings() if settings is None else settings
+    _check_plan_arguments(settings, read_options, None)
+    tp, seg, s = _prepared(source, settings, None, None, read_options, {}, [])
+    try:
+        start, stop = operator.index(start), operator.index(stop)
+    except TypeError:
+        raise ArgumentError("start, stop", f"must be whole pass numbers, got {_described(start)} and "
+                                           f"{_described(stop)}") from None
+    if not 0 <= start < stop <= len(seg.passes):
+        raise PlannerError(f"{tp.source}: passes {start}..{stop - 1} are not a range of its {len(seg.passes)} "
+                           "passes")
+    first, last = _piece_moves(seg, start, stop)
+    # the passes fitted: this piece's, and those whose frames are chained to its first move (all before it; with
+    # the tool normal to the path, the one before it), in whole fit batches
+    need = 0 if s.axes != "path" else max(start - 1, 0)
+    timings: dict[str, float] = {}
+    fits: dict[int, PassFit] = {}
+    fit_warnings: list[str] = []
+    t_fit = time.perf_counter()
+    for a, b in _batch_ranges(seg.passes, s):
+        if b <= need or a >= stop:
+            continue
+        with warnings.catch_warnings(record=True) as w:
+            warnings.simplefilter("always")
+            fits.update(zip(range(a, b), _fit(tp.source, seg.passes[a:b], s), strict=True))
+        if start <= a:  # a batch's warnings are the piece's that holds its first pass
+            fit_warnings += [str(x.message) for x in w]
+    timings["fit"] = time.perf_counter() - t_fit
+    frame = None
+    if first > 0:
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")  # (the pieces that plan those moves report them)
+            chain_from = 0 if need == 0 else _piece_moves(seg, need, start)[1] - 1
+            frame = _plan_moves(tp, seg, fits, s, 0.0, {}, first=chain_from, stop=first, chain=True)
+    timings["chain"] = time.perf_counter() - t_fit - timings["fit"]
+    spans = max(sum(len(p) - 1 for p in seg.passes), 1)
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        moves, reports = _plan_moves(tp, seg, fits, s, timings["fit"] / spans, timings, first=first, stop=last,
+                                     frame=frame)
+    timings["piece"] = time.perf_counter() - tic
+    return PlannedPiece(first, last, tuple(moves), tuple(reports), tuple(fit_warnings),
+                        tuple(str(x.message) for x in w), timings, _settings_text(s))
+
+
+def _settings_text(s: PlanSettings) -> str:
+    """Resolved settings as JSON text (what a piece was planned with)."""
+    import json
+
+    return json.dumps(s.to_dict(), sort_keys=True, default=str)
+
+
+def _joined(source: str, seg: Segmentation, s: PlanSettings, pieces: Sequence[PlannedPiece], timings: dict
+            ) -> tuple[list, list, list[str]]:
+    """The moves, pass reports and warnings (fitting's, then planning's) of pieces planned apart, checked to be
+    those of ``seg`` (consecutive, whole, the same records); sums of their timings in ``timings``."""
+    pieces = list(pieces)
+    if not pieces or not all(isinstance(p, PlannedPiece) for p in pieces):
+        raise PlannerError(f"{source}: pieces: expected planned pieces (plan_piece), got "
+                           f"{_described(pieces[0] if pieces else pieces)}")
+    at = 0
+    settings = _settings_text(s)
+    for k, p in enumerate(pieces):
+        if p.settings != settings:
+            raise PlannerError(f"{source}: pieces: piece {k} was planned with other settings than these")
+        if p.first != at:
+            raise PlannerError(f"{source}: pieces: piece {k} starts at move {p.first}, not {at} (the pieces are not "
+                               "consecutive, in order)")
+        at = p.stop
+    if at != len(seg.moves):
+        raise PlannerError(f"{source}: pieces: they end at move {at} of the job's {len(seg.moves)}")
+    moves = [m for p in pieces for m in p.moves]
+    for k, (m, item) in enumerate(zip(moves, seg.moves, strict=True)):
+        same = type(m.item) is type(item) and (not isinstance(item, CutPass) or (
+            m.item.index == item.index and np.array_equal(m.item.points, item.points)))
+        if not same:
+            raise PlannerError(f"{source}: pieces: move {k} is not this job's ({_where(source, item)})")
+    # the job's own records (a saved job stores each once: a move's record is its segmentation's, a fit's points
+    # its pass's)
+    moves = [replace(m, item=item, fit=None if m.fit is None else replace(m.fit, points=item.points))
+             for m, item in zip(moves, seg.moves, strict=True)]
+    reports = [r for p in pieces for r in p.passes]
+    if [r.index for r in reports] != [c.index for c in seg.passes]:
+        raise PlannerError(f"{source}: pieces: their pass reports are not those of the job's {len(seg.passes)} passes")
+    for name in ("fit", "frames", "time_law"):
+        timings[name] = sum(float(p.timings.get(name, 0.0)) for p in pieces)
+    return moves, reports, [x for p in pieces for x in p.fit_warnings] + [x for p in pieces for x in p.warnings]
 
 
 def _given_fits(source: str, cuts, fits: Sequence[PassFit]) -> list[PassFit]:
@@ -511,11 +694,17 @@ def _with_reconfigurations(moves: list, changes: list, s: PlanSettings) -> list:
     return out
 
 
-def _path_fields(seg: Segmentation, fits, s: PlanSettings) -> dict[int, PathToolField]:
-    """With the tool normal to the path: every pass's frame field (method ``s.frame``, starting nearest -Z)."""
-    if s.axes != "path":
-        return {}
-    return {c.index: path_tool_field(fits[c.index].path, s.frame) for c in seg.passes}
+class _PathFields(dict):
+    """With the tool normal to the path: every pass's frame field (method ``s.frame``, starting nearest -Z), made
+    when first asked for (a piece of a split job needs only its own passes' and the one before)."""
+
+    def __init__(self, fits, s: PlanSettings):
+        super().__init__()
+        self.fits, self.frame = fits, s.frame
+
+    def __missing__(self, index: int) -> PathToolField:
+        self[index] = field = path_tool_field(self.fits[index].path, self.frame)
+        return field
 
 
 def _next_cut_z(seg: Segmentation, k: int, fields: dict) -> np.ndarray | None:
@@ -526,19 +715,23 @@ def _next_cut_z(seg: Segmentation, k: int, fields: dict) -> np.ndarray | None:
     return None
 
 
-def _plan_moves(tp, seg: Segmentation, fits, s: PlanSettings, fit_share: float, timings: dict, progress=None):
-    """Frames and time laws of every move, in order, each starting from the previous end frame."""
+def _plan_moves(tp, seg: Segmentation, fits, s: PlanSettings, fit_share: float, timings: dict, progress=None, *,
+                first: int = 0, stop: int | None = None, frame: np.ndarray | None = None, chain: bool = False):
+    """Frames and time laws of moves ``first`` .. ``stop - 1`` (default: all), in order, each starting from the
+    previous end frame (``frame``: the end frame of move ``first - 1``; None before any motion).
+
+    With ``chain``: only the frames the moves pass on (no time law of a cut, no pass reports), to find a later
+    move's start frame; returns that end frame (3, 3) or None. Else (moves, pass reports).
+    """
     moves: list[PlannedMove] = []
     reports: list[PassReport] = []
-    frame: np.ndarray | None = None  # tool frame at the end of the previous move
-    leading: list[int] = []  # dwells before the first move
     t_frames = t_law = 0.0
     cut_limits = MotionLimits(s.limits.speed, s.limits.acceleration, s.limits.jerk)
-    tic = time.perf_counter()
-    fields = _path_fields(seg, fits, s)
-    t_frames += time.perf_counter() - tic
+    on_path = s.axes == "path"
+    fields = _PathFields(fits, s)
     n_cuts = len(seg.passes)
-    for n_done, item in enumerate(seg.moves):
+    for n_done in range(first, len(seg.moves) if stop is None else stop):
+        item = seg.moves[n_done]
         if progress is not None and isinstance(item, CutPass):
             progress("plan", len(reports), n_cuts)  # passes given their frames and time law so far
         try:
@@ -546,13 +739,17 @@ def _plan_moves(tp, seg: Segmentation, fits, s: PlanSettings, fit_share: float, 
                 tic = time.perf_counter()
                 fit = fits[item.index]
                 field: PathToolField | AxisField
-                if fields:
+                if on_path:
                     field = fields[item.index]
                     z = field.start[None, :, 2]
                 else:
                     z = _tool_z(item.axes, len(item), s.axes)
                     field = axis_field(fit.path, z, start=frame)
                 t1 = time.perf_counter()
+                t_frames += t1 - tic
+                if chain:
+                    frame = field.end
+                    continue
                 feeds = item.feeds[1:] * s.feed_override
                 job_feed = s.feed * s.feed_override
                 capped = s.limits.angular_speed is not None and _turns_fast(field, feeds, job_feed, s.limits)
@@ -568,12 +765,11 @@ def _plan_moves(tp, seg: Segmentation, fits, s: PlanSettings, fit_share: float, 
                 moves.append(PlannedMove("cut", item, fit.path, field, profile, field.start, end,
                                          item.points[0], item.index, fit))
                 reports.append(_pass_report(item, fit, field, profile, t2 - tic + fit_share * (len(item) - 1)))
-                t_frames += t1 - tic
                 t_law += t2 - t1
                 frame = end
             elif isinstance(item, RapidMove):
                 tic = time.perf_counter()
-                if fields:  # the tool keeps its axis, then turns onto the next pass's start axis
+                if on_path:  # the tool keeps its axis, then turns onto the next pass's start axis
                     z0 = frame[:, 2] if frame is not None else _tool_z(None, 1, s.axes)[0]
                     z1 = _next_cut_z(seg, n_done, fields)
                     z1 = z0 if z1 is None else z1
@@ -583,44 +779,53 @@ def _plan_moves(tp, seg: Segmentation, fits, s: PlanSettings, fit_share: float, 
                 start = frame_with_axis(z0, item.end - item.start) if frame is None else transport(frame, z0)
                 path = straight_path(item.start, item.end)
                 fr = rapid_frames(path, start, z1)
+                frame = transport(fr.end, z1)  # column 2 exactly z1 (the rotation leaves round-off)
+                if chain:
+                    continue
                 v = s.rapid_speed
                 if fr.angle > 0.0 and s.limits.angular_speed is not None:  # the axis turns at angle / L rad/m
                     v = min(v, s.limits.angular_speed * path.length / fr.angle)
                 profile = plan_feed(float(path.length), v, MotionLimits(v, s.limits.acceleration, s.limits.jerk))
-                frame = transport(fr.end, z1)  # column 2 exactly z1 (the rotation leaves round-off)
                 moves.append(PlannedMove("rapid", item, path, fr, profile, start, frame, item.start.copy()))
                 t_law += time.perf_counter() - tic
             elif isinstance(item, Reorientation):
                 z0, z1 = _tool_z(np.vstack((item.axis_from, item.axis_to)), 2, s.axes)
                 start = frame_with_axis(z0, np.array([1.0, 0.0, 0.0])) if frame is None else transport(frame, z0)
                 fr = turn_frames(start, z1)
-                turn = turn_profile(fr.angle, s.turn_limits) if fr.angle > 0.0 else None
                 frame = transport(fr.end, z1)
-                moves.append(PlannedMove("reorientation", item, None, fr, turn, start, frame, item.point.copy()))
-            elif isinstance(item, Dwell):  # the tool at rest where the previous move ended, for the dwell's time
+                if not chain:
+                    turn = turn_profile(fr.angle, s.turn_limits) if fr.angle > 0.0 else None
+                    moves.append(PlannedMove("reorientation", item, None, fr, turn, start, frame, item.point.copy()))
+            elif not chain:  # a dwell: the tool at rest where the previous move ended, for the dwell's time (before
+                # any motion: it takes the first move's start frame, :func:`_leading_dwells`); else Skipped
                 F = frame if frame is not None else frame_with_axis(-CAM_DEFAULT_AXIS, np.array([1.0, 0.0, 0.0]))
-                if frame is None:
-                    leading.append(len(moves))  # before any motion: it takes the first move's start frame below
-                moves.append(PlannedMove("dwell", item, None, None, None, F, F, item.point.copy()))
-            else:  # Skipped: nothing moves
-                F = frame if frame is not None else frame_with_axis(-CAM_DEFAULT_AXIS, np.array([1.0, 0.0, 0.0]))
-                moves.append(PlannedMove("skipped", item, None, None, None, F, F, item.point.copy()))
+                kind = "dwell" if isinstance(item, Dwell) else "skipped"
+                moves.append(PlannedMove(kind, item, None, None, None, F, F, item.point.copy()))
         except PlannerError as exc:
             raise PlannerError(f"{_where(tp.source, item)}: {exc}") from exc
+    timings["frames"] = timings.get("frames", 0.0) + t_frames
+    timings["time_law"] = timings.get("time_law", 0.0) + t_law
+    if chain:
+        return frame
+    return moves, reports
+
+
+def _whole_sequence(moves: list, reports: list, s: PlanSettings, timings: dict) -> tuple[list, list]:
+    """What the planned moves need from the whole sequence: the dwells before any motion in the first move's start
+    frame, and every pass's spin of the naive CAM orientations (``slerp_spin_deg``)."""
     first = next((m for m in moves if m.kind not in ("dwell", "skipped")), None)
     if first is not None:
-        for k in leading:
-            moves[k] = replace(moves[k], start_frame=first.start_frame, end_frame=first.start_frame)
+        moves = [replace(m, start_frame=first.start_frame, end_frame=first.start_frame) if m.kind == "dwell" else m
+                 for m in moves[:moves.index(first)]] + moves[moves.index(first):]
     tic = time.perf_counter()
     cut_items = [m.item for m in moves if isinstance(m.item, CutPass)]
-    if fields:
+    if s.axes == "path":
         slerp = np.full(len(cut_items), math.nan)
     else:
         slerp = np.degrees(travel_spin([c.points for c in cut_items],
                                        [_tool_z(c.axes, len(c), s.axes) for c in cut_items]))
     reports = [replace(r, slerp_spin_deg=float(v)) for r, v in zip(reports, slerp, strict=True)]
-    timings["frames"] = t_frames + time.perf_counter() - tic
-    timings["time_law"] = t_law
+    timings["frames"] = timings.get("frames", 0.0) + time.perf_counter() - tic
     return moves, reports
 
 

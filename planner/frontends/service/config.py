@@ -29,9 +29,13 @@ ROLES = ("planner", "operator")
 DEFAULT_DB = "sqlite:///jobs.sqlite"
 #: The longest planning time a service may allow a job, s (30 days).
 MAX_JOB_TIMEOUT = 30 * 86400.0
-#: CAM chords from which the celery backend splits a job across its workers (PLANNER_SPLIT_CHORDS; measured:
-#: bench/bench_scale.py).
-SPLIT_CHORDS = 16384
+#: Planning work from which the celery backend splits a job across its workers (PLANNER_SPLIT_CHORDS), in CAM chords
+#: of passes whose tool axis varies (a chord of a constant axis counts 0.115: planner.plan.PIECE_COST). From
+#: bench/bench_scale.py --only nx-split (2 workers, a loaded machine): a split costs about 0.5 s whatever the size
+#: (the pieces found, the messages, the coordinator's polling, the join's parse) and saves about 0.23 ms per such
+#: chord (the NX job's 13,300: its two pieces 6.4 and 5.2 s with their bytes 0.8 s each, against 10.8 s in one
+#: process), so it pays from about 2,200; twice that for a margin.
+SPLIT_CHORDS = 4096
 
 
 @dataclass(frozen=True)
@@ -276,8 +280,9 @@ class ServiceConfig(BaseModel):
     broker : str or None
         The Celery broker's URL, ``redis://HOST:PORT/DB`` (``PLANNER_BROKER``; needed with ``queue="celery"``).
     split_chords : int
-        The celery backend splits a toolpath file of at least this many CAM chords (and at least two fit batches of
-        8192 chords) across its workers (``PLANNER_SPLIT_CHORDS``; 0: never; :mod:`.tasks.split`).
+        The celery backend plans a toolpath file in pieces across its workers when its planning work is at least this
+        many CAM chords of passes whose tool axis varies (a chord of a constant tool axis counting 0.115)
+        (``PLANNER_SPLIT_CHORDS``; 0: never; :mod:`.tasks.split`).
     worker_nice : int
         Niceness added to worker processes, 0..19 (``PLANNER_WORKER_NICE``; read by each worker process itself,
         :data:`.tasks.child.WORKER_NICE`: checked here so that a bad value is refused when the service starts).

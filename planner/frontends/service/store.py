@@ -147,11 +147,11 @@ class Execution(Base):
 
 class JobData(Base):
     """A job's bytes: "input" (an uploaded file, under its sanitized name), "plan" (the saved plan of the attempt
-    that completed it) and, while a split job runs, "fits.<first>" (a piece's fits, :class:`JobChunk`)."""
+    that completed it) and, while a split job runs, "piece.<first>" (a piece's planned moves, :class:`JobChunk`)."""
 
     __tablename__ = "job_data"
     job_id: Mapped[str] = mapped_column(String(32), primary_key=True)
-    name: Mapped[str] = mapped_column(String(16), primary_key=True)  # "input", "plan" or a piece's "fits.<first>"
+    name: Mapped[str] = mapped_column(String(16), primary_key=True)  # "input", "plan" or a piece's "piece.<first>"
     data: Mapped[bytes] = mapped_column(LargeBinary)
     bytes: Mapped[int] = mapped_column(Integer)
     created_at: Mapped[float] = mapped_column(Float)
@@ -159,21 +159,22 @@ class JobData(Base):
 
 class JobChunk(Base):
     """A piece of a large job split across workers (celery backend, :mod:`.tasks.split`): its cutting passes
-    ``first`` .. ``stop - 1`` (whole fit batches) fitted by whichever worker takes it; its fits are stored in
-    :class:`JobData` as ``fits.<first>`` in the transaction that marks it done. The pieces are the same in every
-    attempt of the job (its input and settings never change), so a job started again keeps the pieces already fitted;
-    they are removed when the job ends."""
+    ``first`` .. ``stop - 1`` planned (:func:`planner.plan.plan_piece`: their moves, with the rapids, turns and dwells
+    before them) by whichever worker takes it; its planned moves are stored in :class:`JobData` as ``piece.<first>``
+    in the transaction that marks it done. The pieces are the same in every attempt of the job (its input and
+    settings never change), so a job started again keeps the pieces already planned; they are removed when the job
+    ends."""
 
     __tablename__ = "job_chunks"
     job_id: Mapped[str] = mapped_column(String(32), primary_key=True)
     first: Mapped[int] = mapped_column(Integer, primary_key=True)
     stop: Mapped[int] = mapped_column(Integer)
-    chords: Mapped[int] = mapped_column(Integer)  # CAM chords fitted
+    chords: Mapped[int] = mapped_column(Integer)  # CAM chords of its passes
     state: Mapped[str] = mapped_column(String(16))  # queued, running, done, failed
     takes: Mapped[int] = mapped_column(Integer, default=0)  # times a worker took it (a dead holder's: taken again)
     holder: Mapped[str | None] = mapped_column(String(64), nullable=True)  # host:pid
     heartbeat_at: Mapped[float | None] = mapped_column(Float, nullable=True)
-    seconds: Mapped[float | None] = mapped_column(Float, nullable=True)  # the fit's wall time in its worker, s
+    seconds: Mapped[float | None] = mapped_column(Float, nullable=True)  # the piece's wall time in its worker, s
     error_kind: Mapped[str | None] = mapped_column(String(16), nullable=True)
     error: Mapped[str | None] = mapped_column(Text, nullable=True)
 

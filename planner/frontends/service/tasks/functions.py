@@ -49,12 +49,13 @@ class PlanSpec:
     read_options: dict = field(default_factory=dict)
     input_json: str | None = None
     input_data: bytes | None = None
-    #: What to do (a large file split across workers, :mod:`.split`): "plan" the job (with ``fits``: the fits of
-    #: its pieces, made apart, in pass order), find its "pieces" (its fit batches with their CAM chords), or "fit"
-    #: the cutting passes ``piece`` = (first, stop) (whole fit batches).
+    #: What to do (a large file split across workers, :mod:`.split`): "plan" the job (with ``pieces``: its moves
+    #: planned apart in pieces, in order, to join), find its "pieces" (its cutting passes in at most ``parts``
+    #: pieces, with their CAM chords), or plan the "piece" of cutting passes ``piece`` = (first, stop).
     step: str = "plan"
     piece: tuple[int, int] | None = None
-    fits: tuple[bytes, ...] | None = None
+    pieces: tuple[bytes, ...] | None = None
+    parts: int = 0
 
 
 @dataclass(frozen=True)
@@ -101,8 +102,8 @@ def _throttled(report: Report) -> Callable[[str, int, int], None]:
 def plan_job(spec: PlanSpec, report: Report, later: list[Callable[[], dict[str, bytes]]] | None = None) -> Outcome:
     """Plan one job with :func:`planner.plan`: done with its saved plan, summary and describe, or failed with the
     planner's one-line error (kind "input": the user's; "internal": ours). A step of a split job (``spec.step``):
-    "pieces", done with ``values["pieces"]`` = [[first, stop, chords], ...] (:func:`planner.plan.fit_batches`);
-    "fit", done with the piece's fits as ``plan`` (:func:`planner.job.fits_to_bytes`) and ``values["seconds"]``.
+    "pieces", done with ``values["pieces"]`` = [[first, stop, chords, work], ...] (:func:`planner.plan.plan_pieces`);
+    "piece", done with the piece's moves as ``plan`` (:func:`planner.job.piece_to_bytes`) and ``values["seconds"]``.
     ``later``: where a large job's 3D view data are deferred to, as a callable, to make after its end is stored
     (the outcome says ``later``); without it they are made here."""
     from planner.errors import NumericalError, PlannerError
@@ -150,23 +151,24 @@ def _input_file(spec: PlanSpec):
 
 
 def _piece_step(spec: PlanSpec) -> Outcome:
-    """The "pieces" or "fit" step of a split job (its input a file)."""
+    """The "pieces" or "piece" step of a split job (its input a file)."""
     import importlib
 
-    from planner.job import fits_to_bytes
+    from planner.job import piece_to_bytes
     from planner.settings import PlanSettings
 
     P = importlib.import_module("planner.plan")  # (the package's name plan is the function)
     settings = PlanSettings.from_dict(spec.settings)
     with _input_file(spec) as path:
         if spec.step == "pieces":
-            pieces = P.fit_batches(path, settings, read_options=spec.read_options, chords=True)
+            pieces = P.plan_pieces(path, settings, max(spec.parts, 1), read_options=spec.read_options)
             return Outcome("done", values={"pieces": [list(p) for p in pieces]})
-        if spec.step != "fit" or spec.piece is None:
+        if spec.step != "piece" or spec.piece is None:
             raise ValueError(f"job {spec.job_id}: no such step {spec.step!r}")
         tic = time.perf_counter()
-        fits = P.fit_passes_of(path, settings, spec.piece[0], spec.piece[1], read_options=spec.read_options)
-        return Outcome("done", plan=fits_to_bytes(fits), values={"seconds": time.perf_counter() - tic})
+        piece = P.plan_piece(path, settings, spec.piece[0], spec.piece[1], read_options=spec.read_options)
+        data = piece_to_bytes(piece)
+        return Outcome("done", plan=data, values={"seconds": time.perf_counter() - tic})
 
 
 def view_files(job) -> dict[str, bytes]:
@@ -191,12 +193,12 @@ def _plan(spec: PlanSpec, progress):
     settings = PlanSettings.from_dict(spec.settings)
     if spec.input_kind == "file":
         with _input_file(spec) as path:
-            fits = None
-            if spec.fits is not None:
-                from planner.job import fits_from_bytes
+            pieces = None
+            if spec.pieces is not None:
+                from planner.job import piece_from_bytes
 
-                fits = [f for data in spec.fits for f in fits_from_bytes(data)]
-            return plan(path, settings, read_options=spec.read_options, progress=progress, fits=fits)
+                pieces = [piece_from_bytes(data) for data in spec.pieces]
+            return plan(path, settings, read_options=spec.read_options, progress=progress, pieces=pieces)
     data = json.loads(spec.input_json or "{}")
     feeds = data.get("feeds")
     if feeds is not None:

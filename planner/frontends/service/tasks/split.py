@@ -1,25 +1,34 @@
-"""One large job split across the workers of the celery backend: its fitting in pieces on several workers, the job
-planned with their fits where the whole sequence is (the arm configurations are chosen along all of it).
+"""One large job split across the workers of the celery backend: its moves planned in pieces on several workers and
+joined where the whole sequence is (placement, spin, the robot check and the arm configurations along all of it).
 
 The worker that takes the job's message is its coordinator (:func:`run_job`): it holds the job (its heartbeats,
-its progress, its time limit, its cancellation), finds the job's fit batches (:func:`planner.plan.fit_batches`; a
-parse of the file), and if the job is large enough (``PLANNER_SPLIT_CHORDS`` CAM chords; at least two batches, two
-worker slots alive) stores its pieces (:class:`~planner.frontends.service.store.JobChunk`: consecutive batches,
-one per worker slot alive, balanced by chords) and sends one message per piece ("planner.fit_piece"). Any worker
-takes a piece (:func:`run_piece`: its fits stored in the database with the piece marked done, in one transaction);
-the coordinator fits the pieces no other worker has taken yet itself, so a job never waits for a busy queue and
-coordinators never wait for each other, then plans the job with all the fits (:func:`planner.plan`, ``fits=``) and
-stores its end as any job's (conditionally: :meth:`.transitions.Transitions.finish`). The plan is the one a single
-process makes, export for export.
+its progress, its time limit, its cancellation), finds the job's pieces (:func:`planner.plan.plan_pieces`: one per
+worker slot alive, consecutive cutting passes balanced by CAM chords and by what chaining the frames of the moves
+before a piece costs it; a parse of the file), and if the job is large enough (``PLANNER_SPLIT_CHORDS``: CAM chords
+of passes whose tool axis varies, a chord of a constant axis counting 0.115, :data:`planner.plan.PIECE_COST`; two
+pieces, two worker slots alive) stores its pieces (:class:`~planner.frontends.service.store.JobChunk`) and sends
+one message per piece ("planner.fit_piece", the name kept from when pieces were only fitted). Any worker takes a
+piece (:func:`run_piece`: :func:`planner.plan.plan_piece`, its planned moves stored in the database with the piece
+marked done, in one transaction); the coordinator plans the pieces no other worker has taken yet itself, so a job
+never waits for a busy queue and coordinators never wait for each other, then joins them (:func:`planner.plan`,
+``pieces=``) and stores the job's end as any job's (conditionally: :meth:`.transitions.Transitions.finish`). The
+plan is the one a single process makes, export for export, byte for byte: every piece chains the tool frames of the
+moves before it exactly as one process does (their fits and frames, no time law), so its first move starts from the
+same bits.
+
+Where it pays (``PLANNER_SPLIT_CHORDS``, default :data:`~planner.frontends.service.config.SPLIT_CHORDS`): beyond its
+work a piece costs its worker a parse of the file, the chain, its moves written as bytes (0.8 s for the larger of the
+NX job's two pieces), and the coordinator about 0.5 s (the pieces found, the messages, its polling, the pieces' moves
+read back and the join).
 
 - Cancellation: a piece's runner reads the job's row like the job's own (every :data:`.transitions.CANCEL_POLL` s)
   and kills its process once the job has ended.
 - A piece that fails fails the job with its one-line error.
 - A worker killed mid-piece: the piece's heartbeats stop; after :data:`.transitions.LEASE_S` s the coordinator takes
-  it over and fits it (the broker's redelivery of the piece's unacknowledged message, after its visibility timeout,
+  it over and plans it (the broker's redelivery of the piece's unacknowledged message, after its visibility timeout,
   then finds it done). A coordinator killed: the job is queued again as any job (:class:`.celery_backend.Keeper`);
-  its next attempt keeps the pieces already fitted.
-- A piece's message delivered twice, or the job ended: nothing is fitted again (the piece is taken only while
+  its next attempt keeps the pieces already planned.
+- A piece's message delivered twice, or the job ended: nothing is planned again (the piece is taken only while
   queued, its end stored only by its take).
 
 Why the join is the coordinator's and not a task sent when the last piece ends (a Celery chord): the job's row needs
@@ -45,35 +54,17 @@ SPLIT_MIN_BYTES = 64 * 1024
 
 
 def may_split(spec: PlanSpec, split_chords: int) -> bool:
-    """The job is a file large enough to look for its fit batches (``split_chords`` 0: never split)."""
-    return (split_chords > 0 and spec.input_kind == "file" and spec.step == "plan" and spec.fits is None
+    """The job is a file large enough to look for its pieces (``split_chords`` 0: never split)."""
+    return (split_chords > 0 and spec.input_kind == "file" and spec.step == "plan" and spec.pieces is None
             and spec.input_data is not None and len(spec.input_data) >= SPLIT_MIN_BYTES)
 
 
-def group(batches: list[tuple[int, int, int]], n: int) -> list[tuple[int, int, int]]:
-    """Consecutive fit batches ((first, stop, chords) each) joined into ``n`` pieces of about equal chords."""
-    n = max(1, min(n, len(batches)))
-    total = sum(c for _, _, c in batches)
-    out: list[tuple[int, int, int]] = []
-    first, chords, before = batches[0][0], 0, 0
-    for k, (_, stop, c) in enumerate(batches):
-        chords += c
-        more = n - len(out) - 1  # pieces to make after this one
-        short = total * (len(out) + 1) / n - (before + chords)  # chords below this piece's share
-        nearest = k + 1 < len(batches) and short < batches[k + 1][2] - short  # the next batch would overshoot more
-        if k == len(batches) - 1 or (more > 0 and (nearest or len(batches) - k - 1 == more)):
-            out.append((first, stop, chords))
-            before += chords
-            first, chords = stop, 0
-    return out
-
-
 def split_note(pieces: list[dict]) -> str:
-    """The job's note on how it was split: pieces, chords, workers, fit times, pieces taken over."""
+    """The job's note on how it was split: pieces, chords, workers, the pieces' times, pieces taken over."""
     holders = {p["holder"] for p in pieces}
     again = sum(p["takes"] > 1 for p in pieces)
-    text = (f"split: fitted in {len(pieces)} pieces by {len(holders)} workers (CAM chords "
-            f"{', '.join(str(p['chords']) for p in pieces)}; fit s "
+    text = (f"split: planned in {len(pieces)} pieces by {len(holders)} workers (CAM chords "
+            f"{', '.join(str(p['chords']) for p in pieces)}; piece s "
             f"{', '.join('%.1f' % (p['seconds'] or 0.0) for p in pieces)})")  # noqa: UP031
     return text + (f"; {again} taken over from a worker that stopped answering" if again else "")
 
@@ -98,36 +89,35 @@ class Coordinator:
             slot.run(JOB, job_id, attempt, spec)
             return
         deadline = time.monotonic() + self.job_timeout_s
-        found = slot.ask(job_id, attempt, replace(spec, step="pieces"), deadline=deadline)
+        found = slot.ask(job_id, attempt, replace(spec, step="pieces", parts=self.slots_alive()), deadline=deadline)
         if found is None:  # cancelled, or handed back by a stopping worker
             return
         if found.state != "done":  # (the file cannot be read: the planner's error, as the whole plan gives it)
             self._end(slot, job_id, attempt, found)
             return
-        batches = [tuple(int(x) for x in p) for p in found.values["pieces"]]
-        slots = self.slots_alive()
-        if sum(p[2] for p in batches) < self.split_chords or len(batches) < 2 or slots < 2:
+        wanted = [[int(x) for x in p] for p in found.values["pieces"]]  # (first, stop, chords, work)
+        if sum(p[3] for p in wanted) < self.split_chords or len(wanted) < 2:
             slot.run(JOB, job_id, attempt, spec)
             return
-        pieces = self.store.pieces(job_id, group(batches, slots))  # type: ignore[arg-type]
+        pieces = self.store.pieces(job_id, [(a, b, c) for a, b, c, _ in wanted])
         self.send(job_id, [p["first"] for p in pieces[1:] if p["state"] == "queued"])  # (the first: this worker's)
-        outcome = self._fit_pieces(slot, job_id, attempt, spec, deadline)
+        outcome = self._plan_pieces(slot, job_id, attempt, spec, deadline)
         if outcome is None:  # cancelled (its pieces removed), or handed back (its pieces kept for the next start)
             if self.store.job_ended(job_id):
                 self.store.drop_chunks(job_id)
             return
         if outcome.state == "done":
             note = split_note(self.store.chunks(job_id))
-            fits = tuple(self.store.chunk_fits(job_id))
-            joined = slot.ask(job_id, attempt, replace(spec, fits=fits), deadline=deadline)
+            planned = tuple(self.store.chunk_pieces(job_id))
+            joined = slot.ask(job_id, attempt, replace(spec, pieces=planned), deadline=deadline)
             if joined is None:
                 return
             outcome = replace(joined, values={**joined.values, "note": note})
         self._end(slot, job_id, attempt, outcome)
 
-    def _fit_pieces(self, slot: Slot, job_id: str, attempt: int, spec: PlanSpec, deadline: float
-                    ) -> Outcome | None:
-        """Every piece fitted (by any worker; those not taken by this one), or the first piece's failure: done or
+    def _plan_pieces(self, slot: Slot, job_id: str, attempt: int, spec: PlanSpec, deadline: float
+                     ) -> Outcome | None:
+        """Every piece planned (by any worker; those not taken by this one), or the first piece's failure: done or
         failed; None if the job was cancelled or handed back meanwhile."""
         shown = -1
         next_beat = 0.0
@@ -139,12 +129,12 @@ class Coordinator:
                 if bad is not None:
                     return failed(bad["error_kind"] or "internal", bad["error"] or "a piece of the job failed")
                 total = pieces[-1]["stop"] - pieces[0]["first"]
-                fitted = sum(p["stop"] - p["first"] for p in pieces if p["state"] == "done")
-                if fitted != shown:
-                    shown = fitted
+                planned = sum(p["stop"] - p["first"] for p in pieces if p["state"] == "done")
+                if planned != shown:
+                    shown = planned
                     with contextlib.suppress(Exception):
-                        self.store.progress(JOB, job_id, attempt, Progress("fit", fitted, total))
-                if fitted == total:
+                        self.store.progress(JOB, job_id, attempt, Progress("plan", planned, total))
+                if planned == total:
                     return Outcome("done")
                 stale = now() - LEASE_S
                 ready = [p for p in pieces if p["state"] == "queued"] + [
@@ -157,13 +147,13 @@ class Coordinator:
                 if claimed is not None:
                     takes, piece = claimed
                     first = piece.piece[0] if piece.piece else 0
-                    got = self._fit(slot, job_id, first, takes, piece, deadline, attempt)
+                    got = self._plan_piece(slot, job_id, first, takes, piece, deadline, attempt)
                     if got is None:
                         return None
                     self.store.finish_chunk(job_id, first, takes, got)
                     slot.current = (job_id, attempt)
                     continue
-                # the other pieces are being fitted elsewhere: hold the job meanwhile
+                # the other pieces are being planned elsewhere: hold the job meanwhile
                 if self.stopping.is_set():
                     self.store.requeue(job_id, attempt)
                     return None
@@ -179,9 +169,9 @@ class Coordinator:
         finally:
             slot.current = None
 
-    def _fit(self, slot: Slot, job_id: str, first: int, takes: int, piece: PlanSpec, deadline: float,
-             attempt: int | None = None) -> Outcome | None:
-        """One piece fitted in ``slot`` (its heartbeats; the job's too, from its coordinator: ``attempt``)."""
+    def _plan_piece(self, slot: Slot, job_id: str, first: int, takes: int, piece: PlanSpec, deadline: float,
+                    attempt: int | None = None) -> Outcome | None:
+        """One piece planned in ``slot`` (its heartbeats; the job's too, from its coordinator: ``attempt``)."""
         def beat() -> None:
             self.store.chunk_beat(job_id, first, takes)
             if attempt is not None:
@@ -205,12 +195,12 @@ class Coordinator:
 
     # -- any worker ---------------------------------------------------------------------------------------------------
     def run_piece(self, slot: Slot, job_id: str, first: int) -> str:
-        """A piece's message: fit it if it is still queued and its job active ("ran"), else "skipped"."""
+        """A piece's message: plan it if it is still queued and its job active ("ran"), else "skipped"."""
         claimed = self.store.claim_chunk(job_id, first)
         if claimed is None:
             return "skipped"
         takes, piece = claimed
-        got = self._fit(slot, job_id, first, takes, piece, time.monotonic() + self.job_timeout_s)
+        got = self._plan_piece(slot, job_id, first, takes, piece, time.monotonic() + self.job_timeout_s)
         if got is not None:
             self.store.finish_chunk(job_id, first, takes, got)
         return "ran"

@@ -67,9 +67,9 @@ def _put_data(conn, task_id: str, name: str, data: bytes, *, replace: bool) -> N
 
 
 def _drop_chunks(conn, job_id: str) -> None:
-    """Remove a split job's pieces and their fits in the transaction ``conn``."""
+    """Remove a split job's pieces and their planned moves in the transaction ``conn``."""
     conn.execute(delete(JobChunk).where(JobChunk.job_id == job_id))
-    conn.execute(delete(JobData).where(JobData.job_id == job_id, JobData.name.like("fits.%")))
+    conn.execute(delete(JobData).where(JobData.job_id == job_id, JobData.name.like("piece.%")))
 
 
 def _table(kind: Kind) -> Any:
@@ -151,8 +151,8 @@ class Transitions:
 
     # -- the pieces of a split job (:mod:`.split`) -----------------------------------------------------------------
     def pieces(self, job_id: str, wanted: list[tuple[int, int, int]]) -> list[dict]:
-        """The job's pieces: those stored by an earlier attempt if any (their fits kept), else ``wanted`` ((first,
-        stop, chords) each) stored, queued."""
+        """The job's pieces: those stored by an earlier attempt if any (their planned moves kept), else ``wanted``
+        ((first, stop, chords) each) stored, queued."""
         with self.write_lock, self.engine.begin() as conn:
             if conn.scalar(select(func.count()).select_from(JobChunk).where(JobChunk.job_id == job_id)) == 0:
                 conn.execute(insert(JobChunk), [{"job_id": job_id, "first": a, "stop": b, "chords": c,
@@ -169,7 +169,7 @@ class Transitions:
     def claim_chunk(self, job_id: str, first: int, stale_before: float | None = None
                     ) -> tuple[int, PlanSpec] | None:
         """Take a queued piece of an active job (or, given ``stale_before`` (Unix s), a running one whose holder's
-        last heartbeat is older: its holder is taken for dead): its take number and the specification of its fit;
+        last heartbeat is older: its holder is taken for dead): its take number and the specification of its planning;
         None if another worker has it, it has ended or the job has."""
         taken = JobChunk.state == "queued"
         if stale_before is not None:
@@ -188,7 +188,7 @@ class Transitions:
             return None
         from dataclasses import replace
 
-        return int(row[0]), replace(self._spec(job), step="fit", piece=(first, int(row[1])))
+        return int(row[0]), replace(self._spec(job), step="piece", piece=(first, int(row[1])))
 
     def chunk_beat(self, job_id: str, first: int, takes: int) -> None:
         with self.write_lock, self.engine.begin() as conn:
@@ -197,19 +197,19 @@ class Transitions:
                          .values(heartbeat_at=now()))
 
     def release_chunk(self, job_id: str, first: int, takes: int) -> None:
-        """A piece whose worker is stopping: queued again (another worker, or the job's own, fits it)."""
+        """A piece whose worker is stopping: queued again (another worker, or the job's own, plans it)."""
         with self.write_lock, self.engine.begin() as conn:
             conn.execute(update(JobChunk).where(JobChunk.job_id == job_id, JobChunk.first == first,
                                                 JobChunk.takes == takes, JobChunk.state == "running")
                          .values(state="queued", holder=None, heartbeat_at=None))
 
     def finish_chunk(self, job_id: str, first: int, takes: int, outcome: Outcome) -> bool:
-        """End a piece of this take: done, its fits (``outcome.plan``) stored as ``fits.<first>`` in the same
+        """End a piece of this take: done, its planned moves (``outcome.plan``) stored as ``piece.<first>`` in the same
         transaction; or failed with the outcome's error. False if it was no longer this take's (taken over)."""
         values: dict = {"state": "done" if outcome.state == "done" else "failed", "heartbeat_at": now(),
                         "seconds": outcome.values.get("seconds"), "error_kind": outcome.error_kind,
                         "error": outcome.error}
-        name = f"fits.{first}"
+        name = f"piece.{first}"
         with self.write_lock, self.engine.begin() as conn:
             n = conn.execute(update(JobChunk).where(JobChunk.job_id == job_id, JobChunk.first == first,
                                                     JobChunk.takes == takes, JobChunk.state == "running")
@@ -218,20 +218,20 @@ class Transitions:
                 _put_data(conn, job_id, name, outcome.plan, replace=True)
         return n == 1
 
-    def chunk_fits(self, job_id: str) -> list[bytes]:
-        """The fits of the job's pieces, in pass order."""
+    def chunk_pieces(self, job_id: str) -> list[bytes]:
+        """The planned moves of the job's pieces (:func:`planner.job.piece_to_bytes`), in pass order."""
         with self.engine.connect() as conn:
             firsts = list(conn.scalars(select(JobChunk.first).where(JobChunk.job_id == job_id)
                                        .order_by(JobChunk.first)))
             data = dict(conn.execute(select(JobData.name, JobData.data).where(
-                JobData.job_id == job_id, JobData.name.in_([f"fits.{k}" for k in firsts]))).all())
-        missing = [k for k in firsts if f"fits.{k}" not in data]
+                JobData.job_id == job_id, JobData.name.in_([f"piece.{k}" for k in firsts]))).all())
+        missing = [k for k in firsts if f"piece.{k}" not in data]
         if missing:
-            raise ValueError(f"job {job_id}: the fits of its pieces from pass {missing} are not in the store")
-        return [bytes(data[f"fits.{k}"]) for k in firsts]
+            raise ValueError(f"job {job_id}: the planned moves of its pieces from pass {missing} are not in the store")
+        return [bytes(data[f"piece.{k}"]) for k in firsts]
 
     def drop_chunks(self, job_id: str) -> None:
-        """The job's pieces and their fits removed (the job has ended)."""
+        """The job's pieces and their planned moves removed (the job has ended)."""
         with self.write_lock, self.engine.begin() as conn:
             _drop_chunks(conn, job_id)
 
