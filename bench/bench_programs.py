@@ -12,8 +12,8 @@ its duration against the planned one, the largest distance of the TCP (every 10t
 planned path over the whole job and within 1 s of job time around the seams, the joint speed and the output bits at
 every seam (the arm must be at rest, the outputs off), the switches made against the planned ones.
 
-Run: ``python bench/bench_programs.py [--gotos N]`` (N: the job's first N GOTO records only; default the whole
-file: about 30 min of CPU on this machine).
+Run: ``python bench/bench_programs.py [--gotos N] [--save FOLDER]`` (N: the job's first N GOTO records only; default
+the whole file: about 30 min of CPU on this machine; FOLDER: keep the planned job and the run's checked samples).
 """
 
 from __future__ import annotations
@@ -38,6 +38,8 @@ EVERY = 10  # control periods between the checked TCP samples
 def main() -> None:
     ap = argparse.ArgumentParser(description=__doc__.split("\n\n")[0])
     ap.add_argument("--gotos", type=int, default=0, help="only the file's first N GOTO records (0: the whole job)")
+    ap.add_argument("--save", default="", help="folder to keep the planned job (job.job) and the run's checked samples "
+                                             "(run.npz: time s, TCP m, distance m, pass and line) in, for a look after")
     args = ap.parse_args()
     if not NX.is_file():
         sys.exit(f"{NX} is not there (the shared data beside the repository)")
@@ -127,6 +129,12 @@ def main() -> None:
     near = np.zeros(t.size, dtype=bool)
     for ts_seam, _, _ in seams:
         near |= np.abs(t - ts_seam) <= 1.0
+    if args.save:
+        folder = Path(args.save)
+        folder.mkdir(parents=True, exist_ok=True)
+        job.save(folder / "job.job")
+        np.savez(folder / "run.npz", t=t, tcp=tcp, d=d, where=where_pp[np.minimum(seg, len(where_pp) - 1)],
+                 seams=np.array([s[0] for s in seams]))
     print()
     print_table(["run in the core", "value"], [
         ["whole program refused (too large)", refused],

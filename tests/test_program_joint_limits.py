@@ -90,6 +90,35 @@ def test_the_rapid_next_to_the_stretched_elbow_is_slowed_and_said(job, moves):
     assert all(m.kind in ("rapid", "cut") for m in slowed) and len(slowed) <= 3
 
 
+def test_the_programs_slowed_moves_are_in_the_jobs_figures(job, moves):
+    """summary(program) and describe(program=...) extend the report of the feed lowered for the joint speeds with the
+    program's statements slowed: each move's kind, pass, source lines, statements and stretch, and its line."""
+    slowed = [m for m in moves if m.slowed]
+    assert "program_slowed" not in job.summary()  # without the program: the plan's figures only
+    s = job.summary(moves)
+    assert [(e["kind"], e["pass"], e["first_line"], e["last_line"]) for e in s["program_slowed"]] == [
+        (m.kind, m.pass_index, m.first_line, m.last_line) for m in slowed]
+    assert s["slowed"] == [*job.slowed, *(f"{job.source} program: {m.slowed}" for m in slowed)]
+    rapid = next(e for e in s["program_slowed"] if e["kind"] == "rapid" and e["first_line"] == RAPID_LINE)
+    m = next(m for m in slowed if m.kind == "rapid" and m.first_line == RAPID_LINE)
+    # the stretch c is the one written: a over c^2, v over c
+    c = rapid["stretch"]
+    assert rapid["statements"] == 1 and c > 1.5
+    assert m.acceleration == pytest.approx(job.settings.limits.acceleration / c**2, rel=1e-9)
+    assert f"v to {100.0 / c:.3g} %" in m.slowed
+    for e in s["program_slowed"]:
+        if e["kind"] == "cut":
+            mv = next(x for x in slowed if x.first_line == e["first_line"])
+            assert 1 <= e["statements"] <= mv.plan.s.size - 1 and f"{e['statements']} movep move" in mv.slowed
+    lines = job.describe(program=moves)
+    head = next(x for x in lines if x.startswith("  slowed    "))
+    n = sum(e["statements"] for e in s["program_slowed"])
+    assert f"program: {n} statement{'s' * (n > 1)} in {len(slowed)} move" in head
+    assert f"v to {100.0 / max(e['stretch'] for e in s['program_slowed']):.3g} %" in head
+    assert f"    {job.source} program: {m.slowed}" in lines
+    assert not any("program:" in x for x in job.describe())
+
+
 def _play(q0, text: str):
     core = Core("ur5e", IOState())
     core.motion.q = np.array(q0, dtype=float)
