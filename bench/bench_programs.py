@@ -9,8 +9,9 @@ baseline in the same run: the whole program, which the core refuses as a control
 
 Printed: the program's size whole and in pieces (count, largest, smallest), the time to make them; then the run:
 its duration against the planned one, the largest distance of the TCP (every 10th control period, 20 ms) from the
-planned path over the whole job and within 1 s of job time around the seams, the joint speed and the output bits at
-every seam (the arm must be at rest, the outputs off), the switches made against the planned ones.
+planned path (:func:`thinned`, :func:`subdivided`) over the whole job and within 1 s of job time around the seams,
+the joint speed and the output bits at every seam (the arm must be at rest, the outputs off), the switches made
+against the planned ones.
 
 Run: ``python bench/bench_programs.py [--gotos N] [--save FOLDER]`` (N: the job's first N GOTO records only; default
 the whole file: about 30 min of CPU on this machine; FOLDER: keep the planned job and the run's checked samples).
