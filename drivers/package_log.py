@@ -11,11 +11,12 @@ its own at the recipe's rate, another poll (measured against the simulated contr
 3 s, 101 written twice, 160 missed, some rows mixing two packages).
 
 :class:`PackageLog` opens a connection of its own to the controller's RTDE server (port 30004, protocol version
-2, one output recipe: timestamp, actual TCP pose, actual joints, actual digital output bits at the controller's
-rate) and reads its data packages from the socket whenever asked: the kernel's socket buffer holds what arrives
-meanwhile, so a stall of the caller loses nothing, and each sample is one package, whole. Decoded vectorized (the
-data packages are of one size; a text message between them is skipped). Its memory is what arrived since the
-last read.
+2, one output recipe: timestamp, actual TCP pose, actual joints, actual digital output bits and the runtime state
+at the controller's rate) and reads its data packages from the socket whenever asked: the kernel's socket buffer
+holds what arrives meanwhile, so a stall of the caller loses nothing, and each sample is one package, whole.
+Decoded vectorized (the data packages are of one size; a text message between them is skipped). Its memory is
+what arrived since the last read. The runtime state marks the program's start to the package (the start of a
+program run's recording, :meth:`drivers.ur.URDriver._program_start`).
 """
 
 from __future__ import annotations
@@ -28,15 +29,16 @@ import numpy as np
 
 from drivers.base import ConnectionLostError
 
-#: The recipe: (name, RTDE type) -> 14 columns (timestamp, pose 6, joints 6, bits).
+#: The recipe: (name, RTDE type) -> 15 columns (timestamp, pose 6, joints 6, bits, runtime state: 1 stopped,
+#: 2 playing, 4 paused).
 RECIPE = (("timestamp", "DOUBLE"), ("actual_TCP_pose", "VECTOR6D"), ("actual_q", "VECTOR6D"),
-          ("actual_digital_output_bits", "UINT64"))
-COLUMNS = 14
+          ("actual_digital_output_bits", "UINT64"), ("runtime_state", "UINT32"))
+COLUMNS = 15
 _HEADER = struct.Struct(">HB")
 _V, _O, _S, _P, _U = ord("V"), ord("O"), ord("S"), ord("P"), ord("U")
 #: A data package of the recipe: header (size, type), recipe id, the fields (big-endian).
 _DATA = np.dtype([("size", ">u2"), ("kind", "u1"), ("recipe", "u1"), ("t", ">f8"), ("x", ">f8", (6,)),
-                  ("q", ">f8", (6,)), ("bits", ">u8")])
+                  ("q", ">f8", (6,)), ("bits", ">u8"), ("state", ">u4")])
 
 
 class PackageLog:
@@ -46,6 +48,7 @@ class PackageLog:
     def __init__(self, host: str, frequency: float = 500.0, *, port: int = 30004, timeout: float = 2.0) -> None:
         self.host = host
         self._buf = bytearray()
+        self._held = np.zeros((0, COLUMNS))
         self.closed = False
         try:
             self._sock = socket.create_connection((host, port), timeout=timeout)
@@ -107,10 +110,12 @@ class PackageLog:
             self._buf += chunk
 
     def read(self) -> np.ndarray:
-        """The data packages received since the last call: (m, 14) rows of timestamp s, actual TCP pose (6) m,
-        rad, actual joints (6) rad, output bits; in the controller's order (each package whole)."""
+        """The data packages received since the last call: (m, 15) rows of timestamp s, actual TCP pose (6) m,
+        rad, actual joints (6) rad, output bits, runtime state; in the controller's order (each package whole; the
+        rows given back with :meth:`unread` first)."""
         self._drain()
-        out = []
+        out = [self._held] if self._held.shape[0] else []
+        self._held = np.zeros((0, COLUMNS))
         buf = self._buf
         size = _DATA.itemsize
         while len(buf) >= 3:
@@ -122,7 +127,8 @@ class PackageLog:
                 m = n if ok.all() else int(np.argmin(ok))
                 if m:
                     d = head[:m]
-                    out.append(np.column_stack((d["t"], d["x"], d["q"], d["bits"].astype(float))))
+                    out.append(np.column_stack((d["t"], d["x"], d["q"], d["bits"].astype(float),
+                                                d["state"].astype(float))))
                     del buf[:m * size]
                     if m == n:
                         break
@@ -134,6 +140,10 @@ class PackageLog:
                 break
             del buf[:psize]
         return np.concatenate(out) if out else np.zeros((0, COLUMNS))
+
+    def unread(self, rows: np.ndarray) -> None:
+        """Give back ``rows`` (from :meth:`read`, in order): the next read returns them first."""
+        self._held = np.concatenate((rows, self._held))
 
     def close(self) -> None:
         """Stop the data (RTDE pause, best effort) and close the connection."""

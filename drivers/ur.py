@@ -776,6 +776,25 @@ class URDriver:
             self._confirm_outputs(mask, prev_io)
         return rec, failure, sched.stats()
 
+    def _program_start(self, log: PackageLog, t_sent: float) -> float:
+        """The controller's time at which the program sent at controller time ``t_sent`` started: the timestamp of
+        the first data package after ``t_sent`` that shows the program playing (the job's time 0; the packages read
+        here are given back to the log). Seeing the program start through ur_rtde's receive interface took this
+        machine's poll 28-56 ms after the controller started it, and the recording began there: an output switched
+        at the program's start was reported 0.2-0.8 mm from its station, where the arm had already accelerated to;
+        the package's own runtime state has no such delay. Falls back to the receive interface's time if no package
+        shows the program playing within 0.5 s (one that ended between two packages)."""
+        rows = []
+        end = time.monotonic() + 0.5
+        while True:
+            rows.append(log.read())
+            got = np.concatenate(rows)
+            playing = np.flatnonzero((got[:, 0] >= t_sent) & (got[:, 14] == _PLAYING))
+            if playing.size or time.monotonic() > end:
+                log.unread(got)
+                return float(got[playing[0], 0]) if playing.size else self._need().getTimestamp()
+            time.sleep(0.002)
+
     @staticmethod
     def _take(log: PackageLog, rec, ts0: float) -> int:
         """The packages recorded since the last call into ``rec`` (those of the run: from ``ts0`` on, job time
@@ -893,7 +912,7 @@ class URDriver:
                 self._send_program(piece.text)
                 self._started(piece, t_sent)
                 if ts0 is None:
-                    ts0 = r.getTimestamp()
+                    ts0 = self._program_start(log, t_sent)
                 else:  # the seam: the arm at rest at the end of the piece before, from its end to this start
                     seams.append(Seam(n + 1, t_ended - ts0, max(0.0, r.getTimestamp() - t_ended), piece.line))
                 last_read = time.monotonic()

@@ -383,8 +383,14 @@ class PlannedJob:
         """Largest distance of any cut's path from its points, m."""
         return max((p.max_waypoint_error for p in self.passes), default=0.0)
 
-    def summary(self) -> dict:
-        """The job's figures in human units (mm, s, deg)."""
+    def summary(self, program=None) -> dict:
+        """The job's figures in human units (mm, s, deg).
+
+        ``program``: the moves of the job's program (:func:`planner.export.plan_job_program`), whose statements
+        slowed for the joint speed and acceleration limits join the slowed stretches of the feed: "slowed" (one
+        line each, "<source> program: ...") and "program_slowed" (one entry per program move slowed: its kind, pass
+        (-1 for no cut), source lines, the statements slowed and the largest stretch c: v over c, a over c^2).
+        """
         out = {
             "source": self.source,
             "path_model": self.settings.path,
@@ -425,6 +431,12 @@ class PlannedJob:
             out["unreachable_passes"] = [p.index for p in self.passes if p.reachable is False]
             out["slowed_passes"] = [p.index for p in self.passes if p.feed_caps]
             out["slowed"] = list(self.slowed)
+            if program is not None:
+                low = [m for m in program if m.slowed]
+                out["program_slowed"] = [{"kind": m.kind, "pass": m.pass_index, "first_line": m.first_line,
+                                          "last_line": m.last_line, "statements": m.slowed_moves,
+                                          "stretch": m.stretch} for m in low]
+                out["slowed"] += [f"{self.source} program: {m.slowed}" for m in low]
             out["reconfigurations"] = self.reconfiguration_lines()
             out["reconfigured_passes"] = [r.pass_index for r in self.reconfigurations]
             if self.start_note:
@@ -455,9 +467,10 @@ class PlannedJob:
                 f"great circles; spin about the tool axis {s['spin_deg']:.3g} deg (exact rotation-minimizing; "
                 f"slerping the orientations: {s['slerp_spin_deg']:.4g} deg)")
 
-    def describe(self, max_lines: int = 10) -> list[str]:
-        """Lines for a person: the job's figures, the worst passes, the robot's problems."""
-        s = self.summary()
+    def describe(self, max_lines: int = 10, program=None) -> list[str]:
+        """Lines for a person: the job's figures, the worst passes, the robot's problems; with ``program`` (the
+        moves of the job's program, see :meth:`summary`) its statements slowed for the joint limits."""
+        s = self.summary(program)
         worst = sorted(self.passes, key=lambda p: -p.max_deviation)[:3 if self.settings.path == "cam" else 0]
         lines = [
             f"{s['source']}: {counted(s['points'], 'point')} -> {counted(s['passes'], 'pass')}, "
@@ -476,12 +489,11 @@ class PlannedJob:
                 lines.append(f"  placed    {self.placement.describe()}")
             if s.get("spin"):
                 lines.append(_spin_line(s["spin"], self.timings.get("spin", math.nan)))
-            if self.slowed:
-                n = len(self.slowed)
-                lines.append(f"  slowed    feed lowered for the joint speed limits on {n} stretch{'es' * (n > 1)}")
-                lines += [f"    {p}" for p in self.slowed[:max_lines]]
-                if len(self.slowed) > max_lines:
-                    lines.append(f"    ... {len(self.slowed) - max_lines} more")
+            if self.slowed or program is not None:
+                lines.append("  slowed    " + _slowed_line(len(self.slowed), s.get("program_slowed")))
+                lines += [f"    {p}" for p in s["slowed"][:max_lines]]
+                if len(s["slowed"]) > max_lines:
+                    lines.append(f"    ... {len(s['slowed']) - max_lines} more")
             if self.start_note:
                 lines.append(f"  arm       {self.start_note}")
             changes = s["reconfigurations"]
@@ -599,6 +611,22 @@ JOB_TYPES = {**{t.name: t for t in (
         "reachable": Opt(Bool()), "reach_message": Str(), "feed_caps": Seq(Ref("CapWindow")),
         "max_twist_deg": NAN, "max_waypoint_error": NAN}),
 )}, **CORE_TYPES}
+
+
+def _slowed_line(stretches: int, program: list | None) -> str:
+    """The headline of the slowed report: the feed's stretches lowered for the joint speeds; with the program's moves
+    (``summary()["program_slowed"]``) its statements slowed for the joint speeds and accelerations."""
+    parts = [f"feed lowered for the joint speed limits on {counted(stretches, 'stretch')}"] if stretches else []
+    if program is not None:
+        if program:
+            c = max(p["stretch"] for p in program)
+            n = sum(p["statements"] for p in program)
+            parts.append(f"program: {counted(n, 'statement')} in {counted(len(program), 'move')} slowed for the "
+                         f"joint speed and acceleration limits (v to {100.0 / c:.3g} %, a to {100.0 / c**2:.3g} % at "
+                         "the most)")
+        else:
+            parts.append("program: no statement slowed for the joint limits")
+    return "; ".join(parts)
 
 
 def _spin_line(sp: dict, seconds: float) -> str:

@@ -68,6 +68,9 @@ def test_cli_plan_writes_program_and_plot(tmp_path, capsys):
     n = int(re.search(r"\((\d+) movep, 1 movej\)", out).group(1))  # the pass alone: no rapid before it
     assert script.read_text().count("  movep(") == n > 10
     assert png.stat().st_size > 50_000
+    # the program's moves were checked for the joint limits before the figures were printed (none slowed here)
+    assert "  slowed    program: no statement slowed for the joint limits" in out
+    assert out.index("  slowed    program:") < out.index("  wrote     ")
 
 
 def test_cli_plan_csv_trajectory(tmp_path):

@@ -119,6 +119,36 @@ def test_program_mode_followed_within_the_blend_tolerance(make_sim, demo_job):
     assert rep.duration == pytest.approx(rep.planned_duration, rel=0.05)
 
 
+def test_program_mode_records_from_the_programs_start(make_sim, tmp_path):
+    """The recording of a program run starts at the controller's start of the program (the first data package that
+    shows it playing), the arm at rest on the job's first pose: the output switched at the start of the glue bead
+    (5 mm bends at 50 mm/s) is at its station and on time. The run had started where this machine's poll of
+    ur_rtde's receive interface saw the program playing, 28-56 ms late: the arm had accelerated 0.2-0.8 mm from the
+    station, and the switch was reported there (bench_modes: 0.48-0.78 mm). Here this machine stalls for 50 ms
+    right after it saw the program start, as a loaded one does."""
+    from tests.bead_job import write_s_bead
+
+    class StalledAfterTheStart(URDriver):
+        def _started(self, piece, t_sent):
+            super()._started(piece, t_sent)
+            time.sleep(0.05)
+
+    path = write_s_bead(tmp_path / "bead_r5.csv", radius=5.0)
+    job = plan(str(path), PlanSettings(robot="ur5e", part_frame="auto", feed=0.05, cut_output=("standard", 0)))
+    sim = make_sim()
+    with StalledAfterTheStart(sim.host, "ur5e", **FAST) as d:
+        rep = d.execute(job, mode="program")
+    assert rep.ok, "\n".join(rep.describe())
+    pt, pp, _, _, _ = planned_path(job)
+    tr = rep.trace
+    assert tr.t[0] == 0.0 and np.linalg.norm(tr.xyz[0] - pp[0, :3]) < 1e-6  # at rest on the first pose
+    on, off = rep.io_events
+    assert on.value and on.switched and on.distance_mm < 0.005, rep.describe()  # a period of motion: 1 um
+    # one control period for the program's first statement (the joint move onto the planned start), one to see it
+    assert 0.0 <= on.actual_t <= 0.0041, rep.describe()
+    assert not off.value and off.switched and off.distance_mm < 0.005, rep.describe()
+
+
 def test_program_mode_speed_holds_the_feed_every_package_recorded(make_sim, demo_job):
     """The demo pass as its program at 10x (one data package per 20 ms of job time): the actual TCP speed of the
     recording, away from the pass's ends, within 1 % of the planned feed (4.17 mm/s), and the recording's samples
@@ -160,11 +190,12 @@ def test_package_log_reads_every_data_package(make_sim):
     finally:
         log.close()
     r = np.concatenate(rows)
-    assert r.shape[1] == 14 and r.shape[0] >= 700
+    assert r.shape[1] == 15 and r.shape[0] >= 700
     steps = np.diff(r[:, 0])
     assert np.allclose(steps, 0.002, atol=1e-9), np.unique(np.round(steps, 4), return_counts=True)
     assert np.allclose(r[:, 7:13], r[-1, 7:13])  # the arm at rest: its joints in every package
     assert (r[:, 13] == 0).all()
+    assert set(r[:, 14]) <= {1.0, 2.0}  # the runtime state: no program (stopped) or ur_rtde's control script
 
 
 def test_too_fast_target_protective_stop_with_time_pose_and_line(make_sim, fast_job):

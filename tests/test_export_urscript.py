@@ -13,6 +13,7 @@ from scipy.spatial.transform import Rotation
 from planner import PlanSettings, plan
 from planner.curves import fit_ph_spline
 from planner.export import ExportError, job_program, plan_job_program, plan_movep, write_script
+from planner.export.script_text import as_written, num
 from planner.export.urscript import movep_lines
 from planner.motion import (
     ConstantOrientation,
@@ -227,3 +228,37 @@ def test_bad_movep_parameters_are_named():
             plan_movep(path, DOWN, prof, **kwargs)
     with pytest.raises(ExportError, match="^tolerance:"):
         plan_movep(path, DOWN, prof, tolerance=1e-12, max_rounds=3)
+
+
+def _per_value(x) -> np.ndarray:
+    """The numbers as the program's text holds them, one value at a time (what as_written vectorizes)."""
+    return np.array([float(num(v)) for v in np.ravel(x)]).reshape(np.shape(x))
+
+
+def _same_bits(a, b) -> bool:
+    """Equal as doubles bit for bit (-0.0 is not 0.0), NaN equal to NaN."""
+    a, b = np.asarray(a, float), np.asarray(b, float)
+    return a.shape == b.shape and bool(np.all((a.view(np.int64) == b.view(np.int64)) | (np.isnan(a) & np.isnan(b))))
+
+
+def test_the_joint_check_reads_the_programs_numbers_exactly():
+    """as_written (the numbers the joint check samples) equals each number of the program's text read back: the movep
+    targets, speeds and radii of a small job, and values where rounding to 12 decimals is delicate."""
+    job = planned()
+    plan_ = next(m.plan for m in plan_job_program(job) if m.plan is not None)
+    movep = [s for s in parse_program(job_program(job)) if s[0] == "movep"]
+    assert len(movep) == plan_.s.size - 1 > 10
+    assert _same_bits(as_written(plan_.poses[1:]), np.array([s[1] for s in movep]))
+    assert _same_bits(as_written(plan_.speeds[1:]), [s[3] for s in movep])
+    assert _same_bits(as_written(plan_.radii[1:]), [s[4] for s in movep])
+    rng = np.random.default_rng(29)
+    ties = (2.0 * rng.integers(-10**9, 10**9, 2000) + 1.0) / 2.0**13  # exactly halfway between two 12-decimal numbers
+    assert num(1 / 8192) == "0.000122070312" and num(3 / 8192) == "0.000366210938"  # ties to even
+    halves = (rng.integers(-10**12, 10**12, 2000) + 0.5) / 1e12  # the doubles nearest to halves, and their neighbours
+    hard = np.r_[ties, halves, np.nextafter(halves, np.inf), np.nextafter(halves, -np.inf),
+                 rng.normal(size=2000) * 10.0 ** rng.integers(-15, 4, 2000),
+                 0.0, -0.0, -1e-13, 1e-13, -4.999999e-13, 5e-324, -5e-324, 4503.599627370495, 4503.6, -9007.2, 1e6,
+                 -1e20, 1e300, np.nan, np.inf, -np.inf]
+    assert _same_bits(as_written(hard), _per_value(hard))
+    assert _same_bits(as_written(hard.reshape(-1, 4, 2)), _per_value(hard).reshape(-1, 4, 2))  # any shape
+    assert str(as_written(-1e-13)) == "-0.0" and as_written(2.5).shape == ()

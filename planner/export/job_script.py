@@ -40,7 +40,7 @@ import numpy as np
 from planner.cam.passes import CutPass
 from planner.export.header import ExportError, trajectory_parameters
 from planner.export.movep import MovePPlan, plan_movep
-from planner.export.script_text import check_name, comment, header, num, output_switch, pose, vec
+from planner.export.script_text import as_written, check_name, comment, header, num, output_switch, pose, vec
 from planner.export.urscript import movep_lines
 from planner.kinematics.poses import as_transform, matrix_to_pose
 from planner.motion.limits import positive
@@ -83,6 +83,10 @@ class ProgramMove:
     slowed : str
         Where and how much the move was slowed for the joints' limits, for a person ("" if not; see
         :mod:`planner.export.move_check`).
+    slowed_moves : int
+        Statements slowed: a cut's movep moves, 1 for a slowed rapid, turn or reconfiguration (0: none).
+    stretch : float
+        The largest stretch c of a slowed statement (v over c, a over c^2; 1: none slowed).
     """
 
     move: int
@@ -100,6 +104,8 @@ class ProgramMove:
     joints: np.ndarray | None = None
     acceleration: float | None = None
     slowed: str = ""
+    slowed_moves: int = 0
+    stretch: float = 1.0
 
 
 def _turn_pose(m, Tb: np.ndarray, angle: float) -> np.ndarray:
@@ -178,11 +184,6 @@ def plan_job_program(job, *, tolerance: float | None = None, angle_tolerance: fl
     return _checked_moves(job, out)
 
 
-def _written(x) -> np.ndarray:
-    """``x`` as the controller reads it from the program (:func:`num`'s 12 decimals)."""
-    return np.array([float(num(v)) for v in np.ravel(x)]).reshape(np.shape(x))
-
-
 def _target_lines(job, m: ProgramMove, which) -> str:
     """The source lines of a cut's movep targets ``which`` (indices of its moves, each into target i + 1)."""
     from planner.motion.evaluator import span_bounds
@@ -209,10 +210,10 @@ def _checked_moves(job, moves: list[ProgramMove]) -> tuple[ProgramMove, ...]:
     if s.robot is None or not moves:
         return tuple(moves)
     model = get_model(s.robot)
-    tcp = _written(matrix_to_pose(as_transform(s.tcp, "tcp")))
-    a = float(_written(s.limits.acceleration))
+    tcp = as_written(matrix_to_pose(as_transform(s.tcp, "tcp")))
+    a = float(as_written(s.limits.acceleration))
     jl = s.joint_limits
-    q = _written(_start_joints(job))
+    q = as_written(_start_joints(job))
     out = []
     for m in moves:
         where = (f"pass {m.pass_index} (lines {m.first_line}-{m.last_line})" if m.kind == "cut"
@@ -223,7 +224,7 @@ def _checked_moves(job, moves: list[ProgramMove]) -> tuple[ProgramMove, ...]:
         if m.kind == "cut":
             p = m.plan
             assert p is not None
-            P, V, R = _written(p.poses[1:]), _written(p.speeds[1:]), _written(p.radii[1:])
+            P, V, R = as_written(p.poses[1:]), as_written(p.speeds[1:]), as_written(p.radii[1:])
             segs = [Segment(P[i], V[i], a, R[i]) for i in range(len(V))]
             run = check_run(model, tcp, q, segs, what=f"{job.source} {where}")
             if run.slowed:
@@ -231,23 +232,25 @@ def _checked_moves(job, moves: list[ProgramMove]) -> tuple[ProgramMove, ...]:
                 speeds[1:] = [x.v for x in run.segs]
                 acc[1:] = [x.a for x in run.segs]
                 acc[0] = 0.0
-                m = replace(m, plan=replace(p, speeds=speeds, accelerations=acc), slowed=(
+                m = replace(m, plan=replace(p, speeds=speeds, accelerations=acc), slowed_moves=len(run.slowed),
+                            stretch=run.factor, slowed=(
                     f"{where}: {len(run.slowed)} movep move{'s' * (len(run.slowed) > 1)} at "
                     f"{_target_lines(job, m, run.slowed)} slowed ({stretch_text(run.factor)}): "
                     f"{run.before.describe()}, {run.after.describe()} now"))
         else:
             if m.kind == "reconfiguration":
-                seg = Segment(_written(m.joints), float(_written(jl.speed)), float(_written(jl.acceleration)))
-                dur = float(_written(m.duration))
+                seg = Segment(as_written(m.joints), float(as_written(jl.speed)), float(as_written(jl.acceleration)))
+                dur = float(as_written(m.duration))
             else:
                 v = m.speed if m.kind == "rapid" else s.limits.speed
-                seg = Segment(_written(m.target), float(_written(v)), a)
-                dur = float(_written(m.duration)) if m.kind != "rapid" or m.turn > 0.0 else 0.0
+                seg = Segment(as_written(m.target), float(as_written(v)), a)
+                dur = float(as_written(m.duration)) if m.kind != "rapid" or m.turn > 0.0 else 0.0
             run = check_run(model, tcp, q, [seg], dur, joint=m.kind == "reconfiguration",
                             what=f"{job.source} {where}")
             if run.slowed:
                 new = run.segs[0]
                 m = replace(m, speed=new.v, acceleration=new.a, duration=run.duration if dur > 0.0 else m.duration,
+                            slowed_moves=1, stretch=run.factor,
                             slowed=f"{where}: slowed ({stretch_text(run.factor)}): {run.before.describe()}, "
                                    f"{run.after.describe()} now")
         q = run.q_end

@@ -26,7 +26,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from planner.export.header import ExportError
-from planner.export.script_text import num
+from planner.export.script_text import as_written
 from planner.kinematics.ur_models import JOINT_NAMES
 from planner.kinematics.ur_moves import (
     DT,
@@ -122,7 +122,7 @@ class CheckedRun:
 
 def _written(x: float) -> float:
     """``x`` as a program writes it (:func:`planner.export.script_text.num`) and the controller reads it."""
-    return float(num(x))
+    return float(as_written(x))
 
 
 def _stretch(segs: list, which: np.ndarray, c: np.ndarray) -> list:

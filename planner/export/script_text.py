@@ -11,6 +11,8 @@ from __future__ import annotations
 import re
 import warnings
 
+import numpy as np
+
 from planner.export.header import ExportError, header_lines
 from planner.kinematics.ur_outputs import UR_OUTPUTS
 
@@ -18,6 +20,48 @@ from planner.kinematics.ur_outputs import UR_OUTPUTS
 def num(x: float) -> str:
     """A number in fixed point, 12 decimals."""
     return f"{x:.12f}"
+
+
+#: Largest |x| that :func:`as_written` rounds with numpy (x * 10^12 and the rounded integer exact in a double below
+#: 2^52 / 10^12); larger values go through :func:`num` one at a time.
+_EXACT_BELOW = 2.0**52 / 1e12
+_SPLIT = 2.0**27 + 1.0  # Dekker's splitter for doubles
+
+
+def _split(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """High and low halves of doubles (each of at most 26 significant bits; hi + lo == x exactly)."""
+    c = _SPLIT * x
+    hi = c - (c - x)
+    return hi, x - hi
+
+
+def as_written(x) -> np.ndarray:
+    """``x`` (any shape) as a program writes it with :func:`num` and the controller reads it back:
+    ``float(num(v))`` for every value, vectorized (same shape, float64).
+
+    :func:`num` rounds the exact binary value to 12 decimals, ties to even, and reading the text back gives the
+    double nearest to that decimal. Here: x * 10^12 = p + e exactly (Dekker's product: 10^12 is a double, p the
+    rounded product, e its exact error), n = p rounded to an integer and corrected by the exact remainder
+    (p - n) + e (ties to even), n / 10^12 (IEEE division is correctly rounded: the double nearest to the decimal),
+    with the sign of x (num writes -0.000000000000 for a small negative value). NaN and infinities pass as they are.
+    """
+    x = np.asarray(x, dtype=float)
+    out = np.array(x, dtype=float, copy=True)
+    big = ~(np.abs(x) < _EXACT_BELOW)  # NaN, infinities and the values beyond exact rounding here
+    xs = np.where(big, 0.0, x)
+    p = xs * 1e12
+    xh, xl = _split(xs)
+    kh, kl = _split(np.full_like(xs, 1e12))
+    e = ((xh * kh - p) + xh * kl + xl * kh) + xl * kl  # p + e == xs * 10^12 exactly (Dekker's two-product)
+    n = np.rint(p)
+    d = p - n  # exact, in [-1/2, 1/2]
+    up, down = (d - 0.5) + e, (d + 0.5) + e  # signs exact: the remainder against +-1/2
+    odd = np.fmod(n, 2.0) != 0.0
+    n = n + ((up > 0.0) | ((up == 0.0) & odd)) - ((down < 0.0) | ((down == 0.0) & odd))  # ties to even
+    out[~big] = np.copysign(np.abs(n) / 1e12, xs)[~big]
+    for i in np.flatnonzero(big & np.isfinite(x)):
+        out.flat[i] = float(num(float(x.flat[i])))
+    return out
 
 
 def vec(v) -> str:

@@ -163,11 +163,11 @@ def _pieces(job, fmt: str, parameters, progress, execution, shown: str, name: st
             yield target.read_bytes()
 
 
-def _program(job, parameters, progress, name: str, max_program_bytes: int | None) -> str:
+def _program(job, parameters, progress, name: str, max_program_bytes: int | None, moves=None) -> str:
     if max_program_bytes is not None and not (isinstance(max_program_bytes, int) and max_program_bytes > 0):
         raise PlannerError(f"max_program_bytes must be a number of bytes > 0 or None, got {max_program_bytes!r}")
     try:
-        text = job_program(job, parameters=parameters, progress=progress)
+        text = job_program(job, moves, parameters=parameters, progress=progress)
     except PlannerError as exc:
         raise PlannerError(f"not writing {name}: {exc}") from None
     size = len(text.encode("utf-8"))
@@ -181,17 +181,18 @@ def _program(job, parameters, progress, name: str, max_program_bytes: int | None
 
 
 def write(job, target, *, parameters: Mapping | None = None, progress=None, execution=None,
-          max_program_bytes: int | None = MAX_PROGRAM_BYTES) -> str:
+          max_program_bytes: int | None = MAX_PROGRAM_BYTES, program=None) -> str:
     """Write ``job`` to the file ``target`` in the format of its suffix (:data:`SUFFIXES`), atomically (the bytes
     :func:`export` gives); what was written, for a person (``"31250 poses, with joints"``, ``"212 movep"``,
-    ``"speeds from all 31250 poses, joints from 1 in 2"``, ``"1204 bytes"``)."""
+    ``"speeds from all 31250 poses, joints from 1 in 2"``, ``"1204 bytes"``). ``program``: for a URScript target,
+    the job's program moves already made (:func:`planner.export.plan_job_program`; default: made here)."""
     _checked_job(job)
     fmt = format_of(target)
     path = as_path(target)
     if fmt == "job":
         return f"{job.save(path)} bytes"
     if fmt == "script":
-        text = _program(job, parameters, progress, path.name, max_program_bytes)
+        text = _program(job, parameters, progress, path.name, max_program_bytes, program)
         write_script(text, path)
         counts = {cmd: text.count(f"\n  {cmd}(") for cmd in ("movep", "movel", "movej")}
         return ", ".join(f"{n} {cmd}" for cmd, n in counts.items() if n)

@@ -142,7 +142,17 @@ def cmd_plan(args: argparse.Namespace):
         job = plan(path_in, settings, read_options=options, progress=bar)
     finally:
         bar.close()
-    for line in job.describe():
+    program = None
+    if out is not None and out.suffix.lower() in (".script", ".urscript") and job.not_executable is None:
+        from planner.export import plan_job_program
+
+        try:  # the program's moves, checked for the joint limits: what they slowed is part of the job's figures
+            program = plan_job_program(job, progress=bar)
+        except PlannerError:  # refused with the file's name by the export below
+            program = None
+        finally:
+            bar.close()
+    for line in job.describe(program=program):
         print(line)
     for line in warning_lines(job.warnings):
         print(line)
@@ -152,7 +162,8 @@ def cmd_plan(args: argparse.Namespace):
         print(f"  wrote     {args.plot} ({write(job, args.plot, parameters={'input': path_in.name})})")
     if out is not None:
         try:
-            print(f"  wrote     {out} ({export(job, out, {'input': path_in.name}, bar, args.max_program_bytes)})")
+            what = export(job, out, {"input": path_in.name}, bar, args.max_program_bytes, program)
+            print(f"  wrote     {out} ({what})")
         finally:
             bar.close()
     return job
@@ -169,9 +180,11 @@ def warning_lines(warnings: tuple, limit: int = 10) -> list[str]:
     return out
 
 
-def export(job, out: Path, parameters: dict, progress=None, max_program_bytes: int | None = MAX_PROGRAM_BYTES) -> str:
+def export(job, out: Path, parameters: dict, progress=None, max_program_bytes: int | None = MAX_PROGRAM_BYTES,
+           program=None) -> str:
     """Write a job to ``out`` by its suffix (.csv / .json trajectory, .script program, .job saved plan) with the
-    export verb (:func:`planner.export.write`); what was written, for a person."""
+    export verb (:func:`planner.export.write`; ``program``: the program's moves if made already); what was written,
+    for a person."""
     from planner.export import write
 
     suffix = out.suffix.lower()
@@ -180,7 +193,8 @@ def export(job, out: Path, parameters: dict, progress=None, max_program_bytes: i
     if suffix in (".csv", ".json") and job.settings.robot is not None and job.problems:
         print(f"  warning   {job.settings.robot}: {counted(len(job.problems), 'move')} with problems; joints without "
               "an inverse kinematics solution are left empty", flush=True)
-    return write(job, out, parameters=parameters, progress=progress, max_program_bytes=max_program_bytes)
+    return write(job, out, parameters=parameters, progress=progress, max_program_bytes=max_program_bytes,
+                 program=program)
 
 
 def cmd_demo(args: argparse.Namespace) -> None:
