@@ -524,3 +524,24 @@ def test_the_page_survives_the_service_restarting_mid_run(postgres, redis, tmp_p
     finally:
         d.quit()
         assert s.stop() == 0, s.log.read_text()
+
+
+def test_a_worker_runs_at_the_workers_niceness_its_processes_too_and_the_api_does_not(postgres, redis, tmp_path):
+    """``planner worker`` is batch work, the whole process: at PLANNER_WORKER_NICE above where it started (its claims,
+    heartbeats and plans stored come after the API replicas' requests on a shared machine), its planning processes
+    at the same niceness (inherited, not added twice), the API replica where it started."""
+    base = os.getpriority(os.PRIO_PROCESS, 0)
+    s = CeleryService(tmp_path, db=fresh_database(postgres), broker=fresh_broker(redis), workers=1,
+                      env={"PLANNER_WORKER_NICE": "7"}).start()
+    try:
+        with s.client() as c:
+            view = wait_state(c, c.post("/v1/jobs", json=SMALL).json()["id"], timeout=60)
+            assert view["state"] == "done", view
+            (worker,) = s.pool
+            planning = worker.children("planner-work")
+            assert planning, "the worker's planning process is gone"
+            assert os.getpriority(os.PRIO_PROCESS, worker.proc.pid) == min(base + 7, 19)
+            assert [os.getpriority(os.PRIO_PROCESS, p) for p in planning] == [min(base + 7, 19)] * len(planning)
+            assert os.getpriority(os.PRIO_PROCESS, s.proc.pid) == base
+    finally:
+        assert s.stop() == 0, s.log.read_text()
