@@ -230,8 +230,8 @@ def run_worker(cfg: ServiceConfig, concurrency: int, queues: str, loglevel: str 
 
     names = worker_queues(cfg, queues)
     # batch work, the whole process (its bookkeeping too: claims, heartbeats, plans stored): on a machine shared with
-    # API replicas their requests come first (bench_scale, 2 replicas and 2 workers on 2 cores: p99 submit 68.7 ->
-    # 43.5-54.7 ms); its worker processes inherit the niceness and add none
+    # API replicas their requests come first (`bench_scale.py --only replicas`, 2 replicas and 2 workers on 2 cores,
+    # quiet machine: p99 submit 85.9 -> 50.3 and 62.7 ms); its worker processes inherit the niceness and add none
     with contextlib.suppress(OSError):
         os.nice(cfg.worker_nice)
     os.environ["PLANNER_WORKER_NICE"] = "0"
