@@ -11,8 +11,8 @@ state and plans in PostgreSQL; Redis and PostgreSQL started by this script on lo
 2. Per-task overhead of the broker: jobs of 3 waypoints submitted one at a time, each waited for: the median time
    from the job's row stored to its start in a worker (started_at - created_at) on each backend, and the median
    submit-to-done round trip.
-3. The whole NX job split: its fits made in pieces by 2 processes (sent back as bytes, as between machines) and the
-   job planned with them, against one process; and through the celery backend (``planner worker`` x 2: the service
+3. The whole NX job split: its moves planned in pieces by 2 processes (sent back as bytes, as between machines) and
+   joined, against one process; and through the celery backend (``planner worker`` x 2: the service
    plans its moves in pieces on both and joins them) against PLANNER_SPLIT_CHORDS=0, exports compared, the planning
    seconds of the coordinator and of the pieces; the same for its first passes (1/8, 1/4, 1/2 of its chords: from
    which size the split pays), and what a piece costs beyond its work (parse, chain, its moves' bytes, PostgreSQL).
@@ -131,7 +131,9 @@ def throughput(backend: str, workers: int, jobs: list, pg, redis, replicas: int 
             import multiprocessing
 
             with cf.ProcessPoolExecutor(len(apis), mp_context=multiprocessing.get_context("spawn")) as ex:
-                runs = list(ex.map(run_clients_async, [a.url for a in apis], share, [CLIENTS // len(apis)] * len(apis)))
+                start_at = [time.time() + 3.0] * len(apis)  # both processes started and ready (spawn: ~1 s each)
+                runs = list(ex.map(run_clients_async, [a.url for a in apis], share, [CLIENTS // len(apis)] * len(apis),
+                                   start_at))
             lat = [x for r in runs for x in r[0]]
             ids = [x for r in runs for x in r[1]]
             t0 = min(r[2] for r in runs)
@@ -198,50 +200,52 @@ def overhead(backend: str, pg, redis, n: int = 40) -> tuple[float, float]:
     return 1e3 * float(np.median(waits[5:])), 1e3 * float(np.median(trips[5:]))
 
 
-def _fit_piece(start: int, stop: int) -> tuple[bytes, float]:
+def _plan_piece(start: int, stop: int) -> tuple[bytes, float]:
     import importlib
 
-    from planner.job import fits_to_bytes
+    from planner.job import piece_to_bytes
 
     tic = time.perf_counter()
-    fits = importlib.import_module("planner.plan").fit_passes_of(NX_FILE, None, start, stop)
-    return fits_to_bytes(fits), time.perf_counter() - tic
+    piece = importlib.import_module("planner.plan").plan_piece(NX_FILE, None, start, stop)
+    return piece_to_bytes(piece), time.perf_counter() - tic
 
 
 def nx_split(workers: int = 2) -> tuple[list[list[str]], bytes]:
-    """The whole NX job planned in one process against its fits made in pieces by ``workers`` processes (the pieces'
-    fits sent back as bytes, as between machines) and the job planned with them; rows for the table, and the plan."""
+    """The whole NX job planned in one process against its moves planned in pieces by ``workers`` processes
+    (:func:`planner.plan.plan_pieces`, :func:`planner.plan.plan_piece`; each piece sent back as bytes, as between
+    machines) and joined (``plan(pieces=...)``): the service's split without the service; rows for the table, and the
+    plan."""
     import concurrent.futures as cf
     import importlib
 
     from planner import plan
-    from planner.job import fits_from_bytes
+    from planner.job import piece_from_bytes
 
     P = importlib.import_module("planner.plan")
     tic = time.perf_counter()
     whole = plan(NX_FILE)
     t_one = time.perf_counter() - tic
-    fit_one = whole.timings["fit"]
     tic = time.perf_counter()
-    batches = P.fit_batches(NX_FILE)
-    t_batches = time.perf_counter() - tic
-    per = -(-len(batches) // workers)
-    pieces = [(batches[k][0], batches[min(k + per, len(batches)) - 1][1]) for k in range(0, len(batches), per)]
+    pieces = [(a, b) for a, b, _, _ in P.plan_pieces(NX_FILE, None, workers)]
+    t_find = time.perf_counter() - tic
     with cf.ProcessPoolExecutor(workers) as pool:
         list(pool.map(abs, range(workers)))  # the processes started (as warm workers are)
         tic = time.perf_counter()
-        got = list(pool.map(_fit_piece, *zip(*pieces, strict=True)))
-        t_fit = time.perf_counter() - tic
+        got = list(pool.map(_plan_piece, *zip(*pieces, strict=True)))
+        t_pieces = time.perf_counter() - tic
     tic = time.perf_counter()
-    fits = [f for data, _ in got for f in fits_from_bytes(data)]
-    plan(NX_FILE, fits=fits)
+    joined = plan(NX_FILE, pieces=[piece_from_bytes(data) for data, _ in got])
     t_join = time.perf_counter() - tic
+    from planner.export import stream
+
+    if b"".join(stream(joined, "csv")) != b"".join(stream(whole, "csv")):
+        raise SystemExit("the joined NX job's CSV differs from the one process's (tests/test_plan_split.py)")
     sent = sum(len(d) for d, _ in got)
-    rows = [["one process", f"{t_one:.1f}", f"{fit_one:.1f}", "", "", "1.00"],
-            [f"fits in {len(pieces)} pieces on {workers} processes + plan with them",
-             f"{t_batches + t_fit + t_join:.1f}",
-             f"{t_fit:.1f} (pieces {', '.join(f'{t:.1f}' for _, t in got)})", f"{t_batches:.1f}",
-             f"{sent / 2**20:.1f}", f"{t_one / (t_batches + t_fit + t_join):.2f}"]]
+    total = t_find + t_pieces + t_join
+    rows = [["one process", f"{t_one:.1f}", "", "", "", "", "1.00"],
+            [f"{len(pieces)} pieces on {workers} processes, joined", f"{total:.1f}", f"{t_find:.1f}",
+             f"{t_pieces:.1f} ({', '.join(f'{t:.1f}' for _, t in got)})", f"{t_join:.1f}", f"{sent / 2**20:.1f}",
+             f"{t_one / total:.2f}"]]
     return rows, whole.to_bytes()
 
 
@@ -472,9 +476,10 @@ def main() -> None:
                     [[b, f"{a:.1f}", f"{t:.1f}"] for b, (a, t) in ov.items()])
         if not args.quick and NX_FILE.exists():
             rows, blob = nx_split()
-            print(f"\nthe whole NX job ({NX_FILE.name}) split: its fits in pieces on other processes, then planned "
-                  "with them (the exports byte for byte the same: tests/test_plan_split.py)")
-            print_table(["", "wall s", "fitting s", "parse + split for the pieces s", "fits sent MiB", "x one"], rows)
+            print(f"\nthe whole NX job ({NX_FILE.name}) split: its moves planned in pieces on other processes and "
+                  "joined (the exports byte for byte the same: tests/test_plan_split.py)")
+            print_table(["", "wall s", "pieces found s", "pieces planned s", "join s", "pieces sent MiB", "x one"],
+                        rows)
             print("\nthe same through the celery backend (2 worker processes): split across them against one process")
             print_nx_service_split(pg, redis)
             print(f"\nthe whole NX job's plan in the store ({NX_FILE.name}):")

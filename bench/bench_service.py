@@ -186,12 +186,15 @@ def run_clients(url: str, jobs: list, clients: int) -> tuple[list[float], list[s
     return latencies, ids, first[0], firsts
 
 
-def run_clients_async(url: str, jobs: list, clients: int) -> tuple[list[float], list[str], float, list[float]]:
+def run_clients_async(url: str, jobs: list, clients: int,
+                      start_at: float | None = None) -> tuple[list[float], list[str], float, list[float]]:
     """As :func:`run_clients`, the ``clients`` clients being connections of one asyncio (uvloop) event loop in this
     process, each sending its requests one after another (HTTP/1.1 keep-alive, each request's bytes prepared before
     the clock starts, the 202 read to its last byte before the clock stops, then checked). One thread: no GIL
     hand-overs between clients; ~0.05 ms of CPU per request, a quarter of the threads' (which took as much of the
-    2 cores from the service as its own work)."""
+    2 cores from the service as its own work). ``start_at``: the wall-clock time (``time.time()``) at which the
+    clients start, every request prepared before it (clients in several processes start together, none while
+    another process is still importing)."""
     import asyncio
 
     host, port = url.split("//")[1].split(":")
@@ -230,7 +233,7 @@ def run_clients_async(url: str, jobs: list, clients: int) -> tuple[list[float], 
     async def main() -> None:
         start = asyncio.Event()
         tasks = [asyncio.ensure_future(client([request(p) for p in jobs[k::clients]], start)) for k in range(clients)]
-        await asyncio.sleep(0.05)  # every client waiting at the start line
+        await asyncio.sleep(0.05 if start_at is None else max(0.05, start_at - time.time()))  # all at the start line
         start.set()
         await asyncio.gather(*tasks)
 

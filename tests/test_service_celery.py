@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from planner.frontends.service.tasks.functions import plain
+from planner.frontends.service.tasks.functions import VIEW_AT_PLAN_POSES, plain
 from planner.frontends.service.tasks.transitions import LEASE_S
 from tests import pg_server, redis_server
 from tests.celery_cluster import CeleryService, fresh_broker, fresh_database, wait_for
@@ -338,6 +338,16 @@ def test_a_large_file_split_across_workers_is_the_job_planned_at_once_and_surviv
                 assert got.status_code == 200, got.text
                 assert got.content == b"".join(stream(whole, fmt, parameters={"input": "raster.csv"})), fmt
             assert figures(view["summary"]) == figures(plain(whole.summary()))  # every figure but the timings
+            # a job of more than VIEW_AT_PLAN_POSES poses has its 3D view data made by its worker after its end, split
+            # or not (the same job at 10 kHz)
+            jid = submit_file(c, "big.csv", raster(28, 600), {"rate": 10000.0})
+            view = wait_state(c, jid, timeout=300)
+            assert view["state"] == "done" and view["note"].startswith("split: planned in 2 pieces"), view
+            assert view["summary"]["duration_s"] * 10000.0 > VIEW_AT_PLAN_POSES
+            deadline = time.monotonic() + 120
+            while s.sql("select count(*) from job_data where job_id = :id and name = 'view'", id=jid) != [(1,)]:
+                assert time.monotonic() < deadline, "the split job's 3D view data were never stored"
+                time.sleep(0.5)
             # the worker fitting the other piece killed (SIGKILL, its processes with it): the job's own worker takes
             # the piece over once its heartbeats have stopped; the job is done once, the same plan
             data = raster(28, 600)  # 28 passes, 16799 chords: seconds of fitting per piece

@@ -284,8 +284,8 @@ class ServiceConfig(BaseModel):
         many CAM chords of passes whose tool axis varies (a chord of a constant tool axis counting 0.115)
         (``PLANNER_SPLIT_CHORDS``; 0: never; :mod:`.tasks.split`).
     worker_nice : int
-        Niceness added to worker processes, 0..19 (``PLANNER_WORKER_NICE``; read by each worker process itself,
-        :data:`.tasks.child.WORKER_NICE`: checked here so that a bad value is refused when the service starts).
+        Niceness added to the service's worker and drawing processes, and to the whole of a ``planner worker``,
+        0..19 (``PLANNER_WORKER_NICE``, default 10: batch work, the API's requests come first on a shared machine).
     """
 
     model_config = ConfigDict(extra="forbid", frozen=True)

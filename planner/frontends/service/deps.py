@@ -43,7 +43,7 @@ class Service:
         self.store = Transitions(self.engine)
         self.backend = make_backend(cfg, self.store, self.finished)
         self.inserter = Inserter(self.store, self.backend.submitted)
-        self.plotter = Plotter()
+        self.plotter = Plotter(cfg.worker_nice)
 
     def finished(self, kind: Kind, outcome: Outcome, seconds: float) -> None:
         """A task's end was stored by this process: counted."""

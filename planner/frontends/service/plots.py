@@ -18,17 +18,18 @@ from concurrent.futures import Future, ProcessPoolExecutor
 from concurrent.futures.process import BrokenProcessPool
 
 
-def _start(parent_pid: int) -> None:
+def _start(parent_pid: int, nice: int) -> None:
     """In the drawing process: die with the service, yield to requests, and import matplotlib now (not on the
     first picture)."""
-    from planner.frontends.service.tasks.child import WORKER_NICE, die_with_parent, name_process
+    from planner.frontends.service.tasks.child import die_with_parent, name_process
 
     die_with_parent(parent_pid)
     name_process("planner-plot")
-    try:
-        os.nice(WORKER_NICE)
-    except OSError:
-        pass
+    if nice:
+        try:
+            os.nice(nice)
+        except OSError:
+            pass
     import matplotlib
 
     matplotlib.use("Agg")
@@ -86,9 +87,11 @@ def draw_run(plan: bytes, figures: dict, trace: bytes, target: str) -> int:
 
 
 class Plotter:
-    """One drawing process; :meth:`draw` gives a future of the target's size (shared while it is drawn)."""
+    """One drawing process (at ``nice`` above the service: the configuration's ``worker_nice``); :meth:`draw` gives
+    a future of the target's size (shared while it is drawn)."""
 
-    def __init__(self) -> None:
+    def __init__(self, nice: int = 0) -> None:
+        self.nice = nice
         self._lock = threading.Lock()
         self._pool: ProcessPoolExecutor | None = None
         self._inflight: dict[str, Future] = {}
@@ -101,7 +104,7 @@ class Plotter:
 
     def _new_pool(self) -> ProcessPoolExecutor:
         return ProcessPoolExecutor(max_workers=1, mp_context=mp.get_context("spawn"), initializer=_start,
-                                   initargs=(os.getpid(),))
+                                   initargs=(os.getpid(), self.nice))
 
     def stop(self) -> None:
         """Stop drawing: a picture being drawn is abandoned, its process killed (a stopping service never waits for

@@ -21,19 +21,6 @@ import signal
 import threading
 
 
-def _nice(value: str) -> int:
-    """PLANNER_WORKER_NICE as a worker process reads it (the service refused a bad value when it started,
-    :class:`..config.ServiceConfig`; here one is taken as the default, 10, and never ends the process)."""
-    try:
-        return min(max(int(value.strip() or 10), 0), 19)
-    except ValueError:
-        return 10
-
-
-#: Niceness added to worker processes (PLANNER_WORKER_NICE, 0..19, default 10).
-WORKER_NICE = _nice(os.environ.get("PLANNER_WORKER_NICE", ""))
-
-
 def name_process(name: str) -> None:
     """Linux: the process's name in ``ps`` and ``/proc/PID/comm`` (at most 15 bytes): planner-work, planner-plot,
     planner-exec."""
@@ -54,16 +41,18 @@ def die_with_parent(parent_pid: int) -> None:
         os._exit(1)
 
 
-def child_main(conn, parent_pid: int, name: str = "planner-work") -> None:
+def child_main(conn, parent_pid: int, name: str = "planner-work", nice: int = 0) -> None:
     """The worker's loop: tasks in, messages out, until the pipe closes or None arrives. ``name``: the process's
-    name (planner-work plans, planner-exec executes)."""
+    name (planner-work plans, planner-exec executes); ``nice``: niceness it adds to its own (batch work: the
+    service's requests come first on a busy machine)."""
     from planner.frontends.service.tasks.functions import Phase, execute_job, halt_until_the_run_ends, plan_job
     from planner.frontends.service.tasks.lifecycle import Files, failed
 
     die_with_parent(parent_pid)
     name_process(name)
-    with contextlib.suppress(OSError):
-        os.nice(WORKER_NICE)  # batch work: the service's requests come first on a busy machine
+    if nice:
+        with contextlib.suppress(OSError):
+            os.nice(nice)
     signal.signal(signal.SIGINT, signal.SIG_IGN)  # Ctrl-C goes to the service, which stops its workers
     import planner.plan  # noqa: F401  (imported before the first job: its time is not the job's)
 

@@ -40,8 +40,8 @@ class LocalBackend:
         self.stopping = threading.Event()
         self._cond = threading.Condition()
         self._lock = threading.Lock()
-        self.slots = [Slot(store, cfg.job_timeout_s, self.stopping, on_finish=on_finish, cancel_poll=POKED_POLL)
-                      for _ in range(cfg.workers)]
+        self.slots = [Slot(store, cfg.job_timeout_s, self.stopping, on_finish=on_finish, cancel_poll=POKED_POLL,
+                           nice=cfg.worker_nice) for _ in range(cfg.workers)]
         self._threads = [threading.Thread(target=self._serve, args=(s,), name=f"planner-worker-{i}", daemon=True)
                          for i, s in enumerate(self.slots)]
         self.executions: dict[str, tuple[Slot, threading.Thread]] = {}
@@ -114,7 +114,7 @@ class LocalBackend:
             raise RobotBusy("the service is shutting down")
         self.store.create_execution(values)
         slot = Slot(self.store, self.cfg.job_timeout_s, self.stopping, name="planner-exec", on_finish=self.on_finish,
-                    cancel_poll=POKED_POLL)
+                    cancel_poll=POKED_POLL, nice=self.cfg.worker_nice)
         thread = threading.Thread(target=self._execute, args=(slot, values["id"]),
                                   name=f"execution-{values['id'][:8]}", daemon=True)
         with self._lock:

@@ -65,12 +65,16 @@ class Slot:
     live : LiveHub or RedisLive, optional
         Where an execution's live samples go (:mod:`planner.frontends.service.live`; default this process's
         :data:`~planner.frontends.service.live.HUB`).
+    nice : int
+        Niceness the worker process adds to this one's (0..19; the local backend's ``worker_nice``; a ``planner
+        worker`` runs at its own niceness already, its processes add none).
     """
 
     def __init__(self, store: Transitions, job_timeout_s: float, stopping: threading.Event,
                  name: str = "planner-work", on_finish: Finished | None = None, cancel_poll: float = CANCEL_POLL,
-                 live: Any = None):
+                 live: Any = None, nice: int = 0):
         self.store = store
+        self.nice = nice
         self.cancel_poll = cancel_poll
         self.live = HUB if live is None else live
         self.job_timeout_s = job_timeout_s
@@ -93,7 +97,8 @@ class Slot:
 
         ctx = mp.get_context("spawn")
         parent, child = ctx.Pipe()
-        proc = ctx.Process(target=child_main, args=(child, os.getpid(), self.name), name=self.name, daemon=True)
+        proc = ctx.Process(target=child_main, args=(child, os.getpid(), self.name, self.nice), name=self.name,
+                           daemon=True)
         proc.start()
         child.close()
         self.process, self.conn = proc, parent

@@ -7,9 +7,9 @@ worker slot alive, consecutive cutting passes balanced by CAM chords and by what
 before a piece costs it; a parse of the file), and if the job is large enough (``PLANNER_SPLIT_CHORDS``: CAM chords
 of passes whose tool axis varies, a chord of a constant axis counting 0.115, :data:`planner.plan.PIECE_COST`; two
 pieces, two worker slots alive) stores its pieces (:class:`~planner.frontends.service.store.JobChunk`) and sends
-one message per piece ("planner.fit_piece", the name kept from when pieces were only fitted). Any worker takes a
-piece (:func:`run_piece`: :func:`planner.plan.plan_piece`, its planned moves stored in the database with the piece
-marked done, in one transaction); the coordinator plans the pieces no other worker has taken yet itself, so a job
+one message per piece ("planner.plan_piece"). Any worker takes a piece (:func:`run_piece`:
+:func:`planner.plan.plan_piece`, its planned moves stored in the database with the piece marked done, in one
+transaction); the coordinator plans the pieces no other worker has taken yet itself, so a job
 never waits for a busy queue and coordinators never wait for each other, then joins them (:func:`planner.plan`,
 ``pieces=``) and stores the job's end as any job's (conditionally: :meth:`.transitions.Transitions.finish`). The
 plan is the one a single process makes, export for export, byte for byte: every piece chains the tool frames of the
@@ -187,11 +187,16 @@ class Coordinator:
                         deadline=deadline)
 
     def _end(self, slot: Slot, job_id: str, attempt: int, outcome: Outcome) -> None:
+        """Store the job's end (its pieces dropped), then what its join left to make after it (a large job's 3D view
+        data, as an unsplit job's: :meth:`.runner.Slot.run`)."""
+        stored = False
         try:
-            slot._finish(JOB, job_id, attempt, outcome)
+            stored = slot._finish(JOB, job_id, attempt, outcome)
         finally:
             with contextlib.suppress(Exception):
                 self.store.drop_chunks(job_id)
+        if stored and outcome.later:
+            slot._later(job_id)
 
     # -- any worker ---------------------------------------------------------------------------------------------------
     def run_piece(self, slot: Slot, job_id: str, first: int) -> str:
