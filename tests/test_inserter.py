@@ -46,6 +46,9 @@ def test_a_burst_is_stored_whole_and_a_bad_row_stores_none_of_its_batch(pg_url, 
         with engine.connect() as conn:
             assert conn.scalar(select(func.count()).select_from(Job)) == n
         assert len(told) == n
+        # the same connection stores the next batch
+        assert asyncio.run(_burst(inserter, [_row(k) for k in range(2 * n, 2 * n + 3)])) == [None] * 3
+        assert len(told) == n + 3
     finally:
         inserter.close()
         engine.dispose()

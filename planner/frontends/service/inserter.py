@@ -31,10 +31,11 @@ JOBS: Table = Job.__table__  # type: ignore[assignment]
 DATA: Table = JobData.__table__  # type: ignore[assignment]
 
 
-def _insert_sql(table: Table, columns: list[str]) -> str:
-    """``INSERT INTO table (columns) VALUES (%(column)s, ...)``: psycopg's named parameters."""
+def _insert_sql(table: Table, columns: list[str], binary: tuple[str, ...] = ()) -> str:
+    """``INSERT INTO table (columns) VALUES (%(column)s, ...)``: psycopg's named parameters (``binary``: those sent
+    as they are, ``%(column)b``, not escaped as text)."""
     return (f"INSERT INTO {table.name} ({', '.join(columns)}) "
-            f"VALUES ({', '.join(f'%({c})s' for c in columns)})")
+            f"VALUES ({', '.join(f'%({c})' + ('b' if c in binary else 's') for c in columns)})")
 
 
 #: The columns of a new job's row (:func:`.submit._row`) and of its input file's bytes, as inserted on PostgreSQL
@@ -44,7 +45,7 @@ JOB_COLUMNS = ["id", "owner", "team", "state", "created_at", "stage", "done", "t
                "input_kind", "input_name", "input_format", "input_bytes", "input_json", "settings", "read_options"]
 DATA_COLUMNS = ["job_id", "name", "data", "bytes", "created_at"]
 JOB_INSERT = _insert_sql(JOBS, JOB_COLUMNS)
-DATA_INSERT = _insert_sql(DATA, DATA_COLUMNS)
+DATA_INSERT = _insert_sql(DATA, DATA_COLUMNS, binary=("data",))  # an upload's bytes: no hex escaping in the loop
 
 
 def _with_defaults(table: Table, columns: list[str]) -> Callable[[dict], dict]:
