@@ -49,8 +49,9 @@ DATA_INSERT = _insert_sql(DATA, DATA_COLUMNS, binary=("data",))  # an upload's b
 
 
 def _with_defaults(table: Table, columns: list[str]) -> Callable[[dict], dict]:
-    """A row of ``table`` with the scalar Python-side default of each of ``columns`` it lacks (what SQLAlchemy's
-    insert fills in); KeyError for a lacking column without one."""
+    """A function giving a row of ``table`` the scalar Python-side default of each of ``columns`` it lacks (what
+    SQLAlchemy's insert fills in; a lacking column without one is psycopg's error at the insert). KeyError at once
+    if ``table`` has no such column."""
     defaults = {c.name: c.default.arg for c in table.columns  # type: ignore[attr-defined]
                 if c.name in columns and c.default is not None and c.default.is_scalar}
     unknown = set(columns) - {c.name for c in table.columns}
