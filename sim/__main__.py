@@ -87,6 +87,10 @@ def main(argv: list[str] | None = None) -> int:
                     help="the PolyScope 5 version to report and behave as, e.g. 5.4.0 (default 5.11.6): RTDE fields "
                          "and dashboard commands newer than it are unknown")
     args = ap.parse_args(argv)
+    # Ctrl-C stops it whatever its parent left it: SIGINT ignored (a shell script's background job) or blocked (a
+    # process started from a thread that blocks it) would leave it serving on
+    signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT})
+    signal.signal(signal.SIGINT, signal.default_int_handler)
     started = time.time()
     try:
         sim = SimController(args.host, args.model, None if args.no_modbus else args.modbus_port, args.speed,

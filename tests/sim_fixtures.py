@@ -122,3 +122,14 @@ class RawRTDE:
 
     def close(self) -> None:
         self.sock.close()
+
+
+def signal_state(pid: int) -> str:
+    """A process's blocked, ignored and caught signals (/proc/PID/status, hexadecimal masks; bit 1 is SIGINT): what
+    a test says when a process did not stop on a signal."""
+    try:
+        with open(f"/proc/{pid}/status") as f:
+            return " ".join(line.strip().replace(":\t", "=") for line in f if line.startswith(("SigBlk", "SigIgn",
+                                                                                                  "SigCgt")))
+    except OSError as exc:
+        return f"(no /proc/{pid}/status: {exc})"

@@ -12,6 +12,7 @@ from __future__ import annotations
 
 import csv
 import importlib.metadata
+import os
 import signal
 import subprocess
 import sys
@@ -27,8 +28,13 @@ from planner.kinematics import forward
 from sim import recording
 from sim.motion import DT, HOME, JOINT_ACCEL_MAX, servo_following_error
 from tests import sim_fixtures
+from tests.sim_fixtures import signal_state
 
 make_sim = sim_fixtures.make_sim  # fixture
+#: ``python -c`` running an example script (argv[1:]) as from a terminal: SIGINT unblocked and raising KeyboardInterrupt.
+AS_FROM_A_TERMINAL = ("import runpy, signal, sys; signal.pthread_sigmask(signal.SIG_UNBLOCK, {signal.SIGINT}); "
+                      "signal.signal(signal.SIGINT, signal.default_int_handler); sys.argv = sys.argv[1:]; "
+                      "runpy.run_path(sys.argv[0], run_name='__main__')")
 EXAMPLE_Q = [-1.54, -1.83, -2.28, -0.59, 1.60, 0.023]  # the start joints of the servo, speed and force examples
 
 
@@ -60,8 +66,10 @@ def _run(examples: Path, name: str, host: str, tmp_path: Path, args=(), interrup
         text = text.replace(literal, repr(host))
     script = tmp_path / name
     script.write_text(text)
-    proc = subprocess.Popen([sys.executable, str(script), *args], stdout=subprocess.PIPE, stderr=subprocess.STDOUT,
-                            text=True, cwd=tmp_path)
+    # run as a person runs it from a terminal: Ctrl-C raises KeyboardInterrupt in it, whatever this process's thread
+    # blocks or ignores (CI saw a SIGINT never reach the example, three times in one run of the whole suite)
+    proc = subprocess.Popen([sys.executable, "-c", AS_FROM_A_TERMINAL, str(script), *args], stdout=subprocess.PIPE,
+                            stderr=subprocess.STDOUT, text=True, cwd=tmp_path)
     lines: list[str] = []
     reader = threading.Thread(target=lambda: lines.extend(iter(proc.stdout.readline, "")), daemon=True)
     reader.start()
@@ -76,10 +84,12 @@ def _run(examples: Path, name: str, host: str, tmp_path: Path, args=(), interrup
             proc.send_signal(signal.SIGINT)
         proc.wait(timeout=timeout)
     except subprocess.TimeoutExpired:
+        state = signal_state(proc.pid)
         proc.kill()
         proc.wait()
         reader.join(5.0)
-        pytest.fail(f"{name} did not finish within {timeout} s:\n{''.join(lines)[-2000:]}")
+        pytest.fail(f"{name} did not finish within {timeout} s (its signals: {state}, this process's: "
+                    f"{signal_state(os.getpid())}):\n{''.join(lines)[-2000:]}")
     reader.join(10.0)
     out = "".join(lines)
     assert proc.returncode == 0, f"{name} failed ({proc.returncode}):\n{out[-2000:]}"

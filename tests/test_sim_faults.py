@@ -6,6 +6,7 @@ control mode (dashboard refusals, script ports refusing programs, ur_rtde's own 
 from __future__ import annotations
 
 import json
+import os
 import re
 import signal
 import socket
@@ -27,7 +28,7 @@ from sim.__main__ import command
 from sim.dashboard import LOCAL_REFUSAL
 from sim.motion import HOME, JOINT_ACCEL_MAX
 from tests import sim_fixtures
-from tests.sim_fixtures import eventually, next_host
+from tests.sim_fixtures import eventually, next_host, signal_state
 
 make_sim = sim_fixtures.make_sim  # fixture
 REPO = Path(__file__).resolve().parents[1]
@@ -352,7 +353,11 @@ def test_the_command_line_says_when_the_recording_could_not_be_written(tmp_path)
     try:
         assert "simulated ur5e on" in proc.stdout.readline()
         proc.send_signal(signal.SIGINT)
-        out, err = proc.communicate(timeout=30)
+        try:
+            out, err = proc.communicate(timeout=30)
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"python -m sim ran on 30 s after SIGINT; its signals: {signal_state(proc.pid)}, this "
+                        f"process's: {signal_state(os.getpid())}")
     finally:
         proc.kill()
     assert proc.returncode == 1, (out, err)

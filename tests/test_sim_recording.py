@@ -77,7 +77,11 @@ def test_python_m_sim_runs_until_interrupted(tmp_path):
         assert r.getRobotMode() == 7
         r.disconnect()
         os.kill(proc.pid, signal.SIGINT)
-        assert proc.wait(20) == 0
+        try:
+            assert proc.wait(20) == 0
+        except subprocess.TimeoutExpired:
+            pytest.fail(f"python -m sim ran on 20 s after SIGINT; its signals: "
+                        f"{sim_fixtures.signal_state(proc.pid)}, this process's: {sim_fixtures.signal_state(os.getpid())}")
         assert rec.exists() and len(recording.load(rec).t) > 10
     finally:
         if proc.poll() is None:
