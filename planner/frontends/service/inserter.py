@@ -61,6 +61,14 @@ def _with_defaults(table: Table, columns: list[str]) -> Callable[[dict], dict]:
 
 
 _job_row = _with_defaults(JOBS, JOB_COLUMNS)
+
+
+def _blobs(batch: list) -> list[dict]:
+    """The ``job_data`` rows of a batch's uploaded input files."""
+    return [{"job_id": row["id"], "name": "input", "data": data, "bytes": len(data), "created_at": now()}
+            for row, data, _ in batch if data is not None]
+
+
 #: Seconds the first commit (or the first after the database server went away) waits for a connection.
 CONNECT_S = 5
 
@@ -115,8 +123,7 @@ class Inserter:
         import psycopg
 
         jobs = [_job_row(row) for row, _, _ in batch]
-        blobs = [{"job_id": row["id"], "name": "input", "data": data, "bytes": len(data), "created_at": now()}
-                 for row, data, _ in batch if data is not None]
+        blobs = _blobs(batch)
         try:
             if self._conn is None:
                 url = self.store.engine.url.set(drivername="postgresql").render_as_string(hide_password=False)
@@ -136,8 +143,7 @@ class Inserter:
     # -- SQLite: the commit in the loop, after the turn's requests ----------------------------------------------------
     def _commit(self) -> None:
         batch, self._pending = self._pending, []
-        blobs = [{"job_id": row["id"], "name": "input", "data": data, "bytes": len(data), "created_at": now()}
-                 for row, data, _ in batch if data is not None]
+        blobs = _blobs(batch)
         try:
             with self.store.write_lock, self.store.engine.begin() as conn:
                 conn.execute(JOBS.insert(), [row for row, _, _ in batch])  # one executemany, Core

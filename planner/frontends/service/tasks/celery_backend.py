@@ -56,7 +56,8 @@ log = logging.getLogger("planner.frontends.service")
 PLAN_QUEUE = "plan"
 EXECUTE_QUEUE = "execute"
 #: The queue of each task (the Celery routes, and the publisher's own: no router lookup per message).
-TASK_QUEUES = {"planner.plan_job": PLAN_QUEUE, "planner.plan_piece": PLAN_QUEUE, "planner.execute_job": EXECUTE_QUEUE}
+TASK_QUEUES = {"planner.plan_job": PLAN_QUEUE, "planner.plan_piece": PLAN_QUEUE, "planner.execute_job": EXECUTE_QUEUE,
+               "planner.fit_piece": PLAN_QUEUE}  # (deprecated name of plan_piece, one release)
 #: Seconds above the longest allowed job that a message stays invisible to other workers while unacknowledged.
 VISIBILITY_MARGIN = 300.0
 #: Seconds a queued job waits with the broker's queue empty before its message is sent again (a lost message).
@@ -188,6 +189,13 @@ def _register(app) -> None:
     def plan_piece_task(self, job_id: str, first: int) -> str:
         ctx = _ctx()
         return ctx.coordinator.run_piece(ctx.slot(), job_id, int(first))
+
+    @app.task(name="planner.fit_piece", **options)
+    def fit_piece_task(self, job_id: str, first: int) -> str:
+        """Deprecated name of "planner.plan_piece" (messages of a coordinator of the previous release), kept for one
+        release."""
+        log.warning('task "planner.fit_piece" is deprecated: it is "planner.plan_piece" (upgrade every worker)')
+        return plan_piece_task.run(job_id, first)
 
     @app.task(name="planner.execute_job", **options)
     def execute_job_task(self, execution_id: str) -> str:
