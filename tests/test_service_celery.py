@@ -196,6 +196,26 @@ def wait_ended(pids, timeout: float, what: str) -> None:
                          for p in pids), timeout, what)
 
 
+def wait_idle(worker, name: str, timeout: float, what: str) -> None:
+    """Wait until ``worker`` has a child process ``name`` that has used no CPU for a second (its imports done)."""
+    def ticks(pid: int) -> int:
+        try:
+            fields = Path(f"/proc/{pid}/stat").read_text().rsplit(")", 1)[1].split()
+        except OSError:
+            return -1
+        return int(fields[11]) + int(fields[12])  # utime + stime, clock ticks
+
+    def idle() -> bool:
+        pids = worker.children(name)
+        if not pids:
+            return False
+        before = ticks(pids[0])
+        time.sleep(1.0)
+        return before >= 0 and ticks(pids[0]) == before
+
+    wait_for(idle, timeout, what)
+
+
 @contextlib.contextmanager
 def replicas(postgres, redis, tmp_path, *, sim_speed: float, workers: int):
     """Two API replicas on one database and broker, with a simulated robot "sim" at ``sim_speed``: ``a`` with
@@ -294,7 +314,14 @@ def piece_elsewhere(s: CeleryService, job_id: str, timeout: float = 120.0):
         found[:] = [w for w in s.pool if rows and w.proc.pid == int(rows[0][0].rsplit(":", 1)[1])]
         return bool(found) and bool(found[0].children("planner-work"))
 
-    wait_for(look, timeout, f"a piece of job {job_id} planned by another worker")
+    try:
+        wait_for(look, timeout, f"a piece of job {job_id} planned by another worker")
+    except AssertionError as exc:  # what the job did instead
+        job = s.sql("select state, holder, note, error from jobs where id = :id", id=job_id)
+        chunks = s.sql("select first, state, holder, takes from job_chunks where job_id = :id", id=job_id)
+        workers = s.sql("select id, concurrency, busy, heartbeat_at from workers")
+        raise AssertionError(f"{exc}\njob: {job}\npieces: {chunks}\nworkers: {workers} (now {time.time():.1f})\n"
+                             + "\n".join(w.log.read_text()[-3000:] for w in s.pool if w.log.exists())) from None
     return found[0]
 
 
@@ -389,6 +416,9 @@ def test_a_split_job_cancelled_stops_its_pieces_and_a_failed_piece_fails_it(post
             print(f"cancel reached the piece's process in {1e3 * (time.monotonic() - tic):.0f} ms")
             assert s.sql("select count(*) from job_chunks where job_id = :id", id=jid) == [(0,)]  # gone with it
             assert c.get(f"/v1/jobs/{jid}").json()["state"] == "cancelled"
+            # (the other worker's fresh process ready: else the job's own worker plans both pieces, as it should)
+            wait_idle(worker, "planner-work", 60, "the other worker's fresh process started")
+            assert "raised unexpected" not in "".join(w.log.read_text() for w in s.pool)  # (the coordinator's end)
             # a piece's process dies (as an out-of-memory kill would end it): the job fails with its one-line error
             jid = submit_file(c, "big.csv", data, {})
             worker = piece_elsewhere(s, jid)

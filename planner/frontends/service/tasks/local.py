@@ -79,6 +79,7 @@ class LocalBackend:
                 self.stopping.wait(1.0)
                 continue
             if claimed is None:
+                slot.settle()  # (a fresh process started after a cancel or a failure: counted alive once ready)
                 with self._cond:
                     self._cond.wait(0.5)
                 continue

@@ -7,7 +7,8 @@ cancellation every :data:`.transitions.CANCEL_POLL` s, enforces the time limit o
 outcome (conditionally: :meth:`.transitions.Transitions.finish`).
 
 - Cancel of a job: its process is killed (within ~0.2 s of the request, in whichever process or machine runs it) and
-  a fresh one started.
+  a fresh one started, importing while the runner goes on to its next task (which waits only for what is left of
+  that start).
 - Stop of an execution: "stop" goes to its process, whose driver ends the run with a controlled stop (the arm at
   rest within a second); a process that has not ended :data:`STOP_GRACE` s later is killed (its connection drops and
   the controller stops the arm).
@@ -84,15 +85,17 @@ class Slot:
         self.process: Any = None
         self.conn: Any = None
         self.ready = False
+        self._start_by = 0.0
         self.current: tuple[str, int] | None = None
         #: Set by the process's own request path (the local backend): look at the row now, not at the next poll.
         self.poke = threading.Event()
 
     # -- process ----------------------------------------------------------------------------------------------------
-    def start_process(self, beat: Callable[[], None] | None = None) -> None:
-        """Start the worker process and wait until it has imported the planner; ``beat`` (the claimed task's
-        heartbeat) is called every HEARTBEAT_EVERY s meanwhile (on a busy machine the imports take tens of seconds:
-        the task must not look dead)."""
+    def start_process(self, beat: Callable[[], None] | None = None, wait: bool = True) -> None:
+        """Start the worker process and (``wait``) wait until it has imported the planner; ``beat`` (the claimed
+        task's heartbeat) is called every HEARTBEAT_EVERY s meanwhile (on a busy machine the imports take tens of
+        seconds: the task must not look dead). Not ``wait``: the process imports while this thread goes on (a
+        fresh process after a task's cancel or failure; the next task waits for what is left of its start)."""
         from planner.frontends.service.tasks.child import child_main
 
         ctx = mp.get_context("spawn")
@@ -103,10 +106,17 @@ class Slot:
         child.close()
         self.process, self.conn = proc, parent
         self.ready = False
-        deadline = time.monotonic() + WORKER_START_TIMEOUT
-        try:  # its imports done: a job's time limit counts from its start, not from the worker's
-            while time.monotonic() < deadline:
-                if parent.poll(min(HEARTBEAT_EVERY, max(deadline - time.monotonic(), 0.0))):
+        self._start_by = time.monotonic() + WORKER_START_TIMEOUT
+        if wait:
+            self._wait_ready(beat)
+
+    def _wait_ready(self, beat: Callable[[], None] | None) -> None:
+        """Wait for the started process's "ready" (its imports done: a job's time limit counts from its start, not
+        from the worker's), until WORKER_START_TIMEOUT s after its start."""
+        parent = self.conn
+        try:
+            while parent is not None and time.monotonic() < self._start_by:
+                if parent.poll(min(HEARTBEAT_EVERY, max(self._start_by - time.monotonic(), 0.0))):
                     self.ready = parent.recv() == ("ready",)
                     break
                 if beat is not None:
@@ -116,6 +126,17 @@ class Slot:
             pass
         if not self.ready:
             log.error("worker process %s did not start within %g s", self.name, WORKER_START_TIMEOUT)
+
+    def settle(self) -> None:
+        """Take the "ready" of a process started in the background if it has come (without waiting; from the thread
+        that runs this slot's tasks, between them: :attr:`alive` then counts it)."""
+        if self.ready or self.conn is None:
+            return
+        try:
+            if self.conn.poll(0):
+                self.ready = self.conn.recv() == ("ready",)
+        except (EOFError, OSError):
+            self.ready = False
 
     def stop_process(self, kill: bool = False) -> None:
         proc, conn = self.process, self.conn
@@ -236,8 +257,12 @@ class Slot:
                 self.store.progress(kind, task_id, attempt, p)
 
         if not self.alive:
-            self.stop_process(kill=True)
-            self.start_process(beat)
+            starting = (not self.ready and self.process is not None and self.process.is_alive()
+                        and time.monotonic() < self._start_by)
+            if not starting:
+                self.stop_process(kill=True)
+                self.start_process(beat, wait=False)
+            self._wait_ready(beat)
         if not self.alive:
             return failed("internal", f"the worker process did not start within {WORKER_START_TIMEOUT:g} s")
         assert self.conn is not None and self.process is not None
@@ -274,7 +299,7 @@ class Slot:
                             else:
                                 on_stopping()
                         else:
-                            self.start_process()
+                            self.start_process(wait=False)
                         return None
                 elif (state == "stopping" or self.stopping.is_set()) and stop_sent is None:
                     if self.stopping.is_set():
@@ -288,7 +313,7 @@ class Slot:
                                                                           f"end within {STOP_GRACE:g} s and was killed")
             if t > deadline:
                 self.stop_process(kill=True)
-                self.start_process(beat)
+                self.start_process(wait=False)
                 return failed("limit", f"planning took longer than the service's limit of {self.job_timeout_s:g} s")
             if pending is not None and t - last_write >= PROGRESS_WRITE_EVERY[kind.name]:
                 write(pending)
@@ -309,7 +334,7 @@ class Slot:
                 code = self.process.exitcode
                 self.stop_process(kill=True)
                 if kind is JOB:
-                    self.start_process(beat)
+                    self.start_process(wait=False)
                     return failed("internal", f"the worker process planning this job died (exit code {code}); the "
                                               "job may need more memory than the worker has")
                 return failed("internal", f"the execution's process ended without a result (exit code {code})")

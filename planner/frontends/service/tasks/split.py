@@ -125,6 +125,10 @@ class Coordinator:
         try:
             while True:
                 pieces = self.store.chunks(job_id)
+                if not pieces:  # removed with the job's cancel
+                    if self.store.state(JOB, job_id) != "running":
+                        return None
+                    return failed("internal", "the job's pieces were removed while it ran")
                 bad = next((p for p in pieces if p["state"] == "failed"), None)
                 if bad is not None:
                     return failed(bad["error_kind"] or "internal", bad["error"] or "a piece of the job failed")
