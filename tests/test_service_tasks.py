@@ -8,6 +8,7 @@ import json
 import sqlite3
 import uuid
 
+import numpy as np
 import pytest
 from sqlalchemy import select, update
 
@@ -24,12 +25,13 @@ def store(tmp_path):
     engine.dispose()
 
 
-def _job(store: Transitions) -> str:
+def _job(store: Transitions, waypoints: list | None = None) -> str:
     job_id = uuid.uuid4().hex
+    waypoints = [[0, 0, 0], [1, 0, 0]] if waypoints is None else waypoints
     with store.engine.begin() as conn:
         conn.execute(Job.__table__.insert(), [dict(
             id=job_id, owner="k", state="queued", created_at=now(), input_kind="waypoints", input_name="<waypoints>",
-            input_format="waypoints", input_bytes=10, input_json=json.dumps({"waypoints": [[0, 0, 0], [1, 0, 0]]}),
+            input_format="waypoints", input_bytes=10, input_json=json.dumps({"waypoints": waypoints}),
             settings="{}", read_options="{}", stage="", done=0, total=0, attempts=0, job_bytes=0)])
     return job_id
 
@@ -67,11 +69,14 @@ def test_recovery_fails_a_job_after_max_attempts_and_spares_live_holders(store):
     live, dead = _job(store), _job(store)
     store.claim_job(live)
     store.claim_job(dead)
+    assert not store.any_stale(now() - LEASE_S)  # (the keeper's read: nothing to recover, nothing written)
     with store.engine.begin() as conn:
         conn.execute(update(Job).where(Job.id == dead).values(heartbeat_at=now() - 2 * LEASE_S))
+    assert store.any_stale(now() - LEASE_S)
     got = store.recover(now() - LEASE_S, 1, "a test", "tests")
     assert got["requeued_ids"] == [] and got["failed"] == 1
     assert store.state(JOB, dead) == "failed" and store.state(JOB, live) == "running"
+    assert not store.any_stale(now() - LEASE_S)
 
 
 def _execution(robot: str = "cell") -> dict:
@@ -94,6 +99,7 @@ def test_the_robot_lease_is_held_expires_and_is_taken_over(store):
     assert store.claim_execution(first["id"], robots) is None  # an execution is taken once, ever
     with store.engine.begin() as conn:  # its holder stops beating
         conn.execute(update(Execution).where(Execution.id == first["id"]).values(heartbeat_at=now() - LEASE_S - 1))
+    assert store.any_stale(now() - LEASE_S)
     second = _execution()
     store.create_execution(second)  # the expired lease is taken over
     assert store.state(EXECUTION, first["id"]) == "failed"
@@ -191,3 +197,32 @@ def test_a_large_jobs_view_data_are_made_after_its_end_is_stored(store):
     fine = ViewPath.from_bytes(data["view"][1])
     assert fine.t[0] == 0.0 and fine.t[-1] == pytest.approx(json.loads(summary)["duration_s"], abs=0.01)
     assert 2 < fine.t.size < 10_000  # a smooth path thinned within 10 um
+
+
+def test_a_cancelled_jobs_runner_does_not_wait_for_the_fresh_process(store):
+    """A job cancelled while it plans: the runner returns as soon as the process is killed, a fresh process importing
+    meanwhile, which the next job waits for and runs in."""
+    import threading
+    import time
+
+    from planner.frontends.service.tasks.runner import Slot
+
+    t = np.linspace(0.0, 60.0 * np.pi, 20_000)  # seconds of planning
+    job_id = _job(store, np.c_[0.1 * np.cos(t), 0.1 * np.sin(t), 1e-4 * t].round(7).tolist())
+    slot = Slot(store, 300.0, threading.Event())
+    slot.start_process()
+    try:
+        first = slot.process.pid
+        runner = threading.Thread(target=slot.run, args=(JOB, *store.claim_job(job_id)))
+        runner.start()
+        time.sleep(1.0)
+        assert runner.is_alive()  # still planning
+        assert store.cancel_job(job_id) == "running"
+        runner.join(30.0)
+        assert not runner.is_alive()
+        assert slot.process.pid != first and slot.process.is_alive() and not slot.ready  # started, not waited for
+        job_id = _job(store)
+        slot.run(JOB, *store.claim_job(job_id))
+        assert store.state(JOB, job_id) == "done" and len(_plans(store, job_id)) == 1
+    finally:
+        slot.stop_process()

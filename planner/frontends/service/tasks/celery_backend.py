@@ -331,10 +331,12 @@ class Keeper(threading.Thread):
 
     def keep(self) -> None:
         b = self.backend
-        got = b.store.recover(now() - LEASE_S, b.cfg.max_attempts, "its worker stopping to answer",
-                              "its workers stopping to answer")
-        if got["requeued_ids"]:
-            b.publisher.put("planner.plan_job", got["requeued_ids"])
+        stale = now() - LEASE_S
+        if b.store.any_stale(stale):  # (one read a round; the writes only when there is something to recover)
+            got = b.store.recover(stale, b.cfg.max_attempts, "its worker stopping to answer",
+                                  "its workers stopping to answer")
+            if got["requeued_ids"]:
+                b.publisher.put("planner.plan_job", got["requeued_ids"])
         if b.queue_depth() == 0:
             stale = now() - RESEND_AFTER
             with b.store.write_lock, b.store.engine.begin() as conn:
@@ -364,7 +366,10 @@ class CeleryBackend:
         self.publisher = Publisher(self.app)
         self.keeper = Keeper(self)
         self.live = RedisLive(cfg.broker)  # the workers' executions' live samples
-        self._depth: tuple[float, int] = (0.0, 0)
+        import redis
+
+        #: The broker's Redis, for its queue's depth (one connection kept: kombu's opened one per look).
+        self.broker = redis.Redis.from_url(str(cfg.broker), socket_timeout=2.0, socket_connect_timeout=2.0)
 
     def start(self) -> dict:
         self.publisher.start()
@@ -374,6 +379,8 @@ class CeleryBackend:
     def stop(self) -> None:
         self.keeper.stop()
         self.publisher.stop()
+        with contextlib.suppress(Exception):
+            self.broker.close()
 
     def submitted(self, job_ids: list[str]) -> None:
         self.publisher.put("planner.plan_job", job_ids)
@@ -395,7 +402,6 @@ class CeleryBackend:
     def queue_depth(self) -> int:
         """Planning messages waiting in the broker's queue (-1: the broker does not answer)."""
         try:
-            with self.app.connection_for_read() as conn:
-                return int(conn.default_channel.client.llen(PLAN_QUEUE))
+            return int(self.broker.llen(PLAN_QUEUE))
         except Exception:
             return -1

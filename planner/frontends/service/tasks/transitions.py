@@ -66,6 +66,17 @@ def _put_data(conn, task_id: str, name: str, data: bytes, *, replace: bool) -> N
     conn.execute(insert(JobData).values(job_id=task_id, name=name, data=data, bytes=len(data), created_at=now()))
 
 
+def _stale_job(stale_before: float):
+    """A running job whose holder has not beaten since ``stale_before``."""
+    return (Job.state == "running") & ((Job.heartbeat_at < stale_before) | Job.heartbeat_at.is_(None))
+
+
+def _stale_execution(stale_before: float):
+    """An active execution whose holder has not beaten since ``stale_before``."""
+    return Execution.state.in_(EXECUTION.active) & (
+        (Execution.heartbeat_at < stale_before) | Execution.heartbeat_at.is_(None))
+
+
 def _drop_chunks(conn, job_id: str) -> None:
     """Remove a split job's pieces and their planned moves in the transaction ``conn``."""
     conn.execute(delete(JobChunk).where(JobChunk.job_id == job_id))
@@ -363,6 +374,14 @@ class Transitions:
         except IntegrityError:
             pass
 
+    def any_stale(self, stale_before: float) -> bool:
+        """A running job or an active execution whose holder's last heartbeat is older than ``stale_before`` (Unix s):
+        what :meth:`recover` would change, in one read (a keeper's round that finds nothing writes nothing)."""
+        jobs = select(Job.id).where(_stale_job(stale_before)).exists()
+        executions = select(Execution.id).where(_stale_execution(stale_before)).exists()
+        with self.engine.connect() as conn:
+            return bool(conn.scalar(select(jobs | executions)))
+
     def recover(self, stale_before: float, max_attempts: int, why: str, whys: str) -> dict[str, Any]:
         """Tasks whose holder's last heartbeat is older than ``stale_before`` (Unix s; ``inf``: every active task):
         running jobs queued again (failed "interrupted" after ``max_attempts`` starts), active executions failed
@@ -370,9 +389,7 @@ class Transitions:
         service"), ``whys`` it repeated ("restarts of the service"). The ids of the jobs queued again are in
         "requeued_ids"."""
         t = now()
-        stale_job = (Job.state == "running") & ((Job.heartbeat_at < stale_before) | Job.heartbeat_at.is_(None))
-        stale_exec = Execution.state.in_(EXECUTION.active) & (
-            (Execution.heartbeat_at < stale_before) | Execution.heartbeat_at.is_(None))
+        stale_job, stale_exec = _stale_job(stale_before), _stale_execution(stale_before)
         with self.write_lock, self.engine.begin() as conn:
             again = [r[0] for r in conn.execute(update(Job).where(stale_job, Job.attempts < max_attempts).values(
                 state="queued", stage="", done=0, total=0, holder=None, heartbeat_at=None,
