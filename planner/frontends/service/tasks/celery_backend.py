@@ -39,7 +39,7 @@ import threading
 from collections.abc import Callable
 from typing import Any
 
-from sqlalchemy import update
+from sqlalchemy import select, update
 from sqlalchemy.exc import DBAPIError
 
 from planner.frontends.service.config import ServiceConfig
@@ -339,11 +339,14 @@ class Keeper(threading.Thread):
                 b.publisher.put("planner.plan_job", got["requeued_ids"])
         if b.queue_depth() == 0:
             stale = now() - RESEND_AFTER
+            unsent = (Job.state == "queued") & (Job.created_at < stale) & (
+                (Job.heartbeat_at < stale) | Job.heartbeat_at.is_(None))
+            with b.store.engine.connect() as conn:  # (one read; the write only when it finds one, as above)
+                if not conn.scalar(select(select(Job.id).where(unsent).exists())):
+                    return
             with b.store.write_lock, b.store.engine.begin() as conn:
-                ids = [r[0] for r in conn.execute(update(Job).where(
-                    Job.state == "queued", Job.created_at < stale,
-                    (Job.heartbeat_at < stale) | Job.heartbeat_at.is_(None))
-                    .values(heartbeat_at=now()).returning(Job.id))]
+                ids = [r[0] for r in conn.execute(update(Job).where(unsent).values(heartbeat_at=now())
+                                                  .returning(Job.id))]
             if ids:
                 log.warning("%d queued jobs had no message in the broker; sent again", len(ids))
                 b.publisher.put("planner.plan_job", ids)

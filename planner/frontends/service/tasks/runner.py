@@ -113,30 +113,31 @@ class Slot:
     def _wait_ready(self, beat: Callable[[], None] | None) -> None:
         """Wait for the started process's "ready" (its imports done: a job's time limit counts from its start, not
         from the worker's), until WORKER_START_TIMEOUT s after its start."""
-        parent = self.conn
-        try:
-            while parent is not None and time.monotonic() < self._start_by:
-                if parent.poll(min(HEARTBEAT_EVERY, max(self._start_by - time.monotonic(), 0.0))):
-                    self.ready = parent.recv() == ("ready",)
-                    break
-                if beat is not None:
-                    with contextlib.suppress(DBAPIError):
-                        beat()
-        except (EOFError, OSError):
-            pass
+        while self.conn is not None and time.monotonic() < self._start_by:
+            if self._take_ready(min(HEARTBEAT_EVERY, max(self._start_by - time.monotonic(), 0.0))):
+                break
+            if beat is not None:
+                with contextlib.suppress(DBAPIError):
+                    beat()
         if not self.ready:
             log.error("worker process %s did not start within %g s", self.name, WORKER_START_TIMEOUT)
 
     def settle(self) -> None:
         """Take the "ready" of a process started in the background if it has come (without waiting; from the thread
         that runs this slot's tasks, between them: :attr:`alive` then counts it)."""
-        if self.ready or self.conn is None:
-            return
+        if not self.ready and self.conn is not None:
+            self._take_ready(0.0)
+
+    def _take_ready(self, timeout: float) -> bool:
+        """The process's first message read if it comes within ``timeout`` s: True once it has come (``ready`` says
+        whether it was "ready"; a process that died is not)."""
         try:
-            if self.conn.poll(0):
-                self.ready = self.conn.recv() == ("ready",)
+            if not self.conn.poll(timeout):
+                return False
+            self.ready = self.conn.recv() == ("ready",)
         except (EOFError, OSError):
             self.ready = False
+        return True
 
     def stop_process(self, kill: bool = False) -> None:
         proc, conn = self.process, self.conn
